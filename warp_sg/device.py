@@ -1,0 +1,44 @@
+"""Warp initialisation and device selection, shared by warp_sg, raster and precompute.
+
+Warp is initialised once per process (``wp.init`` is idempotent but costs time on first use);
+compiled kernels are cached by Warp in its kernel cache, so a module is compiled once per machine.
+"""
+from __future__ import annotations
+
+import functools
+
+import warp as wp
+
+from .errors import InputError
+
+
+@functools.lru_cache(maxsize=None)
+def _init() -> None:
+    wp.config.quiet = True
+    wp.init()
+
+
+def cuda_available() -> bool:
+    _init()
+    return wp.get_cuda_device_count() > 0
+
+
+def resolve_device(device: str | None = "cpu") -> str:
+    """Map ``"cpu" | "cuda" | "cuda:N" | "auto" | None`` to a Warp device name.
+
+    ``auto`` (and ``None``) picks CUDA when present, else the CPU. Asking for CUDA on a machine
+    without it is an :class:`InputError` (CUDA is never required).
+    """
+    _init()
+    if device is None or device == "auto":
+        return "cuda:0" if cuda_available() else "cpu"
+    if isinstance(device, wp.Device):
+        return device.alias
+    name = str(device)
+    if name == "cpu":
+        return "cpu"
+    if name.startswith("cuda"):
+        if not cuda_available():
+            raise InputError(f"device '{name}' requested but no CUDA device is available", where="--device")
+        return "cuda:0" if name == "cuda" else name
+    raise InputError(f"unknown device '{name}' (use cpu, cuda, cuda:N or auto)", where="--device")

@@ -1,0 +1,33 @@
+"""Typed exceptions for bad input.
+
+Every error a user can cause (a bad scene file, a corrupt mesh, a missing texture, an impossible
+parameter) is raised as :class:`InputError` (or a subclass) with a message that names the file,
+field or element at fault. The CLI turns these into one line on stderr and exit status 2.
+This module imports nothing from the rest of the project so that ``raster`` and ``precompute``
+can raise the same types.
+"""
+from __future__ import annotations
+
+
+class InputError(ValueError):
+    """Bad user input: the message names the file, key or element at fault."""
+
+    def __init__(self, message: str, *, where: str | None = None):
+        self.where = where
+        super().__init__(f"{where}: {message}" if where else message)
+
+
+class SceneError(InputError):
+    """A scene file or Scene object is invalid (unknown key, wrong type, missing file ...)."""
+
+
+class MeshError(InputError):
+    """A mesh is unusable (unreadable, NaN vertices, out-of-range or degenerate triangles ...)."""
+
+
+class ImageError(InputError):
+    """An image/texture/environment map cannot be read or has the wrong shape/channels."""
+
+
+class CacheError(RuntimeError):
+    """A cache file is corrupt; callers rebuild instead of trusting it (never shown to users)."""
