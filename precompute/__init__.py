@@ -1,0 +1,38 @@
+"""precompute: everything cached on disk before rendering (DESIGN.md): per-vertex visibility by
+BVH ray queries, SSDFs with PCA, environment prefiltering and SG mixture fits.
+
+Names load on first use (PEP 562) so importing one step does not compile the others' kernels.
+"""
+from __future__ import annotations
+
+import importlib
+
+_LAZY = {
+    "cache": ("precompute.cache", None),
+    "cache_dir": ("precompute.cache", "cache_dir"),
+    "content_key": ("precompute.cache", "content_key"),
+    "load_or_build": ("precompute.cache", "load_or_build"),
+    "hemisphere_visibility": ("precompute.visibility", "hemisphere_visibility"),
+    "needs_visibility": ("precompute.visibility", "needs_visibility"),
+    "SSDFData": ("precompute.ssdf", "SSDFData"),
+    "ssdf_for_mesh": ("precompute.ssdf", "ssdf_for_mesh"),
+    "envmap": ("precompute.envmap", None),
+    "load_envmap": ("precompute.envmap", "load_envmap"),
+    "procedural_sky": ("precompute.envmap", "procedural_sky"),
+    "EnvPrefiltered": ("precompute.prefilter", "EnvPrefiltered"),
+    "prefilter_environment": ("precompute.prefilter", "prefilter_environment"),
+    "fit_environment_sgs": ("precompute.env_sg_fit", "fit_environment_sgs"),
+}
+
+
+def __getattr__(name):
+    if name in _LAZY:
+        mod, attr = _LAZY[name]
+        m = importlib.import_module(mod)
+        val = m if attr is None else getattr(m, attr)
+        globals()[name] = val
+        return val
+    raise AttributeError(f"module 'precompute' has no attribute {name!r}")
+
+
+__all__ = list(_LAZY)
