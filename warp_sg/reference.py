@@ -1,0 +1,613 @@
+r"""Monte-Carlo reference renderer: ``ws.reference(scene, spp=256, device="cpu")``.
+
+It renders exactly the light transport of :func:`warp_sg.render` — direct lighting, one bounce —
+with the exact (unfitted) BRDFs (``material_wp.brdf_eval``) and exact visibility (``wp.Mesh`` ray
+casts), so ``render`` vs ``reference`` measures only the SG approximation error (DESIGN.md).
+
+Per pixel
+    Primary visibility by ray casting from the renderer's camera through the centres of the
+    k×k supersampled grid (``Camera.ray_directions(supersample=k)``); each sub-pixel is
+    point-sampled (no jitter) and the k×k block is box-averaged, as the renderer does.
+    Pixels that see nothing show the environment (when ``background`` is on) or black.
+
+Per shading point ``x`` (shading normal ``n``, view ``o``), one *sample* is
+    * one light sample per light (environment: luminance CDF over the equirectangular map with
+      the solid angle of each texel, :mod:`warp_sg.sampling`; sphere lights: uniform in the cone
+      of directions subtended by the sphere; directional lights: uniform in their cone), and
+    * one BRDF sample (a mixture of cosine sampling for the diffuse part and
+      ``material_wp.brdf_sample`` for the specular part), whose ray is tested against every light,
+    combined by multiple importance sampling (power heuristic, β = 2, per light). Delta lights
+    (radius 0) are evaluated directly. Shadow rays are exact ``wp.Mesh`` queries.
+
+Lights (DESIGN.md):
+    * point light (position ``l``, radius ``r``, intensity ``s``): a sphere of uniform radiance
+      ``s/(π r²)``, so its irradiance at distance ``d`` facing it is ``s/d²``;
+    * directional light (direction, angular radius ``r``, irradiance ``E``): a cone of uniform
+      radiance ``E / (π sin² r)``, so the irradiance on a surface facing it is ``E``;
+    * environment: piecewise-constant equirectangular radiance (nearest texel) times ``scale``.
+    Lights do not occlude each other (they add, as in the renderer).
+
+Progressive: passes of ``pass_spp`` samples; per-pixel sums and sums of squares are kept in
+float64 on the host and give a per-pixel standard error of the mean
+(``reference(..., return_stderr=True)`` or :func:`render_reference` -> :class:`ReferenceResult`).
+"""
+from __future__ import annotations
+
+import math
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+import warp as wp
+
+from . import sampling as S
+from .device import resolve_device
+from .errors import InputError
+from .frames import frame_bitangent, frame_tangent, local_to_world, world_to_local
+
+from .brdf import material_wp as M  # noqa: E402  (contract: Material, pack_materials, brdf_*)
+
+LIGHT_POINT = 0
+LIGHT_DIRECTIONAL = 1
+
+#: Relative offset of shadow-ray origins (times the scene's diameter).
+RAY_EPS = 1.0e-4
+
+
+# --------------------------------------------------------------------------------------------
+# Kernel
+# --------------------------------------------------------------------------------------------
+@wp.struct
+class LightTable:
+    count: int
+    kind: wp.array(dtype=int)  # LIGHT_POINT | LIGHT_DIRECTIONAL
+    pos: wp.array(dtype=wp.vec3)  # point: position; directional: unit direction *towards* the light
+    radius: wp.array(dtype=float)  # point: sphere radius; directional: angular radius (rad)
+    radiance: wp.array(dtype=wp.vec3)  # r > 0: emitted radiance Le; r = 0: s (point) or E (directional)
+    omc: wp.array(dtype=float)  # directional: 1 - cos r (points: computed per shading point)
+
+
+@wp.struct
+class Geometry:
+    mesh: wp.uint64
+    indices: wp.array(dtype=int)  # 3T
+    normals: wp.array(dtype=wp.vec3)  # V (shading normals, per vertex)
+    has_normals: int
+    tri_material: wp.array(dtype=int)  # T
+    eps: float  # shadow-ray offset (world units)
+
+
+@wp.func
+def _lum(c: wp.vec3) -> float:
+    return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
+
+
+@wp.func
+def _occluded(geo: Geometry, p: wp.vec3, ng: wp.vec3, d: wp.vec3, max_t: float) -> bool:
+    """True when the segment from ``p`` along ``d`` (length ``max_t``) hits the mesh.
+
+    A direction below the geometric surface is blocked by the surface itself.
+    """
+    s = wp.dot(d, ng)
+    if s <= 0.0:
+        return True
+    q = wp.mesh_query_ray(geo.mesh, p + ng * geo.eps, d, max_t)
+    return q.result
+
+
+@wp.func
+def _trace(geo: Geometry, p: wp.vec3, ng: wp.vec3, d: wp.vec3) -> float:
+    """Distance to the first mesh hit along ``d`` (1e30 if none; 0 if below the surface)."""
+    if wp.dot(d, ng) <= 0.0:
+        return 0.0
+    q = wp.mesh_query_ray(geo.mesh, p + ng * geo.eps, d, 1.0e30)
+    if q.result:
+        return q.t
+    return 1.0e30
+
+
+@wp.func
+def _mix_prob(mat: M.Material) -> float:
+    """Probability of choosing the cosine (diffuse) strategy for the BRDF sample."""
+    ld = _lum(mat.kd)
+    ls = _lum(mat.ks)
+    if ls <= 0.0:
+        return 1.0
+    if ld <= 0.0:
+        return 0.0
+    return wp.clamp(ld / (ld + ls), 0.1, 0.9)
+
+
+@wp.func
+def _brdf_pdf(mat: M.Material, pd: float, o: wp.vec3, i: wp.vec3) -> float:
+    if i[2] <= 0.0:
+        return 0.0
+    p = float(0.0)
+    if pd > 0.0:
+        p = pd * i[2] * S.INV_PI
+    if pd < 1.0:
+        p = p + (1.0 - pd) * M.brdf_pdf(mat, o, i)
+    return p
+
+
+@wp.func
+def _shade_sample(
+    geo: Geometry,
+    mat: M.Material,
+    env: S.EnvSampler,
+    lights: LightTable,
+    p: wp.vec3,
+    ng: wp.vec3,
+    n: wp.vec3,
+    t: wp.vec3,
+    b: wp.vec3,
+    o: wp.vec3,
+    state: wp.uint32,
+) -> wp.vec3:
+    """One MIS sample of the reflected radiance at ``p`` towards local view ``o``."""
+    L = wp.vec3(0.0)
+    pd = _mix_prob(mat)
+
+    # ---- light sampling -------------------------------------------------------------------
+    if env.present != 0:
+        d = S.env_sample(env, wp.randf(state), wp.randf(state), wp.randf(state), wp.randf(state))
+        il = world_to_local(d, t, b, n)
+        if il[2] > 0.0:
+            f = M.brdf_eval(mat, o, il)
+            if f[0] + f[1] + f[2] > 0.0:
+                if not _occluded(geo, p, ng, d, 1.0e30):
+                    pl = S.env_pdf(env, d)
+                    w = S.power_heuristic(pl, _brdf_pdf(mat, pd, o, il))
+                    L += wp.cw_mul(S.env_radiance(env, d), f) * (il[2] * w / pl)
+    for k in range(lights.count):
+        kind = lights.kind[k]
+        r = lights.radius[k]
+        u1 = wp.randf(state)
+        u2 = wp.randf(state)
+        if kind == LIGHT_POINT:
+            rel = lights.pos[k] - p
+            dist2 = wp.dot(rel, rel)
+            dist = wp.sqrt(dist2)
+            if r <= 0.0:
+                d = rel / dist
+                il = world_to_local(d, t, b, n)
+                if il[2] > 0.0:
+                    if not _occluded(geo, p, ng, d, dist * (1.0 - 1.0e-5)):
+                        L += wp.cw_mul(lights.radiance[k], M.brdf_eval(mat, o, il)) * (il[2] / dist2)
+            else:
+                omc = float(2.0)
+                if dist2 > r * r:
+                    omc = S.cone_omc(r * r / dist2)
+                axis = rel / dist
+                d = S.cone_sample(axis, omc, u1, u2)
+                il = world_to_local(d, t, b, n)
+                if il[2] > 0.0:
+                    f = M.brdf_eval(mat, o, il)
+                    if f[0] + f[1] + f[2] > 0.0:
+                        th = S.sphere_hit_distance(rel, r, d)
+                        if th < 0.0:
+                            th = dist  # grazing the silhouette in float32
+                        if not _occluded(geo, p, ng, d, th * (1.0 - 1.0e-5)):
+                            pl = S.cone_pdf(omc)
+                            w = S.power_heuristic(pl, _brdf_pdf(mat, pd, o, il))
+                            L += wp.cw_mul(lights.radiance[k], f) * (il[2] * w / pl)
+        else:
+            axis = lights.pos[k]
+            if r <= 0.0:
+                il = world_to_local(axis, t, b, n)
+                if il[2] > 0.0:
+                    if not _occluded(geo, p, ng, axis, 1.0e30):
+                        L += wp.cw_mul(lights.radiance[k], M.brdf_eval(mat, o, il)) * il[2]
+            else:
+                omc = lights.omc[k]
+                d = S.cone_sample(axis, omc, u1, u2)
+                il = world_to_local(d, t, b, n)
+                if il[2] > 0.0:
+                    f = M.brdf_eval(mat, o, il)
+                    if f[0] + f[1] + f[2] > 0.0:
+                        if not _occluded(geo, p, ng, d, 1.0e30):
+                            pl = S.cone_pdf(omc)
+                            w = S.power_heuristic(pl, _brdf_pdf(mat, pd, o, il))
+                            L += wp.cw_mul(lights.radiance[k], f) * (il[2] * w / pl)
+
+    # ---- BRDF sampling --------------------------------------------------------------------
+    us = wp.randf(state)
+    u1 = wp.randf(state)
+    u2 = wp.randf(state)
+    ib = wp.vec3(0.0, 0.0, 1.0)
+    if us < pd:
+        ib = S.cosine_sample_local(u1, u2)
+    else:
+        ib = M.brdf_sample(mat, o, wp.vec2(u1, u2))
+    if ib[2] > 0.0:
+        pb = _brdf_pdf(mat, pd, o, ib)
+        if pb > 0.0:
+            f = M.brdf_eval(mat, o, ib)
+            if f[0] + f[1] + f[2] > 0.0:
+                fw = f * (ib[2] / pb)
+                d = wp.normalize(local_to_world(ib, t, b, n))
+                tm = _trace(geo, p, ng, d)
+                if tm > 0.0:
+                    if env.present != 0 and tm >= 1.0e30:
+                        w = S.power_heuristic(pb, S.env_pdf(env, d))
+                        L += wp.cw_mul(S.env_radiance(env, d), fw) * w
+                    for k in range(lights.count):
+                        r = lights.radius[k]
+                        if r > 0.0:
+                            if lights.kind[k] == LIGHT_POINT:
+                                rel = lights.pos[k] - p
+                                th = S.sphere_hit_distance(rel, r, d)
+                                if th >= 0.0 and th < tm:
+                                    dist2 = wp.dot(rel, rel)
+                                    omc = float(2.0)
+                                    if dist2 > r * r:
+                                        omc = S.cone_omc(r * r / dist2)
+                                    w = S.power_heuristic(pb, S.cone_pdf(omc))
+                                    L += wp.cw_mul(lights.radiance[k], fw) * w
+                            else:
+                                omc = lights.omc[k]
+                                if tm >= 1.0e30 and S.in_cone(lights.pos[k], omc, d):
+                                    w = S.power_heuristic(pb, S.cone_pdf(omc))
+                                    L += wp.cw_mul(lights.radiance[k], fw) * w
+    return L
+
+
+@wp.kernel
+def _reference_pass(
+    geo: Geometry,
+    materials: wp.array(dtype=M.Material),
+    env: S.EnvSampler,
+    lights: LightTable,
+    origins: wp.array(dtype=wp.vec3),
+    dirs: wp.array(dtype=wp.vec3),
+    background: int,
+    spp: int,
+    seed: int,
+    sample_offset: int,
+    offset: int,
+    out_sum: wp.array(dtype=wp.vec3),
+    out_sq: wp.array(dtype=wp.vec3),
+):
+    tid = wp.tid() + offset
+    ro = origins[tid]
+    rd = dirs[tid]
+    q = wp.mesh_query_ray(geo.mesh, ro, rd, 1.0e30)
+    if not q.result:
+        c = wp.vec3(0.0)
+        if background != 0:
+            c = S.env_radiance(env, rd)
+        out_sum[tid] = c * float(spp)
+        out_sq[tid] = wp.cw_mul(c, c) * float(spp)
+        return
+    f = q.face
+    i0 = geo.indices[3 * f]
+    i1 = geo.indices[3 * f + 1]
+    i2 = geo.indices[3 * f + 2]
+    p = ro + rd * q.t
+    ng = q.normal  # unit geometric normal (winding order)
+    if wp.dot(ng, rd) > 0.0:
+        ng = -ng
+    n = ng
+    if geo.has_normals != 0:
+        # Warp: position = u v0 + v v1 + (1 - u - v) v2
+        ns = q.u * geo.normals[i0] + q.v * geo.normals[i1] + (1.0 - q.u - q.v) * geo.normals[i2]
+        ln = wp.length(ns)
+        if ln > 0.0:
+            n = ns / ln
+            if wp.dot(n, ng) < 0.0:
+                n = -n  # two-sided: the shading normal follows the side the camera sees
+    t = frame_tangent(n)
+    b = frame_bitangent(n)
+    o = world_to_local(-rd, t, b, n)
+    mat = materials[geo.tri_material[f]]
+    acc = wp.vec3(0.0)
+    acc2 = wp.vec3(0.0)
+    for s in range(spp):
+        # one RNG stream per (sample index, pixel); wp.funcs get their own copy of the state
+        st0 = wp.rand_init(seed, sample_offset + s)
+        state = wp.rand_init(wp.randi(st0), tid)
+        L = _shade_sample(geo, mat, env, lights, p, ng, n, t, b, o, state)
+        acc += L
+        acc2 += wp.cw_mul(L, L)
+    out_sum[tid] = acc
+    out_sq[tid] = acc2
+
+
+# --------------------------------------------------------------------------------------------
+# Host side
+# --------------------------------------------------------------------------------------------
+@dataclass
+class Light:
+    """A light in the reference's terms (see the module docstring)."""
+
+    kind: str  # "point" | "directional"
+    position: np.ndarray | None = None  # point
+    direction: np.ndarray | None = None  # directional: unit direction *towards* the light
+    radius: float = 0.0
+    intensity: np.ndarray = field(default_factory=lambda: np.ones(3))  # s (point) or E (directional)
+
+
+@dataclass
+class ReferenceInputs:
+    """Everything the reference kernel needs, as plain arrays (built from a Scene or by hand)."""
+
+    vertices: np.ndarray  # (V, 3)
+    triangles: np.ndarray  # (T, 3) int
+    tri_material: np.ndarray  # (T,) int, index into ``materials``
+    materials: list  # warp_sg.brdf model instances (exact BRDFs)
+    ray_origins: np.ndarray  # (kH, kW, 3)
+    ray_directions: np.ndarray  # (kH, kW, 3) unit
+    supersample: int = 1
+    normals: np.ndarray | None = None  # (V, 3) per-vertex shading normals
+    lights: list = field(default_factory=list)  # [Light]
+    environment: np.ndarray | None = None  # (H, W, 3) radiance (scale applied)
+    background: bool = True
+
+
+@dataclass
+class ReferenceResult:
+    image: np.ndarray  # (H, W, 3) float32, box-resolved
+    stderr: np.ndarray  # (H, W, 3) float32, standard error of the mean per pixel
+    spp: int
+    seconds: float
+    passes: int
+    history: list = field(default_factory=list)  # [(spp, seconds)] after each pass
+
+
+def _light_table(lights, device) -> LightTable:
+    n = len(lights)
+    kind = np.zeros(max(n, 1), np.int32)
+    pos = np.zeros((max(n, 1), 3), np.float32)
+    rad = np.zeros(max(n, 1), np.float32)
+    le = np.zeros((max(n, 1), 3), np.float32)
+    omc = np.zeros(max(n, 1), np.float32)
+    for j, li in enumerate(lights):
+        r = float(li.radius)
+        if not np.isfinite(r) or r < 0:
+            raise InputError(f"light radius must be >= 0, got {r}", where=f"lights[{j}].radius")
+        s = np.asarray(li.intensity, np.float64) * np.ones(3)
+        if li.kind == "point":
+            kind[j] = LIGHT_POINT
+            pos[j] = np.asarray(li.position, np.float64)
+            le[j] = s / (np.pi * r * r) if r > 0 else s
+        elif li.kind == "directional":
+            kind[j] = LIGHT_DIRECTIONAL
+            d = np.asarray(li.direction, np.float64)
+            nd = np.linalg.norm(d)
+            if not np.isfinite(nd) or nd == 0:
+                raise InputError("direction must be a non-zero vector", where=f"lights[{j}].direction")
+            pos[j] = d / nd
+            if r > 0:
+                r = min(r, np.pi / 2)
+                le[j] = s / (np.pi * math.sin(r) ** 2)
+                omc[j] = S.one_minus_cos_from_sin2(math.sin(r) ** 2)
+            else:
+                le[j] = s
+        else:
+            raise InputError(f"unknown light type {li.kind!r}", where=f"lights[{j}].type")
+        rad[j] = r
+    t = LightTable()
+    t.count = n
+    t.kind = wp.array(kind, dtype=int, device=device)
+    t.pos = wp.array(pos, dtype=wp.vec3, device=device)
+    t.radius = wp.array(rad, dtype=float, device=device)
+    t.radiance = wp.array(le, dtype=wp.vec3, device=device)
+    t.omc = wp.array(omc, dtype=float, device=device)
+    return t
+
+
+class _Prepared:
+    def __init__(self, inp: ReferenceInputs, device: str):
+        v = np.ascontiguousarray(inp.vertices, np.float32)
+        tri = np.ascontiguousarray(inp.triangles, np.int32)
+        self.device = device
+        self.points = wp.array(v, dtype=wp.vec3, device=device)
+        self.indices = wp.array(tri.reshape(-1), dtype=int, device=device)
+        self.mesh = wp.Mesh(points=self.points, indices=self.indices)
+        geo = Geometry()
+        geo.mesh = self.mesh.id
+        geo.indices = self.indices
+        if inp.normals is not None:
+            geo.normals = wp.array(np.ascontiguousarray(inp.normals, np.float32), dtype=wp.vec3, device=device)
+            geo.has_normals = 1
+        else:
+            geo.normals = wp.zeros(1, dtype=wp.vec3, device=device)
+            geo.has_normals = 0
+        geo.tri_material = wp.array(np.ascontiguousarray(inp.tri_material, np.int32), dtype=int, device=device)
+        extent = float(np.max(np.ptp(v, axis=0))) if len(v) else 1.0
+        scale = max(extent, float(np.max(np.abs(v))) if len(v) else 1.0, 1e-30)
+        geo.eps = RAY_EPS * scale
+        self.geo = geo
+        table = M.pack_materials(inp.materials, 1, device)
+        self.material_table = table
+        self.materials = table.materials
+        self.env = S.make_env_sampler(inp.environment, 1.0, device)
+        self.lights = _light_table(inp.lights, device)
+        kh, kw = inp.ray_directions.shape[:2]
+        self.shape = (kh, kw)
+        self.origins = wp.array(np.ascontiguousarray(inp.ray_origins.reshape(-1, 3), np.float32), dtype=wp.vec3,
+                                device=device)
+        dirs = np.asarray(inp.ray_directions, np.float64).reshape(-1, 3)
+        dirs = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
+        self.dirs = wp.array(dirs.astype(np.float32), dtype=wp.vec3, device=device)
+        self.n = kh * kw
+        self.sum = wp.zeros(self.n, dtype=wp.vec3, device=device)
+        self.sq = wp.zeros(self.n, dtype=wp.vec3, device=device)
+        self.background = 1 if inp.background else 0
+        wp.load_module(__name__, device=device)  # compile once, before any thread launches
+
+    def launch_pass(self, spp: int, seed: int, sample_offset: int, threads: int):
+        args = [self.geo, self.materials, self.env, self.lights, self.origins, self.dirs, self.background, spp,
+                seed, sample_offset]
+        n = self.n
+        if self.device == "cpu" and threads > 1 and n >= 2 * threads:
+            # a CPU launch runs on one core: disjoint ranges from a thread pool scale (DESIGN.md)
+            bounds = np.linspace(0, n, threads + 1).astype(int)
+
+            def run(j):
+                lo, hi = int(bounds[j]), int(bounds[j + 1])
+                wp.launch(_reference_pass, dim=hi - lo, inputs=args + [lo, self.sum, self.sq], device="cpu")
+
+            with ThreadPoolExecutor(threads) as ex:
+                list(ex.map(run, range(threads)))
+        else:
+            wp.launch(_reference_pass, dim=n, inputs=args + [0, self.sum, self.sq], device=self.device)
+        wp.synchronize_device(self.device)
+        return self.sum.numpy().astype(np.float64), self.sq.numpy().astype(np.float64)
+
+
+def _resolve(acc, acc2, total, shape, k):
+    kh, kw = shape
+    mean = acc / total
+    var = np.maximum(acc2 / total - mean * mean, 0.0) * (total / max(total - 1, 1))
+    var_mean = var / total  # variance of each sub-pixel's mean
+    h, w = kh // k, kw // k
+    img = mean.reshape(h, k, w, k, 3).mean(axis=(1, 3))
+    se = np.sqrt(var_mean.reshape(h, k, w, k, 3).sum(axis=(1, 3))) / (k * k)
+    return img.astype(np.float32), se.astype(np.float32)
+
+
+def render_reference_inputs(
+    inp: ReferenceInputs,
+    spp: int = 256,
+    device="cpu",
+    progress: bool = True,
+    seed: int = 0,
+    pass_spp: int | None = None,
+    callback: Callable | None = None,
+    threads: int | None = None,
+) -> ReferenceResult:
+    """Progressive Monte-Carlo rendering of :class:`ReferenceInputs`.
+
+    ``callback(spp_done, seconds, image, stderr)`` is called after every pass (for error-vs-spp
+    curves); passes grow geometrically from ``pass_spp`` (default: 1, 1, 2, 4, ... capped at 64
+    samples) so a callback sees every power of two.
+    """
+    spp = int(spp)
+    if spp < 1:
+        raise InputError(f"spp must be >= 1, got {spp}", where="--spp")
+    device = resolve_device(device)
+    k = int(inp.supersample)
+    t0 = time.perf_counter()
+    prep = _Prepared(inp, device)
+    if threads is None:
+        import os
+
+        threads = max(1, min(os.cpu_count() or 1, 8))
+    kh, kw = prep.shape
+    if kh % k or kw % k:
+        raise InputError(f"ray grid {kh}x{kw} is not a multiple of supersampling {k}", where="supersample")
+    acc = np.zeros((prep.n, 3))
+    acc2 = np.zeros((prep.n, 3))
+    done = 0
+    passes = 0
+    history = []
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=spp, desc="reference", unit="spp", leave=False)
+    try:
+        while done < spp:
+            if pass_spp:
+                n = min(int(pass_spp), spp - done)
+            else:
+                n = min(max(done, 1), 64, spp - done)
+            s, s2 = prep.launch_pass(n, int(seed), done, threads)
+            acc += s
+            acc2 += s2
+            done += n
+            passes += 1
+            el = time.perf_counter() - t0
+            history.append((done, el))
+            if bar is not None:
+                bar.update(n)
+            if callback is not None:
+                img, se = _resolve(acc, acc2, done, prep.shape, k)
+                callback(done, el, img, se)
+    finally:
+        if bar is not None:
+            bar.close()
+    img, se = _resolve(acc, acc2, done, prep.shape, k)
+    return ReferenceResult(img, se, done, time.perf_counter() - t0, passes, history)
+
+
+# --------------------------------------------------------------------------------------------
+# Scene adapter
+# --------------------------------------------------------------------------------------------
+def inputs_from_scene(scene, device="cpu") -> ReferenceInputs:
+    """Build :class:`ReferenceInputs` from a :class:`warp_sg.Scene` (same camera/supersampling)."""
+    from .scene import scene_reference_inputs  # late: scene.py is owned by the renderer helper
+
+    return scene_reference_inputs(scene, device)
+
+
+def render_reference(scene, spp=256, device="cpu", progress=True, seed=0, pass_spp=None, callback=None,
+                     threads=None) -> ReferenceResult:
+    """:func:`reference` returning a :class:`ReferenceResult` (image, stderr, timings)."""
+    inp = scene if isinstance(scene, ReferenceInputs) else inputs_from_scene(scene, device)
+    return render_reference_inputs(inp, spp, device, progress, seed, pass_spp, callback, threads)
+
+
+def reference(scene, spp: int = 256, device="cpu", progress: bool = True, seed: int = 0,
+              return_stderr: bool = False, pass_spp: int | None = None):
+    """Monte-Carlo reference image (H, W, 3) float32 of ``scene`` (a Scene or ReferenceInputs).
+
+    ``return_stderr=True`` returns ``(image, stderr)`` with the per-pixel standard error.
+    """
+    res = render_reference(scene, spp, device, progress, seed, pass_spp)
+    return (res.image, res.stderr) if return_stderr else res.image
+
+
+# --------------------------------------------------------------------------------------------
+# CLI
+# --------------------------------------------------------------------------------------------
+def add_cli_arguments(p) -> None:
+    p.add_argument("scene", help="scene file (TOML)")
+    p.add_argument("-o", "--output", required=True, help="output image (.exr or .png)")
+    p.add_argument("--spp", type=int, default=256, help="samples per (sub)pixel (default 256)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--device", default="cpu", help="cpu, cuda, cuda:N or auto")
+    p.add_argument("--stderr", default=None, help="also write the per-pixel standard error image here")
+    p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+
+
+def cli_main(args) -> int:
+    from .image_io import save_image
+    from .scene import load_scene
+
+    if args.spp < 1:
+        raise InputError(f"must be >= 1, got {args.spp}", where="--spp")
+    scene = load_scene(args.scene)
+    res = render_reference(scene, spp=args.spp, device=args.device, progress=not args.no_progress, seed=args.seed)
+    save_image(args.output, res.image)
+    if args.stderr:
+        save_image(args.stderr, res.stderr)
+    return 0
+
+
+__all__ = [
+    "reference",
+    "render_reference",
+    "render_reference_inputs",
+    "ReferenceInputs",
+    "ReferenceResult",
+    "Light",
+    "inputs_from_scene",
+    "add_cli_arguments",
+    "cli_main",
+]
+
+
+# ``warp_sg.reference`` names both this module and the function (lazy export in ``__init__``);
+# whichever object an import binds, ``ws.reference(scene, ...)`` must render.
+class _CallableModule(type(math)):
+    def __call__(self, *args, **kwargs):
+        return reference(*args, **kwargs)
+
+
+import sys as _sys  # noqa: E402
+
+_sys.modules[__name__].__class__ = _CallableModule
