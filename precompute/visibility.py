@@ -1,0 +1,212 @@
+r"""Per-vertex binary visibility of the upper hemisphere by BVH ray queries (paper §5.1–5.2).
+
+For vertex ``x`` with unit normal ``n`` and local frame ``(t, b, n)`` from :mod:`warp_sg.frames`,
+texel ``(j, i)`` of an ``R×R`` Shirley–Chiu concentric map (:mod:`precompute.ssdf_wp`) holds
+
+    V_x(j, i) = 1  if the ray  x + ε n + s·d_world,  s ∈ (0, ∞)  hits nothing, else 0,
+
+with ``d_world = to_world(concentric_to_dir(a_i, b_j), n)``. The queries use ``wp.Mesh`` BVH
+any-hit ray casts (``wp.mesh_query_ray_anyhit``) in one Warp kernel over (vertex, texel).
+The self-intersection offset ``ε = offset_scale · (bbox diagonal)`` (default ``1e-4``) scales with
+the mesh. A multi-object scene passes its merged mesh. On the CPU disjoint vertex batches run in a
+small thread pool (Warp CPU launches are serial per call; several launches scale over cores).
+"""
+from __future__ import annotations
+
+import concurrent.futures as cf
+import os
+import threading
+
+import numpy as np
+import warp as wp
+
+from warp_sg.device import resolve_device
+from warp_sg.errors import InputError, MeshError
+from warp_sg.frames import frame_bitangent, frame_tangent, local_to_world
+
+from .ssdf_wp import texel_directions
+
+#: Self-intersection offset along the normal, as a fraction of the bounding-box diagonal.
+OFFSET_SCALE = 1e-4
+
+
+# ---------------------------------------------------------------------------------------------
+# input validation
+# ---------------------------------------------------------------------------------------------
+
+def validate_mesh(vertices, triangles, normals=None):
+    """Return float64 vertices (V,3), int64 triangles (F,3), float64 unit normals (V,3) or None.
+
+    Raises :class:`MeshError` naming the first bad element.
+    """
+    v = np.asarray(vertices)
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise MeshError(f"vertices must have shape (V, 3), got {v.shape}")
+    if not np.issubdtype(v.dtype, np.number):
+        raise MeshError(f"vertices must be numeric, got dtype {v.dtype}")
+    v = v.astype(np.float64)
+    bad = ~np.isfinite(v).all(axis=1)
+    if bad.any():
+        k = int(np.argmax(bad))
+        raise MeshError(f"vertex {k} has non-finite coordinates {v[k].tolist()}")
+    f = np.asarray(triangles)
+    if f.ndim != 2 or f.shape[1] != 3:
+        raise MeshError(f"triangles must have shape (F, 3), got {f.shape}")
+    if f.size and not np.issubdtype(f.dtype, np.integer):
+        if not np.all(np.isfinite(f)) or np.any(f != np.round(f)):
+            raise MeshError("triangle indices must be integers")
+    f = f.astype(np.int64)
+    nv = len(v)
+    oob = (f < 0) | (f >= nv)
+    if oob.any():
+        t, c = np.argwhere(oob)[0]
+        raise MeshError(f"triangle {t} index {f[t, c]} out of range (mesh has {nv} vertices)")
+    n = None
+    if normals is not None:
+        n = np.asarray(normals)
+        if n.shape != v.shape:
+            raise MeshError(f"normals must have shape {v.shape} (one per vertex), got {n.shape}")
+        n = n.astype(np.float64)
+        bad = ~np.isfinite(n).all(axis=1)
+        if bad.any():
+            k = int(np.argmax(bad))
+            raise MeshError(f"vertex {k} has a non-finite normal {n[k].tolist()}")
+        ln = np.linalg.norm(n, axis=1)
+        if (ln < 1e-12).any():
+            k = int(np.argmax(ln < 1e-12))
+            raise MeshError(f"vertex {k} has a zero-length normal")
+        n = n / ln[:, None]
+    return v, f, n
+
+
+def bbox_diagonal(vertices) -> float:
+    v = np.asarray(vertices, np.float64)
+    return float(np.linalg.norm(v.max(axis=0) - v.min(axis=0))) if len(v) else 0.0
+
+
+def needs_visibility(vertices, triangles, shadows: bool = True) -> bool:
+    """Whether per-vertex visibility (SSDF) is needed: False when shadows are off, or when the
+    (merged) mesh is a single closed convex body (trimesh ``is_convex``: it can't shadow itself)."""
+    if not shadows:
+        return False
+    import trimesh
+
+    v, f, _ = validate_mesh(vertices, triangles)
+    if len(f) == 0:
+        return False
+    mesh = trimesh.Trimesh(vertices=v, faces=f, process=True)
+    return not bool(mesh.is_convex)
+
+
+# ---------------------------------------------------------------------------------------------
+# kernel
+# ---------------------------------------------------------------------------------------------
+
+@wp.kernel
+def _visibility_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp.array(dtype=wp.vec3),
+                       first: int, dirs: wp.array(dtype=wp.vec3), offset: float, max_t: float,
+                       out: wp.array2d(dtype=wp.uint8)):
+    """out[k, texel] = 1 if the ray from vertex first+k along local dir[texel] escapes."""
+    k, tex = wp.tid()
+    vi = first + k
+    n = normals[vi]
+    t = frame_tangent(n)
+    b = frame_bitangent(n)
+    d = local_to_world(dirs[tex], t, b, n)
+    o = points[vi] + offset * n
+    hit = wp.mesh_query_ray_anyhit(mesh, o, d, max_t)
+    out[k, tex] = wp.where(hit, wp.uint8(0), wp.uint8(1))
+
+
+class _MeshContext:
+    """wp.Mesh + per-vertex arrays on a device, shared by the batch workers."""
+
+    def __init__(self, vertices, triangles, normals, device):
+        self.device = device
+        self.points = wp.array(vertices.astype(np.float32), dtype=wp.vec3, device=device)
+        self.normals = wp.array(normals.astype(np.float32), dtype=wp.vec3, device=device)
+        self.indices = wp.array(triangles.astype(np.int32).ravel(), dtype=wp.int32, device=device)
+        self.mesh = wp.Mesh(points=self.points, indices=self.indices)
+        diag = bbox_diagonal(vertices)
+        self.offset = OFFSET_SCALE * max(diag, 1e-12)
+        self.max_t = 1e3 * max(diag, 1e-12)
+
+
+def cpu_workers(device: str) -> int:
+    """Threads for CPU batch launches (``WARP_SG_THREADS`` or the core count, at most 8); 1 on CUDA."""
+    if device != "cpu":
+        return 1
+    env = os.environ.get("WARP_SG_THREADS")
+    if env:
+        return max(1, int(env))
+    return max(1, min(8, os.cpu_count() or 1))
+
+
+def run_batches(n_items: int, batch: int, work, device: str, progress=None, desc: str = ""):
+    """Call ``work(start, stop)`` for consecutive batches; on the CPU several batches run at once
+    in a thread pool. Results are returned in batch order. ``progress``: a tqdm bar (ticks by items)."""
+    ranges = [(s, min(s + batch, n_items)) for s in range(0, n_items, batch)]
+    results = [None] * len(ranges)
+    lock = threading.Lock()
+
+    def one(k):
+        s, e = ranges[k]
+        results[k] = work(s, e)
+        if progress is not None:
+            with lock:
+                progress.update(e - s)
+
+    nw = min(cpu_workers(device), len(ranges))
+    if nw <= 1:
+        for k in range(len(ranges)):
+            one(k)
+    elif ranges:
+        one(0)  # the first batch alone: kernels compile/load once, not once per thread
+        with cf.ThreadPoolExecutor(nw) as ex:
+            list(ex.map(one, range(1, len(ranges))))
+    return results
+
+
+def _tqdm(total, desc, enabled):
+    if not enabled:
+        return None
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, desc=desc, unit="vtx", leave=False)
+
+
+def hemisphere_visibility(vertices, triangles, normals, resolution: int = 64, *, device="cpu",
+                          vertex_ids=None, progress: bool = False, batch: int = 512) -> np.ndarray:
+    """Binary visibility maps ``(n, R, R)`` uint8 (1 = visible) of the upper hemisphere at each vertex.
+
+    ``vertex_ids`` selects vertices (default: all). Texel ``[j, i]`` is the concentric-map texel
+    with ``b`` from row ``j`` and ``a`` from column ``i`` (see :mod:`precompute.ssdf_wp`).
+    """
+    device = resolve_device(device)
+    v, f, n = validate_mesh(vertices, triangles, normals)
+    if n is None:
+        raise InputError("hemisphere_visibility needs per-vertex normals")
+    if resolution < 2:
+        raise InputError(f"visibility resolution must be >= 2, got {resolution}")
+    ids = np.arange(len(v)) if vertex_ids is None else np.asarray(vertex_ids, np.int64)
+    if ids.size and (ids.min() < 0 or ids.max() >= len(v)):
+        bad = int(ids[(ids < 0) | (ids >= len(v))][0])
+        raise InputError(f"vertex id {bad} out of range (mesh has {len(v)} vertices)")
+    ctx = _MeshContext(v, f, n, device)
+    R = int(resolution)
+    dirs = wp.array(texel_directions(R).reshape(-1, 3).astype(np.float32), dtype=wp.vec3, device=device)
+    sel_p = wp.array(v[ids].astype(np.float32), dtype=wp.vec3, device=device)
+    sel_n = wp.array(n[ids].astype(np.float32), dtype=wp.vec3, device=device)
+    out = np.empty((len(ids), R * R), np.uint8)
+    bar = _tqdm(len(ids), "visibility", progress and len(ids) * R * R > 2_000_000)
+
+    def work(s, e):
+        buf = wp.empty((e - s, R * R), dtype=wp.uint8, device=device)
+        wp.launch(_visibility_kernel, dim=(e - s, R * R), device=device,
+                  inputs=[ctx.mesh.id, sel_p, sel_n, s, dirs, ctx.offset, ctx.max_t, buf])
+        out[s:e] = buf.numpy()
+
+    run_batches(len(ids), batch, work, device, bar)
+    if bar is not None:
+        bar.close()
+    return out.reshape(len(ids), R, R)
