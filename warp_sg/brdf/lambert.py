@@ -1,0 +1,51 @@
+r"""Diffuse models: Lambert and Oren–Nayar (lecture "Lambertian reflection", "Oren-Nayar model").
+
+* Lambert: ``ρ = kd/π``.
+* Oren–Nayar (qualitative model, pbrt form): ``ρ = kd/π (A + B max(0, cos(φi − φo)) sin α tan β)``,
+  ``A = 1 − σ²/(2(σ² + 0.33))``, ``B = 0.45σ²/(σ² + 0.09)``, ``α = max(θi, θo)``, ``β = min(θi, θo)``.
+  Evaluated without angles as ``sin α tan β cos(φi − φo) = (ix ox + iy oy) / max(cos θi, cos θo)``
+  (exact identity; finite at the normal and at grazing).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .base import BRDF, INV_PI, as_rgb, as_scalar, dirs, upper
+
+
+class Lambert(BRDF):
+    """``ρ(o, i) = kd/π`` (energy conserving for kd ≤ 1)."""
+
+    NAME = "lambert"
+    MODEL_ID = 0
+    PARAMS = ("kd",)
+
+    def __init__(self, kd=(0.8, 0.8, 0.8)):
+        self.kd = as_rgb(kd, "kd")
+        self.ks = np.zeros(3)
+
+
+class OrenNayar(BRDF):
+    """Oren–Nayar rough diffuse; ``sigma`` is the facet-slope standard deviation in radians."""
+
+    NAME = "oren_nayar"
+    MODEL_ID = 1
+    PARAMS = ("kd", "sigma")
+
+    def __init__(self, kd=(0.8, 0.8, 0.8), sigma=0.3):
+        self.kd = as_rgb(kd, "kd")
+        self.ks = np.zeros(3)
+        self.sigma = as_scalar(sigma, "sigma", lo=0.0)
+        s2 = self.sigma**2
+        self.A = 1.0 - s2 / (2.0 * (s2 + 0.33))
+        self.B = 0.45 * s2 / (s2 + 0.09)
+
+    def diffuse(self, o, i):
+        o, i = dirs(o, i)
+        dphi = np.maximum(o[..., 0] * i[..., 0] + o[..., 1] * i[..., 1], 0.0)
+        cmax = np.maximum(np.maximum(o[..., 2], i[..., 2]), 1e-12)
+        f = self.A + self.B * dphi / cmax
+        return np.where(upper(o, i)[..., None], self.kd * INV_PI * f[..., None], 0.0)
+
+    def kernel_params(self):
+        return (self.A, self.B, self.sigma, 0.0)
