@@ -1,0 +1,320 @@
+"""Numerical stability over extreme parameters (hypothesis + vectorized numpy).
+
+Each hypothesis example draws a seed and evaluates a *batch* of parameter sets at once, so the
+suite covers well over 10⁴ draws in seconds. Ranges: SG sharpness 1e-4..1e6, roughness → 0,
+Blinn / Ashikhmin-Shirley exponents to 1e5, grazing view and light (cos down to 1e-9), antipodal
+lobes, point lights at the surface or very far, scene scales 1e-4 .. 1e4, float32 and float64.
+Stated bounds (relative error against exact values computed with mpmath or in closed form):
+
+* float64 SG integral / inner / product: 1e-9 (where the exact value is a normal float64)
+* float32 SG (numpy and the ``@wp.func`` twins): 1e-4 + (λ1+λ2)·4 ε32 (the second term is the
+  exact value's sensitivity to rounding the unit axes to float32)
+"""
+from __future__ import annotations
+
+import mpmath as mp
+import numpy as np
+import pytest
+import warp as wp
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import warp_sg as ws
+from warp_sg import sg_wp
+
+SETTINGS = settings(deadline=None, max_examples=12, suppress_health_check=list(HealthCheck), derandomize=True)
+BATCH = 1000  # parameter sets per hypothesis example
+EPS32 = float(np.finfo(np.float32).eps)
+
+DRAWS = {"count": 0}
+
+
+def _count(n):
+    DRAWS["count"] += int(n)
+
+
+def rand_unit(rng, n):
+    v = rng.normal(size=(n, 3))
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def log_sharpness(rng, n, lo=-4.0, hi=6.0):
+    return 10.0 ** rng.uniform(lo, hi, n)
+
+
+def sg_pairs(rng, n):
+    """Axes with the nasty cases mixed in: identical, antipodal, nearly antipodal, tiny angles."""
+    p1 = rand_unit(rng, n)
+    p2 = rand_unit(rng, n)
+    k = rng.integers(0, 5, n)
+    p2[k == 0] = p1[k == 0]
+    p2[k == 1] = -p1[k == 1]
+    tiny = 10.0 ** rng.uniform(-7, -1, n)[:, None] * rand_unit(rng, n)
+    p2[k == 2] = -p1[k == 2] + tiny[k == 2]
+    p2[k == 3] = p1[k == 3] + tiny[k == 3]
+    p2 /= np.linalg.norm(p2, axis=1, keepdims=True)
+    l1 = log_sharpness(rng, n)
+    l2 = log_sharpness(rng, n)
+    same = rng.random(n) < 0.2
+    l2[same] = l1[same]  # equal sharpness: antipodal pairs give d = 0
+    return p1, l1, p2, l2
+
+
+# ------------------------------------------------------------------------------------------------
+# exact values (mpmath, 60 digits)
+# ------------------------------------------------------------------------------------------------
+mp.mp.dps = 60
+
+
+def _mp_unit(v):
+    v = [mp.mpf(float(x)) for x in v]
+    n = mp.sqrt(sum(x * x for x in v))
+    return [x / n for x in v]
+
+
+def mp_inner(p1, l1, p2, l2):
+    """∫G1G2 = 4π e^{−λm} sinh(d)/d exactly (axes normalised in mp precision)."""
+    a = _mp_unit(p1)
+    b = _mp_unit(p2)
+    l1 = mp.mpf(float(l1))
+    l2 = mp.mpf(float(l2))
+    pm = [l1 * x + l2 * y for x, y in zip(a, b)]
+    d = mp.sqrt(sum(x * x for x in pm))
+    lm = l1 + l2
+    if d == 0:
+        return 4 * mp.pi * mp.e ** (-lm)
+    return 2 * mp.pi * mp.e ** (d - lm) * (1 - mp.e ** (-2 * d)) / d
+
+
+def mp_integral(lam):
+    lam = mp.mpf(float(lam))
+    return 2 * mp.pi * (1 - mp.e ** (-2 * lam)) / lam
+
+
+def _check_rel(got, exact, rtol, floor):
+    """|got − exact| ≤ rtol·exact where exact ≥ floor; else |got| ≤ 2·floor (underflow region)."""
+    got = np.asarray(got, np.float64)
+    exact = np.asarray(exact, np.float64)
+    assert np.all(np.isfinite(got)), "non-finite result"
+    assert np.all(got >= 0)
+    big = exact >= floor
+    rel = np.abs(got[big] - exact[big]) / exact[big]
+    bad = rel > np.broadcast_to(rtol, exact.shape)[big]
+    assert not np.any(bad), f"max rel err {rel.max():.3g}"
+    assert np.all(got[~big] <= 2 * floor + np.abs(exact[~big]) * 2)
+
+
+# ------------------------------------------------------------------------------------------------
+# SG algebra (numpy public API)
+# ------------------------------------------------------------------------------------------------
+@SETTINGS
+@given(seed=st.integers(0, 2**31 - 1))
+def test_sg_integral_is_finite_bounded_and_exact_for_sharpness_1e_minus4_to_1e6(seed):
+    rng = np.random.default_rng(seed)
+    lam = log_sharpness(rng, BATCH)
+    mu = 10.0 ** rng.uniform(-3, 3, BATCH)
+    exact = np.array([float(mp_integral(x)) for x in lam[:100]])
+    for dt, rtol in ((np.float64, 1e-12), (np.float32, 4 * EPS32)):
+        v = ws.sg.integral(lam.astype(dt), mu.astype(dt))
+        assert v.dtype == dt and np.all(np.isfinite(v))
+        assert np.all(v <= 4 * np.pi * mu.astype(dt) * (1 + 1e-6))  # ∫G ≤ 4π μ
+        assert np.all(v > 0)
+        _check_rel(ws.sg.integral(lam[:100].astype(dt)), exact, rtol, 1e-300 if dt == np.float64 else 1e-30)
+    _count(BATCH)
+
+
+@SETTINGS
+@given(seed=st.integers(0, 2**31 - 1))
+def test_sg_inner_product_matches_mpmath_including_antipodal_lobes(seed):
+    rng = np.random.default_rng(seed)
+    p1, l1, p2, l2 = sg_pairs(rng, BATCH)
+    m = 150  # mpmath on a subset; everything else checked against bounds and float64
+    exact = np.array([float(mp_inner(p1[j], l1[j], p2[j], l2[j])) for j in range(m)])
+    v64 = ws.sg.inner_product(p1, l1, 1.0, p2, l2, 1.0)
+    _check_rel(v64[:m], exact, 1e-9, 1e-290)
+    v32 = ws.sg.inner_product(p1.astype(np.float32), l1.astype(np.float32), np.float32(1), p2.astype(np.float32),
+                              l2.astype(np.float32), np.float32(1))
+    assert v32.dtype == np.float32
+    _check_rel(v32[:m], exact, 1e-4 + 4 * EPS32 * (l1[:m] + l2[:m]), 1e-30)
+    # bounds: ∫G1G2 ≤ min(∫G1, ∫G2) (unit amplitudes); symmetric
+    b = np.minimum(ws.sg.integral(l1), ws.sg.integral(l2))
+    assert np.all(v64 <= b * (1 + 1e-9))
+    np.testing.assert_allclose(ws.sg.inner_product(p2, l2, 1.0, p1, l1, 1.0), v64, rtol=1e-12, atol=0)
+    # = ∫ of the vector product
+    ax, sh, amp = ws.sg.product(p1, l1, 1.0, p2, l2, 1.0)
+    np.testing.assert_allclose(amp * ws.sg.integral(sh), v64, rtol=1e-9, atol=1e-300)
+    _count(BATCH)
+
+
+@SETTINGS
+@given(seed=st.integers(0, 2**31 - 1))
+def test_sg_vector_product_equals_pointwise_product_in_both_precisions(seed):
+    rng = np.random.default_rng(seed)
+    p1, l1, p2, l2 = sg_pairs(rng, BATCH)
+    # evaluation points near both axes and at random
+    v = np.where(rng.random((BATCH, 1)) < 0.5, p1, p2) + 10.0 ** rng.uniform(-4, 0, (BATCH, 1)) * rand_unit(rng, BATCH)
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    for dt in (np.float64, np.float32):
+        P1, L1, P2, L2, V = (x.astype(dt) for x in (p1, l1, p2, l2, v))
+        ax, sh, amp = ws.sg.product(P1, L1, dt(1), P2, L2, dt(1))
+        assert ax.dtype == dt and np.all(np.isfinite(ax)) and np.all(np.isfinite(sh)) and np.all(np.isfinite(amp))
+        np.testing.assert_allclose(np.linalg.norm(ax.astype(np.float64), axis=1), 1.0, atol=8 * np.finfo(dt).eps)
+        assert np.all(sh > 0) and np.all(sh <= (L1 + L2) * (1 + 4 * np.finfo(dt).eps))
+        assert np.all((amp >= 0) & (amp <= 1))
+        # compare exponents (log of both sides), exact up to rounding of O(λm ε)
+        with np.errstate(divide="ignore"):
+            lhs = np.log(amp.astype(np.float64)) - sh.astype(np.float64) * ws.sg.one_minus_dot(V, ax).astype(np.float64)
+        rhs = -(L1 * ws.sg.one_minus_dot(V, P1) + L2 * ws.sg.one_minus_dot(V, P2)).astype(np.float64)
+        ok = amp >= np.finfo(dt).tiny  # amp (sub)underflowed: only allowed when the exact exponent is hugely negative
+        assert np.all(rhs[~ok] < np.log(np.finfo(dt).tiny) + 1)
+        tol = 64 * np.finfo(dt).eps * (L1 + L2).astype(np.float64) + 1e-6
+        assert np.all(np.abs(lhs[ok] - rhs[ok]) <= tol[ok] + 1e-5 * np.abs(rhs[ok]))
+    _count(BATCH)
+
+
+@SETTINGS
+@given(seed=st.integers(0, 2**31 - 1))
+def test_sg_evaluate_is_finite_and_in_0_1_for_any_direction(seed):
+    rng = np.random.default_rng(seed)
+    p = rand_unit(rng, BATCH)
+    v = np.where(rng.random((BATCH, 1)) < 0.3, -p, rand_unit(rng, BATCH))
+    lam = log_sharpness(rng, BATCH)
+    for dt in (np.float64, np.float32):
+        g = ws.sg.evaluate(v.astype(dt), p.astype(dt), lam.astype(dt))
+        assert g.dtype == dt and np.all(np.isfinite(g)) and np.all((g >= 0) & (g <= 1))
+        g0 = ws.sg.evaluate(p.astype(dt), p.astype(dt), lam.astype(dt))
+        assert np.all(g0 == 1)  # exactly the amplitude on the axis
+    _count(BATCH)
+
+
+# ------------------------------------------------------------------------------------------------
+# SG @wp.func twins (float32 kernels) against exact values
+# ------------------------------------------------------------------------------------------------
+@wp.kernel
+def _sg_kernel(p1: wp.array(dtype=wp.vec3), l1: wp.array(dtype=float), p2: wp.array(dtype=wp.vec3),
+               l2: wp.array(dtype=float), inner: wp.array(dtype=float), integ: wp.array(dtype=float),
+               prod_axis: wp.array(dtype=wp.vec3), prod_sharp: wp.array(dtype=float),
+               prod_scale: wp.array(dtype=float)):
+    i = wp.tid()
+    inner[i] = sg_wp.sg_inner(p1[i], l1[i], p2[i], l2[i])
+    integ[i] = sg_wp.sg_integral(l1[i])
+    a, s, c = sg_wp.sg_product(p1[i], l1[i], p2[i], l2[i])
+    prod_axis[i] = a
+    prod_sharp[i] = s
+    prod_scale[i] = c
+
+
+def test_sg_wp_twins_are_finite_and_within_float32_bounds_over_10k_draws(device):
+    rng = np.random.default_rng(123)
+    n = 12_000
+    p1, l1, p2, l2 = sg_pairs(rng, n)
+    A = lambda x, dt=float: wp.array(x.astype(np.float32), dtype=dt, device=device)  # noqa: E731
+    outs = [wp.empty(n, dtype=float, device=device), wp.empty(n, dtype=float, device=device),
+            wp.empty(n, dtype=wp.vec3, device=device), wp.empty(n, dtype=float, device=device),
+            wp.empty(n, dtype=float, device=device)]
+    wp.launch(_sg_kernel, dim=n, inputs=[A(p1, wp.vec3), A(l1), A(p2, wp.vec3), A(l2)] + outs, device=device)
+    inner, integ, ax, sh, sc = (o.numpy() for o in outs)
+    for x in (inner, integ, ax, sh, sc):
+        assert np.all(np.isfinite(x))
+    ref_inner = ws.sg.inner_product(p1, l1, 1.0, p2, l2, 1.0)
+    _check_rel(inner, ref_inner, 1e-4 + 4 * EPS32 * (l1 + l2), 1e-30)
+    _check_rel(integ, ws.sg.integral(l1), 1e-4, 1e-30)  # expm1_neg: ~3e-5 near 2λ ≈ 1e-3 (float32)
+    m = 100
+    exact = np.array([float(mp_inner(p1[j], l1[j], p2[j], l2[j])) for j in range(m)])
+    _check_rel(inner[:m], exact, 1e-4 + 4 * EPS32 * (l1[:m] + l2[:m]), 1e-30)
+    assert np.all((sc >= 0) & (sc <= 1)) and np.all(sh > 0)
+    _count(n)
+
+
+# ------------------------------------------------------------------------------------------------
+# BRDFs at extreme parameters and grazing angles
+# ------------------------------------------------------------------------------------------------
+def grazing_dirs(rng, n):
+    """Unit directions in the upper hemisphere with cos θ from 1e-9 to 1 (and exactly the normal)."""
+    z = 10.0 ** rng.uniform(-9, 0, n)
+    z[rng.random(n) < 0.05] = 1.0
+    phi = rng.uniform(0, 2 * np.pi, n)
+    s = np.sqrt(np.maximum(0, 1 - z * z))
+    return np.stack([s * np.cos(phi), s * np.sin(phi), z], -1)
+
+
+def _models(rng):
+    B = ws.brdf
+    m = float(10.0 ** rng.uniform(-4, 0))
+    e = float(10.0 ** rng.uniform(0, 5))
+    e2 = float(10.0 ** rng.uniform(0, 5))
+    return [
+        B.Lambert(kd=0.5),
+        B.OrenNayar(kd=0.5, sigma=float(rng.uniform(0, 1.5))),
+        B.Phong(kd=0.1, ks=0.5, n=e),
+        B.BlinnPhong(kd=0.1, ks=0.5, n=e),
+        B.CookTorrance(kd=0.1, ks=0.5, m=m),
+        B.TorranceSparrow(kd=0.1, ks=0.5, m=m, fresnel={"eta": 1.5}),
+        B.Ward(kd=0.1, ks=0.5, alpha=m),
+        B.AshikhminShirley(kd=0.1, ks=0.5, nu=e, nv=e2, lobes=5),
+    ]
+
+
+RECIPROCAL = ("Lambert", "OrenNayar", "Phong", "BlinnPhong", "CookTorrance", "TorranceSparrow", "Ward")
+
+
+@SETTINGS
+@given(seed=st.integers(0, 2**31 - 1))
+def test_brdf_eval_is_finite_nonnegative_and_reciprocal_at_extremes(seed):
+    rng = np.random.default_rng(seed)
+    o = grazing_dirs(rng, BATCH)
+    i = grazing_dirs(rng, BATCH)
+    i[: BATCH // 10] = o[: BATCH // 10] * [-1, -1, 1]  # mirror configurations (h = n): the peak
+    for model in _models(rng):
+        f = model.eval(o, i)
+        name = type(model).__name__
+        assert f.shape == (BATCH, 3) and np.all(np.isfinite(f)), name
+        assert np.all(f >= 0), name
+        if name in RECIPROCAL:
+            g = model.eval(i, o)
+            np.testing.assert_allclose(f, g, rtol=1e-6, atol=1e-300, err_msg=name)
+        below = model.eval(o, i * [1, 1, -1])
+        assert np.all(below == 0), name
+    _count(BATCH * 8)
+
+
+@SETTINGS
+@given(seed=st.integers(0, 2**31 - 1))
+def test_blinn_phong_peak_and_ndf_fits_are_exact_for_exponents_up_to_1e5(seed):
+    rng = np.random.default_rng(seed)
+    ns = 10.0 ** rng.uniform(0, 5, 20)
+    o = grazing_dirs(rng, 20)
+    o[:, 2] = np.maximum(o[:, 2], 1e-3)
+    o /= np.linalg.norm(o, axis=1, keepdims=True)
+    for n, oo in zip(ns, o):
+        m = ws.brdf.BlinnPhong(kd=0.0, ks=1.0, n=float(n))
+        peak = m.eval(oo, oo * [-1, -1, 1])
+        np.testing.assert_allclose(peak, (n + 2) / (2 * np.pi), rtol=1e-9)
+        ax, lam, amp = m.ndf_sg(1)
+        assert np.all(np.isfinite(ax)) and np.all(np.isfinite(lam)) and np.all(lam > 0)
+        np.testing.assert_allclose(lam, n, rtol=1e-6)
+        pw, lw, mw = ws.brdf.spherical_warp(ax, lam, amp, oo)
+        assert np.all(np.isfinite(pw)) and np.all(np.isfinite(lw)) and np.all(lw > 0)
+    _count(20)
+
+
+def test_roughness_to_zero_keeps_microfacet_fits_and_slices_finite():
+    o = np.array([0.3, 0.1, 0.9486832980505138])
+    for m in (1e-1, 1e-2, 1e-3, 1e-4):
+        for cls in (ws.brdf.CookTorrance, ws.brdf.TorranceSparrow, ws.brdf.Ward):
+            model = cls(ks=1.0, **({"alpha": m} if cls is ws.brdf.Ward else {"m": m}))
+            ax, lam, amp = model.ndf_sg(1)
+            assert np.all(np.isfinite(lam)) and np.all(lam >= 1.0 / m**2)
+            axes, sh, a = ws.brdf.slice_lobes_numpy(model, o, 1)
+            assert np.all(np.isfinite(axes)) and np.all(np.isfinite(sh)) and np.all(np.isfinite(a))
+            f = model.eval(o, o * [-1, -1, 1])
+            assert np.all(np.isfinite(f)) and np.all(f > 0)
+
+
+# ------------------------------------------------------------------------------------------------
+# draw count (runs last in this file)
+# ------------------------------------------------------------------------------------------------
+def test_zz_suite_covered_at_least_1e4_parameter_draws():
+    if DRAWS["count"] == 0:
+        pytest.skip("run with the rest of the file")
+    assert DRAWS["count"] >= 10_000
