@@ -171,6 +171,8 @@ def _shade_sample(
             dist2 = wp.dot(rel, rel)
             dist = wp.sqrt(dist2)
             if r <= 0.0:
+                if dist2 < 1.0e-30:
+                    continue  # a delta light on the surface: undefined, contributes nothing
                 d = rel / dist
                 il = world_to_local(d, t, b, n)
                 if il[2] > 0.0:
@@ -180,7 +182,9 @@ def _shade_sample(
                 omc = float(2.0)
                 if dist2 > r * r:
                     omc = S.cone_omc(r * r / dist2)
-                axis = rel / dist
+                axis = n
+                if dist2 > 1.0e-30:
+                    axis = rel / dist
                 d = S.cone_sample(axis, omc, u1, u2)
                 il = world_to_local(d, t, b, n)
                 if il[2] > 0.0:
