@@ -1,0 +1,422 @@
+r"""Error against run time: ``warp-sg report SCENE -o DIR`` / :func:`run_report`.
+
+For one scene it measures how the knobs that trade accuracy for speed move the renderer along
+the error/time plane, next to the Monte-Carlo reference's own error-vs-samples curve:
+
+1. **Ground truth**: a high-sample :func:`warp_sg.reference` image (``truth_spp`` samples per
+   sub-pixel, seed 1). Its own noise (mean squared standard error) is reported as the noise floor.
+2. **MC curve**: an independent progressive reference run (seed 2); after every power-of-two
+   ``spp`` its error against the ground truth and its elapsed time are recorded.
+3. **Knob sweeps**: each render-setting knob the scene exposes (:data:`KNOBS`: SG lobes per NDF,
+   clamped-cosine lobes, environment SG lobes, ΓL resolution and λ ladder, SSDF resolution and PCA
+   terms, supersampling ...) is varied alone from the scene's settings; for every value the
+   precompute time (fresh cache folder, so nothing is reused) and the per-frame time (median of
+   warm frames) are measured separately, and the image error against the ground truth.
+
+Errors (:func:`image_errors`): relative MSE ``Σ(x − r)² / Σ r²`` on linear radiance, PSNR of the
+tone-mapped (``tonemap_srgb``) images, and the max absolute error (linear). Outputs in ``DIR``:
+``report.csv``, ``report.md`` (summary + table + embedded plots), ``error_vs_time.png`` (log-log,
+one curve per knob, the MC curve on the same axes), ``psnr_vs_time.png``, ``images.png`` (truth,
+renderer, difference), ``report.json``.
+"""
+from __future__ import annotations
+
+import contextlib
+import copy
+import csv
+import dataclasses
+import json
+import math
+import os
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+
+# knob name -> (full sweep, quick sweep); only knobs present in the scene's render settings run.
+KNOBS: dict[str, tuple[list, list]] = {
+    "lobes": ([1, 2, 3, 4], [1, 3]),
+    "ndf_lobes": ([1, 2, 3, 4], [1, 3]),
+    "cosine_lobes": ([1, 2, 3, 4], [1, 3]),
+    "clamped_cosine_lobes": ([1, 2, 3, 4], [1, 3]),
+    "env_lobes": ([2, 4, 6, 9, 12], [2, 6]),
+    "env_sg_lobes": ([2, 4, 6, 9, 12], [2, 6]),
+    "gamma_resolution": ([8, 16, 32, 64], [8, 16]),
+    "gamma_levels": ([4, 6, 8, 12], [4, 8]),
+    "gamma_lambda_count": ([4, 6, 8, 12], [4, 8]),
+    "ssdf_resolution": ([16, 32, 64, 128], [16, 32]),
+    "pca_terms": ([4, 8, 16, 32], [4, 16]),
+    "supersampling": ([1, 2, 3], [1, 2]),
+}
+
+CSV_FIELDS = ["knob", "value", "precompute_s", "frame_s", "total_s", "rel_mse", "psnr_db", "max_err", "spp"]
+
+
+# --------------------------------------------------------------------------------------------
+# errors
+# --------------------------------------------------------------------------------------------
+def image_errors(img, ref) -> dict:
+    """``rel_mse`` (linear), ``psnr_db`` (tone-mapped sRGB in [0,1]) and ``max_err`` (linear)."""
+    from .image_io import tonemap_srgb
+
+    img = np.asarray(img, np.float64)
+    ref = np.asarray(ref, np.float64)
+    if img.shape != ref.shape:
+        raise InputError(f"image shape {img.shape} does not match the reference {ref.shape}", where="report")
+    diff = img - ref
+    denom = float(np.sum(ref * ref))
+    rel = float(np.sum(diff * diff) / denom) if denom > 0 else float(np.sum(diff * diff))
+    a = tonemap_srgb(img).astype(np.float64)
+    b = tonemap_srgb(ref).astype(np.float64)
+    mse = float(np.mean((a - b) ** 2))
+    psnr = 10.0 * math.log10(1.0 / mse) if mse > 0 else float("inf")
+    return {"rel_mse": rel, "psnr_db": psnr, "max_err": float(np.max(np.abs(diff))) if diff.size else 0.0}
+
+
+# --------------------------------------------------------------------------------------------
+# scene plumbing (Scene / Renderer come from warp_sg.scene and warp_sg.render)
+# --------------------------------------------------------------------------------------------
+def _load(scene):
+    if isinstance(scene, (str, os.PathLike)):
+        from .scene import load_scene
+
+        return load_scene(scene)
+    return scene
+
+
+def _settings(scene):
+    return getattr(scene, "render", None) or getattr(scene, "settings", None)
+
+
+def available_knobs(scene) -> dict[str, object]:
+    """Knobs of :data:`KNOBS` that the scene's render settings expose, with their current values."""
+    s = _settings(scene)
+    out = {}
+    if s is None:
+        return out
+    for k in KNOBS:
+        v = s.get(k) if isinstance(s, dict) else getattr(s, k, None)
+        if v is not None and not isinstance(v, bool):
+            out[k] = v
+    return out
+
+
+def with_setting(scene, knob, value):
+    """A copy of ``scene`` with render setting ``knob`` set to ``value``."""
+    sc = copy.copy(scene)
+    s = _settings(scene)
+    if isinstance(s, dict):
+        s2 = dict(s)
+        s2[knob] = value
+    elif dataclasses.is_dataclass(s):
+        s2 = dataclasses.replace(s, **{knob: value})
+    else:
+        s2 = copy.copy(s)
+        setattr(s2, knob, value)
+    if hasattr(scene, "render") and not callable(getattr(scene, "render")):
+        sc.render = s2
+    else:
+        sc.settings = s2
+    return sc
+
+
+@contextlib.contextmanager
+def fresh_cache():
+    """A private, empty precompute cache for the duration (so precompute is really measured)."""
+    old = os.environ.get("WARP_SG_CACHE_DIR")
+    with tempfile.TemporaryDirectory(prefix="warp-sg-report-") as d:
+        os.environ["WARP_SG_CACHE_DIR"] = d
+        try:
+            yield Path(d)
+        finally:
+            if old is None:
+                os.environ.pop("WARP_SG_CACHE_DIR", None)
+            else:
+                os.environ["WARP_SG_CACHE_DIR"] = old
+
+
+def time_renderer(scene, device="cpu", frames=3):
+    """(image, precompute seconds, per-frame seconds) for ``scene`` with an empty cache.
+
+    Uses ``warp_sg.render.Renderer`` (precompute once, then ``frames`` warm frames; median)."""
+    from .render import Renderer
+
+    with fresh_cache():
+        t0 = time.perf_counter()
+        r = Renderer(scene, device=device)
+        if hasattr(r, "precompute"):
+            r.precompute()
+        t_pre = time.perf_counter() - t0
+        img = np.asarray(r.render())  # first frame: compiles / uploads (not counted as a frame)
+        times = []
+        for _ in range(max(1, frames)):
+            t1 = time.perf_counter()
+            img = np.asarray(r.render())
+            times.append(time.perf_counter() - t1)
+    return img, t_pre, statistics.median(times)
+
+
+# --------------------------------------------------------------------------------------------
+# the report
+# --------------------------------------------------------------------------------------------
+@dataclasses.dataclass
+class Report:
+    out_dir: Path
+    rows: list  # dicts with CSV_FIELDS
+    truth_spp: int
+    noise_floor_rel_mse: float
+    files: dict
+
+
+def mc_curve(scene, truth, device="cpu", max_spp=64, seed=2, progress=True):
+    """Error-vs-time rows of a progressive reference run at every power of two up to ``max_spp``."""
+    from .reference import render_reference
+
+    rows = []
+
+    def cb(spp, seconds, img, se):
+        if spp & (spp - 1) == 0 or spp == max_spp:
+            rows.append({"knob": "mc_reference", "value": spp, "precompute_s": 0.0, "frame_s": seconds,
+                         "total_s": seconds, "spp": spp, **image_errors(img, truth)})
+
+    render_reference(scene, spp=max_spp, device=device, progress=progress, seed=seed, callback=cb)
+    return rows
+
+
+def run_report(scene, out_dir, device="cpu", quick=False, truth_spp=None, mc_max_spp=None, knobs=None,
+               progress=True, frames=None) -> Report:
+    """Run the sweep for ``scene`` (a Scene or a path) and write the report into ``out_dir``."""
+    from .reference import render_reference
+
+    scene = _load(scene)
+    out = Path(out_dir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise InputError(f"cannot create the output folder ({e.strerror})", where=str(out)) from None
+    if not os.access(out, os.W_OK):
+        raise InputError("output folder is not writable", where=str(out))
+    truth_spp = int(truth_spp or (64 if quick else 1024))
+    mc_max_spp = int(mc_max_spp or max(1, truth_spp // 8))
+    frames = frames or (1 if quick else 3)
+
+    t0 = time.perf_counter()
+    truth = render_reference(scene, spp=truth_spp, device=device, progress=progress, seed=1)
+    truth_time = time.perf_counter() - t0
+    floor = float(np.sum(truth.stderr.astype(np.float64) ** 2) / max(np.sum(truth.image.astype(np.float64) ** 2),
+                                                                        1e-300))
+    rows = mc_curve(scene, truth.image, device, mc_max_spp, progress=progress)
+
+    avail = available_knobs(scene)
+    if knobs is not None:
+        avail = {k: v for k, v in avail.items() if k in knobs}
+    sweep = [(k, v) for k, cur in avail.items() for v in (KNOBS[k][1] if quick else KNOBS[k][0])]
+    base_img = None
+    it = sweep
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=len(sweep) + 1, desc="report sweep", unit="setting", leave=False)
+    try:
+        img, tp, tf = time_renderer(scene, device, frames)
+        base_img = img
+        rows.append({"knob": "default", "value": "scene", "precompute_s": tp, "frame_s": tf, "total_s": tp + tf,
+                     "spp": "", **image_errors(img, truth.image)})
+        if bar is not None:
+            bar.update(1)
+        for knob, value in it:
+            img, tp, tf = time_renderer(with_setting(scene, knob, value), device, frames)
+            rows.append({"knob": knob, "value": value, "precompute_s": tp, "frame_s": tf, "total_s": tp + tf,
+                         "spp": "", **image_errors(img, truth.image)})
+            if bar is not None:
+                bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
+
+    files = write_outputs(out, rows, truth.image, base_img, truth_spp, floor, truth_time, scene)
+    return Report(out, rows, truth_spp, floor, files)
+
+
+# --------------------------------------------------------------------------------------------
+# outputs
+# --------------------------------------------------------------------------------------------
+def _fmt(v):
+    if isinstance(v, float):
+        if v == 0:
+            return "0"
+        if math.isinf(v):
+            return "inf"
+        return f"{v:.4g}"
+    return str(v)
+
+
+def markdown_table(rows) -> str:
+    head = "| knob | value | precompute (s) | frame (s) | rel. MSE | PSNR (dB) | max err |"
+    sep = "|---|---|---:|---:|---:|---:|---:|"
+    lines = [head, sep]
+    for r in rows:
+        lines.append(f"| {r['knob']} | {r['value']} | {_fmt(r['precompute_s'])} | {_fmt(r['frame_s'])} | "
+                     f"{_fmt(r['rel_mse'])} | {_fmt(r['psnr_db'])} | {_fmt(r['max_err'])} |")
+    return "\n".join(lines) + "\n"
+
+
+def _atomic_write_text(path: Path, text: str):
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def plot_error_vs_time(rows, path, floor=None, metric="rel_mse", time_key=None):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.4, 4.2), dpi=80)
+    groups: dict[str, list] = {}
+    for r in rows:
+        groups.setdefault(r["knob"], []).append(r)
+    for knob, rs in groups.items():
+        tk = time_key or "frame_s"
+        xs = np.array([max(float(r[tk]), 1e-6) for r in rs])
+        ys = np.array([max(float(r[metric]), 1e-12) if metric == "rel_mse" else float(r[metric]) for r in rs])
+        if knob == "mc_reference":
+            ax.plot(xs, ys, "k-o", lw=2, ms=4, label="MC reference (spp 1→)")
+            for x, y, r in zip(xs, ys, rs):
+                ax.annotate(str(r["value"]), (x, y), fontsize=6, xytext=(2, 2), textcoords="offset points")
+        elif knob == "default":
+            ax.plot(xs, ys, "r*", ms=12, label="renderer (scene settings)")
+        else:
+            ax.plot(xs, ys, "-s", ms=4, label=knob)
+            for x, y, r in zip(xs, ys, rs):
+                ax.annotate(str(r["value"]), (x, y), fontsize=6, xytext=(2, -7), textcoords="offset points")
+    if floor and metric == "rel_mse" and floor > 0:
+        ax.axhline(floor, color="gray", ls=":", lw=1, label="ground-truth noise floor")
+    ax.set_xscale("log")
+    if metric == "rel_mse":
+        ax.set_yscale("log")
+    ax.set_xlabel("time per frame (s)  [MC: total time]")
+    ax.set_ylabel({"rel_mse": "relative MSE", "psnr_db": "PSNR (dB, tone-mapped)", "max_err": "max error"}[metric])
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, loc="best")
+    fig.tight_layout()
+    tmp = Path(path).with_name(f".{Path(path).stem}.tmp.png")
+    fig.savefig(tmp)
+    plt.close(fig)
+    os.replace(tmp, path)
+
+
+def plot_images(truth, img, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .image_io import tonemap_srgb
+
+    n = 3 if img is not None else 1
+    fig, axs = plt.subplots(1, n, figsize=(2.6 * n, 2.8), dpi=80)
+    axs = np.atleast_1d(axs)
+    axs[0].imshow(tonemap_srgb(truth))
+    axs[0].set_title("MC ground truth", fontsize=8)
+    if img is not None:
+        axs[1].imshow(tonemap_srgb(img))
+        axs[1].set_title("SG renderer", fontsize=8)
+        d = np.abs(np.asarray(img, np.float64) - truth).mean(-1)
+        im = axs[2].imshow(d, cmap="magma")
+        axs[2].set_title("|difference|", fontsize=8)
+        fig.colorbar(im, ax=axs[2], fraction=0.046)
+    for a in axs:
+        a.axis("off")
+    fig.tight_layout()
+    tmp = Path(path).with_name(f".{Path(path).stem}.tmp.png")
+    fig.savefig(tmp)
+    plt.close(fig)
+    os.replace(tmp, path)
+
+
+def write_outputs(out: Path, rows, truth, base_img, truth_spp, floor, truth_time, scene=None) -> dict:
+    files = {}
+    p = out / "report.csv"
+    tmp = out / ".report.csv.tmp"
+    with open(tmp, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=CSV_FIELDS, extrasaction="ignore")
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: r.get(k, "") for k in CSV_FIELDS})
+    os.replace(tmp, p)
+    files["csv"] = p
+    plot_error_vs_time(rows, out / "error_vs_time.png", floor)
+    files["plot"] = out / "error_vs_time.png"
+    plot_error_vs_time(rows, out / "psnr_vs_time.png", metric="psnr_db")
+    files["plot_psnr"] = out / "psnr_vs_time.png"
+    plot_images(truth, base_img, out / "images.png")
+    files["images"] = out / "images.png"
+    h, w = truth.shape[:2]
+    mc = [r for r in rows if r["knob"] == "mc_reference"]
+    base = [r for r in rows if r["knob"] == "default"]
+    lines = ["# Error against run time", ""]
+    name = getattr(scene, "path", None) or getattr(scene, "name", None)
+    if name:
+        lines += [f"Scene: `{name}`, {w}×{h} pixels.", ""]
+    else:
+        lines += [f"Image: {w}×{h} pixels.", ""]
+    lines += [
+        f"Ground truth: Monte-Carlo reference with {truth_spp} samples per sub-pixel "
+        f"({truth_time:.1f} s); its noise floor (Σ stderr² / Σ ref²) is {floor:.3g} in relative MSE.",
+        "Precompute times use an empty cache; frame times are the median of warm frames.",
+        "",
+    ]
+    if base and mc:
+        b = base[0]
+        better = [r for r in mc if r["rel_mse"] <= b["rel_mse"]]
+        if better:
+            r = better[0]
+            lines += [f"The renderer at the scene's settings (rel. MSE {b['rel_mse']:.3g}, {b['frame_s']:.3g} s/frame) "
+                      f"is matched by the MC reference at {r['value']} spp ({r['total_s']:.3g} s): "
+                      f"{r['total_s'] / max(b['frame_s'], 1e-9):.3g}× the renderer's frame time.", ""]
+        else:
+            r = mc[-1]
+            lines += [f"The renderer at the scene's settings (rel. MSE {b['rel_mse']:.3g}, {b['frame_s']:.3g} s/frame) "
+                      f"is more accurate than the MC reference at {r['value']} spp ({r['total_s']:.3g} s, "
+                      f"rel. MSE {r['rel_mse']:.3g}).", ""]
+    lines += ["![error vs time](error_vs_time.png)", "", "![PSNR vs time](psnr_vs_time.png)", "",
+              "![images](images.png)", "", "## All measurements", "", markdown_table(rows)]
+    _atomic_write_text(out / "report.md", "\n".join(lines))
+    files["markdown"] = out / "report.md"
+    meta = {"truth_spp": truth_spp, "noise_floor_rel_mse": floor, "truth_seconds": truth_time,
+            "width": int(w), "height": int(h), "rows": rows}
+    _atomic_write_text(out / "report.json", json.dumps(meta, indent=1, default=str))
+    files["json"] = out / "report.json"
+    return files
+
+
+# --------------------------------------------------------------------------------------------
+# CLI
+# --------------------------------------------------------------------------------------------
+def add_cli_arguments(p) -> None:
+    p.add_argument("scene", help="scene file (TOML)")
+    p.add_argument("-o", "--output", required=True, help="output folder")
+    p.add_argument("--device", default="cpu", help="cpu, cuda, cuda:N or auto")
+    p.add_argument("--quick", action="store_true", help="small sweep (smoke test)")
+    p.add_argument("--truth-spp", type=int, default=None, help="samples per pixel of the ground truth")
+    p.add_argument("--no-progress", action="store_true")
+
+
+def cli_main(args) -> int:
+    if args.truth_spp is not None and args.truth_spp < 1:
+        raise InputError(f"must be >= 1, got {args.truth_spp}", where="--truth-spp")
+    rep = run_report(args.scene, args.output, device=args.device, quick=args.quick, truth_spp=args.truth_spp,
+                     progress=not args.no_progress)
+    print(f"report written to {rep.files['markdown']}")
+    return 0
+
+
+__all__ = ["run_report", "image_errors", "KNOBS", "available_knobs", "with_setting", "mc_curve", "Report",
+           "markdown_table", "add_cli_arguments", "cli_main"]
