@@ -16,7 +16,7 @@ import warp as wp
 
 TWO_PI = wp.constant(6.283185307179586)
 #: −2π ln(0.1): numerator of fa(λ) = −2π ln ε / λ (ε = 0.1).
-FA_NUMERATOR = wp.constant(14.467419)
+FA_NUMERATOR = wp.constant(14.467568824830927)
 
 
 @wp.func
