@@ -16,6 +16,8 @@ _LAZY = {
     "needs_visibility": ("precompute.visibility", "needs_visibility"),
     "SSDFData": ("precompute.ssdf", "SSDFData"),
     "ssdf_for_mesh": ("precompute.ssdf", "ssdf_for_mesh"),
+    "compute_ssdf": ("precompute.ssdf", "compute_ssdf"),
+    "ray_visibility": ("precompute.visibility", "ray_visibility"),
     "envmap": ("precompute.envmap", None),
     "load_envmap": ("precompute.envmap", "load_envmap"),
     "procedural_sky": ("precompute.envmap", "procedural_sky"),

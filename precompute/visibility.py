@@ -210,3 +210,35 @@ def hemisphere_visibility(vertices, triangles, normals, resolution: int = 64, *,
     if bar is not None:
         bar.close()
     return out.reshape(len(ids), R, R)
+
+
+@wp.kernel
+def _ray_kernel(mesh: wp.uint64, origins: wp.array(dtype=wp.vec3), normals: wp.array(dtype=wp.vec3),
+                dirs: wp.array(dtype=wp.vec3), offset: float, max_t: float, out: wp.array(dtype=wp.uint8)):
+    k = wp.tid()
+    n = normals[k]
+    d = dirs[k]
+    vis = wp.uint8(0)
+    if wp.dot(d, n) > 0.0:
+        if not wp.mesh_query_ray_anyhit(mesh, origins[k] + offset * n, d, max_t):
+            vis = wp.uint8(1)
+    out[k] = vis
+
+
+def ray_visibility(vertices, triangles, origins, normals, directions, *, device="cpu") -> np.ndarray:
+    """Exact visibility (uint8, 1 = escapes) of arbitrary rays ``origins + ε normals + s·directions``
+    (all (N, 3), world space); directions below the surface (``d·n ≤ 0``) are invisible.
+    Used as the brute-force reference of the SSDF product (tests, bench)."""
+    device = resolve_device(device)
+    v, f, _ = validate_mesh(vertices, triangles)
+    o = np.asarray(origins, np.float32).reshape(-1, 3)
+    nn = np.broadcast_to(np.asarray(normals, np.float32), o.shape)
+    d = np.broadcast_to(np.asarray(directions, np.float32), o.shape)
+    ctx = _MeshContext(v, f, np.tile([0.0, 0.0, 1.0], (len(v), 1)), device)
+    out = wp.empty(len(o), dtype=wp.uint8, device=device)
+    wp.launch(_ray_kernel, dim=len(o), device=device,
+              inputs=[ctx.mesh.id, wp.array(o, dtype=wp.vec3, device=device),
+                      wp.array(np.ascontiguousarray(nn), dtype=wp.vec3, device=device),
+                      wp.array(np.ascontiguousarray(d), dtype=wp.vec3, device=device),
+                      ctx.offset, ctx.max_t, out])
+    return out.numpy()

@@ -1,0 +1,117 @@
+"""precompute.ssdf (eq. 23-24): jump flooding vs brute force, conventions, caching, kernel lookups."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import warp as wp
+
+import precompute
+from precompute import ssdf as S
+from precompute import ssdf_wp
+from precompute.bench import plane_box_scene
+
+SCENE = plane_box_scene(n=12, size=4.0, box=1.0)
+FLOOR_IDS = np.array([0, 13, 27, 40, 50, 53, 70, 90, 100, 118])
+
+
+@wp.kernel
+def _lookup_kernel(mean: wp.array2d(dtype=float), basis: wp.array3d(dtype=float), w: wp.array2d(dtype=float),
+                   verts: wp.array(dtype=int), dirs: wp.array(dtype=wp.vec3), out: wp.array(dtype=float),
+                   out_bary: wp.array(dtype=float)):
+    k = wp.tid()
+    out[k] = ssdf_wp.ssdf_eval_vertex(mean, basis, w, verts[k], dirs[k])
+    out_bary[k] = ssdf_wp.ssdf_eval_bary(mean, basis, w, verts[k], 0, 1, 0.5, 0.25, 0.25, dirs[k])
+
+
+def test_jump_flooding_matches_brute_force_eq23(device):
+    V, F, N = SCENE
+    R = 48
+    sd, vis = S.compute_ssdf(V, F, N, resolution=R, ray_resolution=R, device=device, vertex_ids=FLOOR_IDS,
+                             progress=False, return_visibility=True)
+    errs = np.stack([np.abs(S.brute_force_ssdf(vis[k]) - sd[k]) for k in range(len(FLOOR_IDS))])
+    spacing = np.sqrt(2 * np.pi / R**2)  # mean angular texel spacing
+    print(f"\n  JFA vs exhaustive eq. 23 at {R}²: mean {errs.mean():.2e} rad, max {errs.max():.3f} rad "
+          f"(texel ≈ {spacing:.3f} rad), {100 * (errs > 1e-3).mean():.1f}% texels > 1e-3")
+    assert errs.mean() < 1e-3
+    assert errs.max() < 0.75 * spacing
+
+
+def test_ssdf_sign_and_horizon_conventions(device):
+    V, F, N = SCENE
+    center = int(np.argmin(np.linalg.norm(V[:144], axis=1)))  # under the cube
+    sd, vis = S.compute_ssdf(V, F, N, resolution=32, ray_resolution=32, device=device,
+                             vertex_ids=[0, 53, center], progress=False, return_visibility=True)
+    assert (sd[vis == 1] > 0).all() and (sd[vis == 0] < 0).all()
+    assert np.allclose(sd[2], -np.pi / 2)  # nothing visible: clamped to −π/2
+    # a vertex that sees only sky: SSDF = elevation (distance to the horizon), exactly
+    floor_only = plane_box_scene(n=4)
+    Vf, Ff, Nf = floor_only[0][:16], floor_only[1][:18], floor_only[2][:16]
+    sky = S.compute_ssdf(Vf, Ff, Nf, resolution=16, ray_resolution=16, device=device, vertex_ids=[5],
+                         progress=False)[0]
+    elev = np.arcsin(ssdf_wp.texel_directions(16)[..., 2])
+    np.testing.assert_allclose(sky, elev, atol=1e-5)
+
+
+def test_downsampling_is_a_box_filter(device):
+    V, F, N = SCENE
+    hi = S.compute_ssdf(V, F, N, resolution=32, ray_resolution=32, device=device, vertex_ids=[27, 40], progress=False)
+    lo = S.compute_ssdf(V, F, N, resolution=16, ray_resolution=32, device=device, vertex_ids=[27, 40], progress=False)
+    np.testing.assert_allclose(lo, hi.reshape(2, 16, 2, 16, 2).mean(axis=(2, 4)), atol=1e-6)
+
+
+def test_ssdf_for_mesh_compresses_and_caches(cache_dir, monkeypatch):
+    V, F, N = SCENE
+    d = precompute.ssdf_for_mesh(V, F, N, resolution=16, ray_resolution=32, pca_terms=12, progress=False)
+    assert isinstance(d, precompute.SSDFData)
+    assert d.mean.shape == (16, 16) and d.basis.shape == (12, 16, 16) and d.weights.shape == (len(V), 12)
+    exact = S.compute_ssdf(V, F, N, resolution=16, ray_resolution=32, progress=False)
+    rms = np.sqrt(np.mean((d.reconstruct() - exact) ** 2))
+    assert rms == pytest.approx(d.pca_rms_error[12], rel=1e-2)
+    assert d.pca_rms_error[12] < 0.25 * d.pca_rms_error[0]
+    print(f"\n  PCA rms error (rad) by terms: " +
+          ", ".join(f"{k}: {d.pca_rms_error[k]:.3f}" for k in (0, 2, 4, 8, 12)))
+    np.testing.assert_allclose(d.reconstruct([3, 7]), d.reconstruct()[[3, 7]], atol=1e-6)
+    # a second call is a cache hit (no recomputation), a parameter change is a miss
+    calls = []
+    monkeypatch.setattr(S, "compute_ssdf", lambda *a, **k: calls.append(1) or exact.copy())
+    d2 = precompute.ssdf_for_mesh(V, F, N, resolution=16, ray_resolution=32, pca_terms=12, progress=False)
+    assert calls == [] and d2.key == d.key
+    np.testing.assert_array_equal(d2.weights, d.weights)
+    precompute.ssdf_for_mesh(V, F, N, resolution=16, ray_resolution=32, pca_terms=8, progress=False)
+    assert calls == [1]
+
+
+def test_kernel_lookup_matches_numpy_reconstruction(device):
+    rng = np.random.default_rng(3)
+    R, NV, nv = 16, 5, 4
+    mean = rng.standard_normal((R, R)).astype(np.float32)
+    basis = rng.standard_normal((NV, R, R)).astype(np.float32)
+    w = rng.standard_normal((nv, NV)).astype(np.float32)
+    m = 300
+    dirs = rng.standard_normal((m, 3))
+    dirs[: m // 2, 2] = np.abs(dirs[: m // 2, 2])  # half above, the rest anywhere (below: horizon rule)
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    verts = rng.integers(0, nv, m)
+    out = wp.zeros(m, dtype=float, device=device)
+    out_b = wp.zeros(m, dtype=float, device=device)
+    wp.launch(_lookup_kernel, dim=m, device=device,
+              inputs=[wp.array(mean, dtype=float, device=device), wp.array(basis, dtype=float, device=device),
+                      wp.array(w, dtype=float, device=device), wp.array(verts.astype(np.int32), device=device),
+                      wp.array(dirs.astype(np.float32), dtype=wp.vec3, device=device), out, out_b])
+    ref = np.array([ssdf_wp.ssdf_eval_np(mean, basis, w[v], d) for v, d in zip(verts, dirs)])
+    np.testing.assert_allclose(out.numpy(), ref, atol=2e-4)
+    wb = 0.5 * w[verts] + 0.25 * w[0] + 0.25 * w[1]
+    ref_b = np.array([ssdf_wp.ssdf_eval_np(mean, basis, wi, d) for wi, d in zip(wb, dirs)])
+    np.testing.assert_allclose(out_b.numpy(), ref_b, atol=2e-4)
+    # at texel centres the bilinear lookup returns the texel value
+    dc = ssdf_wp.texel_directions(R)[5, 9]
+    assert ssdf_wp.ssdf_eval_np(mean, basis, w[0], dc) == pytest.approx(
+        mean[5, 9] + w[0] @ basis[:, 5, 9], abs=1e-4)
+
+
+def test_bad_parameters_are_input_errors():
+    V, F, N = SCENE
+    with pytest.raises(precompute.ssdf.InputError, match="multiple"):
+        precompute.ssdf_for_mesh(V, F, N, resolution=16, ray_resolution=24, progress=False, use_cache=False)
+    with pytest.raises(precompute.ssdf.InputError, match="pca_terms"):
+        precompute.ssdf_for_mesh(V, F, N, resolution=16, pca_terms=0, progress=False, use_cache=False)
