@@ -1,0 +1,400 @@
+"""Bad input: every case gives exit status 2 (CLI) or a typed exception (API) with one clear line
+naming the file / field / element at fault — never a traceback, never a partial output file,
+never a corrupt cache.
+
+CLI cases call ``warp_sg.cli.main(argv)`` in-process (faster than a subprocess); one case runs the
+real ``warp-sg`` executable to check the installed entry point.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import warp_sg as ws
+from warp_sg.errors import ImageError, InputError, MeshError, SceneError
+
+BASE = """
+[camera]
+origin = [0.0, 1.0, 3.0]
+target = [0.0, 0.3, 0.0]
+fov = 40.0
+width = 8
+height = 6
+
+[[objects]]
+primitive = "sphere"
+center = [0.0, 0.4, 0.0]
+radius = 0.4
+material = "shiny"
+
+[[objects]]
+primitive = "plane"
+center = [0.0, 0.0, 0.0]
+size = [3.0, 3.0]
+material = "floor"
+
+[materials.shiny]
+model = "cook_torrance"
+kd = [0.2, 0.1, 0.1]
+ks = [0.5, 0.5, 0.5]
+m = 0.3
+
+[materials.floor]
+model = "lambert"
+kd = [0.6, 0.6, 0.6]
+
+[[lights]]
+type = "point"
+position = [1.0, 2.0, 1.0]
+radius = 0.1
+intensity = [5.0, 5.0, 5.0]
+
+[render]
+shadows = false
+"""
+
+
+def write_scene(tmp_path, text=BASE, name="scene.toml"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def replace(old, new, text=BASE):
+    assert old in text, old
+    return text.replace(old, new, 1)
+
+
+def run_cli(argv, capsys):
+    """(exit status, stdout, stderr) of ``warp-sg argv`` in-process."""
+    from warp_sg.cli import main
+
+    try:
+        rc = main([str(a) for a in argv])
+    except SystemExit as e:  # argparse usage errors
+        rc = e.code
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+def assert_clean_failure(rc, err, *needles):
+    assert rc == 2, f"exit status {rc}, stderr: {err!r}"
+    assert "Traceback" not in err
+    lines = [ln for ln in err.strip().splitlines() if ln.strip()]
+    assert lines, "no message on stderr"
+    msg = lines[-1]
+    for n in needles:
+        assert n.lower() in err.lower(), f"{n!r} not in {err!r}"
+    assert len(msg) < 400
+    return msg
+
+
+# ------------------------------------------------------------------------------------------------
+# scene files through the API: typed exceptions naming file / table / key / element
+# ------------------------------------------------------------------------------------------------
+SCENE_CASES = [
+    # id, old, new, exception type, words the message must contain
+    ("unknown-top-key", "[camera]", "[camra]", SceneError, ["camra", "camera"]),
+    ("unknown-camera-key", "fov = 40.0", "fvo = 40.0", SceneError, ["fvo", "fov"]),
+    ("unknown-material-param", "m = 0.3", "rougness = 0.3", InputError, ["rougness"]),
+    ("unknown-model", 'model = "cook_torrance"', 'model = "cook_torrence"', InputError, ["cook_torrence", "cook_torrance"]),
+    ("undefined-material", 'material = "shiny"', 'material = "shiney"', SceneError, ["shiney", "shiny"]),
+    ("negative-roughness", "m = 0.3", "m = -0.3", InputError, ["m", "-0.3"]),
+    ("negative-kd", "kd = [0.6, 0.6, 0.6]", "kd = [0.6, -0.6, 0.6]", InputError, ["kd"]),
+    ("kd-wrong-length", "kd = [0.6, 0.6, 0.6]", "kd = [0.6, 0.6]", InputError, ["kd"]),
+    ("fov-wrong-type", "fov = 40.0", 'fov = "wide"', SceneError, ["fov"]),
+    ("zero-width", "width = 8", "width = 0", SceneError, ["width"]),
+    ("unknown-light-type", 'type = "point"', 'type = "pointy"', SceneError, ["pointy"]),
+    ("negative-light-radius", "radius = 0.1", "radius = -0.1", InputError, ["radius"]),
+    ("unknown-render-key", "shadows = false", "shadowz = false", SceneError, ["shadowz", "shadows"]),
+    ("render-lobes-zero", "shadows = false", "lobes = 0", SceneError, ["lobes"]),
+    ("unknown-primitive", 'primitive = "sphere"', 'primitive = "sphear"', InputError, ["sphear"]),
+    ("camera-origin-equals-target", "origin = [0.0, 1.0, 3.0]", "origin = [0.0, 0.3, 0.0]", SceneError, ["origin"]),
+    ("malformed-toml", "fov = 40.0", "fov = = 40.0", SceneError, ["toml"]),
+    ("missing-mesh-file", 'primitive = "sphere"\ncenter = [0.0, 0.4, 0.0]\nradius = 0.4',
+     'mesh = "nothere.ply"', SceneError, ["nothere.ply"]),
+    ("missing-env-file", '[[lights]]\ntype = "point"\nposition = [1.0, 2.0, 1.0]\nradius = 0.1\n'
+     'intensity = [5.0, 5.0, 5.0]', '[[lights]]\ntype = "environment"\nfile = "sky_missing.exr"',
+     InputError, ["sky_missing.exr"]),
+    ("missing-texture", "kd = [0.6, 0.6, 0.6]", 'kd = "albedo_missing.png"', InputError, ["albedo_missing.png"]),
+]
+
+
+@pytest.mark.parametrize("case", SCENE_CASES, ids=[c[0] for c in SCENE_CASES])
+def test_bad_scene_file_raises_a_typed_error_naming_the_culprit(tmp_path, case):
+    _, old, new, exc, words = case
+    p = write_scene(tmp_path, replace(old, new))
+    with pytest.raises(exc) as ei:
+        sc = ws.load_scene(p)
+        sc.geometry()  # meshes are read when geometry is built
+        for m in sc.materials.values():
+            m.brdf  # noqa: B018 - builds the model (validates parameters)
+    msg = str(ei.value)
+    for w in words:
+        assert w.lower() in msg.lower(), msg
+    assert "\n" not in msg.strip()
+
+
+def test_scene_file_not_found_names_the_path(tmp_path):
+    with pytest.raises(SceneError, match="nope.toml"):
+        ws.load_scene(tmp_path / "nope.toml")
+
+
+def _mesh_scene(tmp_path, mesh_name, mesh_bytes):
+    (tmp_path / mesh_name).write_bytes(mesh_bytes)
+    return write_scene(tmp_path, replace('primitive = "sphere"\ncenter = [0.0, 0.4, 0.0]\nradius = 0.4',
+                                         f'mesh = "{mesh_name}"'))
+
+
+PLY_OOB = (b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+           b"element face 2\nproperty list uchar int vertex_indices\nend_header\n"
+           b"0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 1 7\n")
+
+MESH_CASES = [
+    ("corrupt-ply", "bad.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 99\nend_header\n\x00\x01", ["bad.ply"]),
+    ("garbage-obj", "bad.obj", b"\x00\xff\xfe garbage \x00" * 10, ["bad.obj"]),
+    ("nan-vertex", "nan.obj", b"v 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n", ["nan", "vertex"]),
+    ("index-out-of-range-obj", "oob.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 9\n", ["oob.obj", "out of"]),
+    ("index-out-of-range-ply", "oob.ply", PLY_OOB, ["triangle 1", "vertex", "range"]),
+    ("zero-area-only", "flat.obj", b"v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", ["zero area"]),
+    ("empty-file", "empty.obj", b"", ["empty.obj"]),
+]
+
+
+@pytest.mark.parametrize("case", MESH_CASES, ids=[c[0] for c in MESH_CASES])
+def test_bad_mesh_raises_mesh_or_scene_error_naming_the_file_or_element(tmp_path, case):
+    _, name, data, words = case
+    p = _mesh_scene(tmp_path, name, data)
+    with pytest.raises(InputError) as ei:
+        ws.load_scene(p).geometry()
+    msg = str(ei.value)
+    assert isinstance(ei.value, (MeshError, SceneError))
+    for w in words:
+        assert w.lower() in msg.lower(), msg
+
+
+def test_nan_vertices_through_the_python_api_name_the_object_and_vertex():
+    from warp_sg.scene import Camera, Scene, SceneObject
+    from warp_sg.lights import DirectionalLight
+
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [np.nan, 1, 1]], float)
+    t = np.array([[0, 1, 2], [1, 2, 3]])
+    sc = Scene(camera=Camera(width=4, height=4), objects=[SceneObject(material="a", vertices=v, triangles=t, name="blob")],
+               materials={"a": ws.brdf.Lambert()}, lights=[DirectionalLight(direction=(0, 1, 0))])
+    with pytest.raises(MeshError) as ei:
+        sc.geometry()
+    assert "blob" in str(ei.value) and "3" in str(ei.value)
+
+
+def test_unreadable_texture_names_the_file(tmp_path):
+    (tmp_path / "tex.png").write_bytes(b"\x89PNG\r\n\x1a\n this is not a png")
+    p = write_scene(tmp_path, replace("kd = [0.6, 0.6, 0.6]", 'kd = "tex.png"'))
+    with pytest.raises(InputError, match="tex.png"):
+        sc = ws.load_scene(p)
+        for m in sc.materials.values():
+            m.brdf  # noqa: B018
+
+
+def _write_exr(path, channels: dict):
+    import OpenEXR
+
+    hdr = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    with OpenEXR.File(hdr, {k: np.ascontiguousarray(v, np.float32) for k, v in channels.items()}) as f:
+        f.write(str(path))
+
+
+def test_environment_exr_with_wrong_channels_names_file_and_channels(tmp_path):
+    _write_exr(tmp_path / "sky.exr", {"Z": np.ones((8, 16))})
+    p = write_scene(tmp_path, BASE + '\n[[lights]]\ntype = "environment"\nfile = "sky.exr"\n')
+    with pytest.raises(ImageError) as ei:
+        sc = ws.load_scene(p)
+        sc.environment.radiance()
+    assert "sky.exr" in str(ei.value) and "Z" in str(ei.value)
+
+
+def test_environment_file_that_is_not_exr_names_the_file(tmp_path):
+    (tmp_path / "sky.exr").write_bytes(b"not an exr at all")
+    p = write_scene(tmp_path, BASE + '\n[[lights]]\ntype = "environment"\nfile = "sky.exr"\n')
+    with pytest.raises(ImageError, match="sky.exr"):
+        ws.load_scene(p).environment.radiance()
+
+
+def test_two_environment_lights_are_rejected(tmp_path):
+    env = '\n[[lights]]\ntype = "environment"\nprocedural = "sky"\n'
+    with pytest.raises(SceneError, match="environment"):
+        ws.load_scene(write_scene(tmp_path, BASE + env + env))
+
+
+def test_reference_rejects_zero_spp_with_an_input_error(tmp_path):
+    sc = ws.load_scene(write_scene(tmp_path))
+    with pytest.raises(InputError, match="spp"):
+        ws.reference(sc, spp=0, progress=False)
+
+
+def test_unknown_device_is_an_input_error(tmp_path):
+    sc = ws.load_scene(write_scene(tmp_path))
+    with pytest.raises(InputError, match="device"):
+        ws.reference(sc, spp=1, device="tpu", progress=False)
+
+
+def test_report_into_a_non_writable_folder_is_an_input_error(tmp_path):
+    from warp_sg.report import run_report
+
+    target = tmp_path / "file_not_dir"
+    target.write_text("x")
+    with pytest.raises(InputError, match="file_not_dir"):
+        run_report(write_scene(tmp_path), target / "sub", quick=True, progress=False)
+
+
+# ------------------------------------------------------------------------------------------------
+# the CLI: exit status 2, one line, no traceback, no partial output
+# ------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("case", SCENE_CASES[:8] + SCENE_CASES[16:18], ids=[c[0] for c in SCENE_CASES[:8] + SCENE_CASES[16:18]])
+@pytest.mark.parametrize("command", ["render", "reference"])
+def test_cli_bad_scene_exits_2_with_one_line_and_no_output_file(tmp_path, capsys, case, command):
+    _, old, new, _, words = case
+    p = write_scene(tmp_path, replace(old, new))
+    out = tmp_path / "out.exr"
+    extra = ["--spp", "1"] if command == "reference" else []
+    rc, _, err = run_cli([command, p, "-o", out, *extra], capsys)
+    assert_clean_failure(rc, err, *words[:1])
+    assert not out.exists()
+    assert not any(f.name.startswith(".out") or f.name.startswith("out") for f in tmp_path.iterdir())
+
+
+def test_cli_bad_mesh_exits_2_naming_the_element(tmp_path, capsys):
+    p = _mesh_scene(tmp_path, "oob.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 9\n")
+    rc, _, err = run_cli(["render", p, "-o", tmp_path / "o.png"], capsys)
+    assert_clean_failure(rc, err, "range")
+    assert not (tmp_path / "o.png").exists()
+
+
+def test_cli_missing_scene_file_exits_2(tmp_path, capsys):
+    rc, _, err = run_cli(["reference", tmp_path / "none.toml", "-o", tmp_path / "o.exr"], capsys)
+    assert_clean_failure(rc, err, "none.toml")
+
+
+def test_cli_zero_spp_exits_2(tmp_path, capsys):
+    rc, _, err = run_cli(["reference", write_scene(tmp_path), "-o", tmp_path / "o.exr", "--spp", "0"], capsys)
+    assert_clean_failure(rc, err, "spp")
+    assert not (tmp_path / "o.exr").exists()
+
+
+def test_cli_output_in_a_missing_folder_exits_2_and_writes_nothing(tmp_path, capsys):
+    out = tmp_path / "no" / "such" / "dir" / "o.exr"
+    rc, _, err = run_cli(["reference", write_scene(tmp_path), "-o", out, "--spp", "1"], capsys)
+    assert_clean_failure(rc, err, "o.exr")
+    assert not out.exists()
+
+
+@pytest.mark.skipif(hasattr(os, "geteuid") and os.geteuid() == 0, reason="root can write read-only folders")
+def test_cli_output_in_a_read_only_folder_exits_2(tmp_path, capsys):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    try:
+        rc, _, err = run_cli(["reference", write_scene(tmp_path), "-o", ro / "o.exr", "--spp", "1"], capsys)
+        assert_clean_failure(rc, err, "o.exr")
+        assert list(ro.iterdir()) == []
+    finally:
+        ro.chmod(0o700)
+
+
+def test_cli_output_path_that_is_a_folder_exits_2(tmp_path, capsys):
+    d = tmp_path / "adir.exr"
+    d.mkdir()
+    rc, _, err = run_cli(["reference", write_scene(tmp_path), "-o", d, "--spp", "1"], capsys)
+    assert_clean_failure(rc, err, "adir.exr")
+
+
+def test_cli_unknown_output_format_exits_2(tmp_path, capsys):
+    out = tmp_path / "o.bmpx"
+    rc, _, err = run_cli(["reference", write_scene(tmp_path), "-o", out, "--spp", "1"], capsys)
+    assert_clean_failure(rc, err, "o.bmpx")
+    assert not out.exists()
+
+
+@pytest.mark.skipif(ws.errors is None, reason="")
+def test_cli_cuda_device_without_cuda_exits_2(tmp_path, capsys):
+    from warp_sg.device import cuda_available
+
+    if cuda_available():
+        pytest.skip("this machine has CUDA")
+    rc, _, err = run_cli(["reference", write_scene(tmp_path), "-o", tmp_path / "o.exr", "--device", "cuda"], capsys)
+    assert_clean_failure(rc, err, "cuda")
+
+
+def test_cli_unknown_option_exits_2(tmp_path, capsys):
+    rc, _, err = run_cli(["reference", write_scene(tmp_path), "-o", tmp_path / "o.exr", "--spps", "4"], capsys)
+    assert rc == 2 and "Traceback" not in err and "--spps" in err
+
+
+def test_cli_report_into_a_file_exits_2(tmp_path, capsys):
+    f = tmp_path / "afile"
+    f.write_text("x")
+    rc, _, err = run_cli(["report", write_scene(tmp_path), "-o", f / "rep", "--quick"], capsys)
+    assert_clean_failure(rc, err, "afile")
+
+
+def test_installed_entry_point_exits_2_without_traceback(tmp_path):
+    exe = shutil.which("warp-sg")
+    cmd = [exe] if exe else [sys.executable, "-m", "warp_sg.cli"]
+    p = write_scene(tmp_path, replace("m = 0.3", "rougness = 0.3"))
+    r = subprocess.run([*cmd, "reference", str(p), "-o", str(tmp_path / "o.exr"), "--spp", "1"],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2, r.stderr
+    assert "Traceback" not in r.stderr and "rougness" in r.stderr
+    assert not (tmp_path / "o.exr").exists()
+
+
+# ------------------------------------------------------------------------------------------------
+# the precompute cache: interruption and corruption never leave a bad entry
+# ------------------------------------------------------------------------------------------------
+def test_interrupted_precompute_leaves_no_cache_entry_and_the_next_run_rebuilds(cache_dir):
+    from precompute import cache
+
+    key = cache.content_key("bad-input-test", np.arange(5))
+
+    def interrupted():
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        cache.load_or_build("test_kind", key, interrupted)
+    files = list(Path(cache_dir).rglob("*")) if Path(cache_dir).exists() else []
+    assert not [f for f in files if f.is_file()], files  # no entry and no temporary left behind
+    out = cache.load_or_build("test_kind", key, lambda: {"x": np.arange(3.0)})
+    np.testing.assert_array_equal(out["x"], [0, 1, 2])
+
+
+def test_corrupt_cache_entry_is_rebuilt_not_trusted(cache_dir):
+    from precompute import cache
+
+    key = cache.content_key("bad-input-test-2")
+    cache.load_or_build("test_kind", key, lambda: {"x": np.ones(4)})
+    (entry,) = [f for f in Path(cache_dir).rglob("*") if f.is_file()]
+    data = bytearray(entry.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    entry.write_bytes(bytes(data))
+    with pytest.warns(Warning):
+        out = cache.load_or_build("test_kind", key, lambda: {"x": np.full(4, 2.0)})
+    np.testing.assert_array_equal(out["x"], 2.0)
+    again = cache.load_or_build("test_kind", key, lambda: {"x": np.full(4, 3.0)})
+    np.testing.assert_array_equal(again["x"], 2.0)  # the rebuilt entry is valid and reused
+
+
+def test_truncated_cache_entry_is_rebuilt(cache_dir):
+    from precompute import cache
+
+    key = cache.content_key("bad-input-test-3")
+    cache.load_or_build("test_kind", key, lambda: {"x": np.ones(100)})
+    (entry,) = [f for f in Path(cache_dir).rglob("*") if f.is_file()]
+    entry.write_bytes(entry.read_bytes()[:50])
+    with pytest.warns(Warning):
+        out = cache.load_or_build("test_kind", key, lambda: {"x": np.zeros(100)})
+    assert out["x"].sum() == 0
