@@ -1,0 +1,404 @@
+r"""The renderer: ``ws.render(scene, device)`` and the stateful ``ws.Renderer``.
+
+Data flow (DESIGN.md): ``scene → precompute (cached) → raster (visibility buffer) → shading → image``.
+
+``Renderer(scene, device)`` does the precompute once and keeps everything on the device:
+
+* geometry arrays (positions, normals, uvs, tangents, triangles, per-triangle material);
+* visibility: per-vertex SSDFs with PCA (``precompute.ssdf_for_mesh``, cached on disk) only when
+  ``[render] shadows`` is on and the scene can shadow itself (``precompute.needs_visibility``:
+  a single convex object cannot);
+* environment (when there is one): the SG mixture fit for the diffuse term
+  (``precompute.fit_environment_sgs``, eq. 34) and the prefiltered ΓL pyramid for the specular
+  term (``precompute.prefilter_environment``, eq. 35), both of the *unrotated, unscaled* map, so
+  rotation and scale changes cost nothing;
+* materials (``brdf.material_wp.pack_materials``) and textures (one atlas).
+
+``render()`` rasterises the camera view (``raster.rasterize``, k×k supersampled), shades every
+(sub)pixel once with the kernel variant the scene needs (:mod:`warp_sg.shading`), and box-resolves
+k×k blocks. Changing materials, textures, lights, the environment rotation/scale or the camera
+(the setters below) re-renders without re-running precompute. Per-frame timings (seconds) are in
+``Renderer.timings``: ``precompute`` (construction; cache hits included), ``raster``, ``shade``,
+``resolve``, ``frame`` (last ``render()``), and ``precompute_parts`` (ssdf, env_fit, env_prefilter).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import replace
+
+import numpy as np
+import warp as wp
+
+from .device import resolve_device
+from .errors import InputError, SceneError
+from .lights import DirectionalLight, EnvironmentLight, PointLight, light_arrays
+from .scene import COLOUR_PARAMS, Material, Scene
+from .sg import CLAMPED_COSINE_AMPLITUDE, CLAMPED_COSINE_SHARPNESS
+from . import shading as S
+from .textures import Texture, build_atlas
+
+
+def clamped_cosine_lobes(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """(λ (n,), μ (n,)) of the clamped cosine about z (eq. 40 for n = 1; multi-lobe fits from
+    :mod:`warp_sg.clamped_cosine` for n > 1)."""
+    if n == 1:
+        return np.array([CLAMPED_COSINE_SHARPNESS]), np.array([CLAMPED_COSINE_AMPLITUDE])
+    from . import clamped_cosine as CC
+
+    fit = CC.clamped_cosine_sg(n)
+    lam, mu = np.asarray(fit[-2], np.float64).reshape(-1), np.asarray(fit[-1], np.float64).reshape(-1)
+    return lam, mu
+
+
+def _timer(device):
+    wp.synchronize_device(device)
+    return time.perf_counter()
+
+
+class Renderer:
+    """Stateful renderer: precompute once, then ``render()`` any number of frames.
+
+    ``progress``: show progress bars for the precompute steps.
+    """
+
+    def __init__(self, scene: Scene, device: str | None = None, progress: bool = False):
+        if not isinstance(scene, Scene):
+            raise InputError(f"expected a warp_sg.Scene, got {type(scene).__name__}", where="scene")
+        self.scene = scene
+        self.device = resolve_device(device if device is not None else scene.render.device)
+        self.progress = progress
+        self.timings: dict = {"precompute_parts": {}}
+        t0 = time.perf_counter()
+        with wp.ScopedDevice(self.device):
+            self._setup_geometry()
+            self._setup_visibility()
+            self._setup_environment()
+            self._setup_materials()
+            self._setup_lights()
+            self._setup_clamped_cosine()
+        wp.synchronize_device(self.device)
+        self.timings["precompute"] = time.perf_counter() - t0
+        self._background_key = None
+        self._background = None
+
+    # ------------------------------------------------------------------ setup
+    def _setup_geometry(self):
+        g = self.scene.geometry()
+        d = self.device
+        self.geometry = g
+        ga = S.GeometryArrays()
+        ga.positions = wp.array(g.vertices, dtype=wp.vec3, device=d)
+        ga.normals = wp.array(g.normals, dtype=wp.vec3, device=d)
+        ga.uvs = wp.array(g.uvs, dtype=wp.vec2, device=d)
+        ga.tangents = wp.array(g.tangents, dtype=wp.vec3, device=d)
+        ga.tris = wp.array(g.triangles, dtype=wp.vec3i, device=d)
+        ga.tri_material = wp.array(g.tri_material, dtype=int, device=d)
+        self.geo_arrays = ga
+
+    def _setup_visibility(self):
+        rs = self.scene.render
+        g = self.geometry
+        d = self.device
+        self.shadows = False
+        vis = S.Visibility()
+        from .fh import fh_table_array
+
+        vis.fh_table = fh_table_array(d)
+        if rs.shadows:
+            import precompute
+
+            self.shadows = bool(precompute.needs_visibility(g.vertices, g.triangles, shadows=True))
+        if self.shadows:
+            import precompute
+
+            t = time.perf_counter()
+            self.ssdf = precompute.ssdf_for_mesh(g.vertices, g.triangles, g.normals, resolution=rs.ssdf_resolution,
+                                                 pca_terms=rs.pca_terms, device=d, progress=self.progress)
+            vis.mean, vis.basis, vis.weights = self.ssdf.device_arrays(d)
+            self.timings["precompute_parts"]["ssdf"] = time.perf_counter() - t
+        else:
+            self.ssdf = None
+            vis.mean = wp.zeros((2, 2), dtype=float, device=d)
+            vis.basis = wp.zeros((0, 2, 2), dtype=float, device=d)
+            vis.weights = wp.zeros((1, 1), dtype=float, device=d)
+        self.vis = vis
+
+    def _setup_environment(self):
+        env = self.scene.environment
+        rs = self.scene.render
+        d = self.device
+        self.env_light = env
+        self.env_diffuse_mode = S.ENV_NONE
+        self.env_specular_mode = S.ENV_NONE
+        self._env_sg_base = None  # (axes in the map frame, λ, μ unscaled)
+        self.gamma = None
+        if env is None:
+            return
+        import precompute
+
+        base = env.base_radiance()
+        self.env_base = base
+        t = time.perf_counter()
+        if rs.env_diffuse == "sg":
+            axes, lam, mu = precompute.fit_environment_sgs(base, rs.env_lobes)
+            self._env_sg_base = (np.asarray(axes, np.float64).reshape(-1, 3), np.asarray(lam, np.float64).reshape(-1),
+                                 np.asarray(mu, np.float64).reshape(-1, 3))
+            self.env_diffuse_mode = S.ENV_SG
+        self.timings["precompute_parts"]["env_fit"] = time.perf_counter() - t
+        t = time.perf_counter()
+        try:
+            self.gamma = precompute.prefilter_environment(base, device=d, levels=rs.gamma_levels,
+                                                          resolution=rs.gamma_resolution, progress=self.progress)
+            self.env_specular_mode = S.ENV_PREFILTERED
+        except (ImportError, AttributeError):  # prefilter not available: SG mixture for the specular term too
+            if self._env_sg_base is None:
+                axes, lam, mu = precompute.fit_environment_sgs(base, rs.env_lobes)
+                self._env_sg_base = (np.asarray(axes, np.float64).reshape(-1, 3),
+                                     np.asarray(lam, np.float64).reshape(-1), np.asarray(mu, np.float64).reshape(-1, 3))
+            self.env_specular_mode = S.ENV_SG
+        if rs.env_diffuse == "prefiltered":
+            self.env_diffuse_mode = S.ENV_PREFILTERED if self.gamma is not None else S.ENV_SG
+        self.timings["precompute_parts"]["env_prefilter"] = time.perf_counter() - t
+
+    def _env_arrays(self):
+        """EnvSG (world axes: rotation applied; amplitudes scaled) and the world→map matrix."""
+        d = self.device
+        es = S.EnvSG()
+        env = self.env_light
+        if env is None or self._env_sg_base is None:
+            es.count = 0
+            es.axis = wp.zeros(1, dtype=wp.vec3, device=d)
+            es.lam = wp.ones(1, dtype=float, device=d)
+            es.mu = wp.zeros(1, dtype=wp.vec3, device=d)
+        else:
+            R = env.rotation_matrix()
+            ax, lam, mu = self._env_sg_base
+            es.count = len(lam)
+            es.axis = wp.array((ax @ R.T).astype(np.float32), dtype=wp.vec3, device=d)
+            es.lam = wp.array(lam.astype(np.float32), dtype=float, device=d)
+            es.mu = wp.array((mu * env.scale).astype(np.float32), dtype=wp.vec3, device=d)
+        R = np.eye(3) if env is None else env.rotation_matrix()
+        return es, wp.mat33(*R.T.astype(np.float32).reshape(-1)), float(env.scale if env is not None else 0.0)
+
+    def _setup_materials(self):
+        from .brdf.material_wp import pack_materials
+
+        scene = self.scene
+        rs = scene.render
+        names = self.geometry.material_names
+        mats = [scene.materials[n] for n in names]
+        try:
+            self.material_table = pack_materials([m.brdf for m in mats], rs.lobes, self.device)
+        except InputError as e:
+            raise SceneError(f"materials: {e}") from None
+        self.has_specular = any(r["model"] >= 2 for r in self.material_table.records)
+        # textures
+        images, slots = [], np.full((max(len(mats), 1), S.N_SLOTS), -1, np.int32)
+        index = {}
+
+        def add(tex: Texture, colour: bool, raw: bool):
+            key = (id(tex), colour, raw)
+            if key not in index:
+                index[key] = len(images)
+                images.append(tex.raw() if raw else tex.rgba(colour=colour))
+            return index[key]
+
+        self.has_textures = False
+        self.has_normal_maps = False
+        for mi, m in enumerate(mats):
+            for pname, tex in m.textures.items():
+                colour = pname in COLOUR_PARAMS
+                t = add(tex, colour, False)
+                self.has_textures = True
+                if pname == "kd":
+                    slots[mi, S.SLOT_KD] = t
+                elif pname == "ks":
+                    slots[mi, S.SLOT_KS] = t
+                elif pname in ("m", "n", "nu", "alpha", "alpha_x", "sigma"):
+                    slots[mi, S.SLOT_P0] = t
+                    if pname == "alpha":
+                        slots[mi, S.SLOT_P1] = t
+                elif pname in ("nv", "alpha_y"):
+                    slots[mi, S.SLOT_P1] = t
+                else:
+                    raise SceneError(f"[materials.{m.name}] parameter '{pname}' cannot be a texture")
+            if m.normal_map is not None:
+                slots[mi, S.SLOT_NORMAL] = add(m.normal_map, False, True)
+                self.has_normal_maps = True
+            if m.tangent_map is not None:
+                slots[mi, S.SLOT_TANGENT] = add(m.tangent_map, False, True)
+                self.has_normal_maps = True
+        mt = S.MaterialTextures()
+        mt.slots = wp.array(slots, dtype=int, device=self.device)
+        mt.atlas = build_atlas(images, self.device)
+        self.material_textures = mt
+
+    def _setup_lights(self):
+        self.light_arrays = light_arrays(self.scene.local_lights, self.device)
+
+    def _setup_clamped_cosine(self):
+        lam, mu = clamped_cosine_lobes(self.scene.render.clamped_cosine_lobes)
+        cc = S.ClampedCosine()
+        cc.count = len(lam)
+        cc.lam = wp.array(lam.astype(np.float32), dtype=float, device=self.device)
+        cc.mu = wp.array(mu.astype(np.float32), dtype=float, device=self.device)
+        self.cc = cc
+
+    # ------------------------------------------------------------------ features
+    def features(self) -> S.Features:
+        return S.Features(
+            env_diffuse=self.env_diffuse_mode,
+            env_specular=self.env_specular_mode if self.has_specular else S.ENV_NONE,
+            lights=len(self.scene.local_lights) > 0,
+            specular=self.has_specular,
+            shadows=self.shadows,
+            textures=self.has_textures,
+            normal_maps=self.has_normal_maps,
+            fh_sigmoid=self.scene.render.fh == "sigmoid",
+        )
+
+    # ------------------------------------------------------------------ dynamic changes
+    def set_material(self, name: str, **params) -> None:
+        """Change constant parameters of material ``name`` (a texture path/Texture value makes it
+        textured). No precompute is re-run."""
+        if name not in self.scene.materials:
+            raise SceneError(f"unknown material '{name}'", where="set_material")
+        m = self.scene.materials[name]
+        for k, v in params.items():
+            if isinstance(v, Texture):
+                m.textures[k] = v
+                m.params.pop(k, None)
+            elif k in ("normal_map", "tangent_map"):
+                setattr(m, k, v)
+            else:
+                m.textures.pop(k, None)
+                m.params[k] = v
+        m.invalidate()
+        try:
+            _ = m.brdf
+        except InputError as e:
+            raise SceneError(f"[materials.{name}] {e}") from None
+        with wp.ScopedDevice(self.device):
+            self._setup_materials()
+
+    def set_lights(self, lights: list) -> None:
+        """Replace the point/directional lights (the environment stays)."""
+        env = [li for li in self.scene.lights if isinstance(li, EnvironmentLight)]
+        for li in lights:
+            if not isinstance(li, (PointLight, DirectionalLight)):
+                raise SceneError(f"not a point or directional light: {li!r}", where="set_lights")
+        self.scene.lights = env + list(lights)
+        self._setup_lights()
+
+    def update_light(self, index: int, **fields) -> None:
+        """Change fields of local light ``index`` (position, direction, radius, intensity)."""
+        lights = self.scene.local_lights
+        if not 0 <= index < len(lights):
+            raise SceneError(f"no local light #{index}", where="update_light")
+        li = lights[index]
+        new = replace(li, **fields)
+        lights[index] = new
+        self.set_lights(lights)
+
+    def set_environment_rotation(self, degrees: float) -> None:
+        if self.env_light is None:
+            raise SceneError("the scene has no environment light", where="set_environment_rotation")
+        self.env_light.rotation = float(degrees)
+        self._background_key = None
+
+    def set_environment_scale(self, scale: float) -> None:
+        if self.env_light is None:
+            raise SceneError("the scene has no environment light", where="set_environment_scale")
+        if not (scale >= 0 and math.isfinite(scale)):
+            raise SceneError(f"must be >= 0, got {scale}", where="environment scale")
+        self.env_light.scale = float(scale)
+        self._background_key = None
+
+    def set_camera(self, **fields) -> None:
+        """Change camera fields (origin, target, up, fov, width, height)."""
+        cam = self.scene.camera
+        self.scene.camera = replace(cam, **fields) if hasattr(cam, "__dataclass_fields__") else type(cam)(
+            **{**{k: getattr(cam, k) for k in ("origin", "target", "up", "fov", "width", "height", "near", "far")},
+               **fields})
+
+    # ------------------------------------------------------------------ frame
+    def _background_image(self, k: int):
+        cam = self.scene.camera
+        env = self.env_light
+        key = (repr(cam), k, None if env is None else (env.rotation, env.scale), self.scene.render.background)
+        if key != self._background_key:
+            h, w = cam.height * k, cam.width * k
+            if env is None or not self.scene.render.background:
+                img = np.zeros((h, w, 3), np.float32)
+            else:
+                from precompute.envmap import env_lookup_numpy
+
+                dirs = np.asarray(cam.ray_directions(supersample=k), np.float64)
+                img = (env_lookup_numpy(self.env_base, dirs, rotation=env.rotation_matrix()) * env.scale)
+            self._background = wp.array(np.ascontiguousarray(img, np.float32), dtype=wp.vec3, device=self.device)
+            self._background_key = key
+        return self._background
+
+    def rasterize(self):
+        import raster
+
+        k = self.scene.render.supersampling
+        return raster.rasterize(self.geometry.vertices, self.geometry.triangles, self.scene.camera,
+                                device=self.device, supersample=k)
+
+    def render(self) -> np.ndarray:
+        """One frame: (H, W, 3) float32 linear radiance."""
+        d = self.device
+        k = self.scene.render.supersampling
+        cam = self.scene.camera
+        t0 = _timer(d)
+        vb = self.rasterize()
+        t1 = _timer(d)
+        bg = self._background_image(k)
+        es, to_env, env_scale = self._env_arrays()
+        gamma = self.gamma.arrays if (self.gamma is not None and hasattr(self.gamma, "arrays")) else self.gamma
+        f = self.features()
+        kern = S.shade_kernel(f)
+        if f.env_diffuse != S.ENV_PREFILTERED and f.env_specular != S.ENV_PREFILTERED:
+            gamma = es  # placeholder argument of the variant without ΓL
+        hs, ws_ = cam.height * k, cam.width * k
+        out = wp.empty((hs, ws_), dtype=wp.vec3, device=d)
+        wp.launch(kern, dim=(hs, ws_), inputs=[vb.tri_id, vb.bary, bg, wp.vec3(*np.asarray(cam.origin, np.float32)),
+                                                self.geo_arrays, self.material_table.materials,
+                                                self.material_textures, self.cc, self.light_arrays, es, gamma,
+                                                to_env, env_scale, self.vis],
+                  outputs=[out], device=d)
+        t2 = _timer(d)
+        if k > 1:
+            res = wp.empty((cam.height, cam.width), dtype=wp.vec3, device=d)
+            wp.launch(S.resolve_box, dim=(cam.height, cam.width), inputs=[out, k], outputs=[res], device=d)
+            out = res
+        img = out.numpy().reshape(cam.height, cam.width, 3).astype(np.float32)
+        t3 = time.perf_counter()
+        self.timings.update(raster=t1 - t0, shade=t2 - t1, resolve=t3 - t2, frame=t3 - t0)
+        return img
+
+
+def render(scene: Scene, device: str | None = None, progress: bool = False) -> np.ndarray:
+    """Render ``scene`` once: (H, W, 3) float32 linear radiance (DESIGN.md public interface).
+    ``device`` defaults to ``scene.render.device``."""
+    return Renderer(scene, device, progress=progress).render()
+
+
+__all__ = ["Renderer", "render", "clamped_cosine_lobes"]
+
+
+# ``import warp_sg.render`` makes the package attribute ``warp_sg.render`` this module (the import
+# system sets it), shadowing the function of the same name that ``ws.render`` promises. Making the
+# module callable keeps ``ws.render(scene, device)`` working either way.
+import sys as _sys
+import types as _types
+
+
+class _CallableModule(_types.ModuleType):
+    def __call__(self, *args, **kwargs):
+        return render(*args, **kwargs)
+
+
+_sys.modules[__name__].__class__ = _CallableModule

@@ -1,0 +1,379 @@
+r"""Per-pixel deferred shading over the visibility buffer (paper §7, eq. 36–43).
+
+One kernel launch shades every (sub)pixel of the raster's visibility buffer once (deferred
+shading: the cost never depends on overdraw). Per pixel, with ``x`` the surface point, ``o`` the
+view direction, ``Ng`` the interpolated vertex normal (the frame of the precomputed visibility)
+and ``(Ts, Bs, Ns)`` the shading frame (tangent frame rotated by the normal/tangent maps)::
+
+    R(o) = Σ_c [ Rd_c + Rs_c ]                                                    (eq. 36)
+    C*_c = G(i; Ns, λc, μc)          clamped-cosine lobe(s) (eq. 40: λc = 2.133, μc = 1.170)
+
+Environment (distant), diffuse — eq. 39 ``Rd = (C*(Ns) ⊗ L*) · V``::
+
+    for each environment SG L*_j:  G = C*_c ⊗ L*_j  (eq. 5);  Rd += ρd(o, p_G) μ_G fh(θd(p_G), λ_G)
+
+Environment, specular — eq. 41 ``Rs = ((C* ⊗ ρ*s(o) ⊗ V) in world) · L``::
+
+    for each slice lobe k of ks ρs(o, ·) (spherical warp of the NDF lobes, eq. 17–22, ``slice_lobe``):
+        G = C*_c ⊗ ρ*_k;  G ⊗ V scales μ_G by fh(θd, λ)/fh(π/2, λ) (eq. 31);  Rs += μ_G' ΓL(p_G, λ_G) (eq. 35)
+
+Local lights (point/directional SGs, eq. 32–33) — eq. 42–43::
+
+    Rd = (L*_x ⊗ C*) · V,      Rs = (L*_x ⊗ C* ⊗ ρ*_k) · V = μ fh(θd(p), λ)     (eq. 30)
+
+The diffuse BRDF ``ρd(o, i)`` (kd/π, or Oren-Nayar) is evaluated at the product lobe's axis, so
+``kd/π`` comes out exactly for Lambert. Visibility ``θd(p)`` is the SSDF of the surface point
+(eq. 24, per-vertex PCA weights interpolated with the barycentrics, ``precompute.ssdf_wp``); with
+shadows off (or a convex scene) it is the exact SSDF of an unoccluded point, the local horizon:
+``θd(p) = asin(p · Ng)``, so lobes are still clipped at the horizon.
+
+Normal and tangent maps (§7): a per-pixel rotation of the tangent frame, the minimal rotation
+taking ``Ng`` to the mapped normal (Rodrigues; equivalent to the paper's quaternion map), then a
+rotation about it to the mapped tangent. The clamped cosine and the BRDF slice are built in the
+rotated frame (with ``o' = ℜ o``); visibility stays in the vertex frame.
+
+Kernel variants: the kernel is specialised by scene content (``Features``): environment diffuse
+(SG mixture | prefiltered ΓL | none), environment specular (ΓL | SG mixture | none), local lights,
+specular materials, shadows (SSDF), textures, normal/tangent maps, fh method, and the number of
+clamped-cosine lobes. Variants are created once per feature tuple and cached (``shade_kernel``);
+code a scene does not need is removed at compile time with ``wp.static``.
+"""
+# NOTE: no ``from __future__ import annotations`` — Warp reads the kernel annotations at definition
+# time and the kernel variants are closures.
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from .brdf.material_wp import Material, brdf_diffuse, slice_lobe, slice_lobe_count
+from .fh import fh_hemisphere_wp
+from .frames import frame_bitangent, frame_tangent, local_to_world, world_to_local
+from .lights import LightArrays, light_sg
+from .sg_wp import sg_inner, sg_product
+from .ssdf_product import sg_visibility_scale, sg_visibility_scale_sigmoid
+from .textures import TextureAtlas, tex_sample
+
+from precompute.ssdf_wp import ssdf_eval_bary  # noqa: E402
+
+#: texture slots per material (columns of ``MaterialTextures.slots``)
+SLOT_KD, SLOT_KS, SLOT_P0, SLOT_P1, SLOT_NORMAL, SLOT_TANGENT = range(6)
+N_SLOTS = 6
+
+ENV_NONE, ENV_SG, ENV_PREFILTERED = 0, 1, 2
+
+#: smallest cosine of the (clamped) view / lobe directions in the shading frame
+COS_MIN = wp.constant(1.0e-3)
+
+
+@wp.struct
+class GeometryArrays:
+    """World-space mesh attributes on the device (see ``warp_sg.scene.Geometry``)."""
+
+    positions: wp.array(dtype=wp.vec3)
+    normals: wp.array(dtype=wp.vec3)
+    uvs: wp.array(dtype=wp.vec2)
+    tangents: wp.array(dtype=wp.vec3)
+    tris: wp.array(dtype=wp.vec3i)
+    tri_material: wp.array(dtype=int)
+
+
+@wp.struct
+class MaterialTextures:
+    """``slots[m, s]``: texture index in ``atlas`` for material m and slot s (−1 = constant)."""
+
+    slots: wp.array2d(dtype=int)
+    atlas: TextureAtlas
+
+
+@wp.struct
+class Visibility:
+    """PCA-compressed SSDFs (``precompute.SSDFData``) and the fh ratio table (``warp_sg.fh``)."""
+
+    mean: wp.array2d(dtype=float)
+    basis: wp.array3d(dtype=float)
+    weights: wp.array2d(dtype=float)
+    fh_table: wp.array2d(dtype=float)
+
+
+@wp.struct
+class EnvSG:
+    """Environment SG mixture (world-space axes, environment rotation applied), eq. 34 diffuse part."""
+
+    count: int
+    axis: wp.array(dtype=wp.vec3)
+    lam: wp.array(dtype=float)
+    mu: wp.array(dtype=wp.vec3)
+
+
+@wp.struct
+class ClampedCosine:
+    """Clamped-cosine SG lobes about the shading normal (eq. 40 or a multi-lobe fit)."""
+
+    count: int
+    lam: wp.array(dtype=float)
+    mu: wp.array(dtype=float)
+
+
+# --------------------------------------------------------------------------------------------
+# building blocks (@wp.func)
+# --------------------------------------------------------------------------------------------
+@wp.func
+def vis_theta(shadows: int, vis: Visibility, p: wp.vec3, ng: wp.vec3, td: wp.vec3, bd: wp.vec3,
+              i0: int, i1: int, i2: int, b0: float, b1: float, b2: float) -> float:
+    """θd(p): the SSDF of the shading point at world direction p (eq. 24), or the horizon's
+    signed angular distance ``asin(p·Ng)`` when there is no SSDF (unoccluded)."""
+    if shadows != 0:
+        return ssdf_eval_bary(vis.mean, vis.basis, vis.weights, i0, i1, i2, b0, b1, b2,
+                              world_to_local(p, td, bd, ng))
+    return wp.asin(wp.clamp(wp.dot(p, ng), -1.0, 1.0))
+
+
+@wp.func
+def vis_scale(fh_mode: int, vis: Visibility, theta: float, lam: float) -> float:
+    """fh(θd, λ)/fh(π/2, λ) (eq. 31): amplitude factor of G ⊗ V."""
+    if fh_mode == 1:
+        return sg_visibility_scale_sigmoid(theta, lam)
+    return sg_visibility_scale(vis.fh_table, theta, lam)
+
+
+@wp.func
+def above(v: wp.vec3) -> wp.vec3:
+    """v with its z clamped to ≥ COS_MIN (renormalised): keeps grazing directions shadeable."""
+    if v[2] >= COS_MIN:
+        return v
+    xy = wp.sqrt(wp.max(v[0] * v[0] + v[1] * v[1], 1.0e-30))
+    s = wp.sqrt(1.0 - COS_MIN * COS_MIN) / xy
+    return wp.vec3(v[0] * s, v[1] * s, COS_MIN)
+
+
+@wp.func
+def rotate_to(v: wp.vec3, a: wp.vec3, b: wp.vec3) -> wp.vec3:
+    """Apply the minimal rotation taking unit a to unit b (Rodrigues) to v."""
+    k = wp.cross(a, b)
+    s = wp.length(k)
+    c = wp.dot(a, b)
+    if s < 1.0e-7:
+        if c > 0.0:
+            return v
+        # opposite: rotate by π about any axis orthogonal to a
+        t = frame_tangent(a)
+        return 2.0 * wp.dot(v, t) * t - v
+    k = k / s
+    return v * c + wp.cross(k, v) * s + k * (wp.dot(k, v) * (1.0 - c))
+
+
+@wp.func
+def textured_material(mat: Material, tex: MaterialTextures, mi: int, uv: wp.vec2) -> Material:
+    """Per-texel material parameters (kd, ks, model parameters 0 and 1; Oren-Nayar σ → A, B)."""
+    m = mat
+    s = tex.slots[mi, 0]
+    if s >= 0:
+        c = tex_sample(tex.atlas, s, uv)
+        m.kd = wp.vec3(wp.max(c[0], 0.0), wp.max(c[1], 0.0), wp.max(c[2], 0.0))
+    s = tex.slots[mi, 1]
+    if s >= 0:
+        c = tex_sample(tex.atlas, s, uv)
+        m.ks = wp.vec3(wp.max(c[0], 0.0), wp.max(c[1], 0.0), wp.max(c[2], 0.0))
+    p = m.params
+    s = tex.slots[mi, 2]
+    if s >= 0:
+        v = tex_sample(tex.atlas, s, uv)[0]
+        if m.model == 1:  # Oren-Nayar: σ -> (A, B, σ)
+            s2 = v * v
+            p = wp.vec4(1.0 - 0.5 * s2 / (s2 + 0.33), 0.45 * s2 / (s2 + 0.09), v, p[3])
+        else:
+            p = wp.vec4(wp.max(v, 1.0e-4), p[1], p[2], p[3])
+    s = tex.slots[mi, 3]
+    if s >= 0:
+        v = tex_sample(tex.atlas, s, uv)[0]
+        p = wp.vec4(p[0], wp.max(v, 1.0e-4), p[2], p[3])
+    m.params = p
+    return m
+
+
+@wp.func
+def diffuse_at(mat: Material, o_l: wp.vec3, p_l: wp.vec3) -> wp.vec3:
+    """ρd(o, i) evaluated at a product lobe's axis (kd/π exactly for Lambert)."""
+    return brdf_diffuse(mat, o_l, above(p_l))
+
+
+# --------------------------------------------------------------------------------------------
+# kernel variants
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Features:
+    """What a scene needs; one compiled kernel per distinct value."""
+
+    env_diffuse: int = ENV_NONE   # ENV_NONE | ENV_SG | ENV_PREFILTERED
+    env_specular: int = ENV_NONE  # ENV_NONE | ENV_SG | ENV_PREFILTERED
+    lights: bool = False
+    specular: bool = False
+    shadows: bool = False
+    textures: bool = False
+    normal_maps: bool = False
+    fh_sigmoid: bool = False
+
+
+_KERNELS: dict = {}
+
+
+def _gamma_parts():
+    """(struct type, @wp.func gamma_lookup(struct, p, lam) -> vec3) of the prefiltered ΓL pyramid."""
+    from precompute import prefilter as P
+
+    return P.EnvPrefilteredArrays, P.gamma_lookup
+
+
+def shade_kernel(f: Features):
+    """The shading kernel for feature set ``f`` (compiled once per process and cached)."""
+    if f in _KERNELS:
+        return _KERNELS[f]
+    ENV_D = int(f.env_diffuse)
+    ENV_S = int(f.env_specular)
+    LIGHTS = bool(f.lights)
+    SPEC = bool(f.specular)
+    SHADOWS = 1 if f.shadows else 0
+    TEX = bool(f.textures)
+    NMAP = bool(f.normal_maps)
+    FH = 1 if f.fh_sigmoid else 0
+    USE_GAMMA = ENV_D == ENV_PREFILTERED or ENV_S == ENV_PREFILTERED
+    if USE_GAMMA:
+        GammaT, gamma_lookup = _gamma_parts()
+    else:
+        GammaT, gamma_lookup = EnvSG, None  # placeholder type (unused argument)
+
+    def shade(tri_id: wp.array2d(dtype=int), bary: wp.array2d(dtype=wp.vec2), background: wp.array2d(dtype=wp.vec3),
+              cam: wp.vec3, geo: GeometryArrays, mats: wp.array(dtype=Material), tex: MaterialTextures,
+              cc: ClampedCosine, lights: LightArrays, env: EnvSG, gamma: GammaT, to_env: wp.mat33,
+              env_scale: float, vis: Visibility, out: wp.array2d(dtype=wp.vec3)):
+        y, x = wp.tid()
+        t = tri_id[y, x]
+        if t < 0:
+            out[y, x] = background[y, x]
+            return
+        bc = bary[y, x]
+        b1 = bc[0]
+        b2 = bc[1]
+        b0 = 1.0 - b1 - b2
+        tri = geo.tris[t]
+        i0 = tri[0]
+        i1 = tri[1]
+        i2 = tri[2]
+        P = geo.positions[i0] * b0 + geo.positions[i1] * b1 + geo.positions[i2] * b2
+        ng = wp.normalize(geo.normals[i0] * b0 + geo.normals[i1] * b1 + geo.normals[i2] * b2)
+        td = frame_tangent(ng)
+        bd = frame_bitangent(ng)
+        o = wp.normalize(cam - P)
+
+        mi = geo.tri_material[t]
+        mat = mats[mi]
+        uv = wp.vec2(0.0, 0.0)
+        if wp.static(TEX or NMAP):
+            uv = geo.uvs[i0] * b0 + geo.uvs[i1] * b1 + geo.uvs[i2] * b2
+        if wp.static(TEX):
+            mat = textured_material(mat, tex, mi, uv)
+
+        # shading frame: mesh tangent made orthogonal to the normal
+        tg = geo.tangents[i0] * b0 + geo.tangents[i1] * b1 + geo.tangents[i2] * b2
+        tg = tg - ng * wp.dot(tg, ng)
+        if wp.length(tg) < 1.0e-6:
+            tg = td
+        ts = wp.normalize(tg)
+        ns = ng
+        if wp.static(NMAP):
+            s = tex.slots[mi, 4]
+            if s >= 0:
+                c = tex_sample(tex.atlas, s, uv)
+                nt = wp.vec3(2.0 * c[0] - 1.0, 2.0 * c[1] - 1.0, 2.0 * c[2] - 1.0)
+                if wp.length(nt) > 1.0e-6:
+                    bs0 = wp.cross(ng, ts)
+                    nn = wp.normalize(local_to_world(wp.normalize(nt), ts, bs0, ng))
+                    ts = wp.normalize(rotate_to(ts, ng, nn))
+                    ns = nn
+            s = tex.slots[mi, 5]
+            if s >= 0:
+                c = tex_sample(tex.atlas, s, uv)
+                a = 2.0 * c[0] - 1.0
+                bb = 2.0 * c[1] - 1.0
+                if a * a + bb * bb > 1.0e-10:
+                    ts = wp.normalize(a * ts + bb * wp.cross(ns, ts))
+        bs = wp.cross(ns, ts)
+        o_l = above(world_to_local(o, ts, bs, ns))
+
+        col = wp.vec3(0.0, 0.0, 0.0)
+        has_kd = wp.length_sq(mat.kd) > 0.0
+        nspec = int(0)
+        if wp.static(SPEC):
+            nspec = slice_lobe_count(mat)
+
+        for c in range(cc.count):
+            lc = cc.lam[c]
+            mc = cc.mu[c]
+            # ---------------- diffuse (eq. 39, 42) ----------------
+            if has_kd:
+                if wp.static(ENV_D == 1):
+                    for j in range(env.count):
+                        pa, la, sc = sg_product(ns, lc, env.axis[j], env.lam[j])
+                        th = vis_theta(SHADOWS, vis, pa, ng, td, bd, i0, i1, i2, b0, b1, b2)
+                        w = mc * sc * vis_scale(FH, vis, th, la) * fh_hemisphere_wp(la)
+                        col += wp.cw_mul(env.mu[j], diffuse_at(mat, o_l, world_to_local(pa, ts, bs, ns))) * w
+                if wp.static(ENV_D == 2):
+                    th = vis_theta(SHADOWS, vis, ns, ng, td, bd, i0, i1, i2, b0, b1, b2)
+                    w = mc * vis_scale(FH, vis, th, lc) * env_scale
+                    g = gamma_lookup(gamma, to_env * ns, lc)
+                    col += wp.cw_mul(g, diffuse_at(mat, o_l, wp.vec3(0.0, 0.0, 1.0))) * w
+                if wp.static(LIGHTS):
+                    for j in range(lights.count):
+                        la, ll, lm = light_sg(lights, j, P)
+                        pa, lam, sc = sg_product(ns, lc, la, ll)
+                        th = vis_theta(SHADOWS, vis, pa, ng, td, bd, i0, i1, i2, b0, b1, b2)
+                        w = mc * sc * vis_scale(FH, vis, th, lam) * fh_hemisphere_wp(lam)
+                        col += wp.cw_mul(lm, diffuse_at(mat, o_l, world_to_local(pa, ts, bs, ns))) * w
+            # ---------------- specular (eq. 41, 43) ----------------
+            if wp.static(SPEC):
+                for k in range(nspec):
+                    pw_l, lw, mw = slice_lobe(mat, o_l, k)
+                    if wp.length_sq(mw) > 0.0:
+                        pw = local_to_world(pw_l, ts, bs, ns)
+                        pa, lam, sc = sg_product(ns, lc, pw, lw)  # C* ⊗ ρ*_k
+                        amp = mw * (mc * sc)
+                        if wp.static(ENV_S == 2):
+                            th = vis_theta(SHADOWS, vis, pa, ng, td, bd, i0, i1, i2, b0, b1, b2)
+                            g = gamma_lookup(gamma, to_env * pa, lam)
+                            col += wp.cw_mul(amp, g) * (vis_scale(FH, vis, th, lam) * env_scale)
+                        if wp.static(ENV_S == 1):
+                            th = vis_theta(SHADOWS, vis, pa, ng, td, bd, i0, i1, i2, b0, b1, b2)
+                            vs = vis_scale(FH, vis, th, lam)
+                            for j in range(env.count):
+                                col += wp.cw_mul(amp, env.mu[j]) * (vs * sg_inner(pa, lam, env.axis[j], env.lam[j]))
+                        if wp.static(LIGHTS):
+                            for j in range(lights.count):
+                                la, ll, lm = light_sg(lights, j, P)
+                                pb, lb, s2 = sg_product(pa, lam, la, ll)
+                                th = vis_theta(SHADOWS, vis, pb, ng, td, bd, i0, i1, i2, b0, b1, b2)
+                                col += wp.cw_mul(amp, lm) * (s2 * vis_scale(FH, vis, th, lb) * fh_hemisphere_wp(lb))
+        out[y, x] = col
+
+    key = "shade_" + "_".join(str(int(v)) for v in (ENV_D, ENV_S, LIGHTS, SPEC, SHADOWS, TEX, NMAP, FH))
+    shade.__name__ = key
+    shade.__qualname__ = key
+    k = wp.kernel(shade, enable_backward=False, module="unique")
+    _KERNELS[f] = k
+    return k
+
+
+@wp.kernel(enable_backward=False)
+def resolve_box(src: wp.array2d(dtype=wp.vec3), k: int, out: wp.array2d(dtype=wp.vec3)):
+    """Box-filter k×k blocks of the supersampled image (supersampling resolve)."""
+    y, x = wp.tid()
+    acc = wp.vec3(0.0, 0.0, 0.0)
+    for dy in range(k):
+        for dx in range(k):
+            acc += src[y * k + dy, x * k + dx]
+    out[y, x] = acc / float(k * k)
+
+
+__all__ = ["Features", "shade_kernel", "resolve_box", "GeometryArrays", "MaterialTextures", "Visibility", "EnvSG",
+           "ClampedCosine", "SLOT_KD", "SLOT_KS", "SLOT_P0", "SLOT_P1", "SLOT_NORMAL", "SLOT_TANGENT", "N_SLOTS",
+           "ENV_NONE", "ENV_SG", "ENV_PREFILTERED"]
