@@ -267,3 +267,21 @@ def test_bad_spp_is_an_input_error():
 
     with pytest.raises(InputError, match="spp"):
         render_reference_inputs(plane_inputs(Lambert()), spp=0, progress=False)
+
+
+def test_textured_kd_matches_the_bilinear_texture_times_L(device):
+    from warp_sg.textures import sample_bilinear_np
+
+    rng = np.random.default_rng(3)
+    tex = np.concatenate([rng.uniform(0.1, 0.9, (4, 4, 3)), np.ones((4, 4, 1))], -1).astype(np.float32)
+    uvs = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32)  # plane corners (x, z) -> uv
+    slots = -np.ones((1, 6), np.int32)
+    slots[0, 0] = 0
+    o, d = ortho_rays(8, extent=40.0)
+    inp = ReferenceInputs(PLANE_V, PLANE_T, np.zeros(2, int), [Lambert(kd=0.5)], o, d, environment=const_env(),
+                          uvs=uvs, texture_slots=slots, texture_images=[tex])
+    res = render_reference_inputs(inp, spp=16, device=device, progress=False)
+    hit = o.copy()
+    uv = np.stack([(hit[..., 0] + 50) / 100, (hit[..., 2] + 50) / 100], -1)
+    expected = sample_bilinear_np(tex, uv)[..., :3] * CONST_L
+    assert np.all(np.abs(res.image - expected) < 5 * res.stderr + 1e-3 * expected)

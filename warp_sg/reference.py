@@ -46,8 +46,10 @@ from . import sampling as S
 from .device import resolve_device
 from .errors import InputError
 from .frames import frame_bitangent, frame_tangent, local_to_world, world_to_local
+from .textures import TextureAtlas
 
 from .brdf import material_wp as M  # noqa: E402  (contract: Material, pack_materials, brdf_*)
+from .textures import build_atlas, tex_sample  # noqa: E402
 
 LIGHT_POINT = 0
 LIGHT_DIRECTIONAL = 1
@@ -75,8 +77,65 @@ class Geometry:
     indices: wp.array(dtype=int)  # 3T
     normals: wp.array(dtype=wp.vec3)  # V (shading normals, per vertex)
     has_normals: int
+    uvs: wp.array(dtype=wp.vec2)  # V
+    tangents: wp.array(dtype=wp.vec3)  # V
+    has_tangents: int
     tri_material: wp.array(dtype=int)  # T
     eps: float  # shadow-ray offset (world units)
+
+
+@wp.struct
+class Textures:
+    """Per-material texture slots (columns as ``warp_sg.shading``: kd, ks, param 0, param 1,
+    normal map, tangent map; −1 = constant) into one atlas."""
+
+    enabled: int
+    slots: wp.array2d(dtype=int)
+    atlas: TextureAtlas
+
+
+@wp.func
+def _textured(mat: M.Material, tex: Textures, mi: int, uv: wp.vec2) -> M.Material:
+    """Per-texel parameters, exactly as ``shading.textured_material``."""
+    m = mat
+    s = tex.slots[mi, 0]
+    if s >= 0:
+        c = tex_sample(tex.atlas, s, uv)
+        m.kd = wp.vec3(wp.max(c[0], 0.0), wp.max(c[1], 0.0), wp.max(c[2], 0.0))
+    s = tex.slots[mi, 1]
+    if s >= 0:
+        c = tex_sample(tex.atlas, s, uv)
+        m.ks = wp.vec3(wp.max(c[0], 0.0), wp.max(c[1], 0.0), wp.max(c[2], 0.0))
+    p = m.params
+    s = tex.slots[mi, 2]
+    if s >= 0:
+        v = tex_sample(tex.atlas, s, uv)[0]
+        if m.model == 1:  # Oren-Nayar: σ -> (A, B, σ)
+            s2 = v * v
+            p = wp.vec4(1.0 - 0.5 * s2 / (s2 + 0.33), 0.45 * s2 / (s2 + 0.09), v, p[3])
+        else:
+            p = wp.vec4(wp.max(v, 1.0e-4), p[1], p[2], p[3])
+    s = tex.slots[mi, 3]
+    if s >= 0:
+        v = tex_sample(tex.atlas, s, uv)[0]
+        p = wp.vec4(p[0], wp.max(v, 1.0e-4), p[2], p[3])
+    m.params = p
+    return m
+
+
+@wp.func
+def _rotate_to(v: wp.vec3, a: wp.vec3, b: wp.vec3) -> wp.vec3:
+    """Minimal rotation taking unit a to unit b applied to v (as ``shading.rotate_to``)."""
+    k = wp.cross(a, b)
+    s = wp.length(k)
+    c = wp.dot(a, b)
+    if s < 1.0e-7:
+        if c > 0.0:
+            return v
+        t = frame_tangent(a)
+        return 2.0 * wp.dot(v, t) * t - v
+    k = k / s
+    return v * c + wp.cross(k, v) * s + k * (wp.dot(k, v) * (1.0 - c))
 
 
 @wp.func
@@ -262,6 +321,7 @@ def _shade_sample(
 def _reference_pass(
     geo: Geometry,
     materials: wp.array(dtype=M.Material),
+    tex: Textures,
     env: S.EnvSampler,
     lights: LightTable,
     origins: wp.array(dtype=wp.vec3),
@@ -279,38 +339,69 @@ def _reference_pass(
     rd = dirs[tid]
     q = wp.mesh_query_ray(geo.mesh, ro, rd, 1.0e30)
     if not q.result:
-        c = wp.vec3(0.0)
+        bg = wp.vec3(0.0)
         if background != 0:
-            c = S.env_radiance(env, rd)
-        out_sum[tid] = c * float(spp)
-        out_sq[tid] = wp.cw_mul(c, c) * float(spp)
+            bg = S.env_radiance(env, rd)
+        out_sum[tid] = bg * float(spp)
+        out_sq[tid] = wp.cw_mul(bg, bg) * float(spp)
         return
     f = q.face
     i0 = geo.indices[3 * f]
     i1 = geo.indices[3 * f + 1]
     i2 = geo.indices[3 * f + 2]
+    # Warp: position = u v0 + v v1 + (1 - u - v) v2
+    b0 = q.u
+    b1 = q.v
+    b2 = 1.0 - q.u - q.v
     p = ro + rd * q.t
     ng = q.normal  # unit geometric normal (winding order)
-    if wp.dot(ng, rd) > 0.0:
-        ng = -ng
     n = ng
     if geo.has_normals != 0:
-        # Warp: position = u v0 + v v1 + (1 - u - v) v2
-        ns = q.u * geo.normals[i0] + q.v * geo.normals[i1] + (1.0 - q.u - q.v) * geo.normals[i2]
+        ns = b0 * geo.normals[i0] + b1 * geo.normals[i1] + b2 * geo.normals[i2]
         ln = wp.length(ns)
         if ln > 0.0:
             n = ns / ln
-            if wp.dot(n, ng) < 0.0:
-                n = -n  # two-sided: the shading normal follows the side the camera sees
+    elif wp.dot(ng, rd) > 0.0:
+        n = -ng  # no shading normals: two-sided
+    if wp.dot(ng, n) < 0.0:
+        ng = -ng  # the geometric normal on the side of the shading normal (shadow-ray offsets)
+    mi = geo.tri_material[f]
+    mat = materials[mi]
+    uv = wp.vec2(0.0, 0.0)
+    if tex.enabled != 0:
+        uv = b0 * geo.uvs[i0] + b1 * geo.uvs[i1] + b2 * geo.uvs[i2]
+        mat = _textured(mat, tex, mi, uv)
+    # shading frame as the renderer's: mesh tangent made orthogonal to the normal, normal/tangent maps
     t = frame_tangent(n)
-    b = frame_bitangent(n)
+    if geo.has_tangents != 0:
+        tg = b0 * geo.tangents[i0] + b1 * geo.tangents[i1] + b2 * geo.tangents[i2]
+        tg = tg - n * wp.dot(tg, n)
+        if wp.length(tg) >= 1.0e-6:
+            t = wp.normalize(tg)
+    if tex.enabled != 0:
+        s = tex.slots[mi, 4]
+        if s >= 0:
+            c = tex_sample(tex.atlas, s, uv)
+            nt = wp.vec3(2.0 * c[0] - 1.0, 2.0 * c[1] - 1.0, 2.0 * c[2] - 1.0)
+            if wp.length(nt) > 1.0e-6:
+                bs0 = wp.cross(n, t)
+                nn = wp.normalize(local_to_world(wp.normalize(nt), t, bs0, n))
+                t = wp.normalize(_rotate_to(t, n, nn))
+                n = nn
+        s = tex.slots[mi, 5]
+        if s >= 0:
+            c = tex_sample(tex.atlas, s, uv)
+            a = 2.0 * c[0] - 1.0
+            bb = 2.0 * c[1] - 1.0
+            if a * a + bb * bb > 1.0e-10:
+                t = wp.normalize(a * t + bb * wp.cross(n, t))
+    b = wp.cross(n, t)
     o = world_to_local(-rd, t, b, n)
-    mat = materials[geo.tri_material[f]]
     acc = wp.vec3(0.0)
     acc2 = wp.vec3(0.0)
-    for s in range(spp):
+    for si in range(spp):
         # one RNG stream per (sample index, pixel); wp.funcs get their own copy of the state
-        st0 = wp.rand_init(seed, sample_offset + s)
+        st0 = wp.rand_init(seed, sample_offset + si)
         state = wp.rand_init(wp.randi(st0), tid)
         L = _shade_sample(geo, mat, env, lights, p, ng, n, t, b, o, state)
         acc += L
@@ -348,6 +439,10 @@ class ReferenceInputs:
     lights: list = field(default_factory=list)  # [Light]
     environment: np.ndarray | None = None  # (H, W, 3) radiance (scale applied)
     background: bool = True
+    uvs: np.ndarray | None = None  # (V, 2)
+    tangents: np.ndarray | None = None  # (V, 3) shading-frame x axis (anisotropic materials)
+    texture_slots: np.ndarray | None = None  # (n_materials, 6) int: atlas index per slot, -1 = constant
+    texture_images: list | None = None  # [(h, w, 4) float32] the atlas (same order as the slots)
 
 
 @dataclass
@@ -420,6 +515,28 @@ class _Prepared:
             geo.normals = wp.zeros(1, dtype=wp.vec3, device=device)
             geo.has_normals = 0
         geo.tri_material = wp.array(np.ascontiguousarray(inp.tri_material, np.int32), dtype=int, device=device)
+        nv = len(v)
+        uvs = np.zeros((max(nv, 1), 2), np.float32) if inp.uvs is None else np.ascontiguousarray(inp.uvs, np.float32)
+        geo.uvs = wp.array(uvs, dtype=wp.vec2, device=device)
+        if inp.tangents is not None:
+            geo.tangents = wp.array(np.ascontiguousarray(inp.tangents, np.float32), dtype=wp.vec3, device=device)
+            geo.has_tangents = 1
+        else:
+            geo.tangents = wp.zeros(1, dtype=wp.vec3, device=device)
+            geo.has_tangents = 0
+        tex = Textures()
+        slots = inp.texture_slots
+        if slots is not None and np.any(np.asarray(slots) >= 0):
+            if inp.uvs is None:
+                raise InputError("textured materials need uvs", where="reference inputs")
+            tex.enabled = 1
+            tex.slots = wp.array(np.ascontiguousarray(slots, np.int32), dtype=int, device=device)
+            tex.atlas = build_atlas(list(inp.texture_images or []), device)
+        else:
+            tex.enabled = 0
+            tex.slots = wp.full((max(len(inp.materials), 1), 6), -1, dtype=int, device=device)
+            tex.atlas = build_atlas([], device)
+        self.tex = tex
         extent = float(np.max(np.ptp(v, axis=0))) if len(v) else 1.0
         scale = max(extent, float(np.max(np.abs(v))) if len(v) else 1.0, 1e-30)
         geo.eps = RAY_EPS * scale
@@ -443,8 +560,8 @@ class _Prepared:
         wp.load_module(__name__, device=device)  # compile once, before any thread launches
 
     def launch_pass(self, spp: int, seed: int, sample_offset: int, threads: int):
-        args = [self.geo, self.materials, self.env, self.lights, self.origins, self.dirs, self.background, spp,
-                seed, sample_offset]
+        args = [self.geo, self.materials, self.tex, self.env, self.lights, self.origins, self.dirs, self.background,
+                spp, seed, sample_offset]
         n = self.n
         if self.device == "cpu" and threads > 1 and n >= 2 * threads:
             # a CPU launch runs on one core: disjoint ranges from a thread pool scale (DESIGN.md)
