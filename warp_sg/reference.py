@@ -327,6 +327,7 @@ def _reference_pass(
     origins: wp.array(dtype=wp.vec3),
     dirs: wp.array(dtype=wp.vec3),
     background: int,
+    bg_image: wp.array(dtype=wp.vec3),
     spp: int,
     seed: int,
     sample_offset: int,
@@ -340,8 +341,10 @@ def _reference_pass(
     q = wp.mesh_query_ray(geo.mesh, ro, rd, 1.0e30)
     if not q.result:
         bg = wp.vec3(0.0)
-        if background != 0:
+        if background == 1:
             bg = S.env_radiance(env, rd)
+        elif background == 2:
+            bg = bg_image[tid]
         out_sum[tid] = bg * float(spp)
         out_sq[tid] = wp.cw_mul(bg, bg) * float(spp)
         return
@@ -443,6 +446,7 @@ class ReferenceInputs:
     tangents: np.ndarray | None = None  # (V, 3) shading-frame x axis (anisotropic materials)
     texture_slots: np.ndarray | None = None  # (n_materials, 6) int: atlas index per slot, -1 = constant
     texture_images: list | None = None  # [(h, w, 4) float32] the atlas (same order as the slots)
+    background_image: np.ndarray | None = None  # (kH, kW, 3): what misses show (default: env lookup)
 
 
 @dataclass
@@ -557,11 +561,19 @@ class _Prepared:
         self.sum = wp.zeros(self.n, dtype=wp.vec3, device=device)
         self.sq = wp.zeros(self.n, dtype=wp.vec3, device=device)
         self.background = 1 if inp.background else 0
+        if inp.background_image is not None:
+            bgi = np.asarray(inp.background_image, np.float32).reshape(-1, 3)
+            if len(bgi) != kh * kw:
+                raise InputError(f"background image has {len(bgi)} pixels, expected {kh * kw}", where="background")
+            self.bg_image = wp.array(np.ascontiguousarray(bgi), dtype=wp.vec3, device=device)
+            self.background = 2
+        else:
+            self.bg_image = wp.zeros(1, dtype=wp.vec3, device=device)
         wp.load_module(__name__, device=device)  # compile once, before any thread launches
 
     def launch_pass(self, spp: int, seed: int, sample_offset: int, threads: int):
         args = [self.geo, self.materials, self.tex, self.env, self.lights, self.origins, self.dirs, self.background,
-                spp, seed, sample_offset]
+                self.bg_image, spp, seed, sample_offset]
         n = self.n
         if self.device == "cpu" and threads > 1 and n >= 2 * threads:
             # a CPU launch runs on one core: disjoint ranges from a thread pool scale (DESIGN.md)
@@ -658,11 +670,66 @@ def render_reference_inputs(
 # --------------------------------------------------------------------------------------------
 # Scene adapter
 # --------------------------------------------------------------------------------------------
-def inputs_from_scene(scene, device="cpu") -> ReferenceInputs:
-    """Build :class:`ReferenceInputs` from a :class:`warp_sg.Scene` (same camera/supersampling)."""
-    from .scene import scene_reference_inputs  # late: scene.py is owned by the renderer helper
+def texture_tables(scene, material_names):
+    """(slots (n_materials, 6) int, images [(h, w, 4)]) for the scene's textured parameters and
+    normal/tangent maps, with the renderer's slot layout (``warp_sg.render.Renderer``)."""
+    from .scene import COLOUR_PARAMS
+    from .shading import N_SLOTS, SLOT_KD, SLOT_KS, SLOT_NORMAL, SLOT_P0, SLOT_P1, SLOT_TANGENT
 
-    return scene_reference_inputs(scene, device)
+    mats = [scene.materials[n] for n in material_names]
+    slots = np.full((max(len(mats), 1), N_SLOTS), -1, np.int32)
+    images, index = [], {}
+
+    def add(tex, colour, raw):
+        key = (id(tex), colour, raw)
+        if key not in index:
+            index[key] = len(images)
+            images.append(tex.raw() if raw else tex.rgba(colour=colour))
+        return index[key]
+
+    for mi, m in enumerate(mats):
+        for pname, tex in m.textures.items():
+            t = add(tex, pname in COLOUR_PARAMS, False)
+            if pname == "kd":
+                slots[mi, SLOT_KD] = t
+            elif pname == "ks":
+                slots[mi, SLOT_KS] = t
+            elif pname in ("m", "n", "nu", "alpha", "alpha_x", "sigma"):
+                slots[mi, SLOT_P0] = t
+                if pname == "alpha":
+                    slots[mi, SLOT_P1] = t
+            elif pname in ("nv", "alpha_y"):
+                slots[mi, SLOT_P1] = t
+            else:
+                raise InputError(f"parameter '{pname}' cannot be a texture", where=f"[materials.{m.name}]")
+        if m.normal_map is not None:
+            slots[mi, SLOT_NORMAL] = add(m.normal_map, False, True)
+        if m.tangent_map is not None:
+            slots[mi, SLOT_TANGENT] = add(m.tangent_map, False, True)
+    return slots, images
+
+
+def inputs_from_scene(scene, device="cpu") -> ReferenceInputs:
+    """Build :class:`ReferenceInputs` from a :class:`warp_sg.Scene`: the renderer's geometry
+    (shading normals, uvs, tangents), camera rays of the k×k supersampled grid, exact constant
+    materials plus the same textures / normal maps, the lights, the world-space environment, and
+    the renderer's background (bilinear environment lookup) for pixels that see no object."""
+    from .scene import scene_reference_inputs
+
+    inp = scene_reference_inputs(scene, device)
+    g = scene.geometry()
+    inp.uvs = g.uvs
+    inp.tangents = g.tangents
+    slots, images = texture_tables(scene, g.material_names)
+    if np.any(slots >= 0):
+        inp.texture_slots, inp.texture_images = slots, images
+    env = scene.environment
+    if env is not None and scene.render.background:
+        from precompute.envmap import env_lookup_numpy
+
+        inp.background_image = (env_lookup_numpy(env.base_radiance(), np.asarray(inp.ray_directions, np.float64),
+                                                 rotation=env.rotation_matrix()) * env.scale).astype(np.float32)
+    return inp
 
 
 def render_reference(scene, spp=256, device="cpu", progress=True, seed=0, pass_spp=None, callback=None,
