@@ -447,6 +447,26 @@ def uv_tangents(v, t, uv, n) -> np.ndarray:
     return np.where(ln > 1e-12, acc / np.where(ln > 1e-12, ln, 1), duff)
 
 
+def _read_simple_obj(path: Path) -> MeshData | None:
+    """Minimal OBJ reader ('v' and 'f' lines, fans triangulated) used only to diagnose files that
+    trimesh cannot load (e.g. out-of-range indices); None when it cannot parse the file either."""
+    try:
+        verts, faces = [], []
+        for line in path.read_text(errors="replace").splitlines():
+            parts = line.split()
+            if not parts:
+                continue
+            if parts[0] == "v":
+                verts.append([float(x) for x in parts[1:4]])
+            elif parts[0] == "f":
+                idx = [int(p.split("/")[0]) for p in parts[1:]]
+                idx = [i - 1 if i > 0 else len(verts) + i for i in idx]
+                faces.extend([idx[0], idx[k], idx[k + 1]] for k in range(1, len(idx) - 1))
+        return MeshData(np.asarray(verts, np.float64).reshape(-1, 3), np.asarray(faces, np.int64).reshape(-1, 3))
+    except (ValueError, IndexError, OSError):
+        return None
+
+
 def _load_mesh_file(path: Path, where: str) -> MeshData:
     import trimesh
 
@@ -455,6 +475,10 @@ def _load_mesh_file(path: Path, where: str) -> MeshData:
     try:
         m = trimesh.load(str(path), force="mesh", process=False)
     except Exception as e:  # noqa: BLE001 - trimesh raises many types
+        if path.suffix.lower() == ".obj":  # name the bad element when we can (trimesh crashes on bad indices)
+            simple = _read_simple_obj(path)
+            if simple is not None:
+                validate_mesh(simple.vertices, simple.triangles, where=str(path))
         raise MeshError(f"cannot read mesh ({type(e).__name__}: {e})", where=str(path)) from None
     if not hasattr(m, "faces") or len(getattr(m, "faces", [])) == 0:
         raise MeshError("file contains no triangles", where=str(path))

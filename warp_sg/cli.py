@@ -1,0 +1,213 @@
+"""The ``warp-sg`` command line (argparse).
+
+::
+
+    warp-sg render SCENE -o OUT.(exr|png) [--device cpu|cuda|auto] [--supersampling K] [--exposure EV]
+    warp-sg preview SCENE [--screenshot PNG] [--device ...]
+    warp-sg reference SCENE -o OUT --spp N         (arguments from warp_sg.reference)
+    warp-sg report SCENE -o DIR                    (arguments from warp_sg.report)
+    warp-sg bench                                  (arguments from warp_sg.bench)
+
+``reference``, ``report`` and ``bench`` take their arguments and their work from the modules of
+the same name (``add_cli_arguments(parser)``, ``cli_main(args) -> int``), imported lazily; a missing
+module makes its subcommand say so and exit 2.
+
+Bad input (any :class:`warp_sg.errors.InputError`, an unusable output path, an ``OSError`` while
+writing) prints one line ``warp-sg: error: ...`` on stderr and exits with status 2 — never a
+traceback, never a partial output file (``save_image`` writes atomically; output paths are
+checked before any work).
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+from pathlib import Path
+
+from .errors import InputError
+
+EXTERNAL = {
+    "reference": ("warp_sg.reference", "Monte-Carlo reference image (exact BRDF, ray-traced visibility)"),
+    "report": ("warp_sg.report", "error-vs-run-time report against the Monte-Carlo reference"),
+    "bench": ("warp_sg.bench", "performance benchmarks (rasterizer, shading, precompute)"),
+}
+IMAGE_SUFFIXES = (".exr", ".png")
+
+
+class _Fail(Exception):
+    """A one-line failure with exit status 2."""
+
+
+def check_output_path(path, suffixes=IMAGE_SUFFIXES) -> Path:
+    """Fail early (before rendering) when ``path`` cannot be written as an image."""
+    p = Path(path)
+    if p.suffix.lower() not in suffixes:
+        raise InputError(f"unknown image format '{p.suffix}' (use {' or '.join(suffixes)})", where=str(p))
+    if p.is_dir():
+        raise InputError("is a folder, not a file", where=str(p))
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        raise InputError(f"folder '{parent}' does not exist", where=str(p))
+    if not os.access(parent, os.W_OK):
+        raise InputError(f"folder '{parent}' is not writable", where=str(p))
+    return p
+
+
+def _positive_int(name):
+    def conv(s):
+        try:
+            v = int(s)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be an integer, got {s!r}") from None
+        if v < 1:
+            raise argparse.ArgumentTypeError(f"{name} must be >= 1, got {v}")
+        return v
+
+    return conv
+
+
+def _float(s):
+    try:
+        return float(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {s!r}") from None
+
+
+# --------------------------------------------------------------------------------------------
+# render
+# --------------------------------------------------------------------------------------------
+def add_render_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("scene", help="scene file (TOML)")
+    p.add_argument("-o", "--output", required=True, help="output image: .exr (linear HDR) or .png (sRGB)")
+    p.add_argument("--device", default=None, help="cpu, cuda, cuda:N or auto (default: the scene's [render] device)")
+    p.add_argument("--spp", "--supersampling", dest="supersampling", type=_positive_int("--supersampling"),
+                   default=None, help="supersampling factor k (k×k samples per pixel, box filter)")
+    p.add_argument("--exposure", type=_float, default=0.0, help="exposure in stops applied before writing (default 0)")
+    p.add_argument("--width", type=_positive_int("--width"), default=None, help="override the camera width")
+    p.add_argument("--height", type=_positive_int("--height"), default=None, help="override the camera height")
+    p.add_argument("--no-shadows", action="store_true", help="render without SSDF visibility")
+    p.add_argument("--no-progress", action="store_true", help="hide progress bars")
+    p.add_argument("--timings", action="store_true", help="print precompute / raster / shade timings")
+
+
+def render_main(args) -> int:
+    from .image_io import save_image
+    from .render import Renderer
+    from .scene import load_scene
+
+    out = check_output_path(args.output)
+    scene = load_scene(args.scene)
+    if args.supersampling is not None:
+        scene.render.supersampling = args.supersampling
+    if args.no_shadows:
+        scene.render.shadows = False
+    cam = scene.camera
+    if args.width or args.height:
+        from dataclasses import replace
+
+        scene.camera = replace(cam, width=args.width or cam.width, height=args.height or cam.height)
+    r = Renderer(scene, device=args.device, progress=not args.no_progress)
+    img = r.render()
+    if args.exposure:
+        img = img * (2.0 ** args.exposure)
+    save_image(out, img)
+    if args.timings:
+        t = r.timings
+        print(f"precompute {t['precompute']:.3f} s, raster {t['raster']:.4f} s, shade {t['shade']:.4f} s, "
+              f"frame {t['frame']:.4f} s")
+    return 0
+
+
+# --------------------------------------------------------------------------------------------
+# preview
+# --------------------------------------------------------------------------------------------
+def add_preview_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("scene", help="scene file (TOML)")
+    p.add_argument("--screenshot", default=None, help="render off-screen into this PNG instead of opening a window")
+    p.add_argument("--device", default=None, help="cpu, cuda, cuda:N or auto")
+    p.add_argument("--window-size", type=_positive_int("--window-size"), nargs=2, default=None,
+                   metavar=("W", "H"), help="window / screenshot size (default: the scene camera's)")
+
+
+def preview_main(args) -> int:
+    from .preview import preview
+    from .scene import load_scene
+
+    if args.screenshot:
+        check_output_path(args.screenshot, (".png",))
+    scene = load_scene(args.scene)
+    preview(scene, screenshot=args.screenshot, device=args.device,
+            window_size=tuple(args.window_size) if args.window_size else None)
+    return 0
+
+
+# --------------------------------------------------------------------------------------------
+# parser
+# --------------------------------------------------------------------------------------------
+def _missing_module(name, mod, err):
+    def main(args):
+        raise _Fail(f"the '{name}' command is not available in this installation ({mod}: {err})")
+
+    return main
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The parser; only the external module of ``command`` (if it is one) is imported."""
+    parser = argparse.ArgumentParser(
+        prog="warp-sg",
+        description="All-frequency rendering of dynamic, spatially-varying reflectance with spherical Gaussians "
+                    "(Wang et al. 2009) on NVIDIA Warp.")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    p = sub.add_parser("render", help="render a scene to an image", description="Render SCENE to OUT (EXR or PNG).")
+    add_render_arguments(p)
+    p.set_defaults(func=render_main)
+    p = sub.add_parser("preview", help="interactive pyvista preview (or a headless screenshot)",
+                       description="Show SCENE's meshes with the renderer's shading and the lights in a pyvista "
+                                   "window; --screenshot PNG renders off-screen.")
+    add_preview_arguments(p)
+    p.set_defaults(func=preview_main)
+    for name, (mod, help_) in EXTERNAL.items():
+        p = sub.add_parser(name, help=help_, description=help_)
+        if name != command:
+            p.add_argument("rest", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
+            continue
+        try:
+            m = importlib.import_module(mod)
+            m.add_cli_arguments(p)
+            p.set_defaults(func=m.cli_main)
+        except (ImportError, AttributeError) as e:
+            p.add_argument("rest", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
+            p.set_defaults(func=_missing_module(name, mod, e))
+    return parser
+
+
+def _message(e: BaseException) -> str:
+    msg = str(e).strip().replace("\n", " ")
+    return msg or type(e).__name__
+
+
+def main(argv=None) -> int:
+    """Entry point of the ``warp-sg`` console script. Returns the exit status."""
+    argv = sys.argv[1:] if argv is None else [str(a) for a in argv]
+    command = next((a for a in argv if not a.startswith("-")), None)
+    parser = build_parser(command)
+    args = parser.parse_args(argv)
+    try:
+        rc = args.func(args)
+        return int(rc or 0)
+    except (InputError, _Fail) as e:
+        print(f"warp-sg: error: {_message(e)}", file=sys.stderr)
+        return 2
+    except OSError as e:
+        where = f"{e.filename}: " if getattr(e, "filename", None) else ""
+        print(f"warp-sg: error: {where}{e.strerror or _message(e)}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("warp-sg: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
