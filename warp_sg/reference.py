@@ -763,16 +763,19 @@ def add_cli_arguments(p) -> None:
 
 
 def cli_main(args) -> int:
+    from .cli import check_output_path
     from .image_io import save_image
     from .scene import load_scene
 
     if args.spp < 1:
         raise InputError(f"must be >= 1, got {args.spp}", where="--spp")
+    out = check_output_path(args.output)  # fail before any work, never a partial file
+    err_out = check_output_path(args.stderr) if args.stderr else None
     scene = load_scene(args.scene)
     res = render_reference(scene, spp=args.spp, device=args.device, progress=not args.no_progress, seed=args.seed)
-    save_image(args.output, res.image)
-    if args.stderr:
-        save_image(args.stderr, res.stderr)
+    save_image(out, res.image)
+    if err_out is not None:
+        save_image(err_out, res.stderr)
     return 0
 
 
