@@ -17,7 +17,7 @@ def _eval_ratios(table: wp.array2d(dtype=float), theta: wp.array(dtype=float), l
     out_fh[i] = fh.fh_table_wp(table, theta[i], lam[i])
 
 
-def _brute_fh(theta, lam, n=1500):
+def _brute_fh(theta, lam, n=1000):
     """Midpoint rule on the sphere (pole = SG axis), exact hemisphere indicator."""
     b = (np.arange(n) + 0.5) / n * np.pi
     ph = (np.arange(2 * n) + 0.5) / (2 * n) * 2 * np.pi
