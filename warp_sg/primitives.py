@@ -31,7 +31,7 @@ PRIMITIVES = ("sphere", "plane", "torus")
 #: Accepted parameters (and defaults) of each primitive, used by scene validation.
 PRIMITIVE_PARAMS: dict[str, dict] = {
     "sphere": {"center": (0.0, 0.0, 0.0), "radius": 1.0, "resolution": (32, 64)},
-    "plane": {"center": (0.0, 0.0, 0.0), "size": (2.0, 2.0), "resolution": (1, 1)},
+    "plane": {"center": (0.0, 0.0, 0.0), "size": (2.0, 2.0), "resolution": (32, 32)},
     "torus": {"center": (0.0, 0.0, 0.0), "major_radius": 1.0, "minor_radius": 0.3, "resolution": (64, 32)},
 }
 
@@ -127,7 +127,7 @@ def sphere(center=(0.0, 0.0, 0.0), radius=1.0, resolution=(32, 64), where="spher
     return _pack(P, N, UV, T, tri)
 
 
-def plane(center=(0.0, 0.0, 0.0), size=(2.0, 2.0), resolution=(1, 1), where="plane") -> MeshData:
+def plane(center=(0.0, 0.0, 0.0), size=(2.0, 2.0), resolution=(32, 32), where="plane") -> MeshData:
     """Rectangle in the XZ plane with normal +Y, ``size = (sx, sz)`` (or one number),
     ``resolution = (nx, nz)`` cells."""
     c = _vec3(center, f"{where}.center")

@@ -141,25 +141,33 @@ class Renderer:
         self.env_base = base
         t = time.perf_counter()
         if rs.env_diffuse == "sg":
-            axes, lam, mu = precompute.fit_environment_sgs(base, rs.env_lobes)
-            self._env_sg_base = (np.asarray(axes, np.float64).reshape(-1, 3), np.asarray(lam, np.float64).reshape(-1),
-                                 np.asarray(mu, np.float64).reshape(-1, 3))
-            self.env_diffuse_mode = S.ENV_SG
+            try:
+                self._env_sg_base = self._fit_env(base, rs.env_lobes)
+                self.env_diffuse_mode = S.ENV_SG
+            except ImportError:  # the SG fit is not available: prefiltered diffuse
+                self.env_diffuse_mode = S.ENV_PREFILTERED
+        else:
+            self.env_diffuse_mode = S.ENV_PREFILTERED
         self.timings["precompute_parts"]["env_fit"] = time.perf_counter() - t
         t = time.perf_counter()
-        try:
-            self.gamma = precompute.prefilter_environment(base, device=d, levels=rs.gamma_levels,
-                                                          resolution=rs.gamma_resolution, progress=self.progress)
-            self.env_specular_mode = S.ENV_PREFILTERED
-        except (ImportError, AttributeError):  # prefilter not available: SG mixture for the specular term too
-            if self._env_sg_base is None:
-                axes, lam, mu = precompute.fit_environment_sgs(base, rs.env_lobes)
-                self._env_sg_base = (np.asarray(axes, np.float64).reshape(-1, 3),
-                                     np.asarray(lam, np.float64).reshape(-1), np.asarray(mu, np.float64).reshape(-1, 3))
-            self.env_specular_mode = S.ENV_SG
-        if rs.env_diffuse == "prefiltered":
-            self.env_diffuse_mode = S.ENV_PREFILTERED if self.gamma is not None else S.ENV_SG
+        kw = {}
+        if rs.gamma_levels > 0:
+            from precompute.prefilter import default_ladder
+
+            lams, _, _ = default_ladder(base.shape[0], base_face=rs.gamma_resolution)
+            kw["lambdas"] = np.geomspace(lams[0], lams[-1], rs.gamma_levels)
+        self.gamma = precompute.prefilter_environment(base, device=d, base_face=rs.gamma_resolution,
+                                                      progress=self.progress, **kw)
+        self.env_specular_mode = S.ENV_PREFILTERED
         self.timings["precompute_parts"]["env_prefilter"] = time.perf_counter() - t
+
+    @staticmethod
+    def _fit_env(base, n_lobes):
+        from precompute.env_sg_fit import fit_environment_sgs
+
+        axes, lam, mu = fit_environment_sgs(base, n_lobes)
+        return (np.asarray(axes, np.float64).reshape(-1, 3), np.asarray(lam, np.float64).reshape(-1),
+                np.asarray(mu, np.float64).reshape(-1, 3))
 
     def _env_arrays(self):
         """EnvSG (world axes: rotation applied; amplitudes scaled) and the world→map matrix."""
@@ -178,8 +186,7 @@ class Renderer:
             es.axis = wp.array((ax @ R.T).astype(np.float32), dtype=wp.vec3, device=d)
             es.lam = wp.array(lam.astype(np.float32), dtype=float, device=d)
             es.mu = wp.array((mu * env.scale).astype(np.float32), dtype=wp.vec3, device=d)
-        R = np.eye(3) if env is None else env.rotation_matrix()
-        return es, wp.mat33(*R.T.astype(np.float32).reshape(-1)), float(env.scale if env is not None else 0.0)
+        return es
 
     def _setup_materials(self):
         from .brdf.material_wp import pack_materials
@@ -356,18 +363,20 @@ class Renderer:
         vb = self.rasterize()
         t1 = _timer(d)
         bg = self._background_image(k)
-        es, to_env, env_scale = self._env_arrays()
-        gamma = self.gamma.arrays if (self.gamma is not None and hasattr(self.gamma, "arrays")) else self.gamma
+        es = self._env_arrays()
         f = self.features()
         kern = S.shade_kernel(f)
-        if f.env_diffuse != S.ENV_PREFILTERED and f.env_specular != S.ENV_PREFILTERED:
+        if f.env_diffuse == S.ENV_PREFILTERED or f.env_specular == S.ENV_PREFILTERED:
+            env = self.env_light
+            gamma = self.gamma.table(rotation=env.rotation_matrix(), scale=env.scale, device=d)
+        else:
             gamma = es  # placeholder argument of the variant without ΓL
         hs, ws_ = cam.height * k, cam.width * k
         out = wp.empty((hs, ws_), dtype=wp.vec3, device=d)
         wp.launch(kern, dim=(hs, ws_), inputs=[vb.tri_id, vb.bary, bg, wp.vec3(*np.asarray(cam.origin, np.float32)),
                                                 self.geo_arrays, self.material_table.materials,
                                                 self.material_textures, self.cc, self.light_arrays, es, gamma,
-                                                to_env, env_scale, self.vis],
+                                                self.vis],
                   outputs=[out], device=d)
         t2 = _timer(d)
         if k > 1:

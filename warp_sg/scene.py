@@ -225,7 +225,8 @@ class RenderSettings:
     * ``env_lobes`` — SG mixture of the environment for the diffuse term (eq. 39), < 10 in the paper;
       ``env_diffuse = "sg"`` (paper) or ``"prefiltered"`` (ΓL lookup of the clamped-cosine lobe).
     * ``pca_terms``, ``ssdf_resolution`` — SSDF compression (NV) and map resolution.
-    * ``gamma_levels``, ``gamma_resolution`` — ΓL pyramid size (λ ladder) and cubemap face size.
+    * ``gamma_levels`` — number of λ levels of the ΓL pyramid (0 = precompute's default ladder,
+      λ0 = 0.5 growing by √2 up to the map's resolution); ``gamma_resolution`` — largest cube face.
     * ``fh`` — ``"table"`` (exact, tabulated) or ``"sigmoid"`` (paper appendix).
     * ``background`` — pixels that see no object show the environment.
     * ``device`` — default device for ``ws.render(scene)`` ("cpu", "cuda", "auto").
@@ -239,15 +240,15 @@ class RenderSettings:
     env_diffuse: str = "sg"
     pca_terms: int = 16
     ssdf_resolution: int = 32
-    gamma_levels: int = 8
-    gamma_resolution: int = 64
+    gamma_levels: int = 0
+    gamma_resolution: int = 256
     fh: str = "table"
     background: bool = True
     device: str = "cpu"
 
     def validate(self, where="[render]"):
         ints = {"supersampling": (1, 16), "lobes": (1, 16), "clamped_cosine_lobes": (1, 4), "env_lobes": (1, 64),
-                "pca_terms": (1, 256), "ssdf_resolution": (4, 1024), "gamma_levels": (2, 32),
+                "pca_terms": (1, 256), "ssdf_resolution": (4, 1024), "gamma_levels": (0, 64),
                 "gamma_resolution": (4, 1024)}
         for k, (lo, hi) in ints.items():
             v = getattr(self, k)

@@ -15,7 +15,9 @@ Environment (distant), diffuse — eq. 39 ``Rd = (C*(Ns) ⊗ L*) · V``::
 Environment, specular — eq. 41 ``Rs = ((C* ⊗ ρ*s(o) ⊗ V) in world) · L``::
 
     for each slice lobe k of ks ρs(o, ·) (spherical warp of the NDF lobes, eq. 17–22, ``slice_lobe``):
-        G = C*_c ⊗ ρ*_k;  G ⊗ V scales μ_G by fh(θd, λ)/fh(π/2, λ) (eq. 31);  Rs += μ_G' ΓL(p_G, λ_G) (eq. 35)
+        G = C*_c ⊗ ρ*_k;  Rs += μ_G ΓL(p_G, λ_G) (eq. 35) · fh(θd, λ_G)/∫G(λ_G)
+    (the visible fraction of the lobe; eq. 31's factor fh(θd)/fh(π/2) equals it for sharp lobes and
+    additionally drops the below-horizon mass of broad ones, see ``vis_fraction``)
 
 Local lights (point/directional SGs, eq. 32–33) — eq. 42–43::
 
@@ -50,7 +52,7 @@ from .brdf.material_wp import Material, brdf_diffuse, slice_lobe, slice_lobe_cou
 from .fh import fh_hemisphere_wp
 from .frames import frame_bitangent, frame_tangent, local_to_world, world_to_local
 from .lights import LightArrays, light_sg
-from .sg_wp import sg_inner, sg_product
+from .sg_wp import sg_inner, sg_integral, sg_product
 from .ssdf_product import sg_visibility_scale, sg_visibility_scale_sigmoid
 from .textures import TextureAtlas, tex_sample
 
@@ -138,6 +140,15 @@ def vis_scale(fh_mode: int, vis: Visibility, theta: float, lam: float) -> float:
 
 
 @wp.func
+def vis_fraction(fh_mode: int, vis: Visibility, theta: float, lam: float) -> float:
+    """⟨G, V⟩ / ∫G = fh(θd, λ) / ∫G(λ) (eq. 30 normalised): the visible fraction of a lobe.
+    Used for ``(G ⊗ V) · L ≈ μ ΓL(p, λ) · fh(θd, λ)/∫G(λ)``: unlike the amplitude factor of eq. 31
+    (fh(θd)/fh(π/2)), it also removes the lobe's mass below the horizon, which matters for the
+    broad clamped-cosine lobe (λc = 2.133: eq. 31 would count 12% of it twice)."""
+    return vis_scale(fh_mode, vis, theta, lam) * fh_hemisphere_wp(lam) / sg_integral(lam)
+
+
+@wp.func
 def above(v: wp.vec3) -> wp.vec3:
     """v with its z clamped to ≥ COS_MIN (renormalised): keeps grazing directions shadeable."""
     if v[2] >= COS_MIN:
@@ -222,7 +233,7 @@ def _gamma_parts():
     """(struct type, @wp.func gamma_lookup(struct, p, lam) -> vec3) of the prefiltered ΓL pyramid."""
     from precompute import prefilter as P
 
-    return P.EnvPrefilteredArrays, P.gamma_lookup
+    return P.GammaTable, P.gamma_lookup
 
 
 def shade_kernel(f: Features):
@@ -245,8 +256,8 @@ def shade_kernel(f: Features):
 
     def shade(tri_id: wp.array2d(dtype=int), bary: wp.array2d(dtype=wp.vec2), background: wp.array2d(dtype=wp.vec3),
               cam: wp.vec3, geo: GeometryArrays, mats: wp.array(dtype=Material), tex: MaterialTextures,
-              cc: ClampedCosine, lights: LightArrays, env: EnvSG, gamma: GammaT, to_env: wp.mat33,
-              env_scale: float, vis: Visibility, out: wp.array2d(dtype=wp.vec3)):
+              cc: ClampedCosine, lights: LightArrays, env: EnvSG, gamma: GammaT, vis: Visibility,
+              out: wp.array2d(dtype=wp.vec3)):
         y, x = wp.tid()
         t = tri_id[y, x]
         if t < 0:
@@ -320,8 +331,8 @@ def shade_kernel(f: Features):
                         col += wp.cw_mul(env.mu[j], diffuse_at(mat, o_l, world_to_local(pa, ts, bs, ns))) * w
                 if wp.static(ENV_D == 2):
                     th = vis_theta(SHADOWS, vis, ns, ng, td, bd, i0, i1, i2, b0, b1, b2)
-                    w = mc * vis_scale(FH, vis, th, lc) * env_scale
-                    g = gamma_lookup(gamma, to_env * ns, lc)
+                    w = mc * vis_fraction(FH, vis, th, lc)
+                    g = gamma_lookup(gamma, ns, lc)
                     col += wp.cw_mul(g, diffuse_at(mat, o_l, wp.vec3(0.0, 0.0, 1.0))) * w
                 if wp.static(LIGHTS):
                     for j in range(lights.count):
@@ -340,11 +351,11 @@ def shade_kernel(f: Features):
                         amp = mw * (mc * sc)
                         if wp.static(ENV_S == 2):
                             th = vis_theta(SHADOWS, vis, pa, ng, td, bd, i0, i1, i2, b0, b1, b2)
-                            g = gamma_lookup(gamma, to_env * pa, lam)
-                            col += wp.cw_mul(amp, g) * (vis_scale(FH, vis, th, lam) * env_scale)
+                            g = gamma_lookup(gamma, pa, lam)
+                            col += wp.cw_mul(amp, g) * vis_fraction(FH, vis, th, lam)
                         if wp.static(ENV_S == 1):
                             th = vis_theta(SHADOWS, vis, pa, ng, td, bd, i0, i1, i2, b0, b1, b2)
-                            vs = vis_scale(FH, vis, th, lam)
+                            vs = vis_fraction(FH, vis, th, lam)
                             for j in range(env.count):
                                 col += wp.cw_mul(amp, env.mu[j]) * (vs * sg_inner(pa, lam, env.axis[j], env.lam[j]))
                         if wp.static(LIGHTS):
