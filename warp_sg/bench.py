@@ -1,0 +1,317 @@
+r"""``warp-sg bench`` / :func:`run_bench`: the performance ratios of the project, measured in one run.
+
+Sections (each a list of rows; ratios are relative to the first row of the section, and only the
+ratios are meant to carry over between machines):
+
+1. **visibility** — the tile rasterizer against ``wp.Mesh`` ray casting for primary visibility
+   (``raster.bench.run_bench``).
+2. **shading** — per-frame cost of the SG renderer on the bench scene by scene feature, which
+   shows what the kernel specialisation saves: full scene (environment + local lights + specular
+   materials + SSDF shadows) vs no environment, no local lights, diffuse-only materials, shadows
+   off; plus the precompute with an empty cache vs a warm cache (precompute skipped).
+3. **precompute** — SSDF + PCA time by mesh size (``precompute.bench.run_bench``; its document
+   outputs go to a temporary folder).
+4. **equal error** — the SG renderer against our Monte-Carlo reference: the renderer's relative
+   MSE against a high-sample reference, the samples per pixel the reference needs to reach the
+   same error (log-log interpolation between powers of two) and the time ratio.
+
+The bench scene (:func:`bench_scene`) is a Torrance-Sparrow sphere, a Ward torus and a Lambert
+floor under the procedural sky with one point light and one directional light.
+"""
+from __future__ import annotations
+
+import math
+import statistics
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+
+
+@dataclass
+class BenchResult:
+    sections: dict = field(default_factory=dict)  # name -> list of row dicts
+    device: str = "cpu"
+    quick: bool = False
+    seconds: float = 0.0
+
+    def to_markdown(self) -> str:
+        out = []
+        for name, rows in self.sections.items():
+            out.append(f"### {name}\n")
+            if not rows:
+                out.append("(no rows)\n")
+                continue
+            keys = list(dict.fromkeys(k for r in rows for k in r))
+            out.append("| " + " | ".join(keys) + " |")
+            out.append("|" + "---|" * len(keys))
+            for r in rows:
+                out.append("| " + " | ".join(_fmt(r.get(k, "")) for k in keys) + " |")
+            out.append("")
+        return "\n".join(out)
+
+
+def _fmt(v):
+    if isinstance(v, float):
+        if math.isnan(v):
+            return "n/a"
+        return f"{v:.4g}"
+    return str(v)
+
+
+# --------------------------------------------------------------------------------------------
+# scene
+# --------------------------------------------------------------------------------------------
+def bench_scene(width=160, height=120, *, env=True, lights=True, diffuse_only=False, shadows=True, supersampling=1):
+    """The bench scene (see the module docstring), with features switched off on request."""
+    from . import brdf as B
+    from .lights import DirectionalLight, EnvironmentLight, PointLight
+    from .scene import Camera, RenderSettings, Scene, SceneObject
+
+    cam = Camera(origin=(0.0, 1.6, 4.2), target=(0.0, 0.45, 0.0), up=(0.0, 1.0, 0.0), fov=38.0, width=int(width),
+                 height=int(height))
+    if diffuse_only:
+        mats = {"metal": B.Lambert(kd=[0.6, 0.3, 0.2]), "satin": B.Lambert(kd=[0.2, 0.4, 0.6]),
+                "floor": B.Lambert(kd=[0.6, 0.6, 0.6])}
+    else:
+        mats = {"metal": B.TorranceSparrow(kd=[0.15, 0.05, 0.03], ks=[0.9, 0.6, 0.4], m=0.25),
+                "satin": B.Ward(kd=[0.1, 0.2, 0.4], ks=[0.4, 0.4, 0.4], alpha=0.15),
+                "floor": B.Lambert(kd=[0.6, 0.6, 0.6])}
+    objs = [SceneObject(material="metal", primitive="sphere", params={"center": (-0.6, 0.5, 0.0), "radius": 0.5}),
+            SceneObject(material="satin", primitive="torus",
+                        params={"center": (0.75, 0.25, 0.2), "major_radius": 0.45, "minor_radius": 0.2}),
+            SceneObject(material="floor", primitive="plane", params={"center": (0.0, 0.0, 0.0), "size": (5.0, 5.0)})]
+    ls = []
+    if env:
+        ls.append(EnvironmentLight(procedural="sky"))
+    if lights:
+        ls.append(PointLight(position=(1.5, 2.5, 1.5), radius=0.15, intensity=(6.0, 6.0, 5.0)))
+        ls.append(DirectionalLight(direction=(-0.4, 1.0, 0.3), radius=0.05, intensity=(1.0, 0.9, 0.8)))
+    if not ls:
+        ls.append(DirectionalLight(direction=(0.0, 1.0, 0.0), radius=0.05, intensity=(1.0, 1.0, 1.0)))
+    return Scene(camera=cam, objects=objs, materials=mats, lights=ls,
+                 render=RenderSettings(shadows=shadows, supersampling=supersampling))
+
+
+# --------------------------------------------------------------------------------------------
+# sections
+# --------------------------------------------------------------------------------------------
+def _frames(renderer, n):
+    renderer.render()  # warm-up (compiles the variant)
+    shade, frame = [], []
+    for _ in range(n):
+        renderer.render()
+        shade.append(renderer.timings.get("shade", float("nan")))
+        frame.append(renderer.timings.get("frame", float("nan")))
+    return statistics.median(shade), statistics.median(frame)
+
+
+def shading_section(device="cpu", quick=False, frames=None):
+    from .render import Renderer
+    from .report import fresh_cache
+
+    w, h = (48, 36) if quick else (320, 240)
+    n = frames or (1 if quick else 5)
+    cases = [("full scene", {}), ("no environment", {"env": False}), ("no local lights", {"lights": False}),
+             ("diffuse-only materials", {"diffuse_only": True}), ("shadows off", {"shadows": False})]
+    rows = []
+    base = None
+    with fresh_cache():
+        for name, kw in cases:
+            r = Renderer(bench_scene(w, h, **kw), device=device)
+            shade, frame = _frames(r, n)
+            if base is None:
+                base = shade
+            rows.append({"case": name, "shade_s": shade, "frame_s": frame, "shade_ratio": shade / base,
+                         "precompute_s": r.timings.get("precompute", float("nan"))})
+        # precompute: cold (empty cache) vs warm (cache hit: precompute skipped)
+    with fresh_cache():
+        t0 = time.perf_counter()
+        Renderer(bench_scene(w, h), device=device)
+        cold = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        Renderer(bench_scene(w, h), device=device)
+        warm = time.perf_counter() - t0
+    rows.append({"case": "precompute, empty cache", "precompute_s": cold, "shade_ratio": float("nan")})
+    rows.append({"case": "precompute, warm cache (skipped)", "precompute_s": warm,
+                 "shade_ratio": float("nan"), "speedup": cold / max(warm, 1e-9)})
+    return rows
+
+
+def visibility_section(device="cpu", quick=False):
+    try:
+        from raster import bench as rb
+    except Exception as e:  # noqa: BLE001 - report, don't crash the other sections
+        return [{"case": "rasterizer vs ray casting", "note": f"raster.bench unavailable ({type(e).__name__}: {e})"}]
+    res = rb.run_bench(device=device, quick=quick)
+    return _rows_from(res, "visibility")
+
+
+def precompute_section(device="cpu", quick=False):
+    """SSDF + PCA precompute time by mesh size. Full: ``precompute.bench.run_bench`` (with its
+    product-error study; its documents go to a temporary folder). Quick: ``ssdf_for_mesh`` alone
+    on two small bench meshes."""
+    from .report import fresh_cache
+
+    try:
+        from precompute import bench as pb
+    except Exception as e:  # noqa: BLE001
+        return [{"case": "precompute", "note": f"precompute.bench unavailable ({type(e).__name__}: {e})"}]
+    sizes = []
+    if quick:
+        import precompute
+
+        for target in (150, 600):
+            V, F, N = pb.bench_mesh(target)
+            with fresh_cache():
+                t0 = time.perf_counter()
+                precompute.ssdf_for_mesh(V, F, N, resolution=16, pca_terms=8, device=device, progress=False)
+                sizes.append({"vertices": len(V), "t_ssdf": time.perf_counter() - t0, "t_pca": 0.0})
+    else:
+        with tempfile.TemporaryDirectory(prefix="warp-sg-bench-") as d:
+            doc = Path(d) / "precompute.md"
+            doc.write_text("<!-- bench:begin -->\n<!-- bench:end -->\n")
+            with fresh_cache():
+                res = pb.run_bench(quick=False, device=device, out_doc=doc, fig_dir=Path(d), progress=False)
+        sizes = res.get("sizes", []) if isinstance(res, dict) else []
+    rows = []
+    base = None
+    for r in sizes:
+        t = float(r.get("t_ssdf", 0.0)) + float(r.get("t_pca", 0.0))
+        base = base or t
+        rows.append({"case": f"{r.get('vertices')} vertices", "ssdf_s": r.get("t_ssdf"), "pca_s": r.get("t_pca"),
+                     "total_s": t, "ratio": t / base if base else float("nan"),
+                     "us_per_vertex": 1e6 * t / max(int(r.get("vertices", 1)), 1)})
+    return rows
+
+
+def _rows_from(res, name):
+    """Normalise another module's bench result (list of dicts | dict | text) into rows."""
+    if isinstance(res, list) and all(isinstance(r, dict) for r in res):
+        return res
+    if isinstance(res, dict):
+        for k in ("rows", "table", "results"):
+            if isinstance(res.get(k), list):
+                return _rows_from(res[k], name)
+        return [{"case": k, "value": v} for k, v in res.items() if isinstance(v, (int, float, str))]
+    return [{"case": name, "value": str(res)}]
+
+
+def spp_for_error(curve, target):
+    """Samples per pixel at which the MC error curve [(spp, rel_mse, seconds)] reaches ``target``
+    (log-log interpolation; extrapolated with slope −1 past the last point). Returns (spp, seconds)."""
+    curve = sorted(curve)
+    for (s0, e0, t0), (s1, e1, t1) in zip(curve, curve[1:]):
+        if e1 <= target <= e0 and e0 > e1 > 0:
+            f = (math.log(e0) - math.log(target)) / (math.log(e0) - math.log(e1))
+            spp = math.exp(math.log(s0) + f * (math.log(s1) - math.log(s0)))
+            return spp, t0 + (t1 - t0) * (spp - s0) / (s1 - s0)
+    s, e, t = curve[-1]
+    if target >= curve[0][1]:
+        return curve[0][0], curve[0][2]
+    spp = s * e / target  # MC: error ∝ 1/spp
+    return spp, t * spp / s
+
+
+def equal_error_section(device="cpu", quick=False, truth_spp=None, progress=False):
+    from .reference import render_reference
+    from .render import Renderer
+    from .report import fresh_cache, image_errors
+
+    w, h = (24, 18) if quick else (96, 72)
+    truth_spp = truth_spp or (32 if quick else 1024)
+    scene = bench_scene(w, h)
+    truth = render_reference(scene, spp=truth_spp, device=device, progress=progress, seed=11)
+    with fresh_cache():
+        r = Renderer(scene, device=device)
+        pre = r.timings.get("precompute", float("nan"))
+        img = r.render()
+        _, frame = _frames(r, 1 if quick else 3)
+    err = image_errors(img, truth.image)
+    curve = []
+
+    def cb(spp, seconds, im, se):
+        if spp & (spp - 1) == 0:
+            curve.append((spp, image_errors(im, truth.image)["rel_mse"], seconds))
+
+    render_reference(scene, spp=max(1, truth_spp // 8), device=device, progress=progress, seed=12, callback=cb)
+    spp, t_mc = spp_for_error(curve, err["rel_mse"])
+    floor = float(np.sum(truth.stderr.astype(np.float64) ** 2) / max(np.sum(truth.image.astype(np.float64) ** 2),
+                                                                        1e-300))
+    return [
+        {"case": "SG renderer (frame)", "rel_mse": err["rel_mse"], "psnr_db": err["psnr_db"], "seconds": frame,
+         "ratio": 1.0},
+        {"case": "SG renderer (precompute + frame)", "rel_mse": err["rel_mse"], "seconds": pre + frame,
+         "ratio": (pre + frame) / frame},
+        {"case": f"MC reference at equal error ({spp:.3g} spp)", "rel_mse": err["rel_mse"], "seconds": t_mc,
+         "ratio": t_mc / frame},
+        {"case": f"ground truth ({truth_spp} spp) noise floor", "rel_mse": floor, "seconds": truth.seconds,
+         "ratio": truth.seconds / frame},
+    ]
+
+
+SECTIONS = {
+    "visibility: rasterizer vs ray casting": visibility_section,
+    "shading cost by scene feature": shading_section,
+    "precompute cost": precompute_section,
+    "equal error: SG renderer vs Monte-Carlo reference": equal_error_section,
+}
+
+
+def run_bench(device="cpu", quick=False, sections=None, print_fn=print) -> BenchResult:
+    """Run every section (or those named in ``sections``) and print the tables; returns them."""
+    from .device import resolve_device
+
+    device = resolve_device(device)
+    t0 = time.perf_counter()
+    res = BenchResult(device=device, quick=quick)
+    for name, fn in SECTIONS.items():
+        if sections is not None and not any(s in name for s in sections):
+            continue
+        try:
+            rows = fn(device=device, quick=quick)
+        except InputError:
+            raise
+        except Exception as e:  # noqa: BLE001 - one broken section must not hide the others
+            rows = [{"case": name, "note": f"failed: {type(e).__name__}: {e}"}]
+        res.sections[name] = rows
+        if print_fn is not None:
+            print_fn(BenchResult({name: rows}).to_markdown())
+    res.seconds = time.perf_counter() - t0
+    return res
+
+
+# --------------------------------------------------------------------------------------------
+# CLI
+# --------------------------------------------------------------------------------------------
+def add_cli_arguments(p) -> None:
+    p.add_argument("--device", default="cpu", help="cpu, cuda, cuda:N or auto")
+    p.add_argument("--quick", action="store_true", help="tiny sizes (smoke test)")
+    p.add_argument("--section", action="append", default=None,
+                   help="run only sections whose name contains this (repeatable)")
+    p.add_argument("-o", "--output", default=None, help="also write the tables (markdown) to this file")
+
+
+def cli_main(args) -> int:
+    out = None
+    if args.output:
+        out = Path(args.output)
+        if out.is_dir() or not out.parent.is_dir():
+            raise InputError("cannot write the bench tables here", where=str(out))
+    res = run_bench(device=args.device, quick=args.quick, sections=args.section)
+    print(f"bench finished in {res.seconds:.1f} s on {res.device}")
+    if out is not None:
+        import os
+
+        tmp = out.with_name(f".{out.name}.tmp")
+        tmp.write_text(res.to_markdown())
+        os.replace(tmp, out)
+    return 0
+
+
+__all__ = ["run_bench", "BenchResult", "bench_scene", "spp_for_error", "add_cli_arguments", "cli_main",
+           "SECTIONS"]
