@@ -312,6 +312,95 @@ def test_roughness_to_zero_keeps_microfacet_fits_and_slices_finite():
 
 
 # ------------------------------------------------------------------------------------------------
+# lights at the surface / very far, and scene scale (Monte-Carlo reference and renderer)
+# ------------------------------------------------------------------------------------------------
+_PLANE_V = np.array([[-50, 0, -50], [50, 0, -50], [50, 0, 50], [-50, 0, 50]], float)
+_PLANE_T = np.array([[0, 2, 1], [0, 3, 2]])
+
+
+def _ortho(n=6, extent=1.0):
+    c = (np.arange(n) + 0.5) / n * 2 * extent - extent
+    xs, zs = np.meshgrid(c, c)
+    o = np.stack([xs, np.full_like(xs, 3.0), zs], -1)
+    return o, np.broadcast_to([0.0, -1.0, 0.0], o.shape).copy()
+
+
+@pytest.mark.parametrize("case", ["inside", "delta-on-surface", "far", "very-far-tiny"])
+def test_point_lights_at_the_surface_or_very_far_are_finite_and_exact(device, case):
+    from warp_sg.reference import Light, ReferenceInputs, render_reference_inputs
+
+    kd = 0.7
+    o, d = _ortho()
+    x = o.copy()
+    x[..., 1] = 0
+    if case == "inside":  # every shading point inside a sphere of radius 10: E = π L = s / r²
+        li = Light("point", position=[0.0, 0.5, 0.0], radius=10.0, intensity=[100.0, 50.0, 25.0])
+        exact = np.broadcast_to(kd / np.pi * np.array([100.0, 50.0, 25.0]) / 100.0, x.shape)
+    elif case == "delta-on-surface":
+        li = Light("point", position=[o[0, 0, 0], 0.0, o[0, 0, 2]], radius=0.0, intensity=[1.0, 1.0, 1.0])
+        exact = None
+    else:
+        dist = 1e6 if case == "far" else 3e7
+        r = 1e3 if case == "far" else 1e-2
+        lp = np.array([0.3 * dist, dist, 0.2 * dist])
+        s = np.array([1.0, 2.0, 3.0]) * dist**2
+        li = Light("point", position=lp, radius=r, intensity=s)
+        rel = lp - x
+        d2 = np.sum(rel**2, -1)
+        exact = kd / np.pi * s * (rel[..., 1] / d2 / np.sqrt(d2))[..., None]
+    inp = ReferenceInputs(_PLANE_V, _PLANE_T, np.zeros(2, int), [ws.brdf.Lambert(kd=kd)], o, d, lights=[li])
+    res = render_reference_inputs(inp, spp=16, device=device, progress=False)
+    assert np.all(np.isfinite(res.image)) and np.all(np.isfinite(res.stderr)) and np.all(res.image >= 0)
+    if exact is not None:
+        assert np.all(np.abs(res.image - exact) <= 5 * res.stderr + 2e-3 * exact), (res.image[0, 0], exact[0, 0])
+    _count(36 * 16)
+
+
+def _small_scene(scale):
+    from warp_sg.lights import DirectionalLight, EnvironmentLight, PointLight
+    from warp_sg.scene import Camera, RenderSettings, Scene, SceneObject, Transform
+
+    k = float(scale)
+    cam = Camera(origin=(0.0, 1.2 * k, 3.0 * k), target=(0.0, 0.3 * k, 0.0), up=(0.0, 1.0, 0.0), fov=40.0,
+                 width=12, height=9, near=1e-2 * k, far=1e4 * k)
+    tr = Transform(scale=k)
+    objs = [SceneObject(material="a", primitive="sphere", params={"center": (0.0, 0.4, 0.0), "radius": 0.4,
+                                                                   "resolution": (12, 24)}, transform=tr),
+            SceneObject(material="b", primitive="plane", params={"center": (0.0, 0.0, 0.0), "size": (3.0, 3.0)},
+                        transform=tr)]
+    mats = {"a": ws.brdf.TorranceSparrow(kd=0.2, ks=0.6, m=0.3), "b": ws.brdf.Lambert(kd=0.5)}
+    lights = [EnvironmentLight(procedural="constant", options={"radiance": [0.3, 0.3, 0.3], "width": 16, "height": 8}),
+              DirectionalLight(direction=(0.3, 1.0, 0.2), radius=0.05, intensity=(1.0, 0.8, 0.6)),
+              PointLight(position=(1.0 * k, 1.5 * k, 1.0 * k), radius=0.1 * k, intensity=(3.0 * k * k,) * 3)]
+    return Scene(camera=cam, objects=objs, materials=mats, lights=lights, render=RenderSettings(shadows=True))
+
+
+def test_reference_is_the_same_image_for_a_scene_scaled_by_1e_minus4_and_1e4(device):
+    from warp_sg.reference import render_reference
+
+    imgs = {}
+    for k in (1e-4, 1.0, 1e4):
+        res = render_reference(_small_scene(k), spp=8, device=device, progress=False, seed=3)
+        assert np.all(np.isfinite(res.image))
+        imgs[k] = res
+    base = imgs[1.0]
+    for k in (1e-4, 1e4):
+        diff = np.abs(imgs[k].image - base.image)
+        # identical random numbers: differences are float32 rounding (rare shadow-ray flips)
+        assert np.mean(diff) <= 2e-3 * np.mean(base.image), k
+        assert np.mean(diff <= 3 * base.stderr + 1e-4 * base.image) > 0.97, k
+    _count(3)
+
+
+def test_renderer_is_the_same_image_for_a_scene_scaled_by_1e_minus4_and_1e4(device, cache_dir):
+    imgs = {k: ws.render(_small_scene(k), device=device) for k in (1e-4, 1.0, 1e4)}
+    for k, im in imgs.items():
+        assert im.shape == (9, 12, 3) and np.all(np.isfinite(im)), k
+    for k in (1e-4, 1e4):
+        np.testing.assert_allclose(imgs[k], imgs[1.0], rtol=2e-3, atol=2e-3 * float(imgs[1.0].mean()), err_msg=str(k))
+
+
+# ------------------------------------------------------------------------------------------------
 # draw count (runs last in this file)
 # ------------------------------------------------------------------------------------------------
 def test_zz_suite_covered_at_least_1e4_parameter_draws():
