@@ -1,0 +1,39 @@
+"""``warp-sg bench``: the quick run produces every section with the documented columns."""
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from warp_sg.bench import SECTIONS, run_bench, spp_for_error
+
+
+def test_spp_for_error_interpolates_log_log_and_extrapolates_like_one_over_spp():
+    curve = [(1, 1.0, 0.1), (2, 0.5, 0.2), (4, 0.25, 0.4)]
+    spp, t = spp_for_error(curve, 0.5)
+    assert spp == pytest.approx(2.0) and t == pytest.approx(0.2)
+    spp, t = spp_for_error(curve, 0.025)
+    assert spp == pytest.approx(40.0) and t == pytest.approx(4.0)
+    assert spp_for_error(curve, 2.0)[0] == 1
+
+
+def test_quick_bench_prints_every_section_with_its_columns(cache_dir):
+    printed = []
+    res = run_bench(device="cpu", quick=True, print_fn=printed.append)
+    assert list(res.sections) == list(SECTIONS)
+    assert len(printed) == len(SECTIONS) and all(p.startswith("### ") for p in printed)
+    for name, rows in res.sections.items():
+        assert rows, name
+        assert all("case" in r for r in rows), name
+    shading = res.sections["shading cost by scene feature"]
+    cases = [r["case"] for r in shading]
+    assert cases[:5] == ["full scene", "no environment", "no local lights", "diffuse-only materials", "shadows off"]
+    assert shading[0]["shade_ratio"] == 1.0
+    assert all(r["shade_s"] > 0 for r in shading[:5])
+    eq = res.sections["equal error: SG renderer vs Monte-Carlo reference"]
+    assert eq[0]["case"].startswith("SG renderer") and "spp" in eq[2]["case"]
+    assert all(math.isfinite(r["rel_mse"]) for r in eq)
+    pre = res.sections["precompute cost"]
+    assert all(r["total_s"] > 0 for r in pre)
+    md = res.to_markdown()
+    assert md.count("### ") == len(SECTIONS)

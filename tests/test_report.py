@@ -1,0 +1,76 @@
+"""Error-against-run-time report: metrics, and a tiny end-to-end run (shape and trends)."""
+from __future__ import annotations
+
+import csv
+import math
+
+import numpy as np
+import pytest
+
+from warp_sg.report import KNOBS, available_knobs, image_errors, markdown_table, run_report, with_setting
+
+
+def test_image_errors_are_zero_for_identical_images_and_exact_for_a_known_offset():
+    rng = np.random.default_rng(0)
+    ref = rng.uniform(0.1, 0.5, (6, 5, 3)).astype(np.float32)
+    e = image_errors(ref, ref)
+    assert e["rel_mse"] == 0 and e["max_err"] == 0 and math.isinf(e["psnr_db"])
+    img = ref + np.float32(0.01)
+    e = image_errors(img, ref)
+    np.testing.assert_allclose(e["rel_mse"], 1e-4 * ref.size / np.sum(ref.astype(np.float64) ** 2), rtol=1e-4)
+    np.testing.assert_allclose(e["max_err"], 0.01, rtol=1e-4)
+    assert 30 < e["psnr_db"] < 60
+
+
+def test_image_errors_reject_mismatched_shapes():
+    from warp_sg.errors import InputError
+
+    with pytest.raises(InputError, match="shape"):
+        image_errors(np.zeros((2, 2, 3)), np.zeros((3, 2, 3)))
+
+
+def test_knobs_come_from_the_scene_render_settings_and_copies_leave_the_scene_alone():
+    from warp_sg.bench import bench_scene
+
+    sc = bench_scene(8, 6)
+    knobs = available_knobs(sc)
+    assert {"lobes", "supersampling", "env_lobes", "pca_terms", "ssdf_resolution"} <= set(knobs)
+    assert set(knobs) <= set(KNOBS)
+    sc2 = with_setting(sc, "lobes", 3)
+    assert sc2.render.lobes == 3 and sc.render.lobes == knobs["lobes"]
+
+
+def test_markdown_table_has_one_row_per_measurement():
+    rows = [{"knob": "lobes", "value": v, "precompute_s": 0.1, "frame_s": 0.01 * v, "rel_mse": 1e-2 / v,
+             "psnr_db": 30.0 + v, "max_err": 0.5} for v in (1, 2, 3)]
+    t = markdown_table(rows).strip().splitlines()
+    assert len(t) == 2 + 3 and t[2].startswith("| lobes | 1 |")
+
+
+def test_tiny_report_writes_csv_markdown_plots_with_decreasing_mc_error(tmp_path, cache_dir):
+    from warp_sg.bench import bench_scene
+
+    sc = bench_scene(12, 9)
+    rep = run_report(sc, tmp_path / "rep", quick=True, truth_spp=64, mc_max_spp=8,
+                     knobs=["lobes", "supersampling"], progress=False)
+    for key in ("csv", "markdown", "plot", "plot_psnr", "images", "json"):
+        assert rep.files[key].is_file() and rep.files[key].stat().st_size > 0, key
+    with open(rep.files["csv"]) as f:
+        rows = list(csv.DictReader(f))
+    kinds = [r["knob"] for r in rows]
+    assert kinds.count("mc_reference") == 4  # spp 1, 2, 4, 8
+    assert kinds.count("default") == 1
+    assert kinds.count("lobes") == len(KNOBS["lobes"][1]) and kinds.count("supersampling") == len(KNOBS["supersampling"][1])
+    for r in rows:
+        for k in ("frame_s", "rel_mse", "psnr_db", "max_err"):
+            assert math.isfinite(float(r[k])) or r[k] == "inf", (k, r)
+    mc = [r for r in rep.rows if r["knob"] == "mc_reference"]
+    assert [r["spp"] for r in mc] == [1, 2, 4, 8]
+    assert mc[-1]["rel_mse"] < mc[0]["rel_mse"] / 2  # MC error falls like 1/spp
+    assert mc[-1]["psnr_db"] > mc[0]["psnr_db"]
+    assert all(b["total_s"] >= a["total_s"] for a, b in zip(mc, mc[1:]))  # progressive: time grows
+    ss = sorted((r for r in rep.rows if r["knob"] == "supersampling"), key=lambda r: r["value"])
+    assert ss[-1]["frame_s"] > ss[0]["frame_s"]  # more samples cost more
+    assert rep.noise_floor_rel_mse < mc[-1]["rel_mse"]
+    md = rep.files["markdown"].read_text()
+    assert "error_vs_time.png" in md and "| knob |" in md
