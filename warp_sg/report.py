@@ -187,12 +187,28 @@ def mc_curve(scene, truth, device="cpu", max_spp=64, seed=2, progress=True):
     return rows
 
 
+def with_resolution(scene, width=None, height=None):
+    """A copy of ``scene`` whose camera renders ``width`` × ``height`` (one given: keep the aspect)."""
+    if not width and not height:
+        return scene
+    cam = scene.camera
+    if width and not height:
+        height = max(1, round(cam.height * width / cam.width))
+    if height and not width:
+        width = max(1, round(cam.width * height / cam.height))
+    sc = copy.copy(scene)
+    sc.camera = dataclasses.replace(cam, width=int(width), height=int(height))
+    return sc
+
+
 def run_report(scene, out_dir, device="cpu", quick=False, truth_spp=None, mc_max_spp=None, knobs=None,
-               progress=True, frames=None) -> Report:
-    """Run the sweep for ``scene`` (a Scene or a path) and write the report into ``out_dir``."""
+               progress=True, frames=None, width=None, height=None) -> Report:
+    """Run the sweep for ``scene`` (a Scene or a path) and write the report into ``out_dir``.
+
+    ``width``/``height`` override the camera's resolution (the reference's cost grows with it)."""
     from .reference import render_reference
 
-    scene = _load(scene)
+    scene = with_resolution(_load(scene), width, height)
     out = Path(out_dir)
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -411,14 +427,20 @@ def add_cli_arguments(p) -> None:
     p.add_argument("--device", default="cpu", help="cpu, cuda, cuda:N or auto")
     p.add_argument("--quick", action="store_true", help="small sweep (smoke test)")
     p.add_argument("--truth-spp", type=int, default=None, help="samples per pixel of the ground truth")
+    p.add_argument("--width", type=int, default=None, help="override the camera width (keeps the aspect)")
+    p.add_argument("--height", type=int, default=None, help="override the camera height")
     p.add_argument("--no-progress", action="store_true")
 
 
 def cli_main(args) -> int:
     if args.truth_spp is not None and args.truth_spp < 1:
         raise InputError(f"must be >= 1, got {args.truth_spp}", where="--truth-spp")
+    for k in ("width", "height"):
+        v = getattr(args, k)
+        if v is not None and v < 1:
+            raise InputError(f"must be >= 1, got {v}", where=f"--{k}")
     rep = run_report(args.scene, args.output, device=args.device, quick=args.quick, truth_spp=args.truth_spp,
-                     progress=not args.no_progress)
+                     progress=not args.no_progress, width=args.width, height=args.height)
     print(f"report written to {rep.files['markdown']}")
     return 0
 
