@@ -241,7 +241,7 @@ class RenderSettings:
     pca_terms: int = 16
     ssdf_resolution: int = 32
     gamma_levels: int = 0
-    gamma_resolution: int = 256
+    gamma_resolution: int = 128
     fh: str = "table"
     background: bool = True
     device: str = "cpu"
