@@ -525,25 +525,26 @@ class Measured(SpecularBRDF):
         o, i = dirs(o, i)
         return self.mo(o, i) * self.ndf(half_vector(o, i))[..., None]
 
-    def fitted_eval(self, o, i, which="sg_pca"):
+    def fitted_eval(self, o, i, which="sg_pca", lobes=None):
         """``kd/π + ks ∘ Mo · D`` of an approximation: ``microfacet`` (tabulated D, full S),
-        ``sg`` (SG D*, full S) or ``sg_pca`` (SG D*, PCA S — the renderer's)."""
+        ``sg`` (SG D*, full S) or ``sg_pca`` (SG D*, PCA S — the renderer's); ``lobes``: SG lobe
+        count (default ``self.lobes``)."""
         o, i = dirs(o, i)
         h = half_vector(o, i)
         if which == "microfacet":
-            spec = self.mo(o, i, self.shadowing) * self.ndf_tabulated(h)[..., None]
-        elif which == "sg":
-            spec = self.mo(o, i, self.shadowing) * self.ndf(h)[..., None]
-        elif which == "sg_pca":
-            spec = self.mo(o, i) * self.ndf(h)[..., None]
+            d = self.ndf_tabulated(h)
+        elif which in ("sg", "sg_pca"):
+            ax, lam, mu = self.ndf_sg(lobes)
+            d = np.where(h[..., 2] > 0, sg_mixture(h, ax, lam, mu), 0.0)
         else:
             raise InputError(f"unknown approximation '{which}' (microfacet, sg, sg_pca)", where="which")
-        val = self.kd / np.pi + self.ks * spec
+        mo = self.mo(o, i) if which == "sg_pca" else self.mo(o, i, self.shadowing)
+        val = self.kd / np.pi + self.ks * (mo * d[..., None])
         return np.where(upper(o, i)[..., None], val, 0.0)
 
-    def errors(self):
+    def errors(self, lobes=None):
         """Supplement eq. 11 (all channels, MERL cells, full BRDF) of each approximation:
-        ``{"microfacet": .., "sg": .., "sg_pca": ..}``."""
+        ``{"microfacet": .., "sg": .., "sg_pca": ..}`` (``lobes``: SG lobe count, default ``self.lobes``)."""
         g = _cell_geometry()
         o, i = merl.cell_directions()
         O = o.reshape(-1, 3)[g["idx"]]
@@ -551,7 +552,7 @@ class Measured(SpecularBRDF):
         data = self.table.reshape(3, -1)[:, g["idx"]]
         out = {}
         for which in ("microfacet", "sg", "sg_pca"):
-            approx = self.fitted_eval(O, I, which).T
+            approx = self.fitted_eval(O, I, which, lobes).T
             out[which] = eq11(data, approx)
         return out
 
@@ -563,3 +564,104 @@ class Measured(SpecularBRDF):
 def fit_file(path, lobes=1, eta=1.33, pca_terms=8):
     """Convenience: ``Measured(file=path, ...)``."""
     return Measured(file=Path(path), lobes=lobes, eta=eta, pca_terms=pca_terms)
+
+
+# --------------------------------------------------------------------------------------------
+# report (docs/measured.md): python -m warp_sg.brdf.measured [OUT_DIR]
+# --------------------------------------------------------------------------------------------
+def synthetic_materials():
+    """Analytic BRDFs standing in for MERL measurements (no downloads): name -> (model, note)."""
+    from . import BlinnPhong, CookTorrance, TorranceSparrow, Ward
+
+    return {
+        "ct_m0.05": CookTorrance(kd=(0.02, 0.02, 0.02), ks=(30, 25, 20), m=0.05, fresnel={"eta": 1.33}),
+        "ct_m0.1": CookTorrance(kd=(0.1, 0.05, 0.02), ks=(20, 25, 30), m=0.1, fresnel={"eta": 1.33}),
+        "ct_m0.2": CookTorrance(kd=(0.1, 0.05, 0.02), ks=(20, 25, 30), m=0.2, fresnel={"eta": 1.33}),
+        "ct_m0.4": CookTorrance(kd=(0.2, 0.2, 0.2), ks=(20, 20, 20), m=0.4, fresnel={"eta": 1.33}),
+        "ts_m0.15": TorranceSparrow(kd=(0.3, 0.1, 0.1), ks=(1.0, 1.0, 1.0), m=0.15, fresnel={"eta": 1.5}),
+        "ward_a0.12": Ward(kd=(0.05, 0.1, 0.2), ks=(0.3, 0.3, 0.3), alpha=0.12),
+        "blinn_phong_n200": BlinnPhong(kd=(0.2, 0.2, 0.1), ks=(0.6, 0.6, 0.6), n=200),
+    }
+
+
+def error_table(models, lobes=(1, 2), eta=1.33, pca_terms=8):
+    """Rows ``{material, lobes, kd.., ks.., lambda, m_equiv, err_microfacet, err_sg, err_sg_pca}``
+    for named BRDF models (or (3,90,90,180) tables) tabulated as MERL tables and fitted."""
+    rows = []
+    for name, model in models.items():
+        table = model if isinstance(model, np.ndarray) else merl.tabulate(model)
+        meas = Measured(table=table, lobes=1, eta=eta, pca_terms=pca_terms)
+        for k in lobes:
+            e = meas.errors(k)
+            _, lam, mu = meas.ndf_sg(k)
+            rows.append(dict(material=name, lobes=k, kd=" ".join(f"{v:.3f}" for v in meas.kd),
+                             ks=" ".join(f"{v:.3f}" for v in meas.ks),
+                             sharpness=" ".join(f"{v:.1f}" for v in lam),
+                             amplitude=" ".join(f"{v:.3f}" for v in mu),
+                             err_microfacet=e["microfacet"], err_sg=e["sg"], err_sg_pca=e["sg_pca"]))
+    return rows
+
+
+def plot_fit(meas, path=None, ax=None, lobes=(1, 2), title=None):
+    """NDF table and its SG fits against θh (and the shadowing S, full and PCA) — matplotlib."""
+    import matplotlib.pyplot as plt
+
+    own = ax is None
+    if own:
+        fig, ax = plt.subplots(1, 2, figsize=(9, 3.4))
+    th = np.degrees(D_THETA)
+    ax[0].semilogy(th, np.maximum(meas.ndf_table, 1e-6), "k.", ms=3, label="fitted NDF table")
+    for k in lobes:
+        a, lam, mu = meas.ndf_sg(k)
+        d = (mu * np.exp(-lam * (1 - np.cos(D_THETA))[:, None])).sum(-1)
+        ax[0].semilogy(th, np.maximum(d, 1e-6), label=f"{k} SG lobe{'s' if k > 1 else ''}")
+    ax[0].set_ylim(1e-4, 2)
+    ax[0].set_xlabel("θh (degrees)")
+    ax[0].set_title(title or "NDF D(θh)")
+    ax[0].legend(fontsize=8)
+    ax[1].plot(np.degrees(S_THETA), meas.shadowing, "k-", label="S (90-D)")
+    ax[1].plot(np.degrees(S_THETA), meas.shadowing_pca, "r--", label=f"S PCA ({meas.pca_terms}-D)")
+    ax[1].set_xlabel("θ (degrees)")
+    ax[1].set_title("shadowing S(θ)")
+    ax[1].legend(fontsize=8)
+    if own:
+        fig.tight_layout()
+        if path:
+            fig.savefig(path, dpi=110)
+            plt.close(fig)
+    return ax
+
+
+def _main(out_dir):
+    import csv
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    mats = synthetic_materials()
+    rows = error_table(mats)
+    with open(out / "measured_errors.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: (f"{v:.3e}" if isinstance(v, float) else v) for k, v in r.items()})
+    names = ["ct_m0.1", "ts_m0.15", "blinn_phong_n200"]
+    fig, axs = plt.subplots(len(names), 2, figsize=(9, 3.0 * len(names)))
+    for r, name in enumerate(names):
+        plot_fit(Measured(table=merl.tabulate(mats[name]), lobes=1), ax=axs[r], title=f"{name}: NDF")
+    fig.tight_layout()
+    fig.savefig(out / "measured_fit.png", dpi=110)
+    plt.close(fig)
+    for r in rows:
+        print(f"| {r['material']} | {r['lobes']} | {r['sharpness']} | {r['err_microfacet']:.2e} | "
+              f"{r['err_sg']:.2e} | {r['err_sg_pca']:.2e} |")
+
+
+if __name__ == "__main__":
+    import sys
+
+    _main(sys.argv[1] if len(sys.argv) > 1 else "docs/figures")
