@@ -1,0 +1,12 @@
+"""Tile-based software triangle rasterizer on NVIDIA Warp (Laine & Karras 2011 structure).
+
+``rasterize(vertices, triangles, camera, device=..., supersample=1, cull_backfaces=False,
+coverage_count=False) -> VisibilityBuffer`` (tri_id / bary / depth as ``wp.array``);
+``interpolate(vb, triangles, attr)``; ``Camera`` (Mitsuba look_at + vertical fov).
+Stages: camera.py → setup.py → bin.py → coarse.py → fine.py, orchestrated by rasterize.py.
+"""
+from .camera import Camera
+from .interpolate import interpolate
+from .rasterize import VisibilityBuffer, rasterize
+
+__all__ = ["Camera", "VisibilityBuffer", "interpolate", "rasterize"]

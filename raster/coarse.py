@@ -1,0 +1,51 @@
+"""Stage 3 — coarse raster: scatter triangle ids into per-tile queues.
+
+``coarse_scatter_kernel`` (one thread per sub-triangle) repeats the bin stage's walk over the
+tiles of the triangle's bounding box with the same ``tile_overlaps`` test and appends the
+sub-triangle id to the queue of every touched tile, at ``offsets[tile·rows + batch]`` plus a
+per-(tile, batch) cursor. On the CPU a batch is one thread's contiguous range, so each tile's
+queue is in triangle order (deterministic); on CUDA the order inside a queue may vary, which is
+harmless because the fine raster breaks depth ties by triangle id.
+
+Memory: the queue holds one int32 per (triangle, tile) pair; ``rasterize`` bounds it by
+splitting the sub-triangles into several passes when the count from ``bin.py`` exceeds the
+budget (see docs/raster.md).
+"""
+from __future__ import annotations
+
+import warp as wp
+
+from .bin import TILE, tile_overlaps
+
+
+@wp.kernel
+def coarse_scatter_kernel(
+    base: int,
+    sub_lo: int,
+    batch: int,
+    rows: int,
+    tiles_x: int,
+    sub_v: wp.array2d(dtype=wp.vec2i),
+    sub_bbox: wp.array(dtype=wp.vec4i),
+    offsets: wp.array(dtype=wp.int32),
+    cursor: wp.array(dtype=wp.int32),
+    queue: wp.array(dtype=wp.int32),
+):
+    j = base + wp.tid()
+    s = sub_lo + j
+    row = j // batch
+    bb = sub_bbox[s]
+    tx0 = bb[0] // TILE
+    tx1 = bb[2] // TILE
+    ty0 = bb[1] // TILE
+    ty1 = bb[3] // TILE
+    small = (tx1 - tx0) < 1 or (ty1 - ty0) < 1
+    v0 = sub_v[s, 0]
+    v1 = sub_v[s, 1]
+    v2 = sub_v[s, 2]
+    for ty in range(ty0, ty1 + 1):
+        for tx in range(tx0, tx1 + 1):
+            if small or tile_overlaps(v0, v1, v2, bb, tx, ty):
+                slot = (ty * tiles_x + tx) * rows + row
+                k = wp.atomic_add(cursor, slot, 1)
+                queue[offsets[slot] + k] = s

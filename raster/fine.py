@@ -1,0 +1,208 @@
+"""Stage 4 — fine raster: per tile, coverage + depth test into the visibility buffer.
+
+Each tile owns its pixels, so no atomics are needed (Laine & Karras: one CTA per tile, the
+tile's queue processed in order). Two schedules of the same work, both plain Warp kernels that
+run on either device:
+
+* ``fine_tile_kernel`` — one thread per tile (used on the CPU, tiles spread over the thread
+  pool). For each queued sub-triangle it walks only the pixels of bbox ∩ tile, stepping the three
+  int64 edge functions incrementally; sub-pixel triangles cost one or two samples.
+* ``fine_pixel_kernel`` — one thread per pixel, looping over its tile's queue (used on CUDA:
+  a tile is a block of ``TILE²`` threads reading the same queue, coalesced).
+
+Coverage: sample (x+½, y+½) in fixed point is inside when every edge function is > 0, or = 0 on a
+top-left edge. Depth: the 1/w plane of the original triangle (larger = nearer), kept only in
+[1/far, 1/near]; ties go to the lower triangle id so the result does not depend on queue order.
+``count_mode`` additionally counts every covering sub-triangle per pixel (depth test off) — the
+watertightness diagnostic.
+"""
+from __future__ import annotations
+
+import warp as wp
+
+from .bin import TILE
+from .setup import HALF, SUBPIXEL, edge_eval, edge_topleft, eval_plane, sample_fixed
+
+
+@wp.func
+def closer(invw: float, tri: int, best_invw: float, best_tri: int):
+    return invw > best_invw or (invw == best_invw and tri < best_tri)
+
+
+@wp.kernel
+def fine_tile_kernel(
+    base: int,
+    tiles_x: int,
+    n_tiles: int,
+    rows: int,
+    width: int,
+    height: int,
+    inv_far: float,
+    count_mode: int,
+    offsets: wp.array(dtype=wp.int32),
+    queue: wp.array(dtype=wp.int32),
+    sub_v: wp.array2d(dtype=wp.vec2i),
+    sub_bbox: wp.array(dtype=wp.vec4i),
+    sub_tri: wp.array(dtype=wp.int32),
+    tri_planes: wp.array(dtype=wp.mat33),
+    tri_ref: wp.array(dtype=wp.vec2),
+    best_invw: wp.array2d(dtype=wp.float32),
+    best_tri: wp.array2d(dtype=wp.int32),
+    coverage: wp.array2d(dtype=wp.int32),
+):
+    t = base + wp.tid()
+    if t >= n_tiles:
+        return
+    tx = t % tiles_x
+    ty = t // tiles_x
+    X0 = tx * TILE
+    Y0 = ty * TILE
+    X1 = wp.min(X0 + TILE, width) - 1
+    Y1 = wp.min(Y0 + TILE, height) - 1
+    start = offsets[t * rows]
+    end = offsets[(t + 1) * rows]
+    step = wp.int64(SUBPIXEL)
+    for q in range(start, end):
+        s = queue[q]
+        bb = sub_bbox[s]
+        x0 = wp.max(bb[0], X0)
+        y0 = wp.max(bb[1], Y0)
+        x1 = wp.min(bb[2], X1)
+        y1 = wp.min(bb[3], Y1)
+        if x0 > x1 or y0 > y1:
+            continue
+        v0 = sub_v[s, 0]
+        v1 = sub_v[s, 1]
+        v2 = sub_v[s, 2]
+        # inside <=> E + bias > 0 (bias 1 on top-left edges: E >= 0)
+        b0 = wp.int64(edge_topleft(v0, v1))
+        b1 = wp.int64(edge_topleft(v1, v2))
+        b2 = wp.int64(edge_topleft(v2, v0))
+        sx = sample_fixed(x0)
+        sy = sample_fixed(y0)
+        r0 = edge_eval(v0, v1, sx, sy) + b0
+        r1 = edge_eval(v1, v2, sx, sy) + b1
+        r2 = edge_eval(v2, v0, sx, sy) + b2
+        dx0 = -wp.int64(v1[1] - v0[1]) * step
+        dx1 = -wp.int64(v2[1] - v1[1]) * step
+        dx2 = -wp.int64(v0[1] - v2[1]) * step
+        dy0 = wp.int64(v1[0] - v0[0]) * step
+        dy1 = wp.int64(v2[0] - v1[0]) * step
+        dy2 = wp.int64(v0[0] - v2[0]) * step
+        tri = sub_tri[s]
+        pl = tri_planes[tri]
+        ref = tri_ref[tri]
+        z = wp.int64(0)
+        for y in range(y0, y1 + 1):
+            e0 = r0
+            e1 = r1
+            e2 = r2
+            for x in range(x0, x1 + 1):
+                if e0 > z and e1 > z and e2 > z:
+                    invw = eval_plane(pl, 0, ref, x, y)
+                    if invw >= inv_far:
+                        if count_mode == 1:
+                            coverage[y, x] = coverage[y, x] + 1
+                        if closer(invw, tri, best_invw[y, x], best_tri[y, x]):
+                            best_invw[y, x] = invw
+                            best_tri[y, x] = tri
+                e0 += dx0
+                e1 += dx1
+                e2 += dx2
+            r0 += dy0
+            r1 += dy1
+            r2 += dy2
+
+
+@wp.kernel
+def fine_pixel_kernel(
+    base: int,
+    tiles_x: int,
+    n_tiles: int,
+    rows: int,
+    width: int,
+    height: int,
+    inv_far: float,
+    count_mode: int,
+    offsets: wp.array(dtype=wp.int32),
+    queue: wp.array(dtype=wp.int32),
+    sub_v: wp.array2d(dtype=wp.vec2i),
+    sub_bbox: wp.array(dtype=wp.vec4i),
+    sub_tri: wp.array(dtype=wp.int32),
+    tri_planes: wp.array(dtype=wp.mat33),
+    tri_ref: wp.array(dtype=wp.vec2),
+    best_invw: wp.array2d(dtype=wp.float32),
+    best_tri: wp.array2d(dtype=wp.int32),
+    coverage: wp.array2d(dtype=wp.int32),
+):
+    g = base + wp.tid()
+    t = g // (TILE * TILE)
+    if t >= n_tiles:
+        return
+    local = g - t * (TILE * TILE)
+    x = (t % tiles_x) * TILE + local % TILE
+    y = (t // tiles_x) * TILE + local // TILE
+    if x >= width or y >= height:
+        return
+    bi = best_invw[y, x]
+    bt = best_tri[y, x]
+    cnt = int(0)
+    sx = sample_fixed(x)
+    sy = sample_fixed(y)
+    z = wp.int64(0)
+    for q in range(offsets[t * rows], offsets[(t + 1) * rows]):
+        s = queue[q]
+        bb = sub_bbox[s]
+        if x < bb[0] or x > bb[2] or y < bb[1] or y > bb[3]:
+            continue
+        v0 = sub_v[s, 0]
+        v1 = sub_v[s, 1]
+        v2 = sub_v[s, 2]
+        if edge_eval(v0, v1, sx, sy) + wp.int64(edge_topleft(v0, v1)) > z:
+            if edge_eval(v1, v2, sx, sy) + wp.int64(edge_topleft(v1, v2)) > z:
+                if edge_eval(v2, v0, sx, sy) + wp.int64(edge_topleft(v2, v0)) > z:
+                    tri = sub_tri[s]
+                    invw = eval_plane(tri_planes[tri], 0, tri_ref[tri], x, y)
+                    if invw >= inv_far:
+                        cnt += 1
+                        if closer(invw, tri, bi, bt):
+                            bi = invw
+                            bt = tri
+    best_invw[y, x] = bi
+    best_tri[y, x] = bt
+    if count_mode == 1:
+        coverage[y, x] = coverage[y, x] + cnt
+
+
+@wp.kernel
+def resolve_kernel(
+    best_invw: wp.array2d(dtype=wp.float32),
+    best_tri: wp.array2d(dtype=wp.int32),
+    tri_planes: wp.array(dtype=wp.mat33),
+    tri_ref: wp.array(dtype=wp.vec2),
+    tri_id: wp.array2d(dtype=wp.int32),
+    bary: wp.array2d(dtype=wp.vec2),
+    depth: wp.array2d(dtype=wp.float32),
+):
+    """Visibility buffer from the winning triangle: perspective-correct barycentrics w.r.t. the
+    original triangle (b1 = λ1/Σλ, b2 = λ2/Σλ) and view-axis depth 1/Σλ; empty: -1, (0,0), +inf."""
+    y, x = wp.tid()
+    tri = best_tri[y, x]
+    tri_id[y, x] = tri
+    if tri < 0:
+        bary[y, x] = wp.vec2(0.0, 0.0)
+        depth[y, x] = wp.inf
+        return
+    pl = tri_planes[tri]
+    ref = tri_ref[tri]
+    s = eval_plane(pl, 0, ref, x, y)
+    l1 = eval_plane(pl, 1, ref, x, y)
+    l2 = eval_plane(pl, 2, ref, x, y)
+    b1 = wp.clamp(l1 / s, 0.0, 1.0)
+    b2 = wp.clamp(l2 / s, 0.0, 1.0)
+    tot = b1 + b2
+    if tot > 1.0:
+        b1 = b1 / tot
+        b2 = b2 / tot
+    bary[y, x] = wp.vec2(b1, b2)
+    depth[y, x] = 1.0 / s

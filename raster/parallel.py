@@ -1,0 +1,90 @@
+"""Spreading one kernel launch over CPU cores.
+
+Warp runs a CPU launch serially on one core. Every data-parallel raster kernel takes an index
+offset ``base`` as its first argument (element ``i = base + wp.tid()``), so disjoint index ranges
+of the *same* compiled kernel can be launched from a small Python thread pool (Warp releases the
+GIL while a CPU kernel runs; measured ≈1.9× on 2 cores). On CUDA a single launch covers the
+whole range.
+
+Kernels launched this way must not rely on atomics between ranges: Warp's CPU atomics are
+plain read-modify-writes, which are only safe when one range owns each written element.
+"""
+from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor
+
+import warp as wp
+
+_POOL: ThreadPoolExecutor | None = None
+_LOADED: set = set()
+
+
+def _ensure_loaded(kernel, device) -> None:
+    """Load (compile) the kernel's module once, before threads race to do it."""
+    key = (id(kernel.module), str(device))
+    if key not in _LOADED:
+        wp.load_module(kernel.module, device=device)
+        _LOADED.add(key)
+
+
+def cpu_workers() -> int:
+    """Threads used for CPU launches (``RASTER_THREADS`` overrides; default = usable cores)."""
+    env = os.environ.get("RASTER_THREADS")
+    if env:
+        return max(1, int(env))
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - non-Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _pool() -> ThreadPoolExecutor:
+    global _POOL
+    if _POOL is None:
+        _POOL = ThreadPoolExecutor(max_workers=max(cpu_workers(), 1), thread_name_prefix="raster")
+    return _POOL
+
+
+def launch(kernel, n: int, inputs: list, device: str, chunks: int | None = None, min_chunk: int = 256):
+    """Launch ``kernel`` over ``n`` elements; ``inputs`` excludes the leading ``base`` offset.
+
+    CPU: split into ``chunks`` contiguous ranges (default 4 per worker) run on the pool.
+    CUDA: one launch of ``n`` threads.
+    """
+    n = int(n)
+    if n <= 0:
+        return
+    _ensure_loaded(kernel, device)
+    if not str(device).startswith("cpu"):
+        wp.launch(kernel, dim=n, inputs=[0, *inputs], device=device)
+        return
+    workers = cpu_workers()
+    if chunks is None:
+        chunks = 4 * workers
+    chunks = max(1, min(int(chunks), (n + min_chunk - 1) // min_chunk))
+    if workers == 1 or chunks == 1:
+        wp.launch(kernel, dim=n, inputs=[0, *inputs], device=device)
+        return
+    step = (n + chunks - 1) // chunks
+    ranges = [(b, min(step, n - b)) for b in range(0, n, step)]
+    futs = [_pool().submit(wp.launch, kernel, dim=m, inputs=[b, *inputs], device=device) for b, m in ranges]
+    for f in futs:
+        f.result()
+
+
+def launch_rows(kernel, n: int, rows: int, inputs: list, device: str):
+    """Launch over ``n`` elements split into exactly ``rows`` contiguous ranges of
+    ``ceil(n / rows)`` elements, one thread each (range r owns row r of a per-row output)."""
+    n = int(n)
+    if n <= 0:
+        return
+    _ensure_loaded(kernel, device)
+    if rows == 1 or not str(device).startswith("cpu"):
+        wp.launch(kernel, dim=n, inputs=[0, *inputs], device=device)
+        return
+    step = (n + rows - 1) // rows
+    futs = [_pool().submit(wp.launch, kernel, dim=min(step, n - b), inputs=[b, *inputs], device=device)
+            for b in range(0, n, step)]
+    for f in futs:
+        f.result()

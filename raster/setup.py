@@ -1,0 +1,317 @@
+"""Stage 1 — vertex transform and triangle setup (Laine & Karras 2011, "triangle setup").
+
+* ``vertex_kernel``: world positions → homogeneous clip space with the camera's 4×4
+  view-projection matrix (OpenGL; ``w`` = distance along the view axis).
+* ``setup_kernel`` (one thread per input triangle), run twice — a *count* pass and, after a
+  prefix sum over the counts, an *emit* pass that recomputes the same thing and writes records:
+
+  1. trivial reject when all three vertices lie outside one frustum plane (``x>w``, ``x<−w``,
+     ``y>w``, ``y<−w``, ``w<near``, ``w>far``);
+  2. clipping in homogeneous space (Sutherland–Hodgman) against the near plane ``w = near`` and,
+     only when a vertex leaves it, against a guard band ``|x| ≤ g·w``, ``|y| ≤ g·w`` that keeps
+     fixed-point pixel coordinates within ±2¹⁵ pixels. The polygon (≤ 8 vertices) is fanned into
+     sub-triangles (usually one; two for a near-plane crossing). Intersections are computed from
+     the inside to the outside vertex, so an edge shared by two triangles is clipped to bit-identical
+     points (watertight). Nothing behind the near plane survives, so nothing is drawn inverted;
+  3. projection to pixels and **snapping to fixed point** (``SUBPIXEL_BITS`` = 8 → 1/256 px);
+  4. signed area from the snapped vertices (int64): zero → dropped (degenerate), back-facing →
+     dropped when culling; the winding is normalised so the edge functions are positive inside;
+  5. the pixel bounding box of the covered sample positions (empty → dropped: sub-pixel triangles
+     that miss every pixel centre cost nothing further);
+  6. **interpolation planes** of the *original* triangle in 2D homogeneous form (Olano & Greer):
+     with ``M = [X_i; Y_i; w_i]`` (pixel-space homogeneous vertices, float64) the rows of ``M⁻¹``
+     are linear functions of the pixel position giving ``λ_i = b_i / w``; so ``Σλ = 1/w`` is the
+     depth plane and ``b_i = λ_i / Σλ`` are perspective-correct barycentrics. Being per original
+     triangle, clipped pieces report the original ``tri_id`` and barycentrics for free. Planes are
+     stored relative to a reference pixel near the triangle to avoid float32 cancellation.
+
+Edge function of the directed edge a→b at sample p (fixed point): ``E = (b−a) × (p−a)``; a sample
+is inside when ``E > 0`` for all edges, or ``E = 0`` on a *top-left* edge (top-left fill rule: an
+edge shared by two triangles covers a sample on it exactly once).
+"""
+from __future__ import annotations
+
+import warp as wp
+
+SUBPIXEL_BITS = 8
+SUBPIXEL = 1 << SUBPIXEL_BITS
+HALF = SUBPIXEL // 2
+GUARD_PIXELS = 32000.0  # |X|, |Y| of snapped vertices stay below this (fixed point < 2^23)
+MAX_RESOLUTION = 16384  # per axis, after supersampling
+
+vec8 = wp.types.vector(length=8, dtype=wp.float32)
+
+
+@wp.kernel
+def vertex_kernel(base: int, verts: wp.array(dtype=wp.vec3), mvp: wp.mat44, clip: wp.array(dtype=wp.vec4)):
+    """Clip-space position of every vertex."""
+    i = base + wp.tid()
+    if i >= verts.shape[0]:
+        return
+    v = verts[i]
+    clip[i] = mvp * wp.vec4(v[0], v[1], v[2], 1.0)
+
+
+# ---------------------------------------------------------------------------------------------
+# small building blocks
+# ---------------------------------------------------------------------------------------------
+@wp.func
+def plane_dist(x: float, y: float, w: float, plane: int, near: float, gx: float, gy: float):
+    """Signed distance (≥ 0 inside) to clip plane 0 = near, 1..4 = guard band ±x, ±y."""
+    d = w - near
+    if plane == 1:
+        d = gx * w - x
+    elif plane == 2:
+        d = gx * w + x
+    elif plane == 3:
+        d = gy * w - y
+    elif plane == 4:
+        d = gy * w + y
+    return d
+
+
+@wp.func
+def clip_polygon(px: vec8, py: vec8, pw: vec8, n: int, plane: int, near: float, gx: float, gy: float):
+    """One Sutherland–Hodgman step; returns the clipped polygon (≤ n + 1 vertices)."""
+    ox = vec8()
+    oy = vec8()
+    ow = vec8()
+    m = int(0)
+    for k in range(n):
+        k2 = (k + 1) % n
+        ax = px[k]
+        ay = py[k]
+        aw = pw[k]
+        bx = px[k2]
+        by = py[k2]
+        bw = pw[k2]
+        da = plane_dist(ax, ay, aw, plane, near, gx, gy)
+        db = plane_dist(bx, by, bw, plane, near, gx, gy)
+        if da >= 0.0:
+            if m < 8:
+                ox[m] = ax
+                oy[m] = ay
+                ow[m] = aw
+                m += 1
+        if (da >= 0.0) != (db >= 0.0):
+            # canonical: interpolate from the inside vertex towards the outside one
+            ix = ax
+            iy = ay
+            iw = aw
+            di = da
+            ux = bx
+            uy = by
+            uw = bw
+            du = db
+            if da < 0.0:
+                ix = bx
+                iy = by
+                iw = bw
+                di = db
+                ux = ax
+                uy = ay
+                uw = aw
+                du = da
+            t = di / (di - du)
+            if m < 8:
+                ox[m] = ix + t * (ux - ix)
+                oy[m] = iy + t * (uy - iy)
+                ow[m] = iw + t * (uw - iw)
+                if plane == 0:
+                    ow[m] = near  # exactly on the near plane
+                m += 1
+    return ox, oy, ow, m
+
+
+@wp.func
+def snap(x: float, w: float, size: float, flip: int):
+    """Clip coordinate → fixed-point pixel coordinate (1/SUBPIXEL px)."""
+    ndc = wp.float64(x) / wp.float64(w)
+    if flip == 1:
+        ndc = -ndc
+    p = (ndc + wp.float64(1.0)) * wp.float64(0.5) * wp.float64(size)
+    p = wp.clamp(p, wp.float64(-GUARD_PIXELS), wp.float64(GUARD_PIXELS))
+    return wp.int32(wp.round(p * wp.float64(SUBPIXEL)))
+
+
+@wp.func
+def edge_topleft(a: wp.vec2i, b: wp.vec2i):
+    """1 when the directed edge a→b is a top or left edge (winding: positive area, y down)."""
+    dy = b[1] - a[1]
+    dx = b[0] - a[0]
+    if dy < 0 or (dy == 0 and dx > 0):
+        return 1
+    return 0
+
+
+@wp.func
+def edge_eval(a: wp.vec2i, b: wp.vec2i, sx: wp.int64, sy: wp.int64):
+    """Edge function (b−a)×(s−a) in int64 at fixed-point sample (sx, sy)."""
+    return wp.int64(b[0] - a[0]) * (sy - wp.int64(a[1])) - wp.int64(b[1] - a[1]) * (sx - wp.int64(a[0]))
+
+
+@wp.func
+def sample_fixed(p: int):
+    """Fixed-point coordinate of pixel centre p + 0.5."""
+    return wp.int64(p) * wp.int64(SUBPIXEL) + wp.int64(HALF)
+
+
+@wp.func
+def lower_px(v: int):
+    """First pixel whose centre is ≥ fixed-point v."""
+    return wp.int32(wp.ceil((wp.float64(v) - wp.float64(HALF)) / wp.float64(SUBPIXEL)))
+
+
+@wp.func
+def upper_px(v: int):
+    """Last pixel whose centre is ≤ fixed-point v."""
+    return wp.int32(wp.floor((wp.float64(v) - wp.float64(HALF)) / wp.float64(SUBPIXEL)))
+
+
+@wp.func
+def outside_all(a: float, b: float, c: float):
+    return a < 0.0 and b < 0.0 and c < 0.0
+
+
+# ---------------------------------------------------------------------------------------------
+# the setup kernel
+# ---------------------------------------------------------------------------------------------
+@wp.kernel
+def setup_kernel(
+    base: int,
+    clip: wp.array(dtype=wp.vec4),
+    tris: wp.array(dtype=wp.vec3i),
+    width: int,
+    height: int,
+    near: float,
+    far: float,
+    gx: float,
+    gy: float,
+    cull: int,
+    emit: int,
+    counts: wp.array(dtype=wp.int32),
+    offsets: wp.array(dtype=wp.int32),
+    sub_v: wp.array2d(dtype=wp.vec2i),
+    sub_bbox: wp.array(dtype=wp.vec4i),
+    sub_tri: wp.array(dtype=wp.int32),
+    tri_planes: wp.array(dtype=wp.mat33),
+    tri_ref: wp.array(dtype=wp.vec2),
+):
+    i = base + wp.tid()
+    if i >= tris.shape[0]:
+        return
+    t = tris[i]
+    c0 = clip[t[0]]
+    c1 = clip[t[1]]
+    c2 = clip[t[2]]
+    n_out = int(0)
+    # 1. trivial reject against the frustum planes
+    reject = outside_all(c0[3] - c0[0], c1[3] - c1[0], c2[3] - c2[0])
+    reject = reject or outside_all(c0[3] + c0[0], c1[3] + c1[0], c2[3] + c2[0])
+    reject = reject or outside_all(c0[3] - c0[1], c1[3] - c1[1], c2[3] - c2[1])
+    reject = reject or outside_all(c0[3] + c0[1], c1[3] + c1[1], c2[3] + c2[1])
+    reject = reject or outside_all(c0[3] - near, c1[3] - near, c2[3] - near)
+    reject = reject or outside_all(far - c0[3], far - c1[3], far - c2[3])
+    if not reject:
+        # 6 (first, needed for validity). 2D homogeneous matrix of the original triangle
+        fw = wp.float64(width) * wp.float64(0.5)
+        fh = wp.float64(height) * wp.float64(0.5)
+        m = wp.mat33d(
+            (wp.float64(c0[0]) + wp.float64(c0[3])) * fw, (wp.float64(c1[0]) + wp.float64(c1[3])) * fw,
+            (wp.float64(c2[0]) + wp.float64(c2[3])) * fw,
+            (wp.float64(c0[3]) - wp.float64(c0[1])) * fh, (wp.float64(c1[3]) - wp.float64(c1[1])) * fh,
+            (wp.float64(c2[3]) - wp.float64(c2[1])) * fh,
+            wp.float64(c0[3]), wp.float64(c1[3]), wp.float64(c2[3]),
+        )
+        det = wp.determinant(m)
+        if det != wp.float64(0.0) and wp.isfinite(det):
+            # 2. clipping (only when needed)
+            px = vec8()
+            py = vec8()
+            pw = vec8()
+            px[0] = c0[0]
+            px[1] = c1[0]
+            px[2] = c2[0]
+            py[0] = c0[1]
+            py[1] = c1[1]
+            py[2] = c2[1]
+            pw[0] = c0[3]
+            pw[1] = c1[3]
+            pw[2] = c2[3]
+            n = int(3)
+            need_near = c0[3] < near or c1[3] < near or c2[3] < near
+            if need_near:
+                px, py, pw, n = clip_polygon(px, py, pw, n, 0, near, gx, gy)
+            need_guard = int(0)
+            for k in range(n):
+                if wp.abs(px[k]) > gx * pw[k] or wp.abs(py[k]) > gy * pw[k]:
+                    need_guard = 1
+            if need_guard == 1:
+                for plane in range(1, 5):
+                    if n >= 3:
+                        px, py, pw, n = clip_polygon(px, py, pw, n, plane, near, gx, gy)
+            # 3.-5. fan, snap, area, cull, bbox
+            if n >= 3:
+                s0 = wp.vec2i(snap(px[0], pw[0], float(width), 0), snap(py[0], pw[0], float(height), 1))
+                for k in range(1, n - 1):
+                    s1 = wp.vec2i(snap(px[k], pw[k], float(width), 0), snap(py[k], pw[k], float(height), 1))
+                    s2 = wp.vec2i(snap(px[k + 1], pw[k + 1], float(width), 0),
+                                  snap(py[k + 1], pw[k + 1], float(height), 1))
+                    area = wp.int64(s1[0] - s0[0]) * wp.int64(s2[1] - s0[1]) - wp.int64(s1[1] - s0[1]) * wp.int64(
+                        s2[0] - s0[0])
+                    keep = area != wp.int64(0)
+                    # front faces (counter-clockwise in world/NDC) have negative area with y down
+                    if cull == 1 and area > wp.int64(0):
+                        keep = False
+                    if keep:
+                        if area < wp.int64(0):
+                            tmp = s1
+                            s1 = s2
+                            s2 = tmp
+                        xmin = wp.min(s0[0], wp.min(s1[0], s2[0]))
+                        xmax = wp.max(s0[0], wp.max(s1[0], s2[0]))
+                        ymin = wp.min(s0[1], wp.min(s1[1], s2[1]))
+                        ymax = wp.max(s0[1], wp.max(s1[1], s2[1]))
+                        bx0 = wp.max(lower_px(xmin), 0)
+                        bx1 = wp.min(upper_px(xmax), width - 1)
+                        by0 = wp.max(lower_px(ymin), 0)
+                        by1 = wp.min(upper_px(ymax), height - 1)
+                        if bx0 <= bx1 and by0 <= by1:
+                            if emit == 1:
+                                o = offsets[i] + n_out
+                                sub_v[o, 0] = s0
+                                sub_v[o, 1] = s1
+                                sub_v[o, 2] = s2
+                                sub_bbox[o] = wp.vec4i(bx0, by0, bx1, by1)
+                                sub_tri[o] = i
+                                if n_out == 0:
+                                    # 6. interpolation planes relative to a reference pixel
+                                    inv = wp.inverse(m)
+                                    rx = wp.float64(bx0) + wp.float64(0.5)
+                                    ry = wp.float64(by0) + wp.float64(0.5)
+                                    l0 = inv[0, 0] * rx + inv[0, 1] * ry + inv[0, 2]
+                                    l1 = inv[1, 0] * rx + inv[1, 1] * ry + inv[1, 2]
+                                    l2 = inv[2, 0] * rx + inv[2, 1] * ry + inv[2, 2]
+                                    tri_planes[i] = wp.mat33(
+                                        float(inv[0, 0] + inv[1, 0] + inv[2, 0]),
+                                        float(inv[0, 1] + inv[1, 1] + inv[2, 1]), float(l0 + l1 + l2),
+                                        float(inv[1, 0]), float(inv[1, 1]), float(l1),
+                                        float(inv[2, 0]), float(inv[2, 1]), float(l2),
+                                    )
+                                    tri_ref[i] = wp.vec2(float(rx), float(ry))
+                            n_out += 1
+    if emit == 0:
+        counts[i] = n_out
+
+
+@wp.func
+def eval_plane(pl: wp.mat33, row: int, ref: wp.vec2, x: int, y: int):
+    """Value of interpolation plane ``row`` (0: 1/w, 1: λ1, 2: λ2) at pixel centre (x, y)."""
+    return pl[row, 0] * (float(x) + 0.5 - ref[0]) + pl[row, 1] * (float(y) + 0.5 - ref[1]) + pl[row, 2]
+
+
+def guard_factors(width: int, height: int) -> tuple[float, float]:
+    """Guard-band factors g (clip space |x| ≤ g·w) keeping pixel coordinates inside ±GUARD_PIXELS."""
+    gx = 2.0 * (GUARD_PIXELS - 16.0) / width - 1.0
+    gy = 2.0 * (GUARD_PIXELS - 16.0) / height - 1.0
+    return gx, gy
