@@ -363,21 +363,9 @@ class Renderer:
         vb = self.rasterize()
         t1 = _timer(d)
         bg = self._background_image(k)
-        es = self._env_arrays()
-        f = self.features()
-        kern = S.shade_kernel(f)
-        if f.env_diffuse == S.ENV_PREFILTERED or f.env_specular == S.ENV_PREFILTERED:
-            env = self.env_light
-            gamma = self.gamma.table(rotation=env.rotation_matrix(), scale=env.scale, device=d)
-        else:
-            gamma = es  # placeholder argument of the variant without ΓL
         hs, ws_ = cam.height * k, cam.width * k
         out = wp.empty((hs, ws_), dtype=wp.vec3, device=d)
-        wp.launch(kern, dim=(hs, ws_), inputs=[vb.tri_id, vb.bary, bg, wp.vec3(*np.asarray(cam.origin, np.float32)),
-                                                self.geo_arrays, self.material_table.materials,
-                                                self.material_textures, self.cc, self.light_arrays, es, gamma,
-                                                self.vis],
-                  outputs=[out], device=d)
+        self._launch_shade(vb.tri_id, vb.bary, bg, cam.origin, out)
         t2 = _timer(d)
         if k > 1:
             res = wp.empty((cam.height, cam.width), dtype=wp.vec3, device=d)
@@ -387,6 +375,47 @@ class Renderer:
         t3 = time.perf_counter()
         self.timings.update(raster=t1 - t0, shade=t2 - t1, resolve=t3 - t2, frame=t3 - t0)
         return img
+
+
+    def shade_vertices(self, eye=None) -> np.ndarray:
+        """The renderer's shading evaluated at every mesh vertex (V, 3) float32, seen from ``eye``
+        (default: the camera origin). Uses the same kernel as :meth:`render` on a one-row
+        "visibility buffer" whose entries select each vertex of a triangle that contains it
+        (used by the pyvista preview). Unreferenced vertices get 0."""
+        g = self.geometry
+        d = self.device
+        nv, nt = len(g.vertices), len(g.triangles)
+        owner = np.full(nv, -1, np.int32)
+        corner = np.zeros(nv, np.int32)
+        for k in range(3):
+            owner[g.triangles[:, k]] = np.arange(nt, dtype=np.int32)
+            corner[g.triangles[:, k]] = k
+        bary = np.zeros((nv, 2), np.float32)
+        bary[corner == 1, 0] = 1.0
+        bary[corner == 2, 1] = 1.0
+        tri_id = wp.array(owner.reshape(1, nv), dtype=int, device=d)
+        bary_w = wp.array(bary.reshape(1, nv, 2), dtype=wp.vec2, device=d)
+        bg = wp.zeros((1, nv), dtype=wp.vec3, device=d)
+        eye = np.asarray(self.scene.camera.origin if eye is None else eye, np.float32)
+        out = wp.empty((1, nv), dtype=wp.vec3, device=d)
+        self._launch_shade(tri_id, bary_w, bg, eye, out)
+        return out.numpy().reshape(nv, 3)
+
+    def _launch_shade(self, tri_id, bary, bg, eye, out):
+        d = self.device
+        es = self._env_arrays()
+        f = self.features()
+        kern = S.shade_kernel(f)
+        if f.env_diffuse == S.ENV_PREFILTERED or f.env_specular == S.ENV_PREFILTERED:
+            env = self.env_light
+            gamma = self.gamma.table(rotation=env.rotation_matrix(), scale=env.scale, device=d)
+        else:
+            gamma = es  # placeholder argument of the variant without ΓL
+        wp.launch(kern, dim=tri_id.shape, inputs=[tri_id, bary, bg, wp.vec3(*np.asarray(eye, np.float32)),
+                                                  self.geo_arrays, self.material_table.materials,
+                                                  self.material_textures, self.cc, self.light_arrays, es, gamma,
+                                                  self.vis],
+                  outputs=[out], device=d)
 
 
 def render(scene: Scene, device: str | None = None, progress: bool = False) -> np.ndarray:

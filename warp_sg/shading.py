@@ -325,10 +325,10 @@ def shade_kernel(f: Features):
             if has_kd:
                 if wp.static(ENV_D == 1):
                     for j in range(env.count):
-                        pa, la, sc = sg_product(ns, lc, env.axis[j], env.lam[j])
-                        th = vis_theta(SHADOWS, vis, pa, ng, td, bd, i0, i1, i2, b0, b1, b2)
-                        w = mc * sc * vis_scale(FH, vis, th, la) * fh_hemisphere_wp(la)
-                        col += wp.cw_mul(env.mu[j], diffuse_at(mat, o_l, world_to_local(pa, ts, bs, ns))) * w
+                        pe, le, se = sg_product(ns, lc, env.axis[j], env.lam[j])
+                        th = vis_theta(SHADOWS, vis, pe, ng, td, bd, i0, i1, i2, b0, b1, b2)
+                        w = mc * se * vis_scale(FH, vis, th, le) * fh_hemisphere_wp(le)
+                        col += wp.cw_mul(env.mu[j], diffuse_at(mat, o_l, world_to_local(pe, ts, bs, ns))) * w
                 if wp.static(ENV_D == 2):
                     th = vis_theta(SHADOWS, vis, ns, ng, td, bd, i0, i1, i2, b0, b1, b2)
                     w = mc * vis_fraction(FH, vis, th, lc)
