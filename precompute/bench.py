@@ -253,6 +253,19 @@ def run_bench(quick: bool = False, device="cpu", out_doc: str | Path | None = No
         results["resolutions"].append(row)
         print(f"[bench] {R}²/{Rr}²: {row['ms_per_vertex']:.2f} ms/vertex, SSDF err {row['ssdf_err']:.4f}", flush=True)
 
+    # 2b. number of PCA terms at the default resolution (same mesh and axes)
+    X = S.compute_ssdf(V, F, N, resolution=default[0], ray_resolution=default[1], device=device, progress=False)
+    p = pca(X.reshape(len(V), -1), 96)
+    results["pca_terms"] = []
+    for k in (8, 16, 24, 32, 48, 64, 96):
+        rec = (p.mean + p.weights[ids, :k] @ p.basis[:k]).reshape(len(ids), default[0], default[0])
+        e = product_error(V, F, N, rec, ids, lams_err, n_axes=n_axes, samples=samples, device=device,
+                          select_with=truth)["mean"]
+        results["pca_terms"].append({"terms": k, "pca_rms": float(p.rms_error[k]), "product_err": e.tolist()})
+    results["pca_terms"].append({"terms": "none", "pca_rms": 0.0, "product_err": product_error(
+        V, F, N, X[ids], ids, lams_err, n_axes=n_axes, samples=samples, device=device,
+        select_with=truth)["mean"].tolist()})
+
     # 3. product error curve (supplement Fig. 7 analogue)
     lams_curve = np.geomspace(0.5, 1000, 12)
     curve = {"lam": lams_curve}
@@ -340,6 +353,14 @@ def _write_doc(res, path: Path):
                      f"{r['ssdf_err']:.4f} | {pc['8']:.3f}/{pc['16']:.3f}/{pc['24']:.3f}/{pc['48']:.3f} | "
                      + " | ".join(f"{a:.3f} / {b:.3f}" for a, b in zip(r["product_err"], r["product_err_pca24"]))
                      + " |")
+    if res.get("pca_terms"):
+        lines += ["", f"**PCA terms** ({res['default'][0]}² from {res['default'][1]}² rays, same mesh and axes; "
+                  "'none' = uncompressed):", "",
+                  "| terms | PCA rms (rad) | " + " | ".join(f"err λ={l:g}" for l in lams) + " |",
+                  "|---|---:|" + "---:|" * len(lams)]
+        for r in res["pca_terms"]:
+            lines.append(f"| {r['terms']} | {r['pca_rms']:.4f} | " + " | ".join(f"{e:.3f}" for e in r["product_err"])
+                         + " |")
     lines += ["", "![timing and SSDF error](figures/ssdf_bench.png)",
               "![product error](figures/ssdf_product_error.png)", "", "<!-- bench:end -->"]
     block = "\n".join(lines)
