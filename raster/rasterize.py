@@ -137,8 +137,8 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
     if n_t > 0:
         verts = wp.array(v_np, dtype=wp.vec3, device=device)
         tris = wp.array(t_np, dtype=wp.vec3i, device=device)
-        clip = wp.empty(n_v, dtype=wp.vec4, device=device)
-        mvp = wp.mat44(*camera.view_projection().astype(np.float32).reshape(-1))
+        clip = wp.empty(n_v, dtype=wp.vec4d, device=device)
+        mvp = wp.mat44d(*camera.view_projection().reshape(-1))
         parallel.launch(vertex_kernel, n_v, [verts, mvp, clip], device, min_chunk=4096)
 
         # triangle setup: count, scan, emit

@@ -39,24 +39,25 @@ HALF = SUBPIXEL // 2
 GUARD_PIXELS = 32000.0  # |X|, |Y| of snapped vertices stay below this (fixed point < 2^23)
 MAX_RESOLUTION = 16384  # per axis, after supersampling
 
-vec8 = wp.types.vector(length=8, dtype=wp.float32)
+vec8 = wp.types.vector(length=8, dtype=wp.float64)
 
 
 @wp.kernel
-def vertex_kernel(base: int, verts: wp.array(dtype=wp.vec3), mvp: wp.mat44, clip: wp.array(dtype=wp.vec4)):
-    """Clip-space position of every vertex."""
+def vertex_kernel(base: int, verts: wp.array(dtype=wp.vec3), mvp: wp.mat44d, clip: wp.array(dtype=wp.vec4d)):
+    """Clip-space position of every vertex, in float64 (huge coordinates keep their precision)."""
     i = base + wp.tid()
     if i >= verts.shape[0]:
         return
     v = verts[i]
-    clip[i] = mvp * wp.vec4(v[0], v[1], v[2], 1.0)
+    clip[i] = mvp * wp.vec4d(wp.float64(v[0]), wp.float64(v[1]), wp.float64(v[2]), wp.float64(1.0))
 
 
 # ---------------------------------------------------------------------------------------------
 # small building blocks
 # ---------------------------------------------------------------------------------------------
 @wp.func
-def plane_dist(x: float, y: float, w: float, plane: int, near: float, gx: float, gy: float):
+def plane_dist(x: wp.float64, y: wp.float64, w: wp.float64, plane: int, near: wp.float64, gx: wp.float64,
+               gy: wp.float64):
     """Signed distance (≥ 0 inside) to clip plane 0 = near, 1..4 = guard band ±x, ±y."""
     d = w - near
     if plane == 1:
@@ -71,7 +72,8 @@ def plane_dist(x: float, y: float, w: float, plane: int, near: float, gx: float,
 
 
 @wp.func
-def clip_polygon(px: vec8, py: vec8, pw: vec8, n: int, plane: int, near: float, gx: float, gy: float):
+def clip_polygon(px: vec8, py: vec8, pw: vec8, n: int, plane: int, near: wp.float64, gx: wp.float64,
+                 gy: wp.float64):
     """One Sutherland–Hodgman step; returns the clipped polygon (≤ n + 1 vertices)."""
     ox = vec8()
     oy = vec8()
@@ -87,13 +89,14 @@ def clip_polygon(px: vec8, py: vec8, pw: vec8, n: int, plane: int, near: float, 
         bw = pw[k2]
         da = plane_dist(ax, ay, aw, plane, near, gx, gy)
         db = plane_dist(bx, by, bw, plane, near, gx, gy)
-        if da >= 0.0:
+        zero = wp.float64(0.0)
+        if da >= zero:
             if m < 8:
                 ox[m] = ax
                 oy[m] = ay
                 ow[m] = aw
                 m += 1
-        if (da >= 0.0) != (db >= 0.0):
+        if (da >= zero) != (db >= zero):
             # canonical: interpolate from the inside vertex towards the outside one
             ix = ax
             iy = ay
@@ -103,7 +106,7 @@ def clip_polygon(px: vec8, py: vec8, pw: vec8, n: int, plane: int, near: float, 
             uy = by
             uw = bw
             du = db
-            if da < 0.0:
+            if da < zero:
                 ix = bx
                 iy = by
                 iw = bw
@@ -124,9 +127,9 @@ def clip_polygon(px: vec8, py: vec8, pw: vec8, n: int, plane: int, near: float, 
 
 
 @wp.func
-def snap(x: float, w: float, size: float, flip: int):
+def snap(x: wp.float64, w: wp.float64, size: float, flip: int):
     """Clip coordinate → fixed-point pixel coordinate (1/SUBPIXEL px)."""
-    ndc = wp.float64(x) / wp.float64(w)
+    ndc = x / w
     if flip == 1:
         ndc = -ndc
     p = (ndc + wp.float64(1.0)) * wp.float64(0.5) * wp.float64(size)
@@ -169,8 +172,9 @@ def upper_px(v: int):
 
 
 @wp.func
-def outside_all(a: float, b: float, c: float):
-    return a < 0.0 and b < 0.0 and c < 0.0
+def outside_all(a: wp.float64, b: wp.float64, c: wp.float64):
+    z = wp.float64(0.0)
+    return a < z and b < z and c < z
 
 
 # ---------------------------------------------------------------------------------------------
@@ -179,14 +183,14 @@ def outside_all(a: float, b: float, c: float):
 @wp.kernel
 def setup_kernel(
     base: int,
-    clip: wp.array(dtype=wp.vec4),
+    clip: wp.array(dtype=wp.vec4d),
     tris: wp.array(dtype=wp.vec3i),
     width: int,
     height: int,
-    near: float,
-    far: float,
-    gx: float,
-    gy: float,
+    near: wp.float64,
+    far: wp.float64,
+    gx: wp.float64,
+    gy: wp.float64,
     cull: int,
     emit: int,
     counts: wp.array(dtype=wp.int32),
@@ -217,11 +221,9 @@ def setup_kernel(
         fw = wp.float64(width) * wp.float64(0.5)
         fh = wp.float64(height) * wp.float64(0.5)
         m = wp.mat33d(
-            (wp.float64(c0[0]) + wp.float64(c0[3])) * fw, (wp.float64(c1[0]) + wp.float64(c1[3])) * fw,
-            (wp.float64(c2[0]) + wp.float64(c2[3])) * fw,
-            (wp.float64(c0[3]) - wp.float64(c0[1])) * fh, (wp.float64(c1[3]) - wp.float64(c1[1])) * fh,
-            (wp.float64(c2[3]) - wp.float64(c2[1])) * fh,
-            wp.float64(c0[3]), wp.float64(c1[3]), wp.float64(c2[3]),
+            (c0[0] + c0[3]) * fw, (c1[0] + c1[3]) * fw, (c2[0] + c2[3]) * fw,
+            (c0[3] - c0[1]) * fh, (c1[3] - c1[1]) * fh, (c2[3] - c2[1]) * fh,
+            c0[3], c1[3], c2[3],
         )
         det = wp.determinant(m)
         if det != wp.float64(0.0) and wp.isfinite(det):
