@@ -20,6 +20,8 @@ import time
 import numpy as np
 import warp as wp
 
+wp.set_module_options({"enable_backward": False})
+
 from warp_sg.device import resolve_device
 
 from . import parallel

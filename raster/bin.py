@@ -20,7 +20,9 @@ from __future__ import annotations
 
 import warp as wp
 
-from .setup import HALF, SUBPIXEL, edge_eval
+wp.set_module_options({"enable_backward": False})
+
+from .setup import HALF, SUBPIXEL, SubTri, edge_eval
 
 TILE = 16  # tile edge in pixels (fine raster unit)
 
@@ -57,22 +59,24 @@ def bin_count_kernel(
     batch: int,
     rows: int,
     tiles_x: int,
-    sub_v: wp.array2d(dtype=wp.vec2i),
-    sub_bbox: wp.array(dtype=wp.vec4i),
+    subs: wp.array(dtype=SubTri),
     counts: wp.array(dtype=wp.int32),
 ):
     j = base + wp.tid()
     s = sub_lo + j
     row = j // batch
-    bb = sub_bbox[s]
+    rec = subs[s]
+    bb = rec.bbox
+    if bb[0] > bb[2]:
+        return  # empty slot (culled / clipped away / no pixel centre covered)
     tx0 = bb[0] // TILE
     tx1 = bb[2] // TILE
     ty0 = bb[1] // TILE
     ty1 = bb[3] // TILE
     small = (tx1 - tx0) < 1 or (ty1 - ty0) < 1
-    v0 = sub_v[s, 0]
-    v1 = sub_v[s, 1]
-    v2 = sub_v[s, 2]
+    v0 = rec.v0
+    v1 = rec.v1
+    v2 = rec.v2
     for ty in range(ty0, ty1 + 1):
         for tx in range(tx0, tx1 + 1):
             if small or tile_overlaps(v0, v1, v2, bb, tx, ty):

@@ -15,7 +15,10 @@ from __future__ import annotations
 
 import warp as wp
 
+wp.set_module_options({"enable_backward": False})
+
 from .bin import TILE, tile_overlaps
+from .setup import SubTri
 
 
 @wp.kernel
@@ -25,8 +28,7 @@ def coarse_scatter_kernel(
     batch: int,
     rows: int,
     tiles_x: int,
-    sub_v: wp.array2d(dtype=wp.vec2i),
-    sub_bbox: wp.array(dtype=wp.vec4i),
+    subs: wp.array(dtype=SubTri),
     offsets: wp.array(dtype=wp.int32),
     cursor: wp.array(dtype=wp.int32),
     queue: wp.array(dtype=wp.int32),
@@ -34,15 +36,18 @@ def coarse_scatter_kernel(
     j = base + wp.tid()
     s = sub_lo + j
     row = j // batch
-    bb = sub_bbox[s]
+    rec = subs[s]
+    bb = rec.bbox
+    if bb[0] > bb[2]:
+        return  # empty slot (culled / clipped away / no pixel centre covered)
     tx0 = bb[0] // TILE
     tx1 = bb[2] // TILE
     ty0 = bb[1] // TILE
     ty1 = bb[3] // TILE
     small = (tx1 - tx0) < 1 or (ty1 - ty0) < 1
-    v0 = sub_v[s, 0]
-    v1 = sub_v[s, 1]
-    v2 = sub_v[s, 2]
+    v0 = rec.v0
+    v1 = rec.v1
+    v2 = rec.v2
     for ty in range(ty0, ty1 + 1):
         for tx in range(tx0, tx1 + 1):
             if small or tile_overlaps(v0, v1, v2, bb, tx, ty):

@@ -20,8 +20,10 @@ from __future__ import annotations
 
 import warp as wp
 
+wp.set_module_options({"enable_backward": False})
+
 from .bin import TILE
-from .setup import HALF, SUBPIXEL, edge_eval, edge_topleft, eval_plane, sample_fixed
+from .setup import SUBPIXEL, SubTri, edge_eval, edge_topleft, eval_plane, sample_fixed
 
 
 @wp.func
@@ -41,11 +43,7 @@ def fine_tile_kernel(
     count_mode: int,
     offsets: wp.array(dtype=wp.int32),
     queue: wp.array(dtype=wp.int32),
-    sub_v: wp.array2d(dtype=wp.vec2i),
-    sub_bbox: wp.array(dtype=wp.vec4i),
-    sub_tri: wp.array(dtype=wp.int32),
-    tri_planes: wp.array(dtype=wp.mat33),
-    tri_ref: wp.array(dtype=wp.vec2),
+    subs: wp.array(dtype=SubTri),
     best_invw: wp.array2d(dtype=wp.float32),
     best_tri: wp.array2d(dtype=wp.int32),
     coverage: wp.array2d(dtype=wp.int32),
@@ -63,17 +61,17 @@ def fine_tile_kernel(
     end = offsets[(t + 1) * rows]
     step = wp.int64(SUBPIXEL)
     for q in range(start, end):
-        s = queue[q]
-        bb = sub_bbox[s]
+        rec = subs[queue[q]]
+        bb = rec.bbox
         x0 = wp.max(bb[0], X0)
         y0 = wp.max(bb[1], Y0)
         x1 = wp.min(bb[2], X1)
         y1 = wp.min(bb[3], Y1)
         if x0 > x1 or y0 > y1:
             continue
-        v0 = sub_v[s, 0]
-        v1 = sub_v[s, 1]
-        v2 = sub_v[s, 2]
+        v0 = rec.v0
+        v1 = rec.v1
+        v2 = rec.v2
         # inside <=> E + bias > 0 (bias 1 on top-left edges: E >= 0)
         b0 = wp.int64(edge_topleft(v0, v1))
         b1 = wp.int64(edge_topleft(v1, v2))
@@ -89,9 +87,9 @@ def fine_tile_kernel(
         dy0 = wp.int64(v1[0] - v0[0]) * step
         dy1 = wp.int64(v2[0] - v1[0]) * step
         dy2 = wp.int64(v0[0] - v2[0]) * step
-        tri = sub_tri[s]
-        pl = tri_planes[tri]
-        ref = tri_ref[tri]
+        tri = rec.tri
+        pl = rec.plane
+        ref = rec.ref
         z = wp.int64(0)
         for y in range(y0, y1 + 1):
             e0 = r0
@@ -99,7 +97,7 @@ def fine_tile_kernel(
             e2 = r2
             for x in range(x0, x1 + 1):
                 if e0 > z and e1 > z and e2 > z:
-                    invw = eval_plane(pl, 0, ref, x, y)
+                    invw = pl[0] * (float(x) + 0.5 - ref[0]) + pl[1] * (float(y) + 0.5 - ref[1]) + pl[2]
                     if invw >= inv_far:
                         if count_mode == 1:
                             coverage[y, x] = coverage[y, x] + 1
@@ -126,11 +124,7 @@ def fine_pixel_kernel(
     count_mode: int,
     offsets: wp.array(dtype=wp.int32),
     queue: wp.array(dtype=wp.int32),
-    sub_v: wp.array2d(dtype=wp.vec2i),
-    sub_bbox: wp.array(dtype=wp.vec4i),
-    sub_tri: wp.array(dtype=wp.int32),
-    tri_planes: wp.array(dtype=wp.mat33),
-    tri_ref: wp.array(dtype=wp.vec2),
+    subs: wp.array(dtype=SubTri),
     best_invw: wp.array2d(dtype=wp.float32),
     best_tri: wp.array2d(dtype=wp.int32),
     coverage: wp.array2d(dtype=wp.int32),
@@ -151,18 +145,19 @@ def fine_pixel_kernel(
     sy = sample_fixed(y)
     z = wp.int64(0)
     for q in range(offsets[t * rows], offsets[(t + 1) * rows]):
-        s = queue[q]
-        bb = sub_bbox[s]
+        rec = subs[queue[q]]
+        bb = rec.bbox
         if x < bb[0] or x > bb[2] or y < bb[1] or y > bb[3]:
             continue
-        v0 = sub_v[s, 0]
-        v1 = sub_v[s, 1]
-        v2 = sub_v[s, 2]
+        v0 = rec.v0
+        v1 = rec.v1
+        v2 = rec.v2
         if edge_eval(v0, v1, sx, sy) + wp.int64(edge_topleft(v0, v1)) > z:
             if edge_eval(v1, v2, sx, sy) + wp.int64(edge_topleft(v1, v2)) > z:
                 if edge_eval(v2, v0, sx, sy) + wp.int64(edge_topleft(v2, v0)) > z:
-                    tri = sub_tri[s]
-                    invw = eval_plane(tri_planes[tri], 0, tri_ref[tri], x, y)
+                    tri = rec.tri
+                    pl = rec.plane
+                    invw = pl[0] * (float(x) + 0.5 - rec.ref[0]) + pl[1] * (float(y) + 0.5 - rec.ref[1]) + pl[2]
                     if invw >= inv_far:
                         cnt += 1
                         if closer(invw, tri, bi, bt):

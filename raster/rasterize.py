@@ -18,6 +18,7 @@ Steps 4–6 run in as many passes over the sub-triangles as the queue-memory bud
 """
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,9 +32,49 @@ from .bin import TILE, bin_count_kernel, scan_counts
 from .camera import Camera
 from .coarse import coarse_scatter_kernel
 from .fine import fine_pixel_kernel, fine_tile_kernel, resolve_kernel
-from .setup import MAX_RESOLUTION, guard_factors, setup_kernel, vertex_kernel
+from .setup import MAX_RESOLUTION, SubTri, guard_factors, setup_extra_kernel, setup_kernel, vertex_kernel
 
 DEFAULT_MAX_PAIRS = 1 << 24  # triangle/tile pairs per pass: 64 MiB of int32 queue
+
+
+class _Workspace:
+    """Scratch arrays reused between calls (per device and calling thread): allocating and freeing
+    hundreds of MB per frame costs more than some stages. Outputs are never taken from here."""
+
+    def __init__(self, device):
+        self.device = device
+        self.bufs = {}
+
+    def get(self, name, n, dtype):
+        n = int(n)
+        a = self.bufs.get(name)
+        if a is None or a.shape[0] < n or a.dtype != dtype:
+            a = wp.empty(max(n + n // 4, 1), dtype=dtype, device=self.device)
+            self.bufs[name] = a
+        return a[:n]
+
+    def get2d(self, name, shape, dtype):
+        a = self.bufs.get(name)
+        if a is None or a.shape != tuple(shape) or a.dtype != dtype:
+            a = wp.empty(tuple(shape), dtype=dtype, device=self.device)
+            self.bufs[name] = a
+        return a
+
+
+_WORKSPACES: dict = {}
+
+
+def _workspace(device) -> _Workspace:
+    key = (device, threading.get_ident())
+    ws = _WORKSPACES.get(key)
+    if ws is None:
+        ws = _WORKSPACES[key] = _Workspace(device)
+    return ws
+
+
+def clear_workspace() -> None:
+    """Free the cached scratch arrays (they hold the largest frame's working set)."""
+    _WORKSPACES.clear()
 
 
 @dataclass
@@ -64,41 +105,41 @@ class VisibilityBuffer:
 
 
 def _as_numpy_mesh(vertices, triangles):
+    """Validated contiguous (N,3) float32 / (M,3) int32 numpy copies (no copy when already so)."""
     if isinstance(vertices, wp.array):
         vertices = vertices.numpy()
     if isinstance(triangles, wp.array):
         triangles = triangles.numpy()
     try:
-        v = np.asarray(vertices, dtype=np.float32)
+        v = np.ascontiguousarray(vertices, dtype=np.float32)
     except (TypeError, ValueError) as e:
         raise MeshError(f"vertices are not numeric ({e})", where="vertices") from None
-    try:
-        t_raw = np.asarray(triangles)
-        if t_raw.size and not np.issubdtype(t_raw.dtype, np.integer):
-            if not np.all(np.isfinite(t_raw)) or not np.all(t_raw == np.round(t_raw)):
-                raise MeshError("triangle indices must be integers", where="triangles")
-        t = t_raw.astype(np.int64, copy=False)
-    except (TypeError, ValueError) as e:
-        raise MeshError(f"triangle indices are not integers ({e})", where="triangles") from None
+    t_raw = np.asarray(triangles)
+    if t_raw.size and not np.issubdtype(t_raw.dtype, np.integer):
+        try:
+            ok = np.all(np.isfinite(t_raw)) and np.all(t_raw == np.round(t_raw))
+        except TypeError:
+            ok = False
+        if not ok:
+            raise MeshError("triangle indices must be integers", where="triangles")
     if v.size == 0:
         v = v.reshape(0, 3)
-    if t.size == 0:
-        t = t.reshape(0, 3)
+    if t_raw.size == 0:
+        t_raw = np.zeros((0, 3), np.int32)
     if v.ndim != 2 or v.shape[1] != 3:
         raise MeshError(f"vertices must have shape (N, 3), got {v.shape}", where="vertices")
-    if t.ndim != 2 or t.shape[1] != 3:
-        raise MeshError(f"triangles must have shape (M, 3), got {t.shape}", where="triangles")
-    bad = ~np.isfinite(v).all(axis=1)
-    if bad.any():
+    if t_raw.ndim != 2 or t_raw.shape[1] != 3:
+        raise MeshError(f"triangles must have shape (M, 3), got {t_raw.shape}", where="triangles")
+    if v.size and not np.isfinite(v).all():
+        bad = ~np.isfinite(v).all(axis=1)
         i = int(np.argmax(bad))
         raise MeshError(f"vertex {i} is not finite: {v[i].tolist()}", where=f"vertices[{i}]")
-    if t.size:
-        badt = ((t < 0) | (t >= v.shape[0])).any(axis=1)
-        if badt.any():
-            j = int(np.argmax(badt))
-            raise MeshError(f"triangle {j} has a vertex index out of range [0, {v.shape[0]}): {t[j].tolist()}",
-                            where=f"triangles[{j}]")
-    return np.ascontiguousarray(v), np.ascontiguousarray(t, dtype=np.int32)
+    if t_raw.size and (t_raw.min() < 0 or t_raw.max() >= v.shape[0]):
+        badt = ((t_raw < 0) | (t_raw >= v.shape[0])).any(axis=1)
+        j = int(np.argmax(badt))
+        raise MeshError(f"triangle {j} has a vertex index out of range [0, {v.shape[0]}): {t_raw[j].tolist()}",
+                        where=f"triangles[{j}]")
+    return v, np.ascontiguousarray(t_raw, dtype=np.int32)
 
 
 def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: int = 1,
@@ -127,41 +168,51 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
     n_v, n_t = v_np.shape[0], t_np.shape[0]
     stats = {"triangles": n_t, "sub_triangles": 0, "pairs": 0, "passes": 0}
 
-    best_invw = wp.zeros((H, W), dtype=wp.float32, device=device)
-    best_tri = wp.full((H, W), -1, dtype=wp.int32, device=device)
+    ws = _workspace(device)
+    best_invw = ws.get2d("best_invw", (H, W), wp.float32)
+    best_tri = ws.get2d("best_tri", (H, W), wp.int32)
+    best_invw.zero_()
+    best_tri.fill_(-1)
     coverage = wp.zeros((H, W), dtype=wp.int32, device=device) if coverage_count else None
     cov_arg = coverage if coverage is not None else wp.zeros((1, 1), dtype=wp.int32, device=device)
-    tri_planes = wp.zeros(max(n_t, 1), dtype=wp.mat33, device=device)
-    tri_ref = wp.zeros(max(n_t, 1), dtype=wp.vec2, device=device)
+    # written by setup for every triangle that can win a pixel; never read otherwise
+    tri_planes = ws.get("tri_planes", max(n_t, 1), wp.mat33)
+    tri_ref = ws.get("tri_ref", max(n_t, 1), wp.vec2)
 
     if n_t > 0:
-        verts = wp.array(v_np, dtype=wp.vec3, device=device)
-        tris = wp.array(t_np, dtype=wp.vec3i, device=device)
-        clip = wp.empty(n_v, dtype=wp.vec4d, device=device)
-        mvp = wp.mat44d(*camera.view_projection().reshape(-1))
-        parallel.launch(vertex_kernel, n_v, [verts, mvp, clip], device, min_chunk=4096)
-
-        # triangle setup: count, scan, emit
+        host = device.startswith("cpu")  # CPU: reference the numpy memory, no copy
+        verts = wp.array(v_np, dtype=wp.vec3, device=device, copy=not host)
+        tris = wp.array(t_np, dtype=wp.vec3i, device=device, copy=not host)
         gx, gy = guard_factors(W, H)
-        counts = wp.zeros(n_t + 1, dtype=wp.int32, device=device)
-        offsets = wp.empty(n_t + 1, dtype=wp.int32, device=device)
-        dummy_v = wp.empty((1, 3), dtype=wp.vec2i, device=device)
-        dummy_b = wp.empty(1, dtype=wp.vec4i, device=device)
-        dummy_i = wp.empty(1, dtype=wp.int32, device=device)
-        common = [clip, tris, W, H, float(camera.near), float(camera.far), gx, gy, int(bool(cull_backfaces))]
-        parallel.launch(setup_kernel, n_t, [*common, 0, counts, offsets, dummy_v, dummy_b, dummy_i,
+        near, far = float(camera.near), float(camera.far)
+        clip = ws.get("clip", n_v, wp.vec4d)
+        vsnap = ws.get("vsnap", n_v, wp.vec2i)
+        vcode = ws.get("vcode", n_v, wp.int32)
+        mvp = wp.mat44d(*camera.view_projection().reshape(-1))
+        parallel.launch(vertex_kernel, n_v, [verts, mvp, W, H, near, far, gx, gy, clip, vsnap, vcode], device,
+                        min_chunk=4096)
+
+        # triangle setup: slot i = first piece of triangle i; clipped triangles' further pieces after M
+        cull = int(bool(cull_backfaces))
+        extra = ws.get("extra", n_t + 1, wp.int32)
+        extra[n_t:].zero_()
+        subs = ws.get("subs", n_t, SubTri)
+        parallel.launch(setup_kernel, n_t, [clip, vsnap, vcode, tris, W, H, near, gx, gy, cull, subs, extra,
                                             tri_planes, tri_ref], device, min_chunk=2048)
-        n_sub = scan_counts(counts, offsets)
+        extra_off = ws.get("extra_off", n_t + 1, wp.int32)
+        n_extra = scan_counts(extra, extra_off)
+        if n_extra > 0:
+            grown = ws.get("subs_grown", n_t + n_extra, SubTri)
+            wp.copy(grown, subs, count=n_t)
+            subs = grown
+            parallel.launch(setup_extra_kernel, n_t, [clip, tris, W, H, near, gx, gy, cull, extra, extra_off, subs],
+                            device, min_chunk=2048)
+        n_sub = n_t + n_extra
         stats["sub_triangles"] = n_sub
-        if n_sub > 0:
-            sub_v = wp.empty((n_sub, 3), dtype=wp.vec2i, device=device)
-            sub_bbox = wp.empty(n_sub, dtype=wp.vec4i, device=device)
-            sub_tri = wp.empty(n_sub, dtype=wp.int32, device=device)
-            parallel.launch(setup_kernel, n_t, [*common, 1, counts, offsets, sub_v, sub_bbox, sub_tri,
-                                                tri_planes, tri_ref], device, min_chunk=2048)
-            _bin_and_raster(sub_v, sub_bbox, sub_tri, tri_planes, tri_ref, n_sub, W, H, camera,
-                            best_invw, best_tri, cov_arg, coverage is not None, device,
-                            max_pairs or DEFAULT_MAX_PAIRS, schedule, stats)
+        stats["clipped_extra"] = n_extra
+        _bin_and_raster(subs, n_sub, W, H, camera,
+                        best_invw, best_tri, cov_arg, coverage is not None, device,
+                        max_pairs or DEFAULT_MAX_PAIRS, schedule, stats, ws)
 
     tri_id = wp.empty((H, W), dtype=wp.int32, device=device)
     bary = wp.empty((H, W), dtype=wp.vec2, device=device)
@@ -171,17 +222,17 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
     return VisibilityBuffer(tri_id, bary, depth, coverage, W, H, k, device, stats)
 
 
-def _bin_and_raster(sub_v, sub_bbox, sub_tri, tri_planes, tri_ref, n_sub, W, H, camera, best_invw, best_tri,
-                    coverage, count_mode, device, max_pairs, schedule, stats):
+def _bin_and_raster(subs, n_sub, W, H, camera, best_invw, best_tri,
+                    coverage, count_mode, device, max_pairs, schedule, stats, ws):
     tiles_x = (W + TILE - 1) // TILE
     tiles_y = (H + TILE - 1) // TILE
     n_tiles = tiles_x * tiles_y
     max_pairs = max(int(max_pairs), n_tiles)  # one triangle alone always fits
     cpu = device.startswith("cpu")
     rows = parallel.cpu_workers() if cpu else 1
-    counts = wp.zeros(n_tiles * rows + 1, dtype=wp.int32, device=device)
-    offsets = wp.empty(n_tiles * rows + 1, dtype=wp.int32, device=device)
-    cursor = wp.zeros(n_tiles * rows, dtype=wp.int32, device=device)
+    counts = ws.get("counts", n_tiles * rows + 1, wp.int32)
+    offsets = ws.get("offsets", n_tiles * rows + 1, wp.int32)
+    cursor = ws.get("cursor", n_tiles * rows, wp.int32)
     if schedule == "auto":
         schedule = "tile" if cpu else "pixel"
     inv_far = 1.0 / float(camera.far)
@@ -193,7 +244,7 @@ def _bin_and_raster(sub_v, sub_bbox, sub_tri, tri_planes, tri_ref, n_sub, W, H, 
         r = min(rows, n)
         batch = (n + r - 1) // r
         counts.zero_()
-        parallel.launch_rows(bin_count_kernel, n, r, [lo, batch, rows, tiles_x, sub_v, sub_bbox, counts], device)
+        parallel.launch_rows(bin_count_kernel, n, r, [lo, batch, rows, tiles_x, subs, counts], device)
         total = scan_counts(counts, offsets)
         if total > max_pairs and n > 1:
             mid = lo + n // 2
@@ -204,16 +255,16 @@ def _bin_and_raster(sub_v, sub_bbox, sub_tri, tri_planes, tri_ref, n_sub, W, H, 
         stats["passes"] += 1
         if total == 0:
             continue
-        queue = wp.empty(total, dtype=wp.int32, device=device)
+        queue = ws.get("queue", total, wp.int32)
         cursor.zero_()
         parallel.launch_rows(coarse_scatter_kernel, n, r,
-                             [lo, batch, rows, tiles_x, sub_v, sub_bbox, offsets, cursor, queue], device)
-        args = [tiles_x, n_tiles, rows, W, H, inv_far, int(count_mode), offsets, queue, sub_v, sub_bbox, sub_tri,
-                tri_planes, tri_ref, best_invw, best_tri, coverage]
+                             [lo, batch, rows, tiles_x, subs, offsets, cursor, queue], device)
+        args = [tiles_x, n_tiles, rows, W, H, inv_far, int(count_mode), offsets, queue, subs,
+                best_invw, best_tri, coverage]
         if schedule == "tile":
             parallel.launch(fine_tile_kernel, n_tiles, args, device, chunks=8 * parallel.cpu_workers(), min_chunk=1)
         else:
             parallel.launch(fine_pixel_kernel, n_tiles * TILE * TILE, args, device, min_chunk=TILE * TILE)
 
 
-__all__ = ["VisibilityBuffer", "rasterize", "DEFAULT_MAX_PAIRS"]
+__all__ = ["VisibilityBuffer", "rasterize", "clear_workspace", "DEFAULT_MAX_PAIRS"]

@@ -33,6 +33,8 @@ from __future__ import annotations
 
 import warp as wp
 
+wp.set_module_options({"enable_backward": False})
+
 SUBPIXEL_BITS = 8
 SUBPIXEL = 1 << SUBPIXEL_BITS
 HALF = SUBPIXEL // 2
@@ -42,14 +44,17 @@ MAX_RESOLUTION = 16384  # per axis, after supersampling
 vec8 = wp.types.vector(length=8, dtype=wp.float64)
 
 
-@wp.kernel
-def vertex_kernel(base: int, verts: wp.array(dtype=wp.vec3), mvp: wp.mat44d, clip: wp.array(dtype=wp.vec4d)):
-    """Clip-space position of every vertex, in float64 (huge coordinates keep their precision)."""
-    i = base + wp.tid()
-    if i >= verts.shape[0]:
-        return
-    v = verts[i]
-    clip[i] = mvp * wp.vec4d(wp.float64(v[0]), wp.float64(v[1]), wp.float64(v[2]), wp.float64(1.0))
+@wp.struct
+class SubTri:
+    """One rasterizable (sub-)triangle: 64 bytes, one cache line per fine-raster visit."""
+
+    v0: wp.vec2i  # snapped fixed-point vertices, positive-area winding (y down)
+    v1: wp.vec2i
+    v2: wp.vec2i
+    bbox: wp.vec4i  # covered pixel-centre bbox (x0, y0, x1, y1); x0 > x1 = empty slot
+    tri: wp.int32  # original triangle id
+    plane: wp.vec3  # 1/w plane of the original triangle: a·(x+½−rx) + b·(y+½−ry) + c
+    ref: wp.vec2  # (rx, ry)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -171,139 +176,272 @@ def upper_px(v: int):
     return wp.int32(wp.floor((wp.float64(v) - wp.float64(HALF)) / wp.float64(SUBPIXEL)))
 
 
-@wp.func
-def outside_all(a: wp.float64, b: wp.float64, c: wp.float64):
-    z = wp.float64(0.0)
-    return a < z and b < z and c < z
+# outcode bits of a clip-space vertex
+OUT_XP = wp.constant(1)  # x > w
+OUT_XN = wp.constant(2)  # x < -w
+OUT_YP = wp.constant(4)  # y > w
+OUT_YN = wp.constant(8)  # y < -w
+OUT_NEAR = wp.constant(16)  # w < near
+OUT_FAR = wp.constant(32)  # w > far
+OUT_GUARD = wp.constant(64)  # outside the guard band
+REJECT_MASK = wp.constant(63)
+CLIP_MASK = wp.constant(16 + 64)
 
 
-# ---------------------------------------------------------------------------------------------
-# the setup kernel
-# ---------------------------------------------------------------------------------------------
 @wp.kernel
-def setup_kernel(
+def vertex_kernel(
     base: int,
-    clip: wp.array(dtype=wp.vec4d),
-    tris: wp.array(dtype=wp.vec3i),
+    verts: wp.array(dtype=wp.vec3),
+    mvp: wp.mat44d,
     width: int,
     height: int,
     near: wp.float64,
     far: wp.float64,
     gx: wp.float64,
     gy: wp.float64,
+    clip: wp.array(dtype=wp.vec4d),
+    vsnap: wp.array(dtype=wp.vec2i),
+    vcode: wp.array(dtype=wp.int32),
+):
+    """Per vertex: clip position (float64, so huge coordinates keep their precision), frustum
+    outcode, and — when the vertex needs no clipping — its snapped fixed-point pixel position,
+    shared by every triangle using the vertex (computed once, bit-identical for all of them)."""
+    i = base + wp.tid()
+    if i >= verts.shape[0]:
+        return
+    v = verts[i]
+    c = mvp * wp.vec4d(wp.float64(v[0]), wp.float64(v[1]), wp.float64(v[2]), wp.float64(1.0))
+    clip[i] = c
+    x = c[0]
+    y = c[1]
+    w = c[3]
+    code = int(0)
+    if x > w:
+        code = code | OUT_XP
+    if x < -w:
+        code = code | OUT_XN
+    if y > w:
+        code = code | OUT_YP
+    if y < -w:
+        code = code | OUT_YN
+    if w < near:
+        code = code | OUT_NEAR
+    if w > far:
+        code = code | OUT_FAR
+    if wp.abs(x) > gx * w or wp.abs(y) > gy * w:
+        code = code | OUT_GUARD
+    vcode[i] = code
+    if (code & CLIP_MASK) == 0:
+        vsnap[i] = wp.vec2i(snap(x, w, float(width), 0), snap(y, w, float(height), 1))
+    else:
+        vsnap[i] = wp.vec2i(0, 0)
+
+
+@wp.func
+def make_piece(s0: wp.vec2i, s1: wp.vec2i, s2: wp.vec2i, width: int, height: int, cull: int):
+    """Area, cull and winding of a snapped triangle and its pixel bbox; bbox[0] > bbox[2] = dropped."""
+    area = wp.int64(s1[0] - s0[0]) * wp.int64(s2[1] - s0[1]) - wp.int64(s1[1] - s0[1]) * wp.int64(s2[0] - s0[0])
+    bb = wp.vec4i(1, 1, 0, 0)
+    a = s1
+    b = s2
+    keep = area != wp.int64(0)
+    # front faces (counter-clockwise in world/NDC) have negative area with y down
+    if cull == 1 and area > wp.int64(0):
+        keep = False
+    if keep:
+        if area < wp.int64(0):
+            a = s2
+            b = s1
+        xmin = wp.min(s0[0], wp.min(a[0], b[0]))
+        xmax = wp.max(s0[0], wp.max(a[0], b[0]))
+        ymin = wp.min(s0[1], wp.min(a[1], b[1]))
+        ymax = wp.max(s0[1], wp.max(a[1], b[1]))
+        bx0 = wp.max(lower_px(xmin), 0)
+        bx1 = wp.min(upper_px(xmax), width - 1)
+        by0 = wp.max(lower_px(ymin), 0)
+        by1 = wp.min(upper_px(ymax), height - 1)
+        if bx0 <= bx1 and by0 <= by1:
+            bb = wp.vec4i(bx0, by0, bx1, by1)
+    return a, b, bb
+
+
+@wp.func
+def clip_triangle(c0: wp.vec4d, c1: wp.vec4d, c2: wp.vec4d, near: wp.float64, gx: wp.float64, gy: wp.float64):
+    """Clip against the near plane, then (if still needed) the guard band: polygon of ≤ 8 vertices."""
+    px = vec8()
+    py = vec8()
+    pw = vec8()
+    px[0] = c0[0]
+    px[1] = c1[0]
+    px[2] = c2[0]
+    py[0] = c0[1]
+    py[1] = c1[1]
+    py[2] = c2[1]
+    pw[0] = c0[3]
+    pw[1] = c1[3]
+    pw[2] = c2[3]
+    n = int(3)
+    if c0[3] < near or c1[3] < near or c2[3] < near:
+        px, py, pw, n = clip_polygon(px, py, pw, n, 0, near, gx, gy)
+    need_guard = int(0)
+    for k in range(n):
+        if wp.abs(px[k]) > gx * pw[k] or wp.abs(py[k]) > gy * pw[k]:
+            need_guard = 1
+    if need_guard == 1:
+        for plane in range(1, 5):
+            if n >= 3:
+                px, py, pw, n = clip_polygon(px, py, pw, n, plane, near, gx, gy)
+    return px, py, pw, n
+
+
+@wp.func
+def polygon_snap(px: vec8, py: vec8, pw: vec8, k: int, width: int, height: int):
+    return wp.vec2i(snap(px[k], pw[k], float(width), 0), snap(py[k], pw[k], float(height), 1))
+
+
+@wp.func
+def write_planes(i: int, c0: wp.vec4d, c1: wp.vec4d, c2: wp.vec4d, width: int, height: int, bb: wp.vec4i,
+                 tri_planes: wp.array(dtype=wp.mat33), tri_ref: wp.array(dtype=wp.vec2)):
+    """2D-homogeneous interpolation planes of triangle i (rows: 1/w, λ1, λ2) relative to the
+    centre of pixel (bb[0], bb[1]). Returns False when the triangle's plane passes through the eye."""
+    fw = wp.float64(width) * wp.float64(0.5)
+    fh = wp.float64(height) * wp.float64(0.5)
+    m = wp.mat33d(
+        (c0[0] + c0[3]) * fw, (c1[0] + c1[3]) * fw, (c2[0] + c2[3]) * fw,
+        (c0[3] - c0[1]) * fh, (c1[3] - c1[1]) * fh, (c2[3] - c2[1]) * fh,
+        c0[3], c1[3], c2[3],
+    )
+    det = wp.determinant(m)
+    if det == wp.float64(0.0) or not wp.isfinite(det):
+        return False
+    inv = wp.inverse(m)
+    rx = wp.float64(bb[0]) + wp.float64(0.5)
+    ry = wp.float64(bb[1]) + wp.float64(0.5)
+    l0 = inv[0, 0] * rx + inv[0, 1] * ry + inv[0, 2]
+    l1 = inv[1, 0] * rx + inv[1, 1] * ry + inv[1, 2]
+    l2 = inv[2, 0] * rx + inv[2, 1] * ry + inv[2, 2]
+    tri_planes[i] = wp.mat33(
+        float(inv[0, 0] + inv[1, 0] + inv[2, 0]), float(inv[0, 1] + inv[1, 1] + inv[2, 1]), float(l0 + l1 + l2),
+        float(inv[1, 0]), float(inv[1, 1]), float(l1),
+        float(inv[2, 0]), float(inv[2, 1]), float(l2),
+    )
+    tri_ref[i] = wp.vec2(float(rx), float(ry))
+    return True
+
+
+# ---------------------------------------------------------------------------------------------
+# the setup kernels
+# ---------------------------------------------------------------------------------------------
+@wp.kernel
+def setup_kernel(
+    base: int,
+    clip: wp.array(dtype=wp.vec4d),
+    vsnap: wp.array(dtype=wp.vec2i),
+    vcode: wp.array(dtype=wp.int32),
+    tris: wp.array(dtype=wp.vec3i),
+    width: int,
+    height: int,
+    near: wp.float64,
+    gx: wp.float64,
+    gy: wp.float64,
     cull: int,
-    emit: int,
-    counts: wp.array(dtype=wp.int32),
-    offsets: wp.array(dtype=wp.int32),
-    sub_v: wp.array2d(dtype=wp.vec2i),
-    sub_bbox: wp.array(dtype=wp.vec4i),
-    sub_tri: wp.array(dtype=wp.int32),
+    subs: wp.array(dtype=SubTri),
+    extra: wp.array(dtype=wp.int32),
     tri_planes: wp.array(dtype=wp.mat33),
     tri_ref: wp.array(dtype=wp.vec2),
 ):
+    """Triangle i → its first sub-triangle in slot i (an empty bbox when nothing survives) and
+    ``extra[i]`` = number of further pieces (clipped triangles only), emitted by ``setup_extra_kernel``."""
     i = base + wp.tid()
     if i >= tris.shape[0]:
         return
     t = tris[i]
-    c0 = clip[t[0]]
-    c1 = clip[t[1]]
-    c2 = clip[t[2]]
-    n_out = int(0)
-    # 1. trivial reject against the frustum planes
-    reject = outside_all(c0[3] - c0[0], c1[3] - c1[0], c2[3] - c2[0])
-    reject = reject or outside_all(c0[3] + c0[0], c1[3] + c1[0], c2[3] + c2[0])
-    reject = reject or outside_all(c0[3] - c0[1], c1[3] - c1[1], c2[3] - c2[1])
-    reject = reject or outside_all(c0[3] + c0[1], c1[3] + c1[1], c2[3] + c2[1])
-    reject = reject or outside_all(c0[3] - near, c1[3] - near, c2[3] - near)
-    reject = reject or outside_all(far - c0[3], far - c1[3], far - c2[3])
-    if not reject:
-        # 6 (first, needed for validity). 2D homogeneous matrix of the original triangle
-        fw = wp.float64(width) * wp.float64(0.5)
-        fh = wp.float64(height) * wp.float64(0.5)
-        m = wp.mat33d(
-            (c0[0] + c0[3]) * fw, (c1[0] + c1[3]) * fw, (c2[0] + c2[3]) * fw,
-            (c0[3] - c0[1]) * fh, (c1[3] - c1[1]) * fh, (c2[3] - c2[1]) * fh,
-            c0[3], c1[3], c2[3],
-        )
-        det = wp.determinant(m)
-        if det != wp.float64(0.0) and wp.isfinite(det):
-            # 2. clipping (only when needed)
-            px = vec8()
-            py = vec8()
-            pw = vec8()
-            px[0] = c0[0]
-            px[1] = c1[0]
-            px[2] = c2[0]
-            py[0] = c0[1]
-            py[1] = c1[1]
-            py[2] = c2[1]
-            pw[0] = c0[3]
-            pw[1] = c1[3]
-            pw[2] = c2[3]
-            n = int(3)
-            need_near = c0[3] < near or c1[3] < near or c2[3] < near
-            if need_near:
-                px, py, pw, n = clip_polygon(px, py, pw, n, 0, near, gx, gy)
-            need_guard = int(0)
-            for k in range(n):
-                if wp.abs(px[k]) > gx * pw[k] or wp.abs(py[k]) > gy * pw[k]:
-                    need_guard = 1
-            if need_guard == 1:
-                for plane in range(1, 5):
-                    if n >= 3:
-                        px, py, pw, n = clip_polygon(px, py, pw, n, plane, near, gx, gy)
-            # 3.-5. fan, snap, area, cull, bbox
+    k0 = vcode[t[0]]
+    k1 = vcode[t[1]]
+    k2 = vcode[t[2]]
+    n_valid = int(0)
+    bb = wp.vec4i(1, 1, 0, 0)
+    a = wp.vec2i(0, 0)
+    b = wp.vec2i(0, 0)
+    s0 = wp.vec2i(0, 0)
+    if (k0 & k1 & k2 & REJECT_MASK) == 0:
+        if ((k0 | k1 | k2) & CLIP_MASK) == 0:
+            # fast path: no clipping, vertices already snapped
+            s0 = vsnap[t[0]]
+            a, b, bb = make_piece(s0, vsnap[t[1]], vsnap[t[2]], width, height, cull)
+            if bb[0] <= bb[2]:
+                n_valid = 1
+        else:
+            px, py, pw, n = clip_triangle(clip[t[0]], clip[t[1]], clip[t[2]], near, gx, gy)
             if n >= 3:
-                s0 = wp.vec2i(snap(px[0], pw[0], float(width), 0), snap(py[0], pw[0], float(height), 1))
-                for k in range(1, n - 1):
-                    s1 = wp.vec2i(snap(px[k], pw[k], float(width), 0), snap(py[k], pw[k], float(height), 1))
-                    s2 = wp.vec2i(snap(px[k + 1], pw[k + 1], float(width), 0),
-                                  snap(py[k + 1], pw[k + 1], float(height), 1))
-                    area = wp.int64(s1[0] - s0[0]) * wp.int64(s2[1] - s0[1]) - wp.int64(s1[1] - s0[1]) * wp.int64(
-                        s2[0] - s0[0])
-                    keep = area != wp.int64(0)
-                    # front faces (counter-clockwise in world/NDC) have negative area with y down
-                    if cull == 1 and area > wp.int64(0):
-                        keep = False
-                    if keep:
-                        if area < wp.int64(0):
-                            tmp = s1
-                            s1 = s2
-                            s2 = tmp
-                        xmin = wp.min(s0[0], wp.min(s1[0], s2[0]))
-                        xmax = wp.max(s0[0], wp.max(s1[0], s2[0]))
-                        ymin = wp.min(s0[1], wp.min(s1[1], s2[1]))
-                        ymax = wp.max(s0[1], wp.max(s1[1], s2[1]))
-                        bx0 = wp.max(lower_px(xmin), 0)
-                        bx1 = wp.min(upper_px(xmax), width - 1)
-                        by0 = wp.max(lower_px(ymin), 0)
-                        by1 = wp.min(upper_px(ymax), height - 1)
-                        if bx0 <= bx1 and by0 <= by1:
-                            if emit == 1:
-                                o = offsets[i] + n_out
-                                sub_v[o, 0] = s0
-                                sub_v[o, 1] = s1
-                                sub_v[o, 2] = s2
-                                sub_bbox[o] = wp.vec4i(bx0, by0, bx1, by1)
-                                sub_tri[o] = i
-                                if n_out == 0:
-                                    # 6. interpolation planes relative to a reference pixel
-                                    inv = wp.inverse(m)
-                                    rx = wp.float64(bx0) + wp.float64(0.5)
-                                    ry = wp.float64(by0) + wp.float64(0.5)
-                                    l0 = inv[0, 0] * rx + inv[0, 1] * ry + inv[0, 2]
-                                    l1 = inv[1, 0] * rx + inv[1, 1] * ry + inv[1, 2]
-                                    l2 = inv[2, 0] * rx + inv[2, 1] * ry + inv[2, 2]
-                                    tri_planes[i] = wp.mat33(
-                                        float(inv[0, 0] + inv[1, 0] + inv[2, 0]),
-                                        float(inv[0, 1] + inv[1, 1] + inv[2, 1]), float(l0 + l1 + l2),
-                                        float(inv[1, 0]), float(inv[1, 1]), float(l1),
-                                        float(inv[2, 0]), float(inv[2, 1]), float(l2),
-                                    )
-                                    tri_ref[i] = wp.vec2(float(rx), float(ry))
-                            n_out += 1
-    if emit == 0:
-        counts[i] = n_out
+                q0 = polygon_snap(px, py, pw, 0, width, height)
+                for k in range(n - 2):
+                    qa, qb, qbb = make_piece(q0, polygon_snap(px, py, pw, k + 1, width, height),
+                                             polygon_snap(px, py, pw, k + 2, width, height), width, height, cull)
+                    if qbb[0] <= qbb[2]:
+                        if n_valid == 0:
+                            s0 = q0
+                            a = qa
+                            b = qb
+                            bb = qbb
+                        n_valid += 1
+    if n_valid > 0:
+        if not write_planes(i, clip[t[0]], clip[t[1]], clip[t[2]], width, height, bb, tri_planes, tri_ref):
+            n_valid = 0
+            bb = wp.vec4i(1, 1, 0, 0)
+    rec = SubTri()
+    rec.v0 = s0
+    rec.v1 = a
+    rec.v2 = b
+    rec.bbox = bb
+    rec.tri = i
+    if n_valid > 0:
+        pl = tri_planes[i]
+        rec.plane = wp.vec3(pl[0, 0], pl[0, 1], pl[0, 2])
+        rec.ref = tri_ref[i]
+    subs[i] = rec
+    extra[i] = wp.max(n_valid - 1, 0)
+
+
+@wp.kernel
+def setup_extra_kernel(
+    base: int,
+    clip: wp.array(dtype=wp.vec4d),
+    tris: wp.array(dtype=wp.vec3i),
+    width: int,
+    height: int,
+    near: wp.float64,
+    gx: wp.float64,
+    gy: wp.float64,
+    cull: int,
+    extra: wp.array(dtype=wp.int32),
+    extra_off: wp.array(dtype=wp.int32),
+    subs: wp.array(dtype=SubTri),
+):
+    """Second and later pieces of clipped triangles, into slots M + extra_off[i] + j."""
+    i = base + wp.tid()
+    if i >= tris.shape[0]:
+        return
+    if extra[i] == 0:
+        return
+    t = tris[i]
+    px, py, pw, n = clip_triangle(clip[t[0]], clip[t[1]], clip[t[2]], near, gx, gy)
+    q0 = polygon_snap(px, py, pw, 0, width, height)
+    n_valid = int(0)
+    o = tris.shape[0] + extra_off[i]
+    for k in range(n - 2):
+        qa, qb, qbb = make_piece(q0, polygon_snap(px, py, pw, k + 1, width, height),
+                                 polygon_snap(px, py, pw, k + 2, width, height), width, height, cull)
+        if qbb[0] <= qbb[2]:
+            if n_valid > 0:
+                rec = subs[i]  # first piece: same triangle, same planes
+                rec.v0 = q0
+                rec.v1 = qa
+                rec.v2 = qb
+                rec.bbox = qbb
+                subs[o] = rec
+                o += 1
+            n_valid += 1
 
 
 @wp.func

@@ -28,7 +28,7 @@ def _agree(V, F, cam, device, min_agree=0.999):
 def test_triangles_behind_the_camera_draw_nothing(device):
     V = [[-1, -1, 2], [1, -1, 2], [0, 1, 2], [-1, -1, 0.001], [1, -1, 0.001], [0, 1, 0.0]]
     vb = raster.rasterize(V, [[0, 1, 2], [3, 4, 5]], _cam(), device=device)
-    assert (vb.tri_id.numpy() == -1).all() and vb.stats["sub_triangles"] == 0
+    assert (vb.tri_id.numpy() == -1).all() and vb.stats["pairs"] == 0
     assert (vb.depth.numpy() == np.inf).all() and (vb.bary.numpy() == 0).all()
 
 
