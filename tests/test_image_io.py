@@ -116,6 +116,9 @@ def test_bad_paths_and_arrays_raise_image_errors(tmp_path):
         save_image(tmp_path / "x.bmp", np.zeros((2, 2, 3)))
     with pytest.raises(ImageError, match="does not exist"):
         save_image(tmp_path / "missing" / "x.exr", np.zeros((2, 2, 3)))
+    (tmp_path / "adir.exr").mkdir()
+    with pytest.raises(ImageError, match=r"adir\.exr.*is a folder"):
+        save_image(tmp_path / "adir.exr", np.zeros((2, 2, 3)))
     with pytest.raises(ImageError, match="shape"):
         save_image(tmp_path / "x.exr", np.zeros((2, 2, 2)))
     assert issubclass(ImageError, InputError)

@@ -139,6 +139,8 @@ def save_image(path, img, exposure: float = 0.0, half: bool = False) -> Path:
         raise ImageError(f"unknown image extension '{path.suffix}' (use .exr, .png or .jpg)", where=str(path))
     a = _as_hwc(img, path)
     folder = path.parent if str(path.parent) else Path(".")
+    if path.is_dir():
+        raise ImageError("output path is a folder", where=str(path))
     if not folder.is_dir():
         raise ImageError(f"folder '{folder}' does not exist", where=str(path))
     try:
