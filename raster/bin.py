@@ -60,13 +60,13 @@ def bin_count_kernel(
     rows: int,
     tiles_x: int,
     subs: wp.array(dtype=SubTri),
+    sub_bbox: wp.array(dtype=wp.vec4i),
     counts: wp.array(dtype=wp.int32),
 ):
     j = base + wp.tid()
     s = sub_lo + j
     row = j // batch
-    rec = subs[s]
-    bb = rec.bbox
+    bb = sub_bbox[s]
     if bb[0] > bb[2]:
         return  # empty slot (culled / clipped away / no pixel centre covered)
     tx0 = bb[0] // TILE
@@ -74,9 +74,14 @@ def bin_count_kernel(
     ty0 = bb[1] // TILE
     ty1 = bb[3] // TILE
     small = (tx1 - tx0) < 1 or (ty1 - ty0) < 1
-    v0 = rec.v0
-    v1 = rec.v1
-    v2 = rec.v2
+    v0 = wp.vec2i(0, 0)
+    v1 = wp.vec2i(0, 0)
+    v2 = wp.vec2i(0, 0)
+    if not small:  # the full record only for triangles spanning several tiles both ways
+        rec = subs[s]
+        v0 = rec.v0
+        v1 = rec.v1
+        v2 = rec.v2
     for ty in range(ty0, ty1 + 1):
         for tx in range(tx0, tx1 + 1):
             if small or tile_overlaps(v0, v1, v2, bb, tx, ty):

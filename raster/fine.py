@@ -171,6 +171,7 @@ def fine_pixel_kernel(
 
 @wp.kernel
 def resolve_kernel(
+    base: int,
     best_invw: wp.array2d(dtype=wp.float32),
     best_tri: wp.array2d(dtype=wp.int32),
     tri_planes: wp.array(dtype=wp.mat33),
@@ -181,7 +182,12 @@ def resolve_kernel(
 ):
     """Visibility buffer from the winning triangle: perspective-correct barycentrics w.r.t. the
     original triangle (b1 = λ1/Σλ, b2 = λ2/Σλ) and view-axis depth 1/Σλ; empty: -1, (0,0), +inf."""
-    y, x = wp.tid()
+    g = base + wp.tid()
+    W = best_tri.shape[1]
+    y = g // W
+    x = g - y * W
+    if y >= best_tri.shape[0]:
+        return
     tri = best_tri[y, x]
     tri_id[y, x] = tri
     if tri < 0:

@@ -19,6 +19,7 @@ Steps 4–6 run in as many passes over the sub-triangles as the queue-memory bud
 from __future__ import annotations
 
 import threading
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -62,6 +63,21 @@ class _Workspace:
 
 
 _WORKSPACES: dict = {}
+
+
+class _Clock:
+    """Per-stage wall times when profiling (synchronises the device at each lap)."""
+
+    def __init__(self, device, enabled):
+        self.device, self.enabled, self.times = device, enabled, {}
+        self.t = time.perf_counter()
+
+    def lap(self, name):
+        if self.enabled:
+            wp.synchronize_device(self.device)
+            t = time.perf_counter()
+            self.times[name] = self.times.get(name, 0.0) + t - self.t
+            self.t = t
 
 
 def _workspace(device) -> _Workspace:
@@ -144,7 +160,7 @@ def _as_numpy_mesh(vertices, triangles):
 
 def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: int = 1,
               cull_backfaces: bool = False, coverage_count: bool = False, max_pairs: int | None = None,
-              schedule: str = "auto") -> VisibilityBuffer:
+              schedule: str = "auto", profile: bool = False) -> VisibilityBuffer:
     """Rasterize a triangle mesh into a :class:`VisibilityBuffer` of (k·H, k·W) pixels.
 
     ``vertices`` (N, 3) float, ``triangles`` (M, 3) int (numpy or ``wp.array``); ``camera`` a
@@ -152,7 +168,8 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
     drops triangles whose front (counter-clockwise) side faces away; ``coverage_count`` also
     returns per-pixel coverage counts (depth test off); ``max_pairs`` bounds the tile-queue
     memory (int32 entries per pass); ``schedule`` = "tile" | "pixel" | "auto" picks the fine
-    raster kernel (auto: tiles on CPU, pixels on CUDA).
+    raster kernel (auto: tiles on CPU, pixels on CUDA); ``profile`` records per-stage wall
+    times (device-synchronised) in ``vb.stats["times"]``.
     """
     device = resolve_device(device)
     if not isinstance(camera, Camera):
@@ -164,15 +181,18 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
     W, H = camera.width * k, camera.height * k
     if W > MAX_RESOLUTION or H > MAX_RESOLUTION:
         raise InputError(f"{W}x{H} exceeds the rasterizer's {MAX_RESOLUTION}px limit per axis", where="camera")
+    clock = _Clock(device, profile)
     v_np, t_np = _as_numpy_mesh(vertices, triangles)
     n_v, n_t = v_np.shape[0], t_np.shape[0]
-    stats = {"triangles": n_t, "sub_triangles": 0, "pairs": 0, "passes": 0}
+    stats = {"triangles": n_t, "sub_triangles": 0, "pairs": 0, "passes": 0, "times": clock.times}
+    clock.lap("validate")
 
     ws = _workspace(device)
     best_invw = ws.get2d("best_invw", (H, W), wp.float32)
     best_tri = ws.get2d("best_tri", (H, W), wp.int32)
     best_invw.zero_()
     best_tri.fill_(-1)
+    clock.lap("clear")
     coverage = wp.zeros((H, W), dtype=wp.int32, device=device) if coverage_count else None
     cov_arg = coverage if coverage is not None else wp.zeros((1, 1), dtype=wp.int32, device=device)
     # written by setup for every triangle that can win a pixel; never read otherwise
@@ -191,13 +211,15 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
         mvp = wp.mat44d(*camera.view_projection().reshape(-1))
         parallel.launch(vertex_kernel, n_v, [verts, mvp, W, H, near, far, gx, gy, clip, vsnap, vcode], device,
                         min_chunk=4096)
+        clock.lap("vertex")
 
         # triangle setup: slot i = first piece of triangle i; clipped triangles' further pieces after M
         cull = int(bool(cull_backfaces))
         extra = ws.get("extra", n_t + 1, wp.int32)
         extra[n_t:].zero_()
         subs = ws.get("subs", n_t, SubTri)
-        parallel.launch(setup_kernel, n_t, [clip, vsnap, vcode, tris, W, H, near, gx, gy, cull, subs, extra,
+        bbox = ws.get("bbox", n_t, wp.vec4i)
+        parallel.launch(setup_kernel, n_t, [clip, vsnap, vcode, tris, W, H, near, gx, gy, cull, subs, bbox, extra,
                                             tri_planes, tri_ref], device, min_chunk=2048)
         extra_off = ws.get("extra_off", n_t + 1, wp.int32)
         n_extra = scan_counts(extra, extra_off)
@@ -205,25 +227,30 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
             grown = ws.get("subs_grown", n_t + n_extra, SubTri)
             wp.copy(grown, subs, count=n_t)
             subs = grown
-            parallel.launch(setup_extra_kernel, n_t, [clip, tris, W, H, near, gx, gy, cull, extra, extra_off, subs],
+            grown_bb = ws.get("bbox_grown", n_t + n_extra, wp.vec4i)
+            wp.copy(grown_bb, bbox, count=n_t)
+            bbox = grown_bb
+            parallel.launch(setup_extra_kernel, n_t, [clip, tris, W, H, near, gx, gy, cull, extra, extra_off, subs, bbox],
                             device, min_chunk=2048)
+        clock.lap("setup")
         n_sub = n_t + n_extra
         stats["sub_triangles"] = n_sub
         stats["clipped_extra"] = n_extra
-        _bin_and_raster(subs, n_sub, W, H, camera,
+        _bin_and_raster(subs, bbox, n_sub, W, H, camera,
                         best_invw, best_tri, cov_arg, coverage is not None, device,
-                        max_pairs or DEFAULT_MAX_PAIRS, schedule, stats, ws)
+                        max_pairs or DEFAULT_MAX_PAIRS, schedule, stats, ws, clock)
 
     tri_id = wp.empty((H, W), dtype=wp.int32, device=device)
     bary = wp.empty((H, W), dtype=wp.vec2, device=device)
     depth = wp.empty((H, W), dtype=wp.float32, device=device)
-    wp.launch(resolve_kernel, dim=(H, W), inputs=[best_invw, best_tri, tri_planes, tri_ref],
-              outputs=[tri_id, bary, depth], device=device)
+    parallel.launch(resolve_kernel, H * W, [best_invw, best_tri, tri_planes, tri_ref, tri_id, bary, depth], device,
+                    min_chunk=16384)
+    clock.lap("resolve")
     return VisibilityBuffer(tri_id, bary, depth, coverage, W, H, k, device, stats)
 
 
-def _bin_and_raster(subs, n_sub, W, H, camera, best_invw, best_tri,
-                    coverage, count_mode, device, max_pairs, schedule, stats, ws):
+def _bin_and_raster(subs, bbox, n_sub, W, H, camera, best_invw, best_tri,
+                    coverage, count_mode, device, max_pairs, schedule, stats, ws, clock):
     tiles_x = (W + TILE - 1) // TILE
     tiles_y = (H + TILE - 1) // TILE
     n_tiles = tiles_x * tiles_y
@@ -244,8 +271,9 @@ def _bin_and_raster(subs, n_sub, W, H, camera, best_invw, best_tri,
         r = min(rows, n)
         batch = (n + r - 1) // r
         counts.zero_()
-        parallel.launch_rows(bin_count_kernel, n, r, [lo, batch, rows, tiles_x, subs, counts], device)
+        parallel.launch_rows(bin_count_kernel, n, r, [lo, batch, rows, tiles_x, subs, bbox, counts], device)
         total = scan_counts(counts, offsets)
+        clock.lap("bin")
         if total > max_pairs and n > 1:
             mid = lo + n // 2
             stack.append((mid, hi))
@@ -258,13 +286,15 @@ def _bin_and_raster(subs, n_sub, W, H, camera, best_invw, best_tri,
         queue = ws.get("queue", total, wp.int32)
         cursor.zero_()
         parallel.launch_rows(coarse_scatter_kernel, n, r,
-                             [lo, batch, rows, tiles_x, subs, offsets, cursor, queue], device)
+                             [lo, batch, rows, tiles_x, subs, bbox, offsets, cursor, queue], device)
+        clock.lap("coarse")
         args = [tiles_x, n_tiles, rows, W, H, inv_far, int(count_mode), offsets, queue, subs,
                 best_invw, best_tri, coverage]
         if schedule == "tile":
             parallel.launch(fine_tile_kernel, n_tiles, args, device, chunks=8 * parallel.cpu_workers(), min_chunk=1)
         else:
             parallel.launch(fine_pixel_kernel, n_tiles * TILE * TILE, args, device, min_chunk=TILE * TILE)
+        clock.lap("fine")
 
 
 __all__ = ["VisibilityBuffer", "rasterize", "clear_workspace", "DEFAULT_MAX_PAIRS"]

@@ -346,6 +346,7 @@ def setup_kernel(
     gy: wp.float64,
     cull: int,
     subs: wp.array(dtype=SubTri),
+    sub_bbox: wp.array(dtype=wp.vec4i),
     extra: wp.array(dtype=wp.int32),
     tri_planes: wp.array(dtype=wp.mat33),
     tri_ref: wp.array(dtype=wp.vec2),
@@ -400,6 +401,7 @@ def setup_kernel(
         rec.plane = wp.vec3(pl[0, 0], pl[0, 1], pl[0, 2])
         rec.ref = tri_ref[i]
     subs[i] = rec
+    sub_bbox[i] = bb
     extra[i] = wp.max(n_valid - 1, 0)
 
 
@@ -417,6 +419,7 @@ def setup_extra_kernel(
     extra: wp.array(dtype=wp.int32),
     extra_off: wp.array(dtype=wp.int32),
     subs: wp.array(dtype=SubTri),
+    sub_bbox: wp.array(dtype=wp.vec4i),
 ):
     """Second and later pieces of clipped triangles, into slots M + extra_off[i] + j."""
     i = base + wp.tid()
@@ -440,6 +443,7 @@ def setup_extra_kernel(
                 rec.v2 = qb
                 rec.bbox = qbb
                 subs[o] = rec
+                sub_bbox[o] = qbb
                 o += 1
             n_valid += 1
 
