@@ -23,7 +23,7 @@ import warp as wp
 wp.set_module_options({"enable_backward": False})
 
 from .bin import TILE
-from .setup import SUBPIXEL, SubTri, edge_eval, edge_topleft, eval_plane, sample_fixed
+from .setup import SUBPIXEL, SubTri, TriPlanes, edge_eval, edge_topleft, eval_plane, sample_fixed
 
 
 @wp.func
@@ -42,8 +42,7 @@ def fine_tile_kernel(
     inv_far: float,
     count_mode: int,
     offsets: wp.array(dtype=wp.int32),
-    queue: wp.array(dtype=wp.int32),
-    subs: wp.array(dtype=SubTri),
+    queue: wp.array(dtype=SubTri),
     best_invw: wp.array2d(dtype=wp.float32),
     best_tri: wp.array2d(dtype=wp.int32),
     coverage: wp.array2d(dtype=wp.int32),
@@ -61,7 +60,7 @@ def fine_tile_kernel(
     end = offsets[(t + 1) * rows]
     step = wp.int64(SUBPIXEL)
     for q in range(start, end):
-        rec = subs[queue[q]]
+        rec = queue[q]
         bb = rec.bbox
         x0 = wp.max(bb[0], X0)
         y0 = wp.max(bb[1], Y0)
@@ -123,8 +122,7 @@ def fine_pixel_kernel(
     inv_far: float,
     count_mode: int,
     offsets: wp.array(dtype=wp.int32),
-    queue: wp.array(dtype=wp.int32),
-    subs: wp.array(dtype=SubTri),
+    queue: wp.array(dtype=SubTri),
     best_invw: wp.array2d(dtype=wp.float32),
     best_tri: wp.array2d(dtype=wp.int32),
     coverage: wp.array2d(dtype=wp.int32),
@@ -145,7 +143,7 @@ def fine_pixel_kernel(
     sy = sample_fixed(y)
     z = wp.int64(0)
     for q in range(offsets[t * rows], offsets[(t + 1) * rows]):
-        rec = subs[queue[q]]
+        rec = queue[q]
         bb = rec.bbox
         if x < bb[0] or x > bb[2] or y < bb[1] or y > bb[3]:
             continue
@@ -174,8 +172,7 @@ def resolve_kernel(
     base: int,
     best_invw: wp.array2d(dtype=wp.float32),
     best_tri: wp.array2d(dtype=wp.int32),
-    tri_planes: wp.array(dtype=wp.mat33),
-    tri_ref: wp.array(dtype=wp.vec2),
+    tri_planes: wp.array(dtype=TriPlanes),
     tri_id: wp.array2d(dtype=wp.int32),
     bary: wp.array2d(dtype=wp.vec2),
     depth: wp.array2d(dtype=wp.float32),
@@ -194,8 +191,9 @@ def resolve_kernel(
         bary[y, x] = wp.vec2(0.0, 0.0)
         depth[y, x] = wp.inf
         return
-    pl = tri_planes[tri]
-    ref = tri_ref[tri]
+    tp = tri_planes[tri]
+    pl = tp.p
+    ref = tp.ref
     s = eval_plane(pl, 0, ref, x, y)
     l1 = eval_plane(pl, 1, ref, x, y)
     l2 = eval_plane(pl, 2, ref, x, y)

@@ -33,9 +33,9 @@ from .bin import TILE, bin_count_kernel, scan_counts
 from .camera import Camera
 from .coarse import coarse_scatter_kernel
 from .fine import fine_pixel_kernel, fine_tile_kernel, resolve_kernel
-from .setup import MAX_RESOLUTION, SubTri, guard_factors, setup_extra_kernel, setup_kernel, vertex_kernel
+from .setup import MAX_RESOLUTION, SubTri, TriPlanes, guard_factors, setup_extra_kernel, setup_kernel, vertex_kernel
 
-DEFAULT_MAX_PAIRS = 1 << 24  # triangle/tile pairs per pass: 64 MiB of int32 queue
+DEFAULT_MAX_PAIRS = 1 << 21  # triangle/tile pairs per pass: 128 MiB of 64-byte queue records
 
 
 class _Workspace:
@@ -196,8 +196,7 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
     coverage = wp.zeros((H, W), dtype=wp.int32, device=device) if coverage_count else None
     cov_arg = coverage if coverage is not None else wp.zeros((1, 1), dtype=wp.int32, device=device)
     # written by setup for every triangle that can win a pixel; never read otherwise
-    tri_planes = ws.get("tri_planes", max(n_t, 1), wp.mat33)
-    tri_ref = ws.get("tri_ref", max(n_t, 1), wp.vec2)
+    tri_planes = ws.get("tri_planes", max(n_t, 1), TriPlanes)
 
     if n_t > 0:
         host = device.startswith("cpu")  # CPU: reference the numpy memory, no copy
@@ -220,7 +219,7 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
         subs = ws.get("subs", n_t, SubTri)
         bbox = ws.get("bbox", n_t, wp.vec4i)
         parallel.launch(setup_kernel, n_t, [clip, vsnap, vcode, tris, W, H, near, gx, gy, cull, subs, bbox, extra,
-                                            tri_planes, tri_ref], device, min_chunk=2048)
+                                            tri_planes], device, min_chunk=2048)
         extra_off = ws.get("extra_off", n_t + 1, wp.int32)
         n_extra = scan_counts(extra, extra_off)
         if n_extra > 0:
@@ -243,7 +242,7 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
     tri_id = wp.empty((H, W), dtype=wp.int32, device=device)
     bary = wp.empty((H, W), dtype=wp.vec2, device=device)
     depth = wp.empty((H, W), dtype=wp.float32, device=device)
-    parallel.launch(resolve_kernel, H * W, [best_invw, best_tri, tri_planes, tri_ref, tri_id, bary, depth], device,
+    parallel.launch(resolve_kernel, H * W, [best_invw, best_tri, tri_planes, tri_id, bary, depth], device,
                     min_chunk=16384)
     clock.lap("resolve")
     return VisibilityBuffer(tri_id, bary, depth, coverage, W, H, k, device, stats)
@@ -283,12 +282,12 @@ def _bin_and_raster(subs, bbox, n_sub, W, H, camera, best_invw, best_tri,
         stats["passes"] += 1
         if total == 0:
             continue
-        queue = ws.get("queue", total, wp.int32)
+        queue = ws.get("queue", total, SubTri)
         cursor.zero_()
         parallel.launch_rows(coarse_scatter_kernel, n, r,
                              [lo, batch, rows, tiles_x, subs, bbox, offsets, cursor, queue], device)
         clock.lap("coarse")
-        args = [tiles_x, n_tiles, rows, W, H, inv_far, int(count_mode), offsets, queue, subs,
+        args = [tiles_x, n_tiles, rows, W, H, inv_far, int(count_mode), offsets, queue,
                 best_invw, best_tri, coverage]
         if schedule == "tile":
             parallel.launch(fine_tile_kernel, n_tiles, args, device, chunks=8 * parallel.cpu_workers(), min_chunk=1)

@@ -57,6 +57,14 @@ class SubTri:
     ref: wp.vec2  # (rx, ry)
 
 
+@wp.struct
+class TriPlanes:
+    """Interpolation planes of an original triangle (rows: 1/w, λ1, λ2) about pixel point ``ref``."""
+
+    p: wp.mat33
+    ref: wp.vec2
+
+
 # ---------------------------------------------------------------------------------------------
 # small building blocks
 # ---------------------------------------------------------------------------------------------
@@ -301,7 +309,7 @@ def polygon_snap(px: vec8, py: vec8, pw: vec8, k: int, width: int, height: int):
 
 @wp.func
 def write_planes(i: int, c0: wp.vec4d, c1: wp.vec4d, c2: wp.vec4d, width: int, height: int, bb: wp.vec4i,
-                 tri_planes: wp.array(dtype=wp.mat33), tri_ref: wp.array(dtype=wp.vec2)):
+                 tri_planes: wp.array(dtype=TriPlanes)):
     """2D-homogeneous interpolation planes of triangle i (rows: 1/w, λ1, λ2) relative to the
     centre of pixel (bb[0], bb[1]). Returns False when the triangle's plane passes through the eye."""
     fw = wp.float64(width) * wp.float64(0.5)
@@ -320,12 +328,14 @@ def write_planes(i: int, c0: wp.vec4d, c1: wp.vec4d, c2: wp.vec4d, width: int, h
     l0 = inv[0, 0] * rx + inv[0, 1] * ry + inv[0, 2]
     l1 = inv[1, 0] * rx + inv[1, 1] * ry + inv[1, 2]
     l2 = inv[2, 0] * rx + inv[2, 1] * ry + inv[2, 2]
-    tri_planes[i] = wp.mat33(
+    tp = TriPlanes()
+    tp.p = wp.mat33(
         float(inv[0, 0] + inv[1, 0] + inv[2, 0]), float(inv[0, 1] + inv[1, 1] + inv[2, 1]), float(l0 + l1 + l2),
         float(inv[1, 0]), float(inv[1, 1]), float(l1),
         float(inv[2, 0]), float(inv[2, 1]), float(l2),
     )
-    tri_ref[i] = wp.vec2(float(rx), float(ry))
+    tp.ref = wp.vec2(float(rx), float(ry))
+    tri_planes[i] = tp
     return True
 
 
@@ -348,8 +358,7 @@ def setup_kernel(
     subs: wp.array(dtype=SubTri),
     sub_bbox: wp.array(dtype=wp.vec4i),
     extra: wp.array(dtype=wp.int32),
-    tri_planes: wp.array(dtype=wp.mat33),
-    tri_ref: wp.array(dtype=wp.vec2),
+    tri_planes: wp.array(dtype=TriPlanes),
 ):
     """Triangle i → its first sub-triangle in slot i (an empty bbox when nothing survives) and
     ``extra[i]`` = number of further pieces (clipped triangles only), emitted by ``setup_extra_kernel``."""
@@ -387,7 +396,7 @@ def setup_kernel(
                             bb = qbb
                         n_valid += 1
     if n_valid > 0:
-        if not write_planes(i, clip[t[0]], clip[t[1]], clip[t[2]], width, height, bb, tri_planes, tri_ref):
+        if not write_planes(i, clip[t[0]], clip[t[1]], clip[t[2]], width, height, bb, tri_planes):
             n_valid = 0
             bb = wp.vec4i(1, 1, 0, 0)
     rec = SubTri()
@@ -397,9 +406,9 @@ def setup_kernel(
     rec.bbox = bb
     rec.tri = i
     if n_valid > 0:
-        pl = tri_planes[i]
-        rec.plane = wp.vec3(pl[0, 0], pl[0, 1], pl[0, 2])
-        rec.ref = tri_ref[i]
+        tp = tri_planes[i]
+        rec.plane = wp.vec3(tp.p[0, 0], tp.p[0, 1], tp.p[0, 2])
+        rec.ref = tp.ref
     subs[i] = rec
     sub_bbox[i] = bb
     extra[i] = wp.max(n_valid - 1, 0)
