@@ -295,3 +295,16 @@ def fit_error(model, n_lobes=1, method="analytic", **kw):
         return model.mo(o, i) * d[..., None]
 
     return eq11_error(model, approx, **kw)
+
+
+def warp_error(model, n_lobes=1, method="analytic", **kw):
+    """eq. 11 error of the spherically warped SG slice (paper eq. 22; supplement Fig. 9), ks = 1."""
+    from .warp import eval_slice, slice_lobes_numpy
+
+    def approx(O, I):
+        o = O[:, 0, :]
+        a, l, m = slice_lobes_numpy(model, o, n_lobes, method)
+        m = m / np.where(model.ks > 0, model.ks, 1.0)
+        return eval_slice(a[:, None], l[:, None], m[:, None], I)
+
+    return eq11_error(model, approx, **kw)
