@@ -13,6 +13,8 @@ run on either device:
 Coverage: sample (x+½, y+½) in fixed point is inside when every edge function is > 0, or = 0 on a
 top-left edge. Depth: the 1/w plane of the original triangle (larger = nearer), kept only in
 [1/far, 1/near]; ties go to the lower triangle id so the result does not depend on queue order.
+The winner's perspective-correct barycentrics (λ1/Σλ, λ2/Σλ from the record's planes) are written
+with it, straight into the output buffers; ``resolve_kernel`` only turns 1/w into depth.
 ``count_mode`` additionally counts every covering sub-triangle per pixel (depth test off) — the
 watertightness diagnostic.
 """
@@ -23,12 +25,24 @@ import warp as wp
 wp.set_module_options({"enable_backward": False})
 
 from .bin import TILE
-from .setup import SUBPIXEL, SubTri, TriPlanes, edge_eval, edge_topleft, eval_plane, sample_fixed
+from .setup import SUBPIXEL, SubTri, edge_eval, edge_topleft, eval_plane, pixel_bbox, sample_fixed
 
 
 @wp.func
 def closer(invw: float, tri: int, best_invw: float, best_tri: int):
     return invw > best_invw or (invw == best_invw and tri < best_tri)
+
+
+@wp.func
+def barycentrics(pl: wp.mat33, v0: wp.vec2i, x: int, y: int, invw: float):
+    """Perspective-correct (b1, b2) = (λ1, λ2) / (1/w), clamped into the triangle."""
+    b1 = wp.clamp(eval_plane(pl, 1, v0, x, y) / invw, 0.0, 1.0)
+    b2 = wp.clamp(eval_plane(pl, 2, v0, x, y) / invw, 0.0, 1.0)
+    tot = b1 + b2
+    if tot > 1.0:
+        b1 = b1 / tot
+        b2 = b2 / tot
+    return wp.vec2(b1, b2)
 
 
 @wp.kernel
@@ -45,6 +59,7 @@ def fine_tile_kernel(
     queue: wp.array(dtype=SubTri),
     best_invw: wp.array2d(dtype=wp.float32),
     best_tri: wp.array2d(dtype=wp.int32),
+    best_bary: wp.array2d(dtype=wp.vec2),
     coverage: wp.array2d(dtype=wp.int32),
 ):
     t = base + wp.tid()
@@ -61,25 +76,22 @@ def fine_tile_kernel(
     step = wp.int64(SUBPIXEL)
     for q in range(start, end):
         rec = queue[q]
-        bb = rec.bbox
+        v0 = rec.v0
+        v1 = rec.v1
+        v2 = rec.v2
+        bb = pixel_bbox(v0, v1, v2, width, height)
         x0 = wp.max(bb[0], X0)
         y0 = wp.max(bb[1], Y0)
         x1 = wp.min(bb[2], X1)
         y1 = wp.min(bb[3], Y1)
         if x0 > x1 or y0 > y1:
             continue
-        v0 = rec.v0
-        v1 = rec.v1
-        v2 = rec.v2
         # inside <=> E + bias > 0 (bias 1 on top-left edges: E >= 0)
-        b0 = wp.int64(edge_topleft(v0, v1))
-        b1 = wp.int64(edge_topleft(v1, v2))
-        b2 = wp.int64(edge_topleft(v2, v0))
         sx = sample_fixed(x0)
         sy = sample_fixed(y0)
-        r0 = edge_eval(v0, v1, sx, sy) + b0
-        r1 = edge_eval(v1, v2, sx, sy) + b1
-        r2 = edge_eval(v2, v0, sx, sy) + b2
+        r0 = edge_eval(v0, v1, sx, sy) + wp.int64(edge_topleft(v0, v1))
+        r1 = edge_eval(v1, v2, sx, sy) + wp.int64(edge_topleft(v1, v2))
+        r2 = edge_eval(v2, v0, sx, sy) + wp.int64(edge_topleft(v2, v0))
         dx0 = -wp.int64(v1[1] - v0[1]) * step
         dx1 = -wp.int64(v2[1] - v1[1]) * step
         dx2 = -wp.int64(v0[1] - v2[1]) * step
@@ -87,8 +99,7 @@ def fine_tile_kernel(
         dy1 = wp.int64(v2[0] - v1[0]) * step
         dy2 = wp.int64(v0[0] - v2[0]) * step
         tri = rec.tri
-        pl = rec.plane
-        ref = rec.ref
+        pl = rec.p
         z = wp.int64(0)
         for y in range(y0, y1 + 1):
             e0 = r0
@@ -96,13 +107,14 @@ def fine_tile_kernel(
             e2 = r2
             for x in range(x0, x1 + 1):
                 if e0 > z and e1 > z and e2 > z:
-                    invw = pl[0] * (float(x) + 0.5 - ref[0]) + pl[1] * (float(y) + 0.5 - ref[1]) + pl[2]
+                    invw = eval_plane(pl, 0, v0, x, y)
                     if invw >= inv_far:
                         if count_mode == 1:
                             coverage[y, x] = coverage[y, x] + 1
                         if closer(invw, tri, best_invw[y, x], best_tri[y, x]):
                             best_invw[y, x] = invw
                             best_tri[y, x] = tri
+                            best_bary[y, x] = barycentrics(pl, v0, x, y, invw)
                 e0 += dx0
                 e1 += dx1
                 e2 += dx2
@@ -125,6 +137,7 @@ def fine_pixel_kernel(
     queue: wp.array(dtype=SubTri),
     best_invw: wp.array2d(dtype=wp.float32),
     best_tri: wp.array2d(dtype=wp.int32),
+    best_bary: wp.array2d(dtype=wp.vec2),
     coverage: wp.array2d(dtype=wp.int32),
 ):
     g = base + wp.tid()
@@ -138,31 +151,31 @@ def fine_pixel_kernel(
         return
     bi = best_invw[y, x]
     bt = best_tri[y, x]
+    bq = int(-1)
     cnt = int(0)
     sx = sample_fixed(x)
     sy = sample_fixed(y)
     z = wp.int64(0)
     for q in range(offsets[t * rows], offsets[(t + 1) * rows]):
         rec = queue[q]
-        bb = rec.bbox
-        if x < bb[0] or x > bb[2] or y < bb[1] or y > bb[3]:
-            continue
         v0 = rec.v0
         v1 = rec.v1
         v2 = rec.v2
         if edge_eval(v0, v1, sx, sy) + wp.int64(edge_topleft(v0, v1)) > z:
             if edge_eval(v1, v2, sx, sy) + wp.int64(edge_topleft(v1, v2)) > z:
                 if edge_eval(v2, v0, sx, sy) + wp.int64(edge_topleft(v2, v0)) > z:
-                    tri = rec.tri
-                    pl = rec.plane
-                    invw = pl[0] * (float(x) + 0.5 - rec.ref[0]) + pl[1] * (float(y) + 0.5 - rec.ref[1]) + pl[2]
+                    invw = eval_plane(rec.p, 0, v0, x, y)
                     if invw >= inv_far:
                         cnt += 1
-                        if closer(invw, tri, bi, bt):
+                        if closer(invw, rec.tri, bi, bt):
                             bi = invw
-                            bt = tri
-    best_invw[y, x] = bi
-    best_tri[y, x] = bt
+                            bt = rec.tri
+                            bq = q
+    if bq >= 0:
+        rec = queue[bq]
+        best_invw[y, x] = bi
+        best_tri[y, x] = bt
+        best_bary[y, x] = barycentrics(rec.p, rec.v0, x, y, bi)
     if count_mode == 1:
         coverage[y, x] = coverage[y, x] + cnt
 
@@ -171,37 +184,19 @@ def fine_pixel_kernel(
 def resolve_kernel(
     base: int,
     best_invw: wp.array2d(dtype=wp.float32),
-    best_tri: wp.array2d(dtype=wp.int32),
-    tri_planes: wp.array(dtype=TriPlanes),
     tri_id: wp.array2d(dtype=wp.int32),
     bary: wp.array2d(dtype=wp.vec2),
     depth: wp.array2d(dtype=wp.float32),
 ):
-    """Visibility buffer from the winning triangle: perspective-correct barycentrics w.r.t. the
-    original triangle (b1 = λ1/Σλ, b2 = λ2/Σλ) and view-axis depth 1/Σλ; empty: -1, (0,0), +inf."""
+    """Depth = 1/(1/w) of the winner; empty pixels: bary (0, 0), depth +inf (tri_id is already -1)."""
     g = base + wp.tid()
-    W = best_tri.shape[1]
+    W = tri_id.shape[1]
     y = g // W
     x = g - y * W
-    if y >= best_tri.shape[0]:
+    if y >= tri_id.shape[0]:
         return
-    tri = best_tri[y, x]
-    tri_id[y, x] = tri
-    if tri < 0:
+    if tri_id[y, x] < 0:
         bary[y, x] = wp.vec2(0.0, 0.0)
         depth[y, x] = wp.inf
-        return
-    tp = tri_planes[tri]
-    pl = tp.p
-    ref = tp.ref
-    s = eval_plane(pl, 0, ref, x, y)
-    l1 = eval_plane(pl, 1, ref, x, y)
-    l2 = eval_plane(pl, 2, ref, x, y)
-    b1 = wp.clamp(l1 / s, 0.0, 1.0)
-    b2 = wp.clamp(l2 / s, 0.0, 1.0)
-    tot = b1 + b2
-    if tot > 1.0:
-        b1 = b1 / tot
-        b2 = b2 / tot
-    bary[y, x] = wp.vec2(b1, b2)
-    depth[y, x] = 1.0 / s
+    else:
+        depth[y, x] = 1.0 / best_invw[y, x]

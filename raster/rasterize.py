@@ -33,7 +33,7 @@ from .bin import TILE, bin_count_kernel, scan_counts
 from .camera import Camera
 from .coarse import coarse_scatter_kernel
 from .fine import fine_pixel_kernel, fine_tile_kernel, resolve_kernel
-from .setup import MAX_RESOLUTION, SubTri, TriPlanes, guard_factors, setup_extra_kernel, setup_kernel, vertex_kernel
+from .setup import MAX_RESOLUTION, SubTri, guard_factors, setup_extra_kernel, setup_kernel, vertex_kernel
 
 DEFAULT_MAX_PAIRS = 1 << 21  # triangle/tile pairs per pass: 128 MiB of 64-byte queue records
 
@@ -188,15 +188,16 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
     clock.lap("validate")
 
     ws = _workspace(device)
-    best_invw = ws.get2d("best_invw", (H, W), wp.float32)
-    best_tri = ws.get2d("best_tri", (H, W), wp.int32)
+    best_invw = ws.get2d("best_invw", (H, W), wp.float32)  # 1/w of the nearest so far (0 = empty)
     best_invw.zero_()
-    best_tri.fill_(-1)
+    # the fine raster writes tri_id and bary of the winners straight into the outputs
+    tri_id = wp.empty((H, W), dtype=wp.int32, device=device)
+    tri_id.fill_(-1)
+    bary = wp.empty((H, W), dtype=wp.vec2, device=device)
+    depth = wp.empty((H, W), dtype=wp.float32, device=device)
     clock.lap("clear")
     coverage = wp.zeros((H, W), dtype=wp.int32, device=device) if coverage_count else None
     cov_arg = coverage if coverage is not None else wp.zeros((1, 1), dtype=wp.int32, device=device)
-    # written by setup for every triangle that can win a pixel; never read otherwise
-    tri_planes = ws.get("tri_planes", max(n_t, 1), TriPlanes)
 
     if n_t > 0:
         host = device.startswith("cpu")  # CPU: reference the numpy memory, no copy
@@ -218,8 +219,8 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
         extra[n_t:].zero_()
         subs = ws.get("subs", n_t, SubTri)
         bbox = ws.get("bbox", n_t, wp.vec4i)
-        parallel.launch(setup_kernel, n_t, [clip, vsnap, vcode, tris, W, H, near, gx, gy, cull, subs, bbox, extra,
-                                            tri_planes], device, min_chunk=2048)
+        parallel.launch(setup_kernel, n_t, [clip, vsnap, vcode, tris, W, H, near, gx, gy, cull, subs, bbox, extra],
+                        device, min_chunk=2048)
         extra_off = ws.get("extra_off", n_t + 1, wp.int32)
         n_extra = scan_counts(extra, extra_off)
         if n_extra > 0:
@@ -236,19 +237,15 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
         stats["sub_triangles"] = n_sub
         stats["clipped_extra"] = n_extra
         _bin_and_raster(subs, bbox, n_sub, W, H, camera,
-                        best_invw, best_tri, cov_arg, coverage is not None, device,
+                        best_invw, tri_id, bary, cov_arg, coverage is not None, device,
                         max_pairs or DEFAULT_MAX_PAIRS, schedule, stats, ws, clock)
 
-    tri_id = wp.empty((H, W), dtype=wp.int32, device=device)
-    bary = wp.empty((H, W), dtype=wp.vec2, device=device)
-    depth = wp.empty((H, W), dtype=wp.float32, device=device)
-    parallel.launch(resolve_kernel, H * W, [best_invw, best_tri, tri_planes, tri_id, bary, depth], device,
-                    min_chunk=16384)
+    parallel.launch(resolve_kernel, H * W, [best_invw, tri_id, bary, depth], device, min_chunk=16384)
     clock.lap("resolve")
     return VisibilityBuffer(tri_id, bary, depth, coverage, W, H, k, device, stats)
 
 
-def _bin_and_raster(subs, bbox, n_sub, W, H, camera, best_invw, best_tri,
+def _bin_and_raster(subs, bbox, n_sub, W, H, camera, best_invw, best_tri, best_bary,
                     coverage, count_mode, device, max_pairs, schedule, stats, ws, clock):
     tiles_x = (W + TILE - 1) // TILE
     tiles_y = (H + TILE - 1) // TILE
@@ -288,7 +285,7 @@ def _bin_and_raster(subs, bbox, n_sub, W, H, camera, best_invw, best_tri,
                              [lo, batch, rows, tiles_x, subs, bbox, offsets, cursor, queue], device)
         clock.lap("coarse")
         args = [tiles_x, n_tiles, rows, W, H, inv_far, int(count_mode), offsets, queue,
-                best_invw, best_tri, coverage]
+                best_invw, best_tri, best_bary, coverage]
         if schedule == "tile":
             parallel.launch(fine_tile_kernel, n_tiles, args, device, chunks=8 * parallel.cpu_workers(), min_chunk=1)
         else:

@@ -46,28 +46,15 @@ vec8 = wp.types.vector(length=8, dtype=wp.float64)
 
 @wp.struct
 class SubTri:
-    """One rasterizable (sub-)triangle: 64 bytes, one cache line per fine-raster visit."""
+    """One rasterizable (sub-)triangle: exactly 64 bytes, one cache line per fine-raster visit."""
 
     v0: wp.vec2i  # snapped fixed-point vertices, positive-area winding (y down)
     v1: wp.vec2i
     v2: wp.vec2i
-    bbox: wp.vec4i  # covered pixel-centre bbox (x0, y0, x1, y1); x0 > x1 = empty slot
     tri: wp.int32  # original triangle id
-    plane: wp.vec3  # 1/w plane of the original triangle: a·(x+½−rx) + b·(y+½−ry) + c
-    ref: wp.vec2  # (rx, ry)
+    p: wp.mat33  # interpolation planes of the original triangle (rows 1/w, λ1, λ2) about v0
 
 
-@wp.struct
-class TriPlanes:
-    """Interpolation planes of an original triangle (rows: 1/w, λ1, λ2) about pixel point ``ref``."""
-
-    p: wp.mat33
-    ref: wp.vec2
-
-
-# ---------------------------------------------------------------------------------------------
-# small building blocks
-# ---------------------------------------------------------------------------------------------
 @wp.func
 def plane_dist(x: wp.float64, y: wp.float64, w: wp.float64, plane: int, near: wp.float64, gx: wp.float64,
                gy: wp.float64):
@@ -174,14 +161,24 @@ def sample_fixed(p: int):
 
 @wp.func
 def lower_px(v: int):
-    """First pixel whose centre is ≥ fixed-point v."""
-    return wp.int32(wp.ceil((wp.float64(v) - wp.float64(HALF)) / wp.float64(SUBPIXEL)))
+    """First pixel whose centre is ≥ fixed-point v (ceil division by an arithmetic shift)."""
+    return (v - HALF + SUBPIXEL - 1) >> SUBPIXEL_BITS
 
 
 @wp.func
 def upper_px(v: int):
-    """Last pixel whose centre is ≤ fixed-point v."""
-    return wp.int32(wp.floor((wp.float64(v) - wp.float64(HALF)) / wp.float64(SUBPIXEL)))
+    """Last pixel whose centre is ≤ fixed-point v (floor division by an arithmetic shift)."""
+    return (v - HALF) >> SUBPIXEL_BITS
+
+
+@wp.func
+def pixel_bbox(s0: wp.vec2i, s1: wp.vec2i, s2: wp.vec2i, width: int, height: int):
+    """Pixels whose centres lie in the snapped triangle's bounding box, clamped to the screen."""
+    bx0 = wp.max(lower_px(wp.min(s0[0], wp.min(s1[0], s2[0]))), 0)
+    bx1 = wp.min(upper_px(wp.max(s0[0], wp.max(s1[0], s2[0]))), width - 1)
+    by0 = wp.max(lower_px(wp.min(s0[1], wp.min(s1[1], s2[1]))), 0)
+    by1 = wp.min(upper_px(wp.max(s0[1], wp.max(s1[1], s2[1]))), height - 1)
+    return wp.vec4i(bx0, by0, bx1, by1)
 
 
 # outcode bits of a clip-space vertex
@@ -260,16 +257,9 @@ def make_piece(s0: wp.vec2i, s1: wp.vec2i, s2: wp.vec2i, width: int, height: int
         if area < wp.int64(0):
             a = s2
             b = s1
-        xmin = wp.min(s0[0], wp.min(a[0], b[0]))
-        xmax = wp.max(s0[0], wp.max(a[0], b[0]))
-        ymin = wp.min(s0[1], wp.min(a[1], b[1]))
-        ymax = wp.max(s0[1], wp.max(a[1], b[1]))
-        bx0 = wp.max(lower_px(xmin), 0)
-        bx1 = wp.min(upper_px(xmax), width - 1)
-        by0 = wp.max(lower_px(ymin), 0)
-        by1 = wp.min(upper_px(ymax), height - 1)
-        if bx0 <= bx1 and by0 <= by1:
-            bb = wp.vec4i(bx0, by0, bx1, by1)
+        pb = pixel_bbox(s0, a, b, width, height)
+        if pb[0] <= pb[2] and pb[1] <= pb[3]:
+            bb = pb
     return a, b, bb
 
 
@@ -308,35 +298,47 @@ def polygon_snap(px: vec8, py: vec8, pw: vec8, k: int, width: int, height: int):
 
 
 @wp.func
-def write_planes(i: int, c0: wp.vec4d, c1: wp.vec4d, c2: wp.vec4d, width: int, height: int, bb: wp.vec4i,
-                 tri_planes: wp.array(dtype=TriPlanes)):
-    """2D-homogeneous interpolation planes of triangle i (rows: 1/w, λ1, λ2) relative to the
-    centre of pixel (bb[0], bb[1]). Returns False when the triangle's plane passes through the eye."""
+def homogeneous_matrix(c0: wp.vec4d, c1: wp.vec4d, c2: wp.vec4d, width: int, height: int):
+    """Columns: the vertices in pixel-space homogeneous coordinates (X·w, Y·w, w)."""
     fw = wp.float64(width) * wp.float64(0.5)
     fh = wp.float64(height) * wp.float64(0.5)
-    m = wp.mat33d(
+    return wp.mat33d(
         (c0[0] + c0[3]) * fw, (c1[0] + c1[3]) * fw, (c2[0] + c2[3]) * fw,
         (c0[3] - c0[1]) * fh, (c1[3] - c1[1]) * fh, (c2[3] - c2[1]) * fh,
         c0[3], c1[3], c2[3],
     )
-    det = wp.determinant(m)
-    if det == wp.float64(0.0) or not wp.isfinite(det):
-        return False
+
+
+@wp.func
+def planes_about(m: wp.mat33d, ref: wp.vec2i):
+    """Interpolation planes (rows: 1/w, λ1, λ2; columns: d/dX, d/dY, value at ``ref``) of the
+    triangle with homogeneous matrix m, about fixed-point point ``ref`` (float64 → float32)."""
     inv = wp.inverse(m)
-    rx = wp.float64(bb[0]) + wp.float64(0.5)
-    ry = wp.float64(bb[1]) + wp.float64(0.5)
+    rx = wp.float64(ref[0]) / wp.float64(SUBPIXEL)
+    ry = wp.float64(ref[1]) / wp.float64(SUBPIXEL)
     l0 = inv[0, 0] * rx + inv[0, 1] * ry + inv[0, 2]
     l1 = inv[1, 0] * rx + inv[1, 1] * ry + inv[1, 2]
     l2 = inv[2, 0] * rx + inv[2, 1] * ry + inv[2, 2]
-    tp = TriPlanes()
-    tp.p = wp.mat33(
+    return wp.mat33(
         float(inv[0, 0] + inv[1, 0] + inv[2, 0]), float(inv[0, 1] + inv[1, 1] + inv[2, 1]), float(l0 + l1 + l2),
         float(inv[1, 0]), float(inv[1, 1]), float(l1),
         float(inv[2, 0]), float(inv[2, 1]), float(l2),
     )
-    tp.ref = wp.vec2(float(rx), float(ry))
-    tri_planes[i] = tp
-    return True
+
+
+@wp.func
+def invertible(m: wp.mat33d):
+    """False when the triangle's plane passes through the eye (or is not finite)."""
+    det = wp.determinant(m)
+    return det != wp.float64(0.0) and wp.isfinite(det)
+
+
+@wp.func
+def eval_plane(pl: wp.mat33, row: int, v0: wp.vec2i, x: int, y: int):
+    """Plane ``row`` of a record at the centre of pixel (x, y)."""
+    dx = float(x) + 0.5 - float(v0[0]) * (1.0 / float(SUBPIXEL))
+    dy = float(y) + 0.5 - float(v0[1]) * (1.0 / float(SUBPIXEL))
+    return pl[row, 0] * dx + pl[row, 1] * dy + pl[row, 2]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -358,7 +360,6 @@ def setup_kernel(
     subs: wp.array(dtype=SubTri),
     sub_bbox: wp.array(dtype=wp.vec4i),
     extra: wp.array(dtype=wp.int32),
-    tri_planes: wp.array(dtype=TriPlanes),
 ):
     """Triangle i → its first sub-triangle in slot i (an empty bbox when nothing survives) and
     ``extra[i]`` = number of further pieces (clipped triangles only), emitted by ``setup_extra_kernel``."""
@@ -395,20 +396,18 @@ def setup_kernel(
                             b = qb
                             bb = qbb
                         n_valid += 1
+    rec = SubTri()
     if n_valid > 0:
-        if not write_planes(i, clip[t[0]], clip[t[1]], clip[t[2]], width, height, bb, tri_planes):
+        m = homogeneous_matrix(clip[t[0]], clip[t[1]], clip[t[2]], width, height)
+        if invertible(m):
+            rec.p = planes_about(m, s0)
+        else:
             n_valid = 0
             bb = wp.vec4i(1, 1, 0, 0)
-    rec = SubTri()
     rec.v0 = s0
     rec.v1 = a
     rec.v2 = b
-    rec.bbox = bb
     rec.tri = i
-    if n_valid > 0:
-        tp = tri_planes[i]
-        rec.plane = wp.vec3(tp.p[0, 0], tp.p[0, 1], tp.p[0, 2])
-        rec.ref = tp.ref
     subs[i] = rec
     sub_bbox[i] = bb
     extra[i] = wp.max(n_valid - 1, 0)
@@ -446,21 +445,14 @@ def setup_extra_kernel(
                                  polygon_snap(px, py, pw, k + 2, width, height), width, height, cull)
         if qbb[0] <= qbb[2]:
             if n_valid > 0:
-                rec = subs[i]  # first piece: same triangle, same planes
+                rec = subs[i]  # first piece: same triangle, same fan apex q0, hence same planes
                 rec.v0 = q0
                 rec.v1 = qa
                 rec.v2 = qb
-                rec.bbox = qbb
                 subs[o] = rec
                 sub_bbox[o] = qbb
                 o += 1
             n_valid += 1
-
-
-@wp.func
-def eval_plane(pl: wp.mat33, row: int, ref: wp.vec2, x: int, y: int):
-    """Value of interpolation plane ``row`` (0: 1/w, 1: λ1, 2: λ2) at pixel centre (x, y)."""
-    return pl[row, 0] * (float(x) + 0.5 - ref[0]) + pl[row, 1] * (float(y) + 0.5 - ref[1]) + pl[row, 2]
 
 
 def guard_factors(width: int, height: int) -> tuple[float, float]:
