@@ -45,6 +45,8 @@ def validate_mesh(vertices, triangles, normals=None):
     if not np.issubdtype(v.dtype, np.number):
         raise MeshError(f"vertices must be numeric, got dtype {v.dtype}")
     v = v.astype(np.float64)
+    if len(v) == 0:
+        raise MeshError("mesh has no vertices")
     bad = ~np.isfinite(v).all(axis=1)
     if bad.any():
         k = int(np.argmax(bad))
@@ -126,6 +128,8 @@ class _MeshContext:
         self.points = wp.array(vertices.astype(np.float32), dtype=wp.vec3, device=device)
         self.normals = wp.array(normals.astype(np.float32), dtype=wp.vec3, device=device)
         self.indices = wp.array(triangles.astype(np.int32).ravel(), dtype=wp.int32, device=device)
+        if len(triangles) == 0:
+            raise MeshError("mesh has no triangles (nothing to cast rays against)")
         self.mesh = wp.Mesh(points=self.points, indices=self.indices)
         diag = bbox_diagonal(vertices)
         self.offset = OFFSET_SCALE * max(diag, 1e-12)

@@ -117,3 +117,10 @@ def test_bad_meshes_name_the_element():
         hemisphere_visibility(V, F, Nb, 8)
     with pytest.raises(InputError, match="resolution"):
         hemisphere_visibility(V, F, N, 1)
+
+
+def test_empty_meshes_are_mesh_errors():
+    with pytest.raises(MeshError, match="no vertices"):
+        needs_visibility(np.zeros((0, 3)), np.zeros((0, 3), int))
+    with pytest.raises(MeshError, match="no triangles"):
+        hemisphere_visibility(np.zeros((3, 3)), np.zeros((0, 3), int), np.tile([0, 0, 1.0], (3, 1)), 8)
