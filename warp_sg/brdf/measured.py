@@ -41,8 +41,9 @@ Errors (:meth:`Measured.errors`) use supplement eq. 11 over the MERL cells (meas
 for the full BRDF (``ρ`` the data) and the approximations ``microfacet`` (tabulated D and S),
 ``sg`` (SG NDF) and ``sg_pca`` (SG NDF and PCA-compressed S: what the renderer uses).
 
-Fits are cached with :func:`precompute.cache.load_or_build` (kind ``measured_fit``, keyed by the
-table's content hash and the parameters).
+The microfacet fit and the PCA are cached with :func:`precompute.cache.load_or_build` (kind
+``measured_fit``, keyed by the table's content hash, ``eta`` and ``pca_terms``); the SG fit of the
+NDF (milliseconds) is redone for each lobe count.
 """
 from __future__ import annotations
 
@@ -420,9 +421,10 @@ class Measured(SpecularBRDF):
         self.shadowing = fit["shadowing"].copy()
         self.shadowing_coeffs = fit["shadowing_coeffs"].copy()
         self.shadowing_pca = fit["shadowing_pca"].copy()
-        self.lobe_axes = fit["lobe_axes"].reshape(-1, 3).copy()
-        self.lobe_sharpness = fit["lobe_sharpness"].copy()
-        self.lobe_amplitude = fit["lobe_amplitude"].copy()
+        # the SG fit of the NDF is cheap (LM on 90 samples): not cached, so the cached microfacet
+        # fit serves every lobe count
+        self.lobe_axes, self.lobe_sharpness, self.lobe_amplitude = fit_ndf_sg(
+            D_THETA, self.ndf_table, self._fit_weights(), self.lobes)
         self._mo_table = np.outer(self.shadowing_pca, self.shadowing_pca)
 
     # -- fitting ----------------------------------------------------------------------------
@@ -433,10 +435,7 @@ class Measured(SpecularBRDF):
     def _build(self):
         fit = fit_microfacet(self.table, self.eta)
         coeffs, S_pca = compress_shadowing(fit["shadowing"], self.pca_terms)
-        w = D_SOLID_ANGLE * (fit["ndf_support"] > 1e-9 * max(fit["ndf_support"].max(), 1e-300))
-        axes, lam, mu = fit_ndf_sg(D_THETA, fit["ndf"], w, self.lobes)
-        fit.update(shadowing_coeffs=coeffs, shadowing_pca=S_pca, lobe_axes=axes, lobe_sharpness=lam,
-                   lobe_amplitude=mu)
+        fit.update(shadowing_coeffs=coeffs, shadowing_pca=S_pca)
         return {k: np.asarray(v, dtype=np.float64) for k, v in fit.items()}
 
     def _fit(self, cache):
@@ -447,7 +446,7 @@ class Measured(SpecularBRDF):
         except ImportError:  # pragma: no cover - precompute is part of the distribution
             return self._build()
         digest = hashlib.sha256(np.ascontiguousarray(self.table).tobytes()).hexdigest()
-        key = content_key("measured_fit", FIT_VERSION, digest, self.lobes, self.eta, self.pca_terms)
+        key = content_key("measured_fit", FIT_VERSION, digest, self.eta, self.pca_terms)
         return load_or_build("measured_fit", key, self._build)
 
     # -- contract ---------------------------------------------------------------------------
