@@ -187,13 +187,10 @@ def fh_table_array(device="cpu") -> wp.array:
 @wp.func
 def fh_hemisphere_wp(lam: float) -> float:
     """fh(π/2, λ) = (2π/λ)(1 − e^{−λ}) (eq. 31)."""
-    x = lam
-    e = float(0.0)
-    if x < 1.0e-3:
-        e = x * (1.0 - 0.5 * x * (1.0 - x / 3.0))
-    else:
-        e = 1.0 - wp.exp(-x)
-    return _TWO_PI * e / lam
+    x = wp.max(lam, 0.0)
+    if x < 1.0e-3:  # (1 − e^{−x})/x by its series; finite at λ = 0 (the sphere-half area 2π)
+        return _TWO_PI * (1.0 - 0.5 * x * (1.0 - x / 3.0))
+    return _TWO_PI * (1.0 - wp.exp(-x)) / x
 
 
 @wp.func
