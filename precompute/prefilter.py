@@ -271,6 +271,9 @@ def _fetch_level(tab: GammaTable, level: int, face: int, a: float, b: float) -> 
     return t0 * (1.0 - fy) + t1 * fy
 
 
+_vec6 = wp.types.vector(length=6, dtype=float)
+
+
 @wp.func
 def _phi_cdf(x: float) -> float:
     return 0.5 * (1.0 + wp.erf(x * 0.7071067811865476))
@@ -306,15 +309,26 @@ def erf_filtered(radiance: wp.array2d(dtype=wp.vec3), d_env: wp.vec3, sigma: flo
         return wp.vec4(0.0)
     r0 = wp.max(r0, 0)
     r1 = wp.min(r1, hh - 1)
+    # column weights once (normal-CDF differences; consecutive edges share one erf)
+    wcol = _vec6()
+    prev = _phi_cdf((float(c0) * h_p - phi_p) / sig_p)
+    for q in range(6):
+        if c0 + q <= c1:
+            nxt = _phi_cdf((float(c0 + q + 1) * h_p - phi_p) / sig_p)
+            wcol[q] = nxt - prev
+            prev = nxt
     acc = wp.vec3(0.0)
     wsum = float(0.0)
+    rprev = _phi_cdf((float(r0) * h_t - theta_p) / sigma)
     for r in range(r0, r1 + 1):
-        wr = _phi_cdf((float(r + 1) * h_t - theta_p) / sigma) - _phi_cdf((float(r) * h_t - theta_p) / sigma)
-        for c in range(c0, c1 + 1):
-            wc = _phi_cdf((float(c + 1) * h_p - phi_p) / sig_p) - _phi_cdf((float(c) * h_p - phi_p) / sig_p)
-            cc = ((c % ww) + ww) % ww
-            acc += (wr * wc) * radiance[r, cc]
-            wsum += wr * wc
+        rnext = _phi_cdf((float(r + 1) * h_t - theta_p) / sigma)
+        wr = rnext - rprev
+        rprev = rnext
+        for q in range(c1 - c0 + 1):
+            cc = (((c0 + q) % ww) + ww) % ww
+            wgt = wr * wcol[q]
+            acc += wgt * radiance[r, cc]
+            wsum += wgt
     if wsum <= 0.0:
         return wp.vec4(0.0)
     v = acc / wsum
@@ -520,7 +534,8 @@ def _mip_chain(env64: np.ndarray, min_rows: int = 8):
 SAMPLE_BUDGET = 2048
 
 
-def _source_for(chain, lam: float, samples_per_sigma: float, max_sub: int, budget: int = SAMPLE_BUDGET):
+def _source_for(chain, lam: float, samples_per_sigma: float, max_sub: int, budget: int = SAMPLE_BUDGET,
+                cutoff: float = CUTOFF):
     """Pick the source mip (and sub-sampling) for sharpness ``lam``.
 
     Among the mips whose texel is ≤ σ/samples_per_sigma, the finest whose cap window
@@ -528,7 +543,7 @@ def _source_for(chain, lam: float, samples_per_sigma: float, max_sub: int, budge
     of them; if even the full map is too coarse, the full map with ``s × s`` sub-cells.
     """
     sigma = 1.0 / math.sqrt(lam)
-    frac = min(1.0, CUTOFF / (2.0 * lam))
+    frac = min(1.0, cutoff / (2.0 * lam))
     allowed = [m for m in range(len(chain)) if math.pi / chain[m][0].shape[0] <= sigma / samples_per_sigma]
     if allowed:
         for m in sorted(allowed):
@@ -554,7 +569,7 @@ def _sample_grid(h: int, w: int, sub: int):
     return cos_t, sin_t, w_row, np.cos(phi), np.sin(phi)
 
 
-def _build_tables(env, lambdas, sizes, device, samples_per_sigma, max_sub, progress):
+def _build_tables(env, lambdas, sizes, device, samples_per_sigma, max_sub, progress, cutoff=CUTOFF):
     env64 = np.asarray(env, np.float64)
     chain = _mip_chain(env64)
     offsets = np.zeros(len(lambdas), np.int64)
@@ -568,9 +583,9 @@ def _build_tables(env, lambdas, sizes, device, samples_per_sigma, max_sub, progr
 
     plan = []
     for k, lam in enumerate(lambdas):
-        m, sub = _source_for(chain, float(lam), samples_per_sigma, max_sub)
+        m, sub = _source_for(chain, float(lam), samples_per_sigma, max_sub, cutoff=cutoff)
         h, w = chain[m][0].shape[:2]
-        window = min(1.0, CUTOFF / lam) * (h * sub) * (w * sub)  # samples per texel, roughly
+        window = min(1.0, cutoff / (2.0 * lam)) * (h * sub) * (w * sub)  # samples per texel, roughly
         plan.append((k, float(lam), m, sub, counts[k] * window))
 
     bar = None
@@ -597,7 +612,7 @@ def _build_tables(env, lambdas, sizes, device, samples_per_sigma, max_sub, progr
             def launch(lo, hi, level_out=level_out, n=n, lam=lam, sub=sub, s_arr=s_arr, s_dir=s_dir, ct=ct, st=st,
                        wr=wr, cp=cp, sp=sp):
                 wp.launch(_prefilter_level_kernel, dim=hi - lo,
-                          inputs=[s_arr, s_dir, ct, st, wr, cp, sp, int(sub), float(lam), float(CUTOFF), n, lo, level_out],
+                          inputs=[s_arr, s_dir, ct, st, wr, cp, sp, int(sub), float(lam), float(cutoff), n, lo, level_out],
                           device=device)
 
             if n_threads > 1 and cnt >= 4096:
@@ -627,6 +642,7 @@ def prefilter_environment(
     face_factor: float = 4.0,
     samples_per_sigma: float = 2.5,
     max_sub: int = 8,
+    cutoff: float = CUTOFF,
     progress: bool = True,
     cache: bool = True,
 ) -> EnvPrefiltered:
@@ -656,12 +672,12 @@ def prefilter_environment(
         lam_inf = max(8.0 * lams[-1], 4.0 * (2.0 * h / math.pi) ** 2)
 
     params = dict(v=_VERSION, lambdas=[float(x) for x in lams], sizes=[int(x) for x in sizes],
-                  sps=float(samples_per_sigma), max_sub=int(max_sub), cutoff=CUTOFF)
+                  sps=float(samples_per_sigma), max_sub=int(max_sub), cutoff=float(cutoff))
 
     t0 = time.perf_counter()
 
     def build():
-        texels, offsets = _build_tables(env, lams, sizes, device, samples_per_sigma, max_sub, progress)
+        texels, offsets = _build_tables(env, lams, sizes, device, samples_per_sigma, max_sub, progress, float(cutoff))
         return {"texels": texels.astype(np.float32), "offsets": offsets.astype(np.int64)}
 
     if cache:
