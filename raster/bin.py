@@ -22,35 +22,8 @@ import warp as wp
 
 wp.set_module_options({"enable_backward": False})
 
-from .setup import HALF, SUBPIXEL, SubTri, edge_eval
-
-TILE = 16  # tile edge in pixels (fine raster unit)
-
-
-@wp.func
-def edge_max(a: wp.vec2i, b: wp.vec2i, x0: int, y0: int, x1: int, y1: int):
-    """Maximum of edge a→b's function over the pixel centres of [x0,x1]×[y0,y1]."""
-    sx = wp.int64(x0) * wp.int64(SUBPIXEL) + wp.int64(HALF)
-    sy = wp.int64(y0) * wp.int64(SUBPIXEL) + wp.int64(HALF)
-    # dE/dx = -(b.y - a.y), dE/dy = (b.x - a.x)
-    if b[1] - a[1] < 0:
-        sx = wp.int64(x1) * wp.int64(SUBPIXEL) + wp.int64(HALF)
-    if b[0] - a[0] > 0:
-        sy = wp.int64(y1) * wp.int64(SUBPIXEL) + wp.int64(HALF)
-    return edge_eval(a, b, sx, sy)
-
-
-@wp.func
-def tile_overlaps(v0: wp.vec2i, v1: wp.vec2i, v2: wp.vec2i, bb: wp.vec4i, tx: int, ty: int):
-    """Conservative test: may the triangle cover a pixel centre of tile (tx, ty) ∩ bbox?"""
-    x0 = wp.max(tx * TILE, bb[0])
-    y0 = wp.max(ty * TILE, bb[1])
-    x1 = wp.min(tx * TILE + TILE - 1, bb[2])
-    y1 = wp.min(ty * TILE + TILE - 1, bb[3])
-    z = wp.int64(0)
-    return edge_max(v0, v1, x0, y0, x1, y1) >= z and edge_max(v1, v2, x0, y0, x1, y1) >= z and edge_max(
-        v2, v0, x0, y0, x1, y1) >= z
-
+from .fixed import TILE, count_tiles, tile_overlaps  # noqa: F401
+from .setup import SubTri
 
 @wp.kernel
 def bin_count_kernel(
@@ -69,23 +42,8 @@ def bin_count_kernel(
     bb = sub_bbox[s]
     if bb[0] > bb[2]:
         return  # empty slot (culled / clipped away / no pixel centre covered)
-    tx0 = bb[0] // TILE
-    tx1 = bb[2] // TILE
-    ty0 = bb[1] // TILE
-    ty1 = bb[3] // TILE
-    small = (tx1 - tx0) < 1 or (ty1 - ty0) < 1
-    v0 = wp.vec2i(0, 0)
-    v1 = wp.vec2i(0, 0)
-    v2 = wp.vec2i(0, 0)
-    if not small:  # the full record only for triangles spanning several tiles both ways
-        rec = subs[s]
-        v0 = rec.v0
-        v1 = rec.v1
-        v2 = rec.v2
-    for ty in range(ty0, ty1 + 1):
-        for tx in range(tx0, tx1 + 1):
-            if small or tile_overlaps(v0, v1, v2, bb, tx, ty):
-                wp.atomic_add(counts, (ty * tiles_x + tx) * rows + row, 1)
+    rec = subs[s]
+    count_tiles(bb, rec.v0, rec.v1, rec.v2, tiles_x, rows, row, counts)
 
 
 def scan_counts(counts: wp.array, offsets: wp.array) -> int:

@@ -19,7 +19,7 @@ import warp as wp
 
 wp.set_module_options({"enable_backward": False})
 
-from .bin import TILE, tile_overlaps
+from .fixed import TILE, tile_overlaps
 from .setup import SubTri
 
 
@@ -35,10 +35,13 @@ def coarse_scatter_kernel(
     offsets: wp.array(dtype=wp.int32),
     cursor: wp.array(dtype=wp.int32),
     queue: wp.array(dtype=SubTri),
+    row_from_tri: int,
 ):
     j = base + wp.tid()
     s = sub_lo + j
     row = j // batch
+    if row_from_tri == 1:
+        row = subs[s].tri // batch
     bb = sub_bbox[s]
     if bb[0] > bb[2]:
         return  # empty slot (culled / clipped away / no pixel centre covered)

@@ -24,8 +24,8 @@ import warp as wp
 
 wp.set_module_options({"enable_backward": False})
 
-from .bin import TILE
-from .setup import SUBPIXEL, SubTri, edge_eval, edge_topleft, eval_plane, pixel_bbox, sample_fixed
+from .fixed import SUBPIXEL, TILE, edge_eval, edge_topleft, eval_plane, pixel_bbox, sample_fixed
+from .setup import SubTri
 
 
 @wp.func

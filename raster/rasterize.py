@@ -219,8 +219,10 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
         extra[n_t:].zero_()
         subs = ws.get("subs", n_t, SubTri)
         bbox = ws.get("bbox", n_t, wp.vec4i)
-        parallel.launch(setup_kernel, n_t, [clip, vsnap, vcode, tris, W, H, near, gx, gy, cull, subs, bbox, extra],
-                        device, min_chunk=2048)
+        bins = _Bins(W, H, device, ws, n_t)
+        bin_args = [bins.batch, bins.rows, bins.tiles_x, bins.counts]
+        parallel.launch_rows(setup_kernel, n_t, min(bins.rows, n_t),
+                             [clip, vsnap, vcode, tris, W, H, near, gx, gy, cull, subs, bbox, extra, *bin_args], device)
         extra_off = ws.get("extra_off", n_t + 1, wp.int32)
         n_extra = scan_counts(extra, extra_off)
         if n_extra > 0:
@@ -230,13 +232,13 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
             grown_bb = ws.get("bbox_grown", n_t + n_extra, wp.vec4i)
             wp.copy(grown_bb, bbox, count=n_t)
             bbox = grown_bb
-            parallel.launch(setup_extra_kernel, n_t, [clip, tris, W, H, near, gx, gy, cull, extra, extra_off, subs, bbox],
-                            device, min_chunk=2048)
+            parallel.launch_rows(setup_extra_kernel, n_t, min(bins.rows, n_t),
+                                 [clip, tris, W, H, near, gx, gy, cull, extra, extra_off, subs, bbox, *bin_args], device)
         clock.lap("setup")
         n_sub = n_t + n_extra
         stats["sub_triangles"] = n_sub
         stats["clipped_extra"] = n_extra
-        _bin_and_raster(subs, bbox, n_sub, W, H, camera,
+        _bin_and_raster(subs, bbox, n_t, n_extra, bins, W, H, camera,
                         best_invw, tri_id, bary, cov_arg, coverage is not None, device,
                         max_pairs or DEFAULT_MAX_PAIRS, schedule, stats, ws, clock)
 
@@ -245,44 +247,69 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
     return VisibilityBuffer(tri_id, bary, depth, coverage, W, H, k, device, stats)
 
 
-def _bin_and_raster(subs, bbox, n_sub, W, H, camera, best_invw, best_tri, best_bary,
+class _Bins:
+    """Tile grid + per-(tile, batch) counters shared by the fused setup/bin pass and the passes."""
+
+    def __init__(self, W, H, device, ws, n_t):
+        self.tiles_x = (W + TILE - 1) // TILE
+        self.n_tiles = self.tiles_x * ((H + TILE - 1) // TILE)
+        self.cpu = device.startswith("cpu")
+        self.rows = parallel.cpu_workers() if self.cpu else 1
+        self.counts = ws.get("counts", self.n_tiles * self.rows + 1, wp.int32)
+        self.offsets = ws.get("offsets", self.n_tiles * self.rows + 1, wp.int32)
+        self.cursor = ws.get("cursor", self.n_tiles * self.rows, wp.int32)
+        self.counts.zero_()
+        # fused counting in setup: triangle i is counted in row i // batch by the pool thread owning it
+        self.batch = max(1, (n_t + self.rows - 1) // self.rows)
+
+
+def _bin_and_raster(subs, bbox, n_t, n_extra, bins, W, H, camera, best_invw, best_tri, best_bary,
                     coverage, count_mode, device, max_pairs, schedule, stats, ws, clock):
-    tiles_x = (W + TILE - 1) // TILE
-    tiles_y = (H + TILE - 1) // TILE
-    n_tiles = tiles_x * tiles_y
+    n_sub = n_t + n_extra
+    tiles_x, n_tiles, rows = bins.tiles_x, bins.n_tiles, bins.rows
+    counts, offsets, cursor = bins.counts, bins.offsets, bins.cursor
     max_pairs = max(int(max_pairs), n_tiles)  # one triangle alone always fits
-    cpu = device.startswith("cpu")
-    rows = parallel.cpu_workers() if cpu else 1
-    counts = ws.get("counts", n_tiles * rows + 1, wp.int32)
-    offsets = ws.get("offsets", n_tiles * rows + 1, wp.int32)
-    cursor = ws.get("cursor", n_tiles * rows, wp.int32)
     if schedule == "auto":
-        schedule = "tile" if cpu else "pixel"
+        schedule = "tile" if bins.cpu else "pixel"
     inv_far = 1.0 / float(camera.far)
 
     stack = [(0, n_sub)]
+    first = True
     while stack:
         lo, hi = stack.pop()
         n = hi - lo
         r = min(rows, n)
         batch = (n + r - 1) // r
-        counts.zero_()
-        parallel.launch_rows(bin_count_kernel, n, r, [lo, batch, rows, tiles_x, subs, bbox, counts], device)
+        if not first:  # a split pass: count its slot range (rows = contiguous slot batches)
+            counts.zero_()
+            parallel.launch_rows(bin_count_kernel, n, r, [lo, batch, rows, tiles_x, subs, bbox, counts], device)
         total = scan_counts(counts, offsets)
         clock.lap("bin")
         if total > max_pairs and n > 1:
             mid = lo + n // 2
             stack.append((mid, hi))
             stack.append((lo, mid))
+            first = False
             continue
         stats["pairs"] += total
         stats["passes"] += 1
         if total == 0:
+            first = False
             continue
         queue = ws.get("queue", total, SubTri)
         cursor.zero_()
-        parallel.launch_rows(coarse_scatter_kernel, n, r,
-                             [lo, batch, rows, tiles_x, subs, bbox, offsets, cursor, queue], device)
+        if first:
+            # counted by setup: primaries per pool thread, then the clipped extra pieces (few) serially
+            parallel.launch_rows(coarse_scatter_kernel, n_t, min(rows, n_t),
+                                 [0, bins.batch, rows, tiles_x, subs, bbox, offsets, cursor, queue, 0], device)
+            if n_extra > 0:
+                wp.launch(coarse_scatter_kernel, dim=n_extra,
+                          inputs=[0, n_t, bins.batch, rows, tiles_x, subs, bbox, offsets, cursor, queue, 1],
+                          device=device)
+        else:
+            parallel.launch_rows(coarse_scatter_kernel, n, r,
+                                 [lo, batch, rows, tiles_x, subs, bbox, offsets, cursor, queue, 0], device)
+        first = False
         clock.lap("coarse")
         args = [tiles_x, n_tiles, rows, W, H, inv_far, int(count_mode), offsets, queue,
                 best_invw, best_tri, best_bary, coverage]

@@ -33,11 +33,11 @@ from __future__ import annotations
 
 import warp as wp
 
+from .fixed import (HALF, SUBPIXEL, SUBPIXEL_BITS, count_tiles, edge_eval, edge_topleft, eval_plane,  # noqa: F401
+                    lower_px, pixel_bbox, sample_fixed, upper_px)
+
 wp.set_module_options({"enable_backward": False})
 
-SUBPIXEL_BITS = 8
-SUBPIXEL = 1 << SUBPIXEL_BITS
-HALF = SUBPIXEL // 2
 GUARD_PIXELS = 32000.0  # |X|, |Y| of snapped vertices stay below this (fixed point < 2^23)
 MAX_RESOLUTION = 16384  # per axis, after supersampling
 
@@ -135,50 +135,6 @@ def snap(x: wp.float64, w: wp.float64, size: float, flip: int):
     p = (ndc + wp.float64(1.0)) * wp.float64(0.5) * wp.float64(size)
     p = wp.clamp(p, wp.float64(-GUARD_PIXELS), wp.float64(GUARD_PIXELS))
     return wp.int32(wp.round(p * wp.float64(SUBPIXEL)))
-
-
-@wp.func
-def edge_topleft(a: wp.vec2i, b: wp.vec2i):
-    """1 when the directed edge a→b is a top or left edge (winding: positive area, y down)."""
-    dy = b[1] - a[1]
-    dx = b[0] - a[0]
-    if dy < 0 or (dy == 0 and dx > 0):
-        return 1
-    return 0
-
-
-@wp.func
-def edge_eval(a: wp.vec2i, b: wp.vec2i, sx: wp.int64, sy: wp.int64):
-    """Edge function (b−a)×(s−a) in int64 at fixed-point sample (sx, sy)."""
-    return wp.int64(b[0] - a[0]) * (sy - wp.int64(a[1])) - wp.int64(b[1] - a[1]) * (sx - wp.int64(a[0]))
-
-
-@wp.func
-def sample_fixed(p: int):
-    """Fixed-point coordinate of pixel centre p + 0.5."""
-    return wp.int64(p) * wp.int64(SUBPIXEL) + wp.int64(HALF)
-
-
-@wp.func
-def lower_px(v: int):
-    """First pixel whose centre is ≥ fixed-point v (ceil division by an arithmetic shift)."""
-    return (v - HALF + SUBPIXEL - 1) >> SUBPIXEL_BITS
-
-
-@wp.func
-def upper_px(v: int):
-    """Last pixel whose centre is ≤ fixed-point v (floor division by an arithmetic shift)."""
-    return (v - HALF) >> SUBPIXEL_BITS
-
-
-@wp.func
-def pixel_bbox(s0: wp.vec2i, s1: wp.vec2i, s2: wp.vec2i, width: int, height: int):
-    """Pixels whose centres lie in the snapped triangle's bounding box, clamped to the screen."""
-    bx0 = wp.max(lower_px(wp.min(s0[0], wp.min(s1[0], s2[0]))), 0)
-    bx1 = wp.min(upper_px(wp.max(s0[0], wp.max(s1[0], s2[0]))), width - 1)
-    by0 = wp.max(lower_px(wp.min(s0[1], wp.min(s1[1], s2[1]))), 0)
-    by1 = wp.min(upper_px(wp.max(s0[1], wp.max(s1[1], s2[1]))), height - 1)
-    return wp.vec4i(bx0, by0, bx1, by1)
 
 
 # outcode bits of a clip-space vertex
@@ -333,14 +289,6 @@ def invertible(m: wp.mat33d):
     return det != wp.float64(0.0) and wp.isfinite(det)
 
 
-@wp.func
-def eval_plane(pl: wp.mat33, row: int, v0: wp.vec2i, x: int, y: int):
-    """Plane ``row`` of a record at the centre of pixel (x, y)."""
-    dx = float(x) + 0.5 - float(v0[0]) * (1.0 / float(SUBPIXEL))
-    dy = float(y) + 0.5 - float(v0[1]) * (1.0 / float(SUBPIXEL))
-    return pl[row, 0] * dx + pl[row, 1] * dy + pl[row, 2]
-
-
 # ---------------------------------------------------------------------------------------------
 # the setup kernels
 # ---------------------------------------------------------------------------------------------
@@ -360,6 +308,10 @@ def setup_kernel(
     subs: wp.array(dtype=SubTri),
     sub_bbox: wp.array(dtype=wp.vec4i),
     extra: wp.array(dtype=wp.int32),
+    bin_batch: int,
+    rows: int,
+    tiles_x: int,
+    counts: wp.array(dtype=wp.int32),
 ):
     """Triangle i → its first sub-triangle in slot i (an empty bbox when nothing survives) and
     ``extra[i]`` = number of further pieces (clipped triangles only), emitted by ``setup_extra_kernel``."""
@@ -410,6 +362,8 @@ def setup_kernel(
     rec.tri = i
     subs[i] = rec
     sub_bbox[i] = bb
+    if bin_batch > 0 and n_valid > 0:  # bin raster fused in: count the tiles of this piece
+        count_tiles(bb, s0, a, b, tiles_x, rows, i // bin_batch, counts)
     extra[i] = wp.max(n_valid - 1, 0)
 
 
@@ -428,6 +382,10 @@ def setup_extra_kernel(
     extra_off: wp.array(dtype=wp.int32),
     subs: wp.array(dtype=SubTri),
     sub_bbox: wp.array(dtype=wp.vec4i),
+    bin_batch: int,
+    rows: int,
+    tiles_x: int,
+    counts: wp.array(dtype=wp.int32),
 ):
     """Second and later pieces of clipped triangles, into slots M + extra_off[i] + j."""
     i = base + wp.tid()
@@ -451,6 +409,8 @@ def setup_extra_kernel(
                 rec.v2 = qb
                 subs[o] = rec
                 sub_bbox[o] = qbb
+                if bin_batch > 0:
+                    count_tiles(qbb, q0, qa, qb, tiles_x, rows, i // bin_batch, counts)
                 o += 1
             n_valid += 1
 
