@@ -73,8 +73,9 @@ class Renderer:
         with wp.ScopedDevice(self.device):
             self._setup_geometry()
             self._setup_visibility()
-            self._setup_environment()
             self._setup_materials()
+            self._setup_environment()
+            self._ensure_gamma()
             self._setup_lights()
             self._setup_clamped_cosine()
         wp.synchronize_device(self.device)
@@ -140,15 +141,34 @@ class Renderer:
         base = env.base_radiance()
         self.env_base = base
         t = time.perf_counter()
-        if rs.env_diffuse == "sg":
+        if env.procedural == "constant":
+            # a constant map is exactly one SG of vanishing sharpness: no fit needed
+            rad = np.asarray(base.reshape(-1, 3)[0], np.float64)
+            lam0 = 1.0e-4
+            self._env_sg_base = (np.array([[0.0, 1.0, 0.0]]), np.array([lam0]), (rad * np.exp(lam0))[None, :])
+            self.env_diffuse_mode = S.ENV_SG
+        elif rs.env_diffuse == "sg":
             try:
-                self._env_sg_base = self._fit_env(base, rs.env_lobes)
+                self._env_sg_base = self._fit_env(base, rs.env_lobes, rs.clamped_cosine_lobes)
                 self.env_diffuse_mode = S.ENV_SG
             except ImportError:  # the SG fit is not available: prefiltered diffuse
                 self.env_diffuse_mode = S.ENV_PREFILTERED
         else:
             self.env_diffuse_mode = S.ENV_PREFILTERED
         self.timings["precompute_parts"]["env_fit"] = time.perf_counter() - t
+
+    def _ensure_gamma(self):
+        """Prefilter the environment (ΓL pyramid, eq. 35) when the scene needs it: a specular
+        material or prefiltered diffuse. Done lazily so diffuse-only scenes skip it."""
+        env = self.env_light
+        if env is None or self.gamma is not None:
+            return
+        if not (self.has_specular or self.env_diffuse_mode == S.ENV_PREFILTERED):
+            return
+        import precompute
+
+        rs = self.scene.render
+        base = self.env_base
         t = time.perf_counter()
         kw = {}
         if rs.gamma_levels > 0:
@@ -156,16 +176,16 @@ class Renderer:
 
             lams, _, _ = default_ladder(base.shape[0], base_face=rs.gamma_resolution)
             kw["lambdas"] = np.geomspace(lams[0], lams[-1], rs.gamma_levels)
-        self.gamma = precompute.prefilter_environment(base, device=d, base_face=rs.gamma_resolution,
+        self.gamma = precompute.prefilter_environment(base, device=self.device, base_face=rs.gamma_resolution,
                                                       progress=self.progress, **kw)
         self.env_specular_mode = S.ENV_PREFILTERED
         self.timings["precompute_parts"]["env_prefilter"] = time.perf_counter() - t
 
     @staticmethod
-    def _fit_env(base, n_lobes):
+    def _fit_env(base, n_lobes, cc_lobes=1):
         from precompute.env_sg_fit import fit_environment_sgs
 
-        axes, lam, mu = fit_environment_sgs(base, n_lobes)
+        axes, lam, mu = fit_environment_sgs(base, n_lobes, cosine=clamped_cosine_lobes(cc_lobes))
         return (np.asarray(axes, np.float64).reshape(-1, 3), np.asarray(lam, np.float64).reshape(-1),
                 np.asarray(mu, np.float64).reshape(-1, 3))
 
@@ -403,6 +423,7 @@ class Renderer:
 
     def _launch_shade(self, tri_id, bary, bg, eye, out):
         d = self.device
+        self._ensure_gamma()  # a material may have become specular
         es = self._env_arrays()
         f = self.features()
         kern = S.shade_kernel(f)
