@@ -1,15 +1,16 @@
-"""Stage 2 — bin raster: count triangle/tile pairs and lay out the per-tile queues.
+"""Stage 2 — bin raster: count (triangle, tile) pairs and lay out the per-tile queues.
 
 Laine & Karras (2011) first distribute triangles to coarse bins, then bins to tiles. Here the
-screen is cut directly into ``TILE`` × ``TILE`` pixel tiles and this stage does the *counting* half:
+screen is cut directly into ``TILE`` × ``TILE`` (16×16) pixel tiles and this stage does the
+*counting* half:
 
-* the sub-triangles are split into ``rows`` contiguous batches (on the CPU one per worker
-  thread, so a batch is owned by one thread and needs no atomics; on CUDA one batch, counted
-  with atomics);
-* ``bin_count_kernel`` (one thread per sub-triangle) walks the tiles of the triangle's bounding
-  box and counts the tiles it really touches (``tile_overlaps``: the exact edge-function test of
-  the tile's sample rectangle, so long thin triangles don't fill their whole bounding box)
-  into ``counts[tile·rows + batch]``;
+* the triangles are split into ``rows`` contiguous batches (on the CPU one per pool thread, so a
+  counter row has a single writer and needs no atomics; on CUDA one batch, counted with atomics);
+* for every piece, ``fixed.count_tiles`` walks the tiles of its bounding box and counts those it
+  may touch (exact edge-function test of the tile's sample rectangle when the bbox spans several
+  tiles both ways, so long thin triangles don't fill their whole bbox) into
+  ``counts[tile·rows + batch]``. In the first pass this is fused into the triangle setup kernel;
+  ``bin_count_kernel`` recounts a range of slots when the queue budget forces several passes;
 * an exclusive prefix sum (``wp.utils.array_scan``) of that tile-major table gives every
   (tile, batch) its start in one queue array: tile t's queue is
   ``queue[offsets[t·rows] : offsets[(t+1)·rows]]``, ordered by batch, then (CPU) by triangle.

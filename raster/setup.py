@@ -1,33 +1,39 @@
 """Stage 1 — vertex transform and triangle setup (Laine & Karras 2011, "triangle setup").
 
-* ``vertex_kernel``: world positions → homogeneous clip space with the camera's 4×4
-  view-projection matrix (OpenGL; ``w`` = distance along the view axis).
-* ``setup_kernel`` (one thread per input triangle), run twice — a *count* pass and, after a
-  prefix sum over the counts, an *emit* pass that recomputes the same thing and writes records:
+* ``vertex_kernel`` (one thread per vertex): world → homogeneous clip space with the camera's
+  view-projection matrix in float64 (huge coordinates keep their precision; ``w`` = distance along
+  the view axis), the frustum outcode, and — when the vertex needs no clipping — its position
+  **snapped to fixed point** (1/256 px), computed once and shared bit-identically by every triangle
+  using the vertex.
+* ``setup_kernel`` (one thread per input triangle, writes slot i):
 
-  1. trivial reject when all three vertices lie outside one frustum plane (``x>w``, ``x<−w``,
-     ``y>w``, ``y<−w``, ``w<near``, ``w>far``);
-  2. clipping in homogeneous space (Sutherland–Hodgman) against the near plane ``w = near`` and,
-     only when a vertex leaves it, against a guard band ``|x| ≤ g·w``, ``|y| ≤ g·w`` that keeps
-     fixed-point pixel coordinates within ±2¹⁵ pixels. The polygon (≤ 8 vertices) is fanned into
-     sub-triangles (usually one; two for a near-plane crossing). Intersections are computed from
-     the inside to the outside vertex, so an edge shared by two triangles is clipped to bit-identical
-     points (watertight). Nothing behind the near plane survives, so nothing is drawn inverted;
-  3. projection to pixels and **snapping to fixed point** (``SUBPIXEL_BITS`` = 8 → 1/256 px);
-  4. signed area from the snapped vertices (int64): zero → dropped (degenerate), back-facing →
-     dropped when culling; the winding is normalised so the edge functions are positive inside;
-  5. the pixel bounding box of the covered sample positions (empty → dropped: sub-pixel triangles
-     that miss every pixel centre cost nothing further);
-  6. **interpolation planes** of the *original* triangle in 2D homogeneous form (Olano & Greer):
-     with ``M = [X_i; Y_i; w_i]`` (pixel-space homogeneous vertices, float64) the rows of ``M⁻¹``
-     are linear functions of the pixel position giving ``λ_i = b_i / w``; so ``Σλ = 1/w`` is the
-     depth plane and ``b_i = λ_i / Σλ`` are perspective-correct barycentrics. Being per original
-     triangle, clipped pieces report the original ``tri_id`` and barycentrics for free. Planes are
-     stored relative to a reference pixel near the triangle to avoid float32 cancellation.
+  1. trivial reject when all three vertices lie outside one frustum plane (outcodes AND);
+  2. fast path (no vertex behind the near plane or outside the guard band): the three snapped
+     vertices; otherwise **clipping in homogeneous space** (Sutherland–Hodgman) against the near
+     plane ``w = near`` and, only when needed, a guard band ``|x| ≤ g·w``, ``|y| ≤ g·w`` keeping pixel
+     coordinates within ±32000 px (so int64 edge functions never overflow). The polygon (≤ 8
+     vertices) is fanned into sub-triangles (two for a plain near-plane crossing). Intersections are
+     computed from the inside towards the outside vertex, so an edge shared by two triangles clips
+     to bit-identical points (watertight). Nothing behind the near plane survives: never inverted;
+  3. int64 signed area of the snapped triangle: zero → dropped (degenerate), back-facing →
+     dropped when culling; the winding is normalised so edge functions are positive inside;
+  4. the bounding box of the covered pixel centres (empty → dropped, so sub-pixel triangles that
+     miss every centre cost nothing more);
+  5. **interpolation planes** of the *original* triangle in 2D homogeneous form (Olano & Greer
+     1997): with ``M = [X·w; Y·w; w]`` (pixel-space homogeneous vertices, float64), the rows of
+     ``M⁻¹`` are linear in the pixel position and give ``λ_i = b_i / w``; ``Σλ = 1/w`` is the depth
+     plane and ``b_i = λ_i / Σλ`` the perspective-correct barycentrics. Stored (float32) about the
+     piece's first vertex in its 64-byte :class:`SubTri` record; being planes of the original
+     triangle, clipped pieces report the original ``tri_id`` and barycentrics for free;
+  6. the bin raster, fused: the tiles the piece touches are counted (``fixed.count_tiles``) in
+     the counter row of the pool thread that owns the triangle (see ``bin.py``).
+
+  The first piece goes to slot i (an empty bbox when nothing survives); ``extra[i]`` counts further
+  pieces, which ``setup_extra_kernel`` writes after a prefix sum into slots ``M + offset``.
 
 Edge function of the directed edge a→b at sample p (fixed point): ``E = (b−a) × (p−a)``; a sample
-is inside when ``E > 0`` for all edges, or ``E = 0`` on a *top-left* edge (top-left fill rule: an
-edge shared by two triangles covers a sample on it exactly once).
+is inside when ``E > 0`` for all edges, or ``E = 0`` on a *top-left* edge (top-left fill rule: a
+sample on an edge shared by two triangles is covered exactly once).
 """
 from __future__ import annotations
 
