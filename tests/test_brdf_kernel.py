@@ -101,6 +101,9 @@ def test_kernel_brdf_eval_matches_numpy_for_every_model(device):
 def test_kernel_slice_lobes_match_numpy(method):
     device = "cpu"
     models = [m for m in all_models() if m.is_specular]
+    if method == "fit":  # keep the L-BFGS-B anisotropic fits small
+        models = [m for m in models if not getattr(m, "own_lobes", None) and m.NAME != "ward"] + [
+            B.AshikhminShirley(ks=0.8, nu=30, nv=300, fresnel="gold", lobes=3)]
     table = M.pack_materials(models, 1, device, method=method)
     rng = np.random.default_rng(2)
     n = 64
@@ -138,20 +141,15 @@ def test_kernel_sampling_pdf_is_a_density_matching_the_samples(index):
     assert np.all(np.isfinite(d)) and np.all(np.isfinite(p))
     np.testing.assert_allclose(np.linalg.norm(d, axis=1), 1.0, atol=1e-4)
     assert np.all(p[np.linalg.norm(d, axis=1) > 0] >= 0)
-    # importance-sampled BRDF·cos estimate agrees with brute-force quadrature of the same integral
+    # importance-sampled specular albedo agrees with brute-force quadrature of the same integral
     model = models[index]
-    f = model.eval(np.broadcast_to(o, d.shape), d.astype(np.float64))[:, 1] * np.maximum(d[:, 2], 0)
-    good = p > 0
-    est = np.sum(f[good] / p[good]) / n
-    # quadrature over the hemisphere
-    t = np.linspace(0, np.pi / 2, 801)[1:] - np.pi / 4 / 800
-    ph = (np.arange(1600) + 0.5) / 1600 * 2 * np.pi
+    t = (np.arange(500) + 0.5) / 500 * np.pi / 2
+    ph = (np.arange(1000) + 0.5) / 1000 * 2 * np.pi
     T, P = np.meshgrid(t, ph, indexing="ij")
     I = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], -1)
-    w = np.sin(T) * (np.pi / 2 / 800) * (2 * np.pi / 1600)
-    ref = np.sum(model.eval(np.broadcast_to(o, I.shape), I)[..., 1] * I[..., 2] * w)
-    spec_only = np.sum(model.ks[1] * model.specular(np.broadcast_to(o, I.shape), I)[..., 1] * I[..., 2] * w)
-    # the estimator only sees the specular part where the specular pdf is > 0: compare specular albedo
-    fs = model.ks[1] * model.specular(np.broadcast_to(o, d.shape), d.astype(np.float64))[:, 1] * np.maximum(d[:, 2], 0)
+    w = np.sin(T) * (np.pi / 2 / 500) * (2 * np.pi / 1000)
+    spec_only = np.sum(model.ks[1] * model.specular(o, I)[..., 1] * I[..., 2] * w)
+    good = p > 0
+    fs = model.ks[1] * model.specular(o, d.astype(np.float64))[:, 1] * np.maximum(d[:, 2], 0)
     est_s = np.sum(fs[good] / p[good]) / n
-    assert est_s == pytest.approx(spec_only, rel=0.05), (est_s, spec_only, est, ref)
+    assert est_s == pytest.approx(spec_only, rel=0.05), (est_s, spec_only)
