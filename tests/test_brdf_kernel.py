@@ -152,4 +152,4 @@ def test_kernel_sampling_pdf_is_a_density_matching_the_samples(index):
     good = p > 0
     fs = model.ks[1] * model.specular(o, d.astype(np.float64))[:, 1] * np.maximum(d[:, 2], 0)
     est_s = np.sum(fs[good] / p[good]) / n
-    assert est_s == pytest.approx(spec_only, rel=0.05), (est_s, spec_only)
+    assert est_s == pytest.approx(spec_only, rel=0.01), (est_s, spec_only)
