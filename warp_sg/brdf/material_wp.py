@@ -41,6 +41,7 @@ import warp as wp
 
 from ..errors import InputError
 from ..frames import frame_bitangent, frame_tangent
+from .fit import is_anisotropic as _is_anisotropic
 from .fit import lobe_count as _lobe_count
 from .measured_wp import measured_mo, merl_eval
 
@@ -327,6 +328,13 @@ def brdf_specular(mat: Material, o: wp.vec3, i: wp.vec3) -> wp.vec3:
         return wp.vec3(s, s, s)
     h = half_vec(o, i)
     return mo_raw(mat, o, i) * brdf_ndf(mat, h)
+
+
+@wp.func
+def oren_nayar_params(sigma: float) -> wp.vec4:
+    """``params`` of an Oren–Nayar material for roughness σ (radians): (A, B, σ, 0) (lambert.py)."""
+    s2 = sigma * sigma
+    return wp.vec4(1.0 - s2 / (2.0 * (s2 + 0.33)), 0.45 * s2 / (s2 + 0.09), sigma, 0.0)
 
 
 @wp.func
@@ -730,7 +738,11 @@ def pack_materials(models, n_lobes=1, device="cpu", method="analytic"):
         ax = np.asarray(ax, np.float64).reshape(-1, 3)
         rec["lobe_start"] = start
         rec["lobe_count"] = len(lam)
-        rec["analytic"] = 1 if (method == "analytic" and rec["model"] in _ANALYTIC) else 0
+        # in-kernel lobes only where they equal the numpy analytic construction: one isotropic
+        # lobe, or the anisotropic construction (multi-lobe isotropic "analytic" falls back to fits)
+        aniso = _is_anisotropic(model)
+        rec["analytic"] = 1 if (method == "analytic" and rec["model"] in _ANALYTIC
+                                and (aniso or len(lam) == 1)) else 0
         start += len(lam)
         axes_all.append(ax)
         lam_all.append(np.asarray(lam, np.float64).reshape(-1))
