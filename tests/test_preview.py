@@ -1,0 +1,92 @@
+"""pyvista preview: the headless screenshot shows the objects in the renderer's colours."""
+from __future__ import annotations
+
+import numpy as np
+from PIL import Image
+
+from warp_sg.cli import main
+
+SCENE = """
+[camera]
+origin = [0.0, 0.0, 3.0]
+target = [0.0, 0.0, 0.0]
+fov = 35.0
+width = 64
+height = 64
+
+[[objects]]
+primitive = "sphere"
+center = [-0.45, 0.0, 0.0]
+radius = 0.4
+resolution = [12, 24]
+material = "red"
+
+[[objects]]
+primitive = "sphere"
+center = [0.45, 0.0, 0.0]
+radius = 0.4
+resolution = [12, 24]
+material = "green"
+
+[materials.red]
+model = "lambert"
+kd = [0.8, 0.05, 0.05]
+
+[materials.green]
+model = "blinn_phong"
+kd = [0.05, 0.6, 0.05]
+ks = [0.02, 0.02, 0.02]
+n = 10.0
+
+[[lights]]
+type = "directional"
+direction = [0.0, 0.2, 1.0]
+radius = 0.05
+intensity = [3.0, 3.0, 3.0]
+
+[[lights]]
+type = "point"
+position = [0.0, 1.5, 1.0]
+radius = 0.1
+intensity = [0.5, 0.5, 0.5]
+
+[render]
+shadows = false
+"""
+
+
+def test_preview_screenshot_shows_the_objects_in_their_rendered_colours(tmp_path, capsys):
+    p = tmp_path / "scene.toml"
+    p.write_text(SCENE)
+    shot = tmp_path / "shot.png"
+    rc = main(["preview", str(p), "--screenshot", str(shot)])
+    assert rc == 0, capsys.readouterr().err
+    img = np.asarray(Image.open(shot).convert("RGB")).astype(float)
+    assert img.shape == (64, 64, 3)
+    left = img[28:36, 12:20].mean((0, 1))  # the red sphere's centre
+    right = img[28:36, 44:52].mean((0, 1))  # the green one's
+    assert left[0] > 100 and left[0] > 3 * left[1] and left[0] > 3 * left[2]
+    assert right[1] > 80 and right[1] > 2 * right[0]
+    corner = img[:4, :4].mean((0, 1))
+    assert corner.max() < 10  # no environment: black background
+    assert not [f for f in tmp_path.iterdir() if f.name.startswith(".shot")]  # no temporary left behind
+
+
+def test_vertex_colours_are_the_renderers_shading_at_the_vertices():
+    import warp_sg as ws
+    from warp_sg.render import Renderer
+
+    sc = ws.scene.Scene(camera=ws.scene.Camera(origin=(0, 0, 3), target=(0, 0, 0), width=8, height=8),
+                        objects=[ws.scene.SceneObject(material="m", primitive="sphere", params={"resolution": (6, 12)})],
+                        materials={"m": ws.brdf.Lambert(kd=0.5)},
+                        lights=[ws.scene.DirectionalLight(direction=(0, 0, 1), radius=0.01, intensity=1.0)],
+                        render=ws.scene.RenderSettings(shadows=False))
+    r = Renderer(sc)
+    rad = r.shade_vertices()
+    n = r.geometry.normals
+    # Lambert under a distant light with the eq. 40 clamped cosine: (kd/π) E C*(n·l) (clipped at the horizon)
+    cos = n[:, 2]
+    facing = cos > 0.3
+    expect = 0.5 / np.pi * 1.17 * np.exp(2.133 * (cos - 1))
+    np.testing.assert_allclose(rad[facing, 0], expect[facing], rtol=0.03)
+    assert np.all(rad[cos < -0.3] < 1e-4)
