@@ -19,7 +19,7 @@ import warp as wp
 
 wp.set_module_options({"enable_backward": False})
 
-from .fixed import TILE, tile_overlaps
+from .fixed import TILE_BITS, tile_overlaps
 from .setup import SubTri
 
 
@@ -45,12 +45,16 @@ def coarse_scatter_kernel(
     bb = sub_bbox[s]
     if bb[0] > bb[2]:
         return  # empty slot (culled / clipped away / no pixel centre covered)
-    tx0 = bb[0] // TILE
-    tx1 = bb[2] // TILE
-    ty0 = bb[1] // TILE
-    ty1 = bb[3] // TILE
-    small = (tx1 - tx0) < 1 or (ty1 - ty0) < 1
+    tx0 = bb[0] >> TILE_BITS
+    tx1 = bb[2] >> TILE_BITS
+    ty0 = bb[1] >> TILE_BITS
+    ty1 = bb[3] >> TILE_BITS
     rec = subs[s]
+    if tx0 == tx1 and ty0 == ty1:  # the common case: one tile
+        slot1 = (ty0 * tiles_x + tx0) * rows + row
+        queue[offsets[slot1] + wp.atomic_add(cursor, slot1, 1)] = rec
+        return
+    small = (tx1 - tx0) < 1 or (ty1 - ty0) < 1
     v0 = rec.v0
     v1 = rec.v1
     v2 = rec.v2

@@ -13,7 +13,8 @@ wp.set_module_options({"enable_backward": False})
 SUBPIXEL_BITS = 8
 SUBPIXEL = 1 << SUBPIXEL_BITS
 HALF = SUBPIXEL // 2
-TILE = 16  # tile edge in pixels (fine raster unit)
+TILE_BITS = 4
+TILE = 1 << TILE_BITS  # tile edge in pixels (fine raster unit): 16
 
 
 @wp.func
@@ -98,10 +99,13 @@ def count_tiles(bb: wp.vec4i, v0: wp.vec2i, v1: wp.vec2i, v2: wp.vec2i, tiles_x:
                 counts: wp.array(dtype=wp.int32)):
     """Bin raster of one triangle: +1 in ``counts[tile·rows + row]`` for every tile it may touch
     (bbox tiles; exact edge test when the bbox spans several tiles both ways)."""
-    tx0 = bb[0] // TILE
-    tx1 = bb[2] // TILE
-    ty0 = bb[1] // TILE
-    ty1 = bb[3] // TILE
+    tx0 = bb[0] >> TILE_BITS  # bbox is clamped to the screen: non-negative
+    tx1 = bb[2] >> TILE_BITS
+    ty0 = bb[1] >> TILE_BITS
+    ty1 = bb[3] >> TILE_BITS
+    if tx0 == tx1 and ty0 == ty1:  # the common case: one tile
+        wp.atomic_add(counts, (ty0 * tiles_x + tx0) * rows + row, 1)
+        return
     small = (tx1 - tx0) < 1 or (ty1 - ty0) < 1
     for ty in range(ty0, ty1 + 1):
         for tx in range(tx0, tx1 + 1):
