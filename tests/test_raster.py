@@ -210,3 +210,15 @@ def test_camera_fov_and_aspect_follow_mitsuba_vertical_fov():
     assert 29.0 < top < 30.0
     P = cam.projection_matrix()
     assert np.isclose(P[1, 1], 1 / math.tan(math.radians(30))) and np.isclose(P[0, 0], P[1, 1] / 2)
+
+
+def test_quick_benchmark_reports_rasterizer_faster_than_ray_casting():
+    from raster.bench import format_rows, run_bench
+
+    rows = run_bench(device="cpu", quick=True)
+    assert len(rows) == 1
+    r = rows[0]
+    assert r["triangles"] > 90_000 and (r["width"], r["height"]) == (512, 512)
+    assert r["tri_id_agreement"] >= 0.999
+    assert r["raster_s"] > 0 and r["speedup_1launch"] > 1.0
+    assert "speedup" in format_rows(rows)
