@@ -19,7 +19,7 @@ Model (paper eq. 13–14, Wang et al. 2008; Ngan et al. 2005)::
   sorted by increasing sharpness (paper §4.2). :func:`fit_ndf_sg_anisotropic` fits lobes with free
   axes by L-BFGS-B (anisotropic NDFs; MERL data are isotropic).
 
-Fit of (kd, ks, S, D) — vectorized over the MERL cells, alternating 4 times:
+Fit of (kd, ks, S, D) — vectorized over the MERL cells, alternating 3 times:
 
 1. with ``kd`` fixed, ``y = (Σc ρc − Σc kdc/π) · π cos θi cos θo / F`` satisfies
    ``log y = log(ks D(θh)) + log S(θi) + log S(θo)``: linear least squares in the 180 unknowns
@@ -228,6 +228,9 @@ def _cell_geometry(cos_min=COS_MIN):
     to = np.arctan2(np.hypot(o[..., 0], o[..., 1]), o[..., 2]).reshape(-1)[idx]
     cd = np.cos(td).reshape(-1)[idx]
     out = dict(idx=idx, ci=ci[idx], co=co[idx], cd=cd, ti=ti, to=to, ih=ih, J=J / J.max())
+    for name, theta in (("i", ti), ("o", to)):  # linear-interpolation weights on the S nodes
+        a0, a1, w0, w1 = _hat(theta)
+        out.update({f"{name}a0": a0, f"{name}a1": a1, f"{name}w0": w0, f"{name}w1": w1})
     for v in out.values():
         v.setflags(write=False)
     return out
@@ -260,16 +263,20 @@ def _solve_shape(y, w, g):
     sel = (w > 0) & (y > 0)
     ly = np.log(np.where(sel, y, 1.0))
     w = np.where(sel, w, 0.0)
-    ai0, ai1, wi0, wi1 = _hat(g["ti"])
-    ao0, ao1, wo0, wo1 = _hat(g["to"])
-    ent = [(g["ih"], np.ones_like(w)), (nD + ai0, wi0), (nD + ai1, wi1), (nD + ao0, wo0), (nD + ao1, wo1)]
-    A = np.zeros(n * n)
+    ent = [(g["ih"], None), (nD + g["ia0"], g["iw0"]), (nD + g["ia1"], g["iw1"]),
+           (nD + g["oa0"], g["ow0"]), (nD + g["oa1"], g["ow1"])]
+    U = np.zeros(n * n)
+    diag = np.zeros(n)
     b = np.zeros(n)
-    for (ik, vk) in ent:
-        b += np.bincount(ik, weights=w * vk * ly, minlength=n)
-        for (il, vl) in ent:
-            A += np.bincount(ik * n + il, weights=w * vk * vl, minlength=n * n)
-    A = A.reshape(n, n)
+    wly = w * ly
+    for k, (ik, vk) in enumerate(ent):
+        wk = w if vk is None else w * vk
+        b += np.bincount(ik, weights=wly if vk is None else wly * vk, minlength=n)
+        diag += np.bincount(ik, weights=wk if vk is None else wk * vk, minlength=n)
+        for il, vl in ent[k + 1:]:  # symmetric: pairs k < l, mirrored below
+            U += np.bincount(ik * n + il, weights=wk * vl, minlength=n * n)
+    U = U.reshape(n, n)
+    A = U + U.T + np.diag(diag)
     scale = max(np.trace(A) / n, 1e-300)
     LD = _second_diff(nD)
     LS = _second_diff(N_S)
@@ -285,7 +292,9 @@ def _solve_shape(y, w, g):
 def _shape(g, eta, D, S):
     """Φ = F/F1 · S(θi) S(θo) D(θh bin) / (π cos θi cos θo) at the usable cells."""
     F = fresnel_normalised(eta, g["cd"])
-    return F * _interp_S(S, g["ti"]) * _interp_S(S, g["to"]) * D[g["ih"]] / (np.pi * g["ci"] * g["co"])
+    Si = S[g["ia0"]] * g["iw0"] + S[g["ia1"]] * g["iw1"]
+    So = S[g["oa0"]] * g["ow0"] + S[g["oa1"]] * g["ow1"]
+    return F * Si * So * D[g["ih"]] / (np.pi * g["ci"] * g["co"])
 
 
 def _linear_kd_ks(rho, phi, wcc):
@@ -304,7 +313,7 @@ def _linear_kd_ks(rho, phi, wcc):
     return kd, np.maximum(ks, 0.0)
 
 
-def fit_microfacet(table, eta=1.33, iterations=4):
+def fit_microfacet(table, eta=1.33, iterations=3):
     """Fit ``kd, ks, S, D`` (module docstring) to a (3, 90, 90, 180) MERL table.
 
     Returns a dict: ``kd (3,)``, ``ks (3,)``, ``ndf (90,)`` D at the θh bin centres :data:`D_THETA`,
@@ -340,8 +349,8 @@ def fit_microfacet(table, eta=1.33, iterations=4):
 
 
 def _s_support(g, w):
-    a0, a1, w0, w1 = _hat(g["ti"])
-    s = np.bincount(a0, weights=w * w0, minlength=N_S) + np.bincount(a1, weights=w * w1, minlength=N_S)
+    s = (np.bincount(g["ia0"], weights=w * g["iw0"], minlength=N_S)
+         + np.bincount(g["ia1"], weights=w * g["iw1"], minlength=N_S))
     return s > 1e-6 * s.max()
 
 
