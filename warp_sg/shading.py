@@ -48,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from .brdf.material_wp import Material, brdf_diffuse, slice_lobe, slice_lobe_count
+from .brdf.material_wp import Material, brdf_diffuse, oren_nayar_params, slice_lobe, slice_lobe_count
 from .fh import fh_hemisphere_wp
 from .frames import frame_bitangent, frame_tangent, local_to_world, world_to_local
 from .lights import LightArrays, light_sg
@@ -191,8 +191,7 @@ def textured_material(mat: Material, tex: MaterialTextures, mi: int, uv: wp.vec2
     if s >= 0:
         v = tex_sample(tex.atlas, s, uv)[0]
         if m.model == 1:  # Oren-Nayar: σ -> (A, B, σ)
-            s2 = v * v
-            p = wp.vec4(1.0 - 0.5 * s2 / (s2 + 0.33), 0.45 * s2 / (s2 + 0.09), v, p[3])
+            p = oren_nayar_params(wp.max(v, 0.0))
         else:
             p = wp.vec4(wp.max(v, 1.0e-4), p[1], p[2], p[3])
     s = tex.slots[mi, 3]
