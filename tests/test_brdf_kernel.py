@@ -153,3 +153,43 @@ def test_kernel_sampling_pdf_is_a_density_matching_the_samples(index):
     fs = model.ks[1] * model.specular(o, d.astype(np.float64))[:, 1] * np.maximum(d[:, 2], 0)
     est_s = np.sum(fs[good] / p[good]) / n
     assert est_s == pytest.approx(spec_only, rel=0.01), (est_s, spec_only)
+
+
+@wp.kernel
+def _finite_kernel(mats: wp.array(dtype=M.Material), dirs: wp.array(dtype=wp.vec3), u: wp.array(dtype=wp.vec2),
+                   out: wp.array3d(dtype=float)):
+    a, b, c = wp.tid()
+    mat = mats[a]
+    o = dirs[b]
+    i = dirs[c]
+    f = M.brdf_eval(mat, o, i)
+    mo = M.brdf_mo(mat, o, i)
+    s = float(0.0)
+    for k in range(M.slice_lobe_count(mat)):
+        ax, l, m = M.slice_lobe(mat, o, k)
+        s += ax[0] + ax[1] + ax[2] + l + m[0] + m[1] + m[2]
+    d = M.brdf_sample(mat, o, u[c])
+    p = M.brdf_pdf(mat, o, d) + M.brdf_pdf(mat, o, i)
+    out[a, b, c] = f[0] + f[1] + f[2] + mo[0] + mo[1] + mo[2] + s + d[0] + d[1] + d[2] + p
+
+
+def test_kernel_functions_stay_finite_at_grazing_and_extreme_roughness():
+    models = [
+        B.CookTorrance(ks=1, m=1e-4, fresnel="copper"), B.CookTorrance(ks=1, m=3.0, fresnel={"eta": 1.5}),
+        B.TorranceSparrow(ks=1, m=1e-4), B.Ward(ks=1, alpha=1e-4), B.Ward(ks=1, alpha_x=1e-3, alpha_y=0.8),
+        B.BlinnPhong(ks=1, n=1e7), B.Phong(ks=1, n=1e7), B.Phong(ks=1, n=0.0),
+        B.AshikhminShirley(ks=1, nu=1e6, nv=1.0, fresnel={"schlick": 0.04}), B.AshikhminShirley(ks=1, nu=0, nv=0),
+        B.OrenNayar(kd=1, sigma=0.0), B.Lafortune(lobes=[{"cx": -1, "cy": -1, "cz": 1, "n": 1e4}]),
+    ]
+    table = M.pack_materials(models, 1, "cpu")
+    g = np.array([0.0, 1e-7, 1e-4, 0.2])
+    th = np.pi / 2 - g
+    base = np.stack([np.sin(th), 0 * th, np.cos(th)], -1)
+    dirs = np.concatenate([base, base * [-1, 1, 1], base[:, [1, 0, 2]], [[0, 0, 1.0], [0.6, 0, 0.8]]])
+    u = np.array([[0, 0], [0.999999, 0.999999], [0.5, 0.25], [1e-7, 0.5]] * 4 + [[0.3, 0.3], [0.7, 0.1]], np.float32)
+    out = wp.zeros((len(models), len(dirs), len(dirs)), dtype=float)
+    wp.launch(_finite_kernel, out.shape, inputs=[table.materials, wp.array(dirs.astype(np.float32), dtype=wp.vec3),
+                                                 wp.array(u, dtype=wp.vec2), out])
+    v = out.numpy()
+    bad = np.argwhere(~np.isfinite(v))
+    assert len(bad) == 0, [(type(models[a]).__name__, dirs[b], dirs[c]) for a, b, c in bad[:5]]

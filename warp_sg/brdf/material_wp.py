@@ -519,7 +519,9 @@ def beckmann_pdf_h(ax: float, ay: float, h: wp.vec3) -> float:
     if hz <= 0.0:
         return 0.0
     e = (h[0] * h[0] / (ax * ax) + h[1] * h[1] / (ay * ay)) / (hz * hz)
-    return wp.exp(-e) / (PI * ax * ay * hz * hz * hz)
+    if e > 80.0:
+        return 0.0
+    return wp.exp(-e) / (PI * ax * ay * wp.max(hz * hz * hz, 1.0e-30))
 
 
 @wp.func
@@ -671,7 +673,7 @@ def brdf_pdf(mat: Material, o: wp.vec3, i: wp.vec3) -> float:
         ph = as_pdf_h(mat.params[0], mat.params[1], h)
     elif m == 9:
         ph = sg_mixture_pdf(mat, h)
-    return ph / (4.0 * oh)
+    return ph / (4.0 * wp.max(oh, 1.0e-6))
 
 
 # ------------------------------------------------------------------------------------------------
