@@ -74,7 +74,7 @@ from .envmap import downsample_envmap, row_solid_angles, validate_envmap, wp_dir
 #: Cap of the quadrature window: texels with λ (1 − p·d) > CUTOFF are skipped (mass e^{−14}).
 CUTOFF = 14.0
 #: Format tag of the cached entry (bump when the table layout or algorithm changes).
-_VERSION = "prefilter-v2"
+_VERSION = "prefilter-v3"
 
 PI = wp.constant(3.141592653589793)
 TWO_PI = wp.constant(6.283185307179586)
@@ -147,6 +147,14 @@ def cube_face_of_numpy(d):
 # --------------------------------------------------------------------------------------------
 # Build kernel
 # --------------------------------------------------------------------------------------------
+_vec6 = wp.types.vector(length=6, dtype=float)
+
+
+@wp.func
+def _phi_cdf(x: float) -> float:
+    return 0.5 * (1.0 + wp.erf(x * 0.7071067811865476))
+
+
 @wp.kernel
 def _prefilter_level_kernel(
     src: wp.array2d(dtype=wp.vec3),
@@ -195,34 +203,81 @@ def _prefilter_level_kernel(
 
     acc = wp.vec3(0.0)
     wsum = float(0.0)
-    for k in range(r_lo * sub, (r_hi + 1) * sub):
-        ct = cos_t[k]
-        st = sin_t[k]
-        wr = w_row[k]
-        ss = st * sin_tp
-        j0 = int(0)
-        cnt = cols
-        if cmin > -1.0 and ss > 1.0e-6:
-            xx = (cmin - ct * cos_tp) / ss
-            if xx > 1.0:
-                cnt = 0
-            elif xx > -1.0:
-                dphi = wp.acos(xx)
-                j0 = int(wp.floor((phi_p - dphi) / h_phi - 0.5)) - 1
-                j1 = int(wp.floor((phi_p + dphi) / h_phi - 0.5)) + 2
-                cnt = wp.min(j1 - j0 + 1, cols)
-        elif cmin > -1.0:
-            if ct * cos_tp < cmin:
-                cnt = 0
-        row_src = k // sub
-        for jj in range(j0, j0 + cnt):
-            j = ((jj % cols) + cols) % cols
-            dd = wp.vec3(st * sin_p[j], ct, -st * cos_p[j])
-            if sub == 1:
-                dd = src_dir[row_src, j]  # energy centroid of a mip texel
-            g = wr * wp.exp(-lam * one_minus_dot(dd, d))
-            wsum += g
-            acc += g * src[row_src, j // sub]
+    h_t = PI / float(h_src)
+    w_src = src.shape[1]
+    h_pt = TWO_PI / float(w_src)
+    sq_lam = wp.sqrt(lam)
+    for r in range(r_lo, r_hi + 1):
+        # Sub-sampled source (sub > 1): integrate G over whole texels instead, where the lobe is narrow
+        # in both directions. Exact separation 1 − cos γ = (1 − cos Δθ) + sin θ sin θp (1 − cos Δφ),
+        # each factor ≈ Gaussian: ∫_texel G dΩ ≈ sin θ_m ∫ e^{−λΔθ²/2} dθ · ∫ e^{−κΔφ²/2} dφ,
+        # κ = λ sin θ_m sin θp (normal-CDF differences). Rows near a pole (κ < 50) keep sub-cells.
+        t0 = float(r) * h_t
+        t1 = t0 + h_t
+        # sin θ and κ at the Gaussian-weighted mean θ of the row (truncated-normal mean): the far
+        # tail of a bright source is sensitive to κ, so take it where the row's weight sits
+        za = (t0 - theta_p) * sq_lam
+        zb = (t1 - theta_p) * sq_lam
+        mass = _phi_cdf(zb) - _phi_cdf(za)
+        t_m = wp.clamp(theta_p, t0, t1)
+        if mass > 1.0e-12:
+            t_m = wp.clamp(theta_p + 0.3989422804014327 * (wp.exp(-0.5 * za * za) - wp.exp(-0.5 * zb * zb))
+                           / (mass * sq_lam), t0, t1)
+        st_c = wp.sin(t_m)
+        kappa = lam * st_c * sin_tp
+        if sub > 1 and kappa >= 50.0 and cmin > -1.0:
+            a_r = st_c * mass / sq_lam
+            # longitude extent of the cap at the row's θ closest to θp
+            tn = wp.clamp(theta_p, t0, t1)
+            ctn = wp.cos(tn)
+            stn = wp.sin(tn)
+            xx = (cmin - ctn * cos_tp) / wp.max(stn * sin_tp, 1.0e-12)
+            if xx <= 1.0:
+                j0 = int(0)
+                cnt = w_src
+                if xx > -1.0:
+                    dphi = wp.acos(xx)
+                    j0 = int(wp.floor((phi_p - dphi) / h_pt)) - 1
+                    j1 = int(wp.floor((phi_p + dphi) / h_pt)) + 1
+                    cnt = wp.min(j1 - j0 + 1, w_src)
+                sk = wp.sqrt(kappa)
+                prev = _phi_cdf((float(j0) * h_pt - phi_p) * sk)
+                for q in range(cnt):
+                    nxt = _phi_cdf((float(j0 + q + 1) * h_pt - phi_p) * sk)
+                    g = a_r * (nxt - prev) / sk
+                    prev = nxt
+                    j = (((j0 + q) % w_src) + w_src) % w_src
+                    wsum += g
+                    acc += g * src[r, j]
+        else:
+            for k in range(r * sub, (r + 1) * sub):
+                ct = cos_t[k]
+                st = sin_t[k]
+                # sub-cells carry Ω/s²; the texel integrals above carry ∫G dΩ / (2π) — same scale
+                wr = w_row[k] / TWO_PI
+                ss = st * sin_tp
+                j0 = int(0)
+                cnt = cols
+                if cmin > -1.0 and ss > 1.0e-6:
+                    xx = (cmin - ct * cos_tp) / ss
+                    if xx > 1.0:
+                        cnt = 0
+                    elif xx > -1.0:
+                        dphi = wp.acos(xx)
+                        j0 = int(wp.floor((phi_p - dphi) / h_phi - 0.5)) - 1
+                        j1 = int(wp.floor((phi_p + dphi) / h_phi - 0.5)) + 2
+                        cnt = wp.min(j1 - j0 + 1, cols)
+                elif cmin > -1.0:
+                    if ct * cos_tp < cmin:
+                        cnt = 0
+                for jj in range(j0, j0 + cnt):
+                    j = ((jj % cols) + cols) % cols
+                    dd = wp.vec3(st * sin_p[j], ct, -st * cos_p[j])
+                    if sub == 1:
+                        dd = src_dir[r, j]  # energy centroid of a mip texel
+                    g = wr * wp.exp(-lam * one_minus_dot(dd, d))
+                    wsum += g
+                    acc += g * src[r, j // sub]
     if wsum > 0.0:
         out[tid] = acc / wsum
     else:
@@ -269,14 +324,6 @@ def _fetch_level(tab: GammaTable, level: int, face: int, a: float, b: float) -> 
     t0 = tab.texels[i00] * (1.0 - fx) + tab.texels[i00 + 1] * fx
     t1 = tab.texels[i00 + stride] * (1.0 - fx) + tab.texels[i00 + stride + 1] * fx
     return t0 * (1.0 - fy) + t1 * fy
-
-
-_vec6 = wp.types.vector(length=6, dtype=float)
-
-
-@wp.func
-def _phi_cdf(x: float) -> float:
-    return 0.5 * (1.0 + wp.erf(x * 0.7071067811865476))
 
 
 @wp.func

@@ -125,6 +125,8 @@ def test_warp_lookup_matches_numpy_twin_with_rotation_and_scale(pre, device):
 
 
 def test_build_on_device_matches_cpu(device):
+    if device == "cpu":
+        pytest.skip("compares a CUDA build with the CPU build")
     env = em.procedural_sky(32, 16)
     a = pf.prefilter_environment(env, device="cpu", cache=False, progress=False)
     b = pf.prefilter_environment(env, device=device, cache=False, progress=False)
@@ -132,7 +134,7 @@ def test_build_on_device_matches_cpu(device):
 
 
 def test_table_is_cached_by_map_content(cache_dir):
-    env = em.procedural_sky(32, 16)
+    env = em.procedural_sky(16, 8)
     a = pf.prefilter_environment(env, device="cpu", progress=False)
     files = list((cache_dir / "env_prefilter").glob("*.npz"))
     assert len(files) == 1
