@@ -17,13 +17,16 @@ or where the cube faces reach ``base_face``); level ``k`` is a cubemap with face
 is ≤ σ/2) plus a one-texel border on every face, computed at its own (slightly outside the face)
 direction, so that bilinear lookups never cross a face edge.
 
-Each texel is computed by a Warp kernel as a discrete ratio
-``Σ_j w_j G(d_j; p, λ) L_j / Σ_j w_j G(d_j; p, λ)`` over equal-solid-angle sample cells ``j`` of
-the source map, restricted to the cap ``λ (1 − p·d) ≤ 14`` (the neglected SG mass is
-``e^{−14} ≈ 8·10⁻⁷``; in longitude the exact per-row extent of the cap). The source is the
-coarsest solid-angle-weighted mip level of the map whose texel is ≤ σ/2.5
-(``samples_per_sigma``); when even the full map is coarser than that, each texel is split into
-``s × s`` sub-cells (uniform in cos θ and φ).
+Each texel is computed by a Warp kernel as a discrete ratio ``Σ_j w_j L_j / Σ_j w_j`` with
+``w_j ≈ ∫_{cell j} G(i; p, λ, 1) di`` over cells ``j`` of the source map, restricted to the cap
+``λ (1 − p·d) ≤ 14`` (the neglected SG mass is ``e^{−14} ≈ 8·10⁻⁷``; in longitude the exact
+per-row extent of the cap). The source is the coarsest solid-angle-weighted mip level whose
+texel is ≤ σ/2.5 (``samples_per_sigma``; a finer one while the window holds ≤ 2048 texels), with
+``w_j = Ω_j G(d_j)`` and ``d_j`` the texel's luminance-weighted energy centroid. When even the
+full map is coarser than that (sharp levels), ``w_j`` integrates G over the whole texel using
+the exact separation ``1 − cos γ = (1 − cos Δθ) + sin θ sin θp (1 − cos Δφ)`` and a Gaussian for
+each factor (normal-CDF differences over the texel's edges, ``κ = λ sin θ_m sin θp``); rows near
+a pole (κ < 50) fall back to ``s × s`` equal-area sub-cells.
 
 Lookup (``@wp.func gamma_lookup(tab: GammaTable, p: wp.vec3, lam: float) -> wp.vec3``)
 -------------------------------------------------------------------------------------
