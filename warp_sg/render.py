@@ -46,9 +46,8 @@ def clamped_cosine_lobes(n: int) -> tuple[np.ndarray, np.ndarray]:
         return np.array([CLAMPED_COSINE_SHARPNESS]), np.array([CLAMPED_COSINE_AMPLITUDE])
     from . import clamped_cosine as CC
 
-    fit = CC.clamped_cosine_sg(n)
-    lam, mu = np.asarray(fit[-2], np.float64).reshape(-1), np.asarray(fit[-1], np.float64).reshape(-1)
-    return lam, mu
+    lam, mu = CC.lobes(n)
+    return np.asarray(lam, np.float64).reshape(-1), np.asarray(mu, np.float64).reshape(-1)
 
 
 def _timer(device):

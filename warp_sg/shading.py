@@ -363,7 +363,8 @@ def shade_kernel(f: Features):
                                 pb, lb, s2 = sg_product(pa, lam, la, ll)
                                 th = vis_theta(SHADOWS, vis, pb, ng, td, bd, i0, i1, i2, b0, b1, b2)
                                 col += wp.cw_mul(amp, lm) * (s2 * vis_scale(FH, vis, th, lb) * fh_hemisphere_wp(lb))
-        out[y, x] = col
+        # multi-lobe clamped cosines have signed amplitudes: keep radiance non-negative
+        out[y, x] = wp.vec3(wp.max(col[0], 0.0), wp.max(col[1], 0.0), wp.max(col[2], 0.0))
 
     key = "shade_" + "_".join(str(int(v)) for v in (ENV_D, ENV_S, LIGHTS, SPEC, SHADOWS, TEX, NMAP, FH))
     shade.__name__ = key
