@@ -37,6 +37,13 @@ def build_plotter(scene, device=None, off_screen: bool = False, window_size=None
     from .lights import DirectionalLight, PointLight
     from .render import Renderer
 
+    if off_screen:  # VTK tries an X display first and logs a warning before falling back to EGL/OSMesa
+        try:
+            from vtkmodules.vtkCommonCore import vtkLogger
+
+            vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
+        except Exception:  # noqa: BLE001 - cosmetic only
+            pass
     r = Renderer(scene, device=device)
     g = r.geometry
     rad = r.shade_vertices()
