@@ -158,13 +158,18 @@ def _greedy_peaks(d, om, L, n_max, lam_max, min_fraction=0.03):
     ≥ 0.35 rad from the previous peaks."""
     resid = L.copy()
     axes, lams = [], []
-    blur = np.exp(-16.0 * (1.0 - d @ d.T))  # (N, N)
+    def blur(e):  # SG blur (λ = 16) of per-texel energies, in row chunks (bounded memory)
+        out = np.empty(len(d))
+        for i0 in range(0, len(d), 1024):
+            out[i0 : i0 + 1024] = np.exp(-16.0 * (1.0 - d[i0 : i0 + 1024] @ d.T)) @ e
+        return out
+
     total = float((np.maximum(L @ LUMINANCE, 0.0) * om).sum())
     for _ in range(n_max):
         e = np.maximum(resid @ LUMINANCE, 0.0) * om
         if total <= 0 or e.sum() <= 0:
             break
-        b = blur @ e
+        b = blur(e)
         j = int(np.argmax(b))
         near = np.exp(-64.0 * (1.0 - d @ d[j]))  # a tighter window for the moments
         wgt = e * near
