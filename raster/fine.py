@@ -185,14 +185,14 @@ def fine_pixel_kernel(
 
 
 @wp.kernel
-def resolve_kernel(
+def resolve_pixel_kernel(
     base: int,
     best_invw: wp.array2d(dtype=wp.float32),
     tri_id: wp.array2d(dtype=wp.int32),
     bary: wp.array2d(dtype=wp.vec2),
     depth: wp.array2d(dtype=wp.float32),
 ):
-    """Depth = 1/(1/w) of the winner; empty pixels: bary (0, 0), depth +inf (tri_id is already -1)."""
+    """One thread per pixel (CUDA): as ``resolve_kernel``."""
     g = base + wp.tid()
     W = tri_id.shape[1]
     y = g // W
@@ -204,3 +204,26 @@ def resolve_kernel(
         depth[y, x] = wp.inf
     else:
         depth[y, x] = 1.0 / best_invw[y, x]
+
+
+@wp.kernel
+def resolve_kernel(
+    base: int,
+    best_invw: wp.array2d(dtype=wp.float32),
+    tri_id: wp.array2d(dtype=wp.int32),
+    bary: wp.array2d(dtype=wp.vec2),
+    depth: wp.array2d(dtype=wp.float32),
+):
+    """One thread per image row: depth = 1/(1/w) of the winner; empty pixels get bary (0, 0) and
+    depth +inf (their tri_id is already -1)."""
+    y = base + wp.tid()
+    if y >= tri_id.shape[0]:
+        return
+    x = int(0)
+    while x < tri_id.shape[1]:
+        if tri_id[y, x] < 0:
+            bary[y, x] = wp.vec2(0.0, 0.0)
+            depth[y, x] = wp.inf
+        else:
+            depth[y, x] = 1.0 / best_invw[y, x]
+        x += 1

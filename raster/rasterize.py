@@ -32,7 +32,7 @@ from . import parallel
 from .bin import TILE, bin_count_kernel, scan_counts
 from .camera import Camera
 from .coarse import coarse_scatter_kernel
-from .fine import fine_pixel_kernel, fine_tile_kernel, resolve_kernel
+from .fine import fine_pixel_kernel, fine_tile_kernel, resolve_kernel, resolve_pixel_kernel
 from .setup import MAX_RESOLUTION, SubTri, guard_factors, setup_extra_kernel, setup_kernel, vertex_kernel
 
 DEFAULT_MAX_PAIRS = 1 << 21  # triangle/tile pairs per pass: 128 MiB of 64-byte queue records
@@ -167,7 +167,7 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
     :class:`Camera` (or any object with its fields); ``supersample`` k ≥ 1; ``cull_backfaces``
     drops triangles whose front (counter-clockwise) side faces away; ``coverage_count`` also
     returns per-pixel coverage counts (depth test off); ``max_pairs`` bounds the tile-queue
-    memory (int32 entries per pass); ``schedule`` = "tile" | "pixel" | "auto" picks the fine
+    memory (64-byte (triangle, tile) entries per pass; more passes when exceeded); ``schedule`` = "tile" | "pixel" | "auto" picks the fine
     raster kernel (auto: tiles on CPU, pixels on CUDA); ``profile`` records per-stage wall
     times (device-synchronised) in ``vb.stats["times"]``.
     """
@@ -175,7 +175,10 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
     if not isinstance(camera, Camera):
         camera = Camera(**{k: getattr(camera, k) for k in ("origin", "target", "up", "fov", "width", "height",
                                                            "near", "far") if hasattr(camera, k)})
-    k = int(supersample)
+    try:
+        k = int(supersample)
+    except (TypeError, ValueError):
+        k = 0
     if k < 1 or k != supersample:
         raise InputError(f"supersample must be a positive integer, got {supersample!r}", where="supersample")
     W, H = camera.width * k, camera.height * k
@@ -242,7 +245,10 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
                         best_invw, tri_id, bary, cov_arg, coverage is not None, device,
                         max_pairs or DEFAULT_MAX_PAIRS, schedule, stats, ws, clock)
 
-    parallel.launch(resolve_kernel, H * W, [best_invw, tri_id, bary, depth], device, min_chunk=16384)
+    if device.startswith("cpu"):  # a row per thread: no per-pixel division, sequential writes
+        parallel.launch(resolve_kernel, H, [best_invw, tri_id, bary, depth], device, min_chunk=16)
+    else:
+        parallel.launch(resolve_pixel_kernel, H * W, [best_invw, tri_id, bary, depth], device)
     clock.lap("resolve")
     return VisibilityBuffer(tri_id, bary, depth, coverage, W, H, k, device, stats)
 
