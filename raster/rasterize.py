@@ -184,6 +184,10 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
     W, H = camera.width * k, camera.height * k
     if W > MAX_RESOLUTION or H > MAX_RESOLUTION:
         raise InputError(f"{W}x{H} exceeds the rasterizer's {MAX_RESOLUTION}px limit per axis", where="camera")
+    if schedule == "auto":
+        schedule = "tile" if device.startswith("cpu") else "pixel"
+    if schedule not in ("tile", "pixel"):
+        raise InputError(f"schedule must be 'tile', 'pixel' or 'auto', got {schedule!r}", where="schedule")
     clock = _Clock(device, profile)
     v_np, t_np = _as_numpy_mesh(vertices, triangles)
     n_v, n_t = v_np.shape[0], t_np.shape[0]
@@ -245,7 +249,7 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
                         best_invw, tri_id, bary, cov_arg, coverage is not None, device,
                         max_pairs or DEFAULT_MAX_PAIRS, schedule, stats, ws, clock)
 
-    if device.startswith("cpu"):  # a row per thread: no per-pixel division, sequential writes
+    if schedule == "tile":  # CPU: a row per thread, no per-pixel division, sequential writes
         parallel.launch(resolve_kernel, H, [best_invw, tri_id, bary, depth], device, min_chunk=16)
     else:
         parallel.launch(resolve_pixel_kernel, H * W, [best_invw, tri_id, bary, depth], device)
@@ -275,8 +279,6 @@ def _bin_and_raster(subs, bbox, n_t, n_extra, bins, W, H, camera, best_invw, bes
     tiles_x, n_tiles, rows = bins.tiles_x, bins.n_tiles, bins.rows
     counts, offsets, cursor = bins.counts, bins.offsets, bins.cursor
     max_pairs = max(int(max_pairs), n_tiles)  # one triangle alone always fits
-    if schedule == "auto":
-        schedule = "tile" if bins.cpu else "pixel"
     inv_far = 1.0 / float(camera.far)
 
     stack = [(0, n_sub)]
