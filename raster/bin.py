@@ -23,7 +23,7 @@ import warp as wp
 
 wp.set_module_options({"enable_backward": False})
 
-from .fixed import TILE, count_tiles, tile_overlaps  # noqa: F401
+from .fixed import TILE, count_tiles, pixel_bbox, tile_overlaps  # noqa: F401
 from .setup import SubTri
 
 @wp.kernel
@@ -33,17 +33,18 @@ def bin_count_kernel(
     batch: int,
     rows: int,
     tiles_x: int,
+    width: int,
+    height: int,
     subs: wp.array(dtype=SubTri),
-    sub_bbox: wp.array(dtype=wp.vec4i),
     counts: wp.array(dtype=wp.int32),
 ):
     j = base + wp.tid()
     s = sub_lo + j
     row = j // batch
-    bb = sub_bbox[s]
-    if bb[0] > bb[2]:
-        return  # empty slot (culled / clipped away / no pixel centre covered)
     rec = subs[s]
+    if rec.tri < 0:
+        return  # empty slot (culled / clipped away / no pixel centre covered)
+    bb = pixel_bbox(rec.v0, rec.v1, rec.v2, width, height)
     count_tiles(bb, rec.v0, rec.v1, rec.v2, tiles_x, rows, row, counts)
 
 

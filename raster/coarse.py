@@ -19,7 +19,7 @@ import warp as wp
 
 wp.set_module_options({"enable_backward": False})
 
-from .fixed import TILE_BITS, tile_overlaps
+from .fixed import TILE_BITS, pixel_bbox, tile_overlaps
 from .setup import SubTri
 
 
@@ -30,8 +30,9 @@ def coarse_scatter_kernel(
     batch: int,
     rows: int,
     tiles_x: int,
+    width: int,
+    height: int,
     subs: wp.array(dtype=SubTri),
-    sub_bbox: wp.array(dtype=wp.vec4i),
     offsets: wp.array(dtype=wp.int32),
     cursor: wp.array(dtype=wp.int32),
     queue: wp.array(dtype=SubTri),
@@ -39,17 +40,17 @@ def coarse_scatter_kernel(
 ):
     j = base + wp.tid()
     s = sub_lo + j
+    rec = subs[s]
+    if rec.tri < 0:
+        return  # empty slot (culled / clipped away / no pixel centre covered)
     row = j // batch
     if row_from_tri == 1:
-        row = subs[s].tri // batch
-    bb = sub_bbox[s]
-    if bb[0] > bb[2]:
-        return  # empty slot (culled / clipped away / no pixel centre covered)
+        row = rec.tri // batch
+    bb = pixel_bbox(rec.v0, rec.v1, rec.v2, width, height)
     tx0 = bb[0] >> TILE_BITS
     tx1 = bb[2] >> TILE_BITS
     ty0 = bb[1] >> TILE_BITS
     ty1 = bb[3] >> TILE_BITS
-    rec = subs[s]
     if tx0 == tx1 and ty0 == ty1:  # the common case: one tile
         slot1 = (ty0 * tiles_x + tx0) * rows + row
         queue[offsets[slot1] + wp.atomic_add(cursor, slot1, 1)] = rec

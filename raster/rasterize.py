@@ -225,27 +225,23 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
         extra = ws.get("extra", n_t + 1, wp.int32)
         extra[n_t:].zero_()
         subs = ws.get("subs", n_t, SubTri)
-        bbox = ws.get("bbox", n_t, wp.vec4i)
         bins = _Bins(W, H, device, ws, n_t)
         bin_args = [bins.batch, bins.rows, bins.tiles_x, bins.counts]
         parallel.launch_rows(setup_kernel, n_t, min(bins.rows, n_t),
-                             [clip, vsnap, vcode, tris, W, H, near, gx, gy, cull, subs, bbox, extra, *bin_args], device)
+                             [clip, vsnap, vcode, tris, W, H, near, gx, gy, cull, subs, extra, *bin_args], device)
         extra_off = ws.get("extra_off", n_t + 1, wp.int32)
         n_extra = scan_counts(extra, extra_off)
         if n_extra > 0:
             grown = ws.get("subs_grown", n_t + n_extra, SubTri)
             wp.copy(grown, subs, count=n_t)
             subs = grown
-            grown_bb = ws.get("bbox_grown", n_t + n_extra, wp.vec4i)
-            wp.copy(grown_bb, bbox, count=n_t)
-            bbox = grown_bb
             parallel.launch_rows(setup_extra_kernel, n_t, min(bins.rows, n_t),
-                                 [clip, tris, W, H, near, gx, gy, cull, extra, extra_off, subs, bbox, *bin_args], device)
+                                 [clip, tris, W, H, near, gx, gy, cull, extra, extra_off, subs, *bin_args], device)
         clock.lap("setup")
         n_sub = n_t + n_extra
         stats["sub_triangles"] = n_sub
         stats["clipped_extra"] = n_extra
-        _bin_and_raster(subs, bbox, n_t, n_extra, bins, W, H, camera,
+        _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera,
                         best_invw, tri_id, bary, cov_arg, coverage is not None, device,
                         max_pairs or DEFAULT_MAX_PAIRS, schedule, stats, ws, clock)
 
@@ -273,7 +269,7 @@ class _Bins:
         self.batch = max(1, (n_t + self.rows - 1) // self.rows)
 
 
-def _bin_and_raster(subs, bbox, n_t, n_extra, bins, W, H, camera, best_invw, best_tri, best_bary,
+def _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera, best_invw, best_tri, best_bary,
                     coverage, count_mode, device, max_pairs, schedule, stats, ws, clock):
     n_sub = n_t + n_extra
     tiles_x, n_tiles, rows = bins.tiles_x, bins.n_tiles, bins.rows
@@ -290,7 +286,7 @@ def _bin_and_raster(subs, bbox, n_t, n_extra, bins, W, H, camera, best_invw, bes
         batch = (n + r - 1) // r
         if not first:  # a split pass: count its slot range (rows = contiguous slot batches)
             counts.zero_()
-            parallel.launch_rows(bin_count_kernel, n, r, [lo, batch, rows, tiles_x, subs, bbox, counts], device)
+            parallel.launch_rows(bin_count_kernel, n, r, [lo, batch, rows, tiles_x, W, H, subs, counts], device)
         total = scan_counts(counts, offsets)
         clock.lap("bin")
         if total > max_pairs and n > 1:
@@ -309,14 +305,14 @@ def _bin_and_raster(subs, bbox, n_t, n_extra, bins, W, H, camera, best_invw, bes
         if first:
             # counted by setup: primaries per pool thread, then the clipped extra pieces (few) serially
             parallel.launch_rows(coarse_scatter_kernel, n_t, min(rows, n_t),
-                                 [0, bins.batch, rows, tiles_x, subs, bbox, offsets, cursor, queue, 0], device)
+                                 [0, bins.batch, rows, tiles_x, W, H, subs, offsets, cursor, queue, 0], device)
             if n_extra > 0:
                 wp.launch(coarse_scatter_kernel, dim=n_extra,
-                          inputs=[0, n_t, bins.batch, rows, tiles_x, subs, bbox, offsets, cursor, queue, 1],
+                          inputs=[0, n_t, bins.batch, rows, tiles_x, W, H, subs, offsets, cursor, queue, 1],
                           device=device)
         else:
             parallel.launch_rows(coarse_scatter_kernel, n, r,
-                                 [lo, batch, rows, tiles_x, subs, bbox, offsets, cursor, queue, 0], device)
+                                 [lo, batch, rows, tiles_x, W, H, subs, offsets, cursor, queue, 0], device)
         first = False
         clock.lap("coarse")
         args = [tiles_x, n_tiles, rows, W, H, inv_far, int(count_mode), offsets, queue,

@@ -28,7 +28,7 @@
   6. the bin raster, fused: the tiles the piece touches are counted (``fixed.count_tiles``) in
      the counter row of the pool thread that owns the triangle (see ``bin.py``).
 
-  The first piece goes to slot i (an empty bbox when nothing survives); ``extra[i]`` counts further
+  The first piece goes to slot i (``tri = -1`` when nothing survives); ``extra[i]`` counts further
   pieces, which ``setup_extra_kernel`` writes after a prefix sum into slots ``M + offset``.
 
 Edge function of the directed edge a→b at sample p (fixed point): ``E = (b−a) × (p−a)``; a sample
@@ -57,7 +57,7 @@ class SubTri:
     v0: wp.vec2i  # snapped fixed-point vertices, positive-area winding (y down)
     v1: wp.vec2i
     v2: wp.vec2i
-    tri: wp.int32  # original triangle id
+    tri: wp.int32  # original triangle id; -1 marks an empty slot
     p: wp.mat33  # interpolation planes of the original triangle (rows 1/w, λ1, λ2) about v0
 
 
@@ -312,7 +312,6 @@ def setup_kernel(
     gy: wp.float64,
     cull: int,
     subs: wp.array(dtype=SubTri),
-    sub_bbox: wp.array(dtype=wp.vec4i),
     extra: wp.array(dtype=wp.int32),
     bin_batch: int,
     rows: int,
@@ -366,8 +365,9 @@ def setup_kernel(
     rec.v1 = a
     rec.v2 = b
     rec.tri = i
+    if n_valid == 0:
+        rec.tri = -1  # empty slot
     subs[i] = rec
-    sub_bbox[i] = bb
     if bin_batch > 0 and n_valid > 0:  # bin raster fused in: count the tiles of this piece
         count_tiles(bb, s0, a, b, tiles_x, rows, i // bin_batch, counts)
     extra[i] = wp.max(n_valid - 1, 0)
@@ -387,7 +387,6 @@ def setup_extra_kernel(
     extra: wp.array(dtype=wp.int32),
     extra_off: wp.array(dtype=wp.int32),
     subs: wp.array(dtype=SubTri),
-    sub_bbox: wp.array(dtype=wp.vec4i),
     bin_batch: int,
     rows: int,
     tiles_x: int,
@@ -414,7 +413,6 @@ def setup_extra_kernel(
                 rec.v1 = qa
                 rec.v2 = qb
                 subs[o] = rec
-                sub_bbox[o] = qbb
                 if bin_batch > 0:
                     count_tiles(qbb, q0, qa, qb, tiles_x, rows, i // bin_batch, counts)
                 o += 1
