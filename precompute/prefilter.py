@@ -26,7 +26,7 @@ texel is ≤ σ/2.5 (``samples_per_sigma``; a finer one while the window holds �
 full map is coarser than that (sharp levels), ``w_j`` integrates G over the whole texel using
 the exact separation ``1 − cos γ = (1 − cos Δθ) + sin θ sin θp (1 − cos Δφ)`` and a Gaussian for
 each factor (normal-CDF differences over the texel's edges, ``κ = λ sin θ_m sin θp``); rows near
-a pole (κ < 50) fall back to ``s × s`` equal-area sub-cells.
+a pole (κ < 50) fall back to ``s × s`` sub-cells (uniform in θ and φ, exact cell solid angles).
 
 Lookup (``@wp.func gamma_lookup(tab: GammaTable, p: wp.vec3, lam: float) -> wp.vec3``)
 -------------------------------------------------------------------------------------
@@ -77,7 +77,7 @@ from .envmap import downsample_envmap, row_solid_angles, validate_envmap, wp_dir
 #: Cap of the quadrature window: texels with λ (1 − p·d) > CUTOFF are skipped (mass e^{−14}).
 CUTOFF = 14.0
 #: Format tag of the cached entry (bump when the table layout or algorithm changes).
-_VERSION = "prefilter-v3"
+_VERSION = "prefilter-v4"
 
 PI = wp.constant(3.141592653589793)
 TWO_PI = wp.constant(6.283185307179586)
@@ -256,7 +256,7 @@ def _prefilter_level_kernel(
             for k in range(r * sub, (r + 1) * sub):
                 ct = cos_t[k]
                 st = sin_t[k]
-                # sub-cells carry Ω/s²; the texel integrals above carry ∫G dΩ / (2π) — same scale
+                # sub-cells carry their solid angle; the texel integrals above carry ∫G dΩ / (2π)
                 wr = w_row[k] / TWO_PI
                 ss = st * sin_tp
                 j0 = int(0)
@@ -607,14 +607,15 @@ def _source_for(chain, lam: float, samples_per_sigma: float, max_sub: int, budge
 
 
 def _sample_grid(h: int, w: int, sub: int):
-    """Sub-cell centres: rows uniform in cos θ inside each texel row, columns uniform in φ."""
-    theta_edges = np.pi * np.arange(h + 1) / h
-    c0 = np.cos(theta_edges[:-1])[:, None]
-    c1 = np.cos(theta_edges[1:])[:, None]
-    f = (np.arange(sub) + 0.5) / sub
-    cos_t = (c0 + (c1 - c0) * f[None, :]).reshape(-1)
-    sin_t = np.sqrt(np.clip(1.0 - cos_t**2, 0.0, None))
-    w_row = np.repeat(row_solid_angles(h, w) / (sub * sub), sub)
+    """Sub-cells of every texel: ``sub`` bands uniform in θ per row (centre θ, weight = the band's
+    exact solid angle) × ``sub`` columns uniform in φ. Returns ``(cos θ, sin θ, Ω per sub-cell)``
+    per sub-row and ``(cos φ, sin φ)`` per sub-column. (Bands uniform in θ, not in cos θ, so the
+    cells stay compact at the poles.)"""
+    edges = np.pi * np.arange(h * sub + 1) / (h * sub)
+    mid = 0.5 * (edges[:-1] + edges[1:])
+    cos_t = np.cos(mid)
+    sin_t = np.sin(mid)
+    w_row = (2.0 * np.pi / (w * sub)) * (np.cos(edges[:-1]) - np.cos(edges[1:]))
     phi = 2.0 * np.pi * (np.arange(w * sub) + 0.5) / (w * sub)
     return cos_t, sin_t, w_row, np.cos(phi), np.sin(phi)
 
@@ -862,7 +863,7 @@ def gamma_reference(env, p, lam, *, cells_per_sigma: float = 6.0, max_sub: int =
     """Direct quadrature of eq. 35 for one direction ``p`` (map frame) and sharpness ``λ`` (float64).
 
     The map is the piecewise-constant function of its texels; each texel is split into ``s × s``
-    equal-solid-angle cells (``s`` so that a cell is ≤ σ/``cells_per_sigma``, σ = 1/√λ) and
+    cells uniform in θ and φ (``s`` so that a cell is ≤ σ/``cells_per_sigma``, σ = 1/√λ) and
     ``∫_cell G`` is taken as ``Ω_cell · G(centre)``; cells with ``λ(1 − p·d) > cutoff`` are skipped.
     Returns ``ΓL(p, λ)`` (RGB, not normalised).
     """

@@ -144,3 +144,15 @@ def test_table_is_cached_by_map_content(cache_dir):
     env2[3, 4] += 1.0
     pf.prefilter_environment(env2, device="cpu", progress=False)
     assert len(list((cache_dir / "env_prefilter").glob("*.npz"))) == 2
+
+
+def test_poles_cube_edges_and_corners_match_quadrature(sky, pre):
+    dirs = np.array([[0, 1, 0], [0, -1, 0], [0.02, 1, 0.01], [0.03, -1, -0.02], [1, 1, 0], [1, 1, 1],
+                     [-1, 1, -1], [1, 0, 1], [0, 0.001, -1]], float)
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    worst = 0.0
+    for lam in [0.3, 3.0, 30.0, 300.0, 3000.0, 30000.0]:
+        ref = np.array([pf.gamma_reference(sky, d, lam) for d in dirs])
+        got = pf.gamma_lookup_numpy(pre, dirs, np.full(len(dirs), lam))
+        worst = max(worst, float((np.abs(got - ref).max(1) / np.abs(ref).max(1)).max()))
+    assert worst < 0.015
