@@ -167,8 +167,8 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
     :class:`Camera` (or any object with its fields); ``supersample`` k ≥ 1; ``cull_backfaces``
     drops triangles whose front (counter-clockwise) side faces away; ``coverage_count`` also
     returns per-pixel coverage counts (depth test off); ``max_pairs`` bounds the tile-queue
-    memory (64-byte (triangle, tile) entries per pass; more passes when exceeded); ``schedule`` = "tile" | "pixel" | "auto" picks the fine
-    raster kernel (auto: tiles on CPU, pixels on CUDA); ``profile`` records per-stage wall
+    memory (64-byte (triangle, tile) entries per pass; more passes when exceeded); ``schedule`` =
+    "tile" | "pixel" | "auto" picks the fine raster kernel (auto: tiles on CPU, pixels on CUDA); ``profile`` records per-stage wall
     times (device-synchronised) in ``vb.stats["times"]``.
     """
     device = resolve_device(device)
