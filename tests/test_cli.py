@@ -66,6 +66,10 @@ def test_render_writes_exr_and_png_with_the_scene_size(scene_file, tmp_path, cap
     assert rc == 0, err
     png = load_image(tmp_path / "b.png")
     assert png.shape[:2] == (5, 6)
+    # missing output folders are created (the README's `-o out/cook_torrance.png` on a fresh clone)
+    rc, _, err = run(["render", scene_file, "-o", tmp_path / "new" / "dir" / "c.png"], capsys)
+    assert rc == 0, err
+    assert (tmp_path / "new" / "dir" / "c.png").is_file()
 
 
 @pytest.mark.parametrize("edit,needle", [
@@ -83,12 +87,15 @@ def test_bad_scene_exits_2_with_one_line_and_no_output_file(tmp_path, capsys, ed
     assert len(lines) == 1 and lines[0].startswith("warp-sg: error: ") and needle in lines[0]
     assert "Traceback" not in err
     assert list(tmp_path.iterdir()) == [p]
+    rc, _, err = run(["render", p, "-o", tmp_path / "sub" / "out.png"], capsys)
+    assert rc == 2 and not (tmp_path / "sub").exists()  # no folder created for a failed render
 
 
-@pytest.mark.parametrize("target,needle", [("nodir/o.exr", "does not exist"), ("o.bmp", "unknown image format"),
+@pytest.mark.parametrize("target,needle", [("afile/o.exr", "is not a folder"), ("o.bmp", "unknown image format"),
                                            ("adir.png", "is a folder")])
 def test_unusable_output_path_exits_2_before_rendering(scene_file, tmp_path, capsys, target, needle):
     (tmp_path / "adir.png").mkdir()
+    (tmp_path / "afile").write_text("x")
     rc, _, err = run(["render", scene_file, "-o", tmp_path / target], capsys)
     assert rc == 2 and needle in err and len(err.strip().splitlines()) == 1
 

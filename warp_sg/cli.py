@@ -39,8 +39,11 @@ class _Fail(Exception):
     """A one-line failure with exit status 2."""
 
 
-def check_output_path(path, suffixes=IMAGE_SUFFIXES) -> Path:
-    """Fail early (before rendering) when ``path`` cannot be written as an image."""
+def check_output_path(path, suffixes=IMAGE_SUFFIXES, create_parents: bool = False) -> Path:
+    """Fail early (before rendering) when ``path`` cannot be written as an image.
+
+    ``create_parents``: missing folders are allowed (created by :func:`make_parents` once the image
+    exists) as long as the nearest existing ancestor is a writable folder."""
     p = Path(path)
     if p.suffix.lower() not in suffixes:
         raise InputError(f"unknown image format '{p.suffix}' (use {' or '.join(suffixes)})", where=str(p))
@@ -48,10 +51,24 @@ def check_output_path(path, suffixes=IMAGE_SUFFIXES) -> Path:
         raise InputError("is a folder, not a file", where=str(p))
     parent = p.parent if str(p.parent) else Path(".")
     if not parent.is_dir():
-        raise InputError(f"folder '{parent}' does not exist", where=str(p))
+        if not create_parents:
+            raise InputError(f"folder '{parent}' does not exist", where=str(p))
+        anc = parent
+        while not anc.exists() and anc != anc.parent:
+            anc = anc.parent
+        if not anc.is_dir():
+            raise InputError(f"'{anc}' is not a folder", where=str(p))
+        parent = anc
     if not os.access(parent, os.W_OK):
         raise InputError(f"folder '{parent}' is not writable", where=str(p))
     return p
+
+
+def make_parents(path: Path) -> None:
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise InputError(f"cannot create folder '{path.parent}' ({e.strerror})", where=str(path)) from None
 
 
 def _positive_int(name):
@@ -79,7 +96,8 @@ def _float(s):
 # --------------------------------------------------------------------------------------------
 def add_render_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scene", help="scene file (TOML)")
-    p.add_argument("-o", "--output", required=True, help="output image: .exr (linear HDR) or .png (sRGB)")
+    p.add_argument("-o", "--output", required=True,
+                   help="output image: .exr (linear HDR) or .png (sRGB); missing folders are created")
     p.add_argument("--device", default=None, help="cpu, cuda, cuda:N or auto (default: the scene's [render] device)")
     p.add_argument("--spp", "--supersampling", dest="supersampling", type=_positive_int("--supersampling"),
                    default=None, help="supersampling factor k (k×k samples per pixel, box filter)")
@@ -96,7 +114,7 @@ def render_main(args) -> int:
     from .render import Renderer
     from .scene import load_scene
 
-    out = check_output_path(args.output)
+    out = check_output_path(args.output, create_parents=True)
     scene = load_scene(args.scene)
     if args.supersampling is not None:
         scene.render.supersampling = args.supersampling
@@ -111,6 +129,7 @@ def render_main(args) -> int:
     img = r.render()
     if args.exposure:
         img = img * (2.0 ** args.exposure)
+    make_parents(out)  # only now: a failed render leaves nothing behind
     save_image(out, img)
     if args.timings:
         t = r.timings
@@ -135,7 +154,7 @@ def preview_main(args) -> int:
     from .scene import load_scene
 
     if args.screenshot:
-        check_output_path(args.screenshot, (".png",))
+        make_parents(check_output_path(args.screenshot, (".png",), create_parents=True))
     scene = load_scene(args.scene)
     preview(scene, screenshot=args.screenshot, device=args.device,
             window_size=tuple(args.window_size) if args.window_size else None)
