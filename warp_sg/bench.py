@@ -66,8 +66,11 @@ def _fmt(v):
 # --------------------------------------------------------------------------------------------
 # scene
 # --------------------------------------------------------------------------------------------
-def bench_scene(width=160, height=120, *, env=True, lights=True, diffuse_only=False, shadows=True, supersampling=1):
-    """The bench scene (see the module docstring), with features switched off on request."""
+def bench_scene(width=160, height=120, *, env=True, lights=True, diffuse_only=False, shadows=True, supersampling=1,
+                quick=False):
+    """The bench scene (see the module docstring), with features switched off on request.
+
+    ``quick``: coarse tessellation and small precompute settings (tests, smoke runs)."""
     from . import brdf as B
     from .lights import DirectionalLight, EnvironmentLight, PointLight
     from .scene import Camera, RenderSettings, Scene, SceneObject
@@ -81,10 +84,15 @@ def bench_scene(width=160, height=120, *, env=True, lights=True, diffuse_only=Fa
         mats = {"metal": B.TorranceSparrow(kd=[0.15, 0.05, 0.03], ks=[0.9, 0.6, 0.4], m=0.25),
                 "satin": B.Ward(kd=[0.1, 0.2, 0.4], ks=[0.4, 0.4, 0.4], alpha=0.15),
                 "floor": B.Lambert(kd=[0.6, 0.6, 0.6])}
-    objs = [SceneObject(material="metal", primitive="sphere", params={"center": (-0.6, 0.5, 0.0), "radius": 0.5}),
+    res = ({"sphere": (8, 16), "torus": (16, 8), "plane": (4, 4)} if quick else
+           {"sphere": (32, 64), "torus": (64, 32), "plane": (32, 32)})
+    objs = [SceneObject(material="metal", primitive="sphere",
+                        params={"center": (-0.6, 0.5, 0.0), "radius": 0.5, "resolution": res["sphere"]}),
             SceneObject(material="satin", primitive="torus",
-                        params={"center": (0.75, 0.25, 0.2), "major_radius": 0.45, "minor_radius": 0.2}),
-            SceneObject(material="floor", primitive="plane", params={"center": (0.0, 0.0, 0.0), "size": (5.0, 5.0)})]
+                        params={"center": (0.75, 0.25, 0.2), "major_radius": 0.45, "minor_radius": 0.2,
+                                "resolution": res["torus"]}),
+            SceneObject(material="floor", primitive="plane",
+                        params={"center": (0.0, 0.0, 0.0), "size": (5.0, 5.0), "resolution": res["plane"]})]
     ls = []
     if env:
         ls.append(EnvironmentLight(procedural="sky"))
@@ -93,8 +101,11 @@ def bench_scene(width=160, height=120, *, env=True, lights=True, diffuse_only=Fa
         ls.append(DirectionalLight(direction=(-0.4, 1.0, 0.3), radius=0.05, intensity=(1.0, 0.9, 0.8)))
     if not ls:
         ls.append(DirectionalLight(direction=(0.0, 1.0, 0.0), radius=0.05, intensity=(1.0, 1.0, 1.0)))
-    return Scene(camera=cam, objects=objs, materials=mats, lights=ls,
-                 render=RenderSettings(shadows=shadows, supersampling=supersampling))
+    rs = RenderSettings(shadows=shadows, supersampling=supersampling)
+    if quick:
+        rs = RenderSettings(shadows=shadows, supersampling=supersampling, ssdf_resolution=16, pca_terms=8,
+                            gamma_resolution=16, gamma_levels=4, env_lobes=4)
+    return Scene(camera=cam, objects=objs, materials=mats, lights=ls, render=rs)
 
 
 # --------------------------------------------------------------------------------------------
@@ -122,7 +133,7 @@ def shading_section(device="cpu", quick=False, frames=None):
     base = None
     with fresh_cache():
         for name, kw in cases:
-            r = Renderer(bench_scene(w, h, **kw), device=device)
+            r = Renderer(bench_scene(w, h, quick=quick, **kw), device=device)
             shade, frame = _frames(r, n)
             if base is None:
                 base = shade
@@ -131,10 +142,10 @@ def shading_section(device="cpu", quick=False, frames=None):
         # precompute: cold (empty cache) vs warm (cache hit: precompute skipped)
     with fresh_cache():
         t0 = time.perf_counter()
-        Renderer(bench_scene(w, h), device=device)
+        Renderer(bench_scene(w, h, quick=quick), device=device)
         cold = time.perf_counter() - t0
         t0 = time.perf_counter()
-        Renderer(bench_scene(w, h), device=device)
+        Renderer(bench_scene(w, h, quick=quick), device=device)
         warm = time.perf_counter() - t0
     rows.append({"case": "precompute, empty cache", "precompute_s": cold, "shade_ratio": float("nan")})
     rows.append({"case": "precompute, warm cache (skipped)", "precompute_s": warm,
@@ -224,7 +235,7 @@ def equal_error_section(device="cpu", quick=False, truth_spp=None, progress=Fals
 
     w, h = (24, 18) if quick else (96, 72)
     truth_spp = truth_spp or (32 if quick else 1024)
-    scene = bench_scene(w, h)
+    scene = bench_scene(w, h, quick=quick)
     truth = render_reference(scene, spp=truth_spp, device=device, progress=progress, seed=11)
     with fresh_cache():
         r = Renderer(scene, device=device)
