@@ -45,11 +45,11 @@ KNOBS: dict[str, tuple[list, list]] = {
     "clamped_cosine_lobes": ([1, 2, 3, 4], [1, 3]),
     "env_lobes": ([2, 4, 6, 9, 12], [2, 6]),
     "env_sg_lobes": ([2, 4, 6, 9, 12], [2, 6]),
-    "gamma_resolution": ([8, 16, 32, 64], [8, 16]),
+    "gamma_resolution": ([8, 16, 32, 64, 96], [8, 16]),
     "gamma_levels": ([4, 6, 8, 12], [4, 8]),
     "gamma_lambda_count": ([4, 6, 8, 12], [4, 8]),
-    "ssdf_resolution": ([16, 32, 64, 128], [16, 32]),
-    "pca_terms": ([4, 8, 16, 32], [4, 16]),
+    "ssdf_resolution": ([12, 16, 24, 32, 48], [16, 32]),
+    "pca_terms": ([2, 4, 8, 16, 24], [4, 16]),
     "supersampling": ([1, 2, 3], [1, 2]),
 }
 
