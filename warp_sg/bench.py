@@ -163,40 +163,31 @@ def visibility_section(device="cpu", quick=False):
 
 
 def precompute_section(device="cpu", quick=False):
-    """SSDF + PCA precompute time by mesh size. Full: ``precompute.bench.run_bench`` (with its
-    product-error study; its documents go to a temporary folder). Quick: ``ssdf_for_mesh`` alone
-    on two small bench meshes."""
+    """SSDF + PCA precompute time (``precompute.ssdf_for_mesh``, empty cache) by mesh size, on the
+    plane-and-box meshes of ``precompute.bench`` (whose ``run_bench`` has the detailed study with
+    the product error: docs/precompute.md)."""
     from .report import fresh_cache
 
     try:
+        import precompute
         from precompute import bench as pb
     except Exception as e:  # noqa: BLE001
         return [{"case": "precompute", "note": f"precompute.bench unavailable ({type(e).__name__}: {e})"}]
-    sizes = []
-    if quick:
-        import precompute
-
-        for target in (150, 600):
-            V, F, N = pb.bench_mesh(target)
-            with fresh_cache():
-                t0 = time.perf_counter()
-                precompute.ssdf_for_mesh(V, F, N, resolution=16, pca_terms=8, device=device, progress=False)
-                sizes.append({"vertices": len(V), "t_ssdf": time.perf_counter() - t0, "t_pca": 0.0})
-    else:
-        with tempfile.TemporaryDirectory(prefix="warp-sg-bench-") as d:
-            doc = Path(d) / "precompute.md"
-            doc.write_text("<!-- bench:begin -->\n<!-- bench:end -->\n")
-            with fresh_cache():
-                res = pb.run_bench(quick=False, device=device, out_doc=doc, fig_dir=Path(d), progress=False)
-        sizes = res.get("sizes", []) if isinstance(res, dict) else []
+    targets, res, terms = ((150, 600), 16, 8) if quick else ((1000, 4000, 16000), 32, 16)
+    V, F, N = pb.bench_mesh(targets[0])
+    with fresh_cache():  # compile outside the timings
+        precompute.ssdf_for_mesh(V, F, N, resolution=res, pca_terms=terms, device=device, progress=False)
     rows = []
     base = None
-    for r in sizes:
-        t = float(r.get("t_ssdf", 0.0)) + float(r.get("t_pca", 0.0))
+    for target in targets:
+        V, F, N = pb.bench_mesh(target)
+        with fresh_cache():
+            t0 = time.perf_counter()
+            precompute.ssdf_for_mesh(V, F, N, resolution=res, pca_terms=terms, device=device, progress=False)
+            t = time.perf_counter() - t0
         base = base or t
-        rows.append({"case": f"{r.get('vertices')} vertices", "ssdf_s": r.get("t_ssdf"), "pca_s": r.get("t_pca"),
-                     "total_s": t, "ratio": t / base if base else float("nan"),
-                     "us_per_vertex": 1e6 * t / max(int(r.get("vertices", 1)), 1)})
+        rows.append({"case": f"{len(V)} vertices (SSDF {res}², {terms} PCA terms)", "total_s": t,
+                     "ratio": t / base, "ms_per_vertex": 1e3 * t / len(V)})
     return rows
 
 
