@@ -431,11 +431,12 @@ class Renderer:
             gamma = self.gamma.table(rotation=env.rotation_matrix(), scale=env.scale, device=d)
         else:
             gamma = es  # placeholder argument of the variant without ΓL
-        wp.launch(kern, dim=tri_id.shape, inputs=[tri_id, bary, bg, wp.vec3(*np.asarray(eye, np.float32)),
-                                                  self.geo_arrays, self.material_table.materials,
-                                                  self.material_textures, self.cc, self.light_arrays, es, gamma,
-                                                  self.vis],
-                  outputs=[out], device=d)
+        from raster import parallel
+
+        n = int(tri_id.shape[0]) * int(tri_id.shape[1])
+        parallel.launch(kern, n, [tri_id, bary, bg, wp.vec3(*np.asarray(eye, np.float32)), self.geo_arrays,
+                                  self.material_table.materials, self.material_textures, self.cc,
+                                  self.light_arrays, es, gamma, self.vis, out], d, min_chunk=2048)
 
 
 def render(scene: Scene, device: str | None = None, progress: bool = False) -> np.ndarray:

@@ -38,7 +38,9 @@ Kernel variants: the kernel is specialised by scene content (``Features``): envi
 (SG mixture | prefiltered ΓL | none), environment specular (ΓL | SG mixture | none), local lights,
 specular materials, shadows (SSDF), textures, normal/tangent maps, fh method, and the number of
 clamped-cosine lobes. Variants are created once per feature tuple and cached (``shade_kernel``);
-code a scene does not need is removed at compile time with ``wp.static``.
+code a scene does not need is removed at compile time with ``wp.static``. The kernel is 1-D over
+row-major pixels with an index offset ``base``, so on the CPU disjoint pixel ranges run on a small
+thread pool (``raster.parallel.launch``; Warp runs one CPU launch on one core).
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the kernel annotations at definition
 # time and the kernel variants are closures.
@@ -253,11 +255,13 @@ def shade_kernel(f: Features):
     else:
         GammaT, gamma_lookup = EnvSG, None  # placeholder type (unused argument)
 
-    def shade(tri_id: wp.array2d(dtype=int), bary: wp.array2d(dtype=wp.vec2), background: wp.array2d(dtype=wp.vec3),
+    def shade(base: int, tri_id: wp.array2d(dtype=int), bary: wp.array2d(dtype=wp.vec2), background: wp.array2d(dtype=wp.vec3),
               cam: wp.vec3, geo: GeometryArrays, mats: wp.array(dtype=Material), tex: MaterialTextures,
               cc: ClampedCosine, lights: LightArrays, env: EnvSG, gamma: GammaT, vis: Visibility,
               out: wp.array2d(dtype=wp.vec3)):
-        y, x = wp.tid()
+        pix = base + wp.tid()  # row-major pixel index (CPU launches split it over threads)
+        y = pix // tri_id.shape[1]
+        x = pix - y * tri_id.shape[1]
         t = tri_id[y, x]
         if t < 0:
             out[y, x] = background[y, x]
