@@ -86,3 +86,15 @@ def test_fit_is_cached_and_validated(cache_dir):
     bad[2, 3, 1] = np.nan
     with pytest.raises(ImageError, match="NaN"):
         fit_environment_sgs(bad, 4)
+
+
+def test_fitting_through_a_multi_lobe_clamped_cosine_lowers_the_irradiance_error(sky, fit8):
+    from warp_sg import clamped_cosine as CC
+
+    cos2 = CC.LOBES[2]  # signed amplitudes
+    f2 = fit_environment_sgs(sky, 8, cosine=cos2, cache=False)
+    n = _normals(300, seed=3)
+    E = irradiance_reference(sky, n)
+    e1 = _rel(sg_irradiance(*fit8, n), E)
+    e2 = _rel(sg_irradiance(*f2, n, cosine=cos2), E)
+    assert e2.mean() < 0.85 * e1.mean() and e2.max() < e1.max()
