@@ -142,6 +142,8 @@ def _as_numpy_mesh(vertices, triangles):
         v = v.reshape(0, 3)
     if t_raw.size == 0:
         t_raw = np.zeros((0, 3), np.int32)
+    if t_raw.ndim == 1 and t_raw.size % 3 == 0:  # flat index buffer (as wp.Mesh takes it)
+        t_raw = t_raw.reshape(-1, 3)
     if v.ndim != 2 or v.shape[1] != 3:
         raise MeshError(f"vertices must have shape (N, 3), got {v.shape}", where="vertices")
     if t_raw.ndim != 2 or t_raw.shape[1] != 3:

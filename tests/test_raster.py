@@ -222,3 +222,17 @@ def test_quick_benchmark_reports_rasterizer_faster_than_ray_casting():
     assert r["tri_id_agreement"] >= 0.999
     assert r["raster_s"] > 0 and r["speedup_1launch"] > 1.0
     assert "speedup" in format_rows(rows)
+
+
+def test_warp_array_inputs_and_flat_indices_give_the_same_buffer(device):
+    import warp as wp
+
+    V, F = uv_sphere(32, 16)
+    cam = _cam(w=48, h=40)
+    a = raster.rasterize(V, F, cam, device=device)
+    b = raster.rasterize(wp.array(V, dtype=wp.vec3, device=device), wp.array(F.reshape(-1), dtype=wp.int32,
+                                                                               device=device), cam, device=device)
+    assert (a.tri_id.numpy() == b.tri_id.numpy()).all()
+    assert np.array_equal(a.bary.numpy(), b.bary.numpy())
+    n = raster.interpolate(b, F, wp.array(V, dtype=wp.vec3, device=device)).numpy()
+    assert n.shape == (40, 48, 3) and np.isfinite(n).all()
