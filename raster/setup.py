@@ -205,6 +205,17 @@ def vertex_kernel(
 
 
 @wp.func
+def covers(v0: wp.vec2i, v1: wp.vec2i, v2: wp.vec2i, x: int, y: int):
+    """Top-left-rule coverage of the centre of pixel (x, y) (positive-area winding)."""
+    sx = sample_fixed(x)
+    sy = sample_fixed(y)
+    z = wp.int64(0)
+    return (edge_eval(v0, v1, sx, sy) + wp.int64(edge_topleft(v0, v1)) > z
+            and edge_eval(v1, v2, sx, sy) + wp.int64(edge_topleft(v1, v2)) > z
+            and edge_eval(v2, v0, sx, sy) + wp.int64(edge_topleft(v2, v0)) > z)
+
+
+@wp.func
 def make_piece(s0: wp.vec2i, s1: wp.vec2i, s2: wp.vec2i, width: int, height: int, cull: int):
     """Area, cull and winding of a snapped triangle and its pixel bbox; bbox[0] > bbox[2] = dropped."""
     area = wp.int64(s1[0] - s0[0]) * wp.int64(s2[1] - s0[1]) - wp.int64(s1[1] - s0[1]) * wp.int64(s2[0] - s0[0])
@@ -222,6 +233,13 @@ def make_piece(s0: wp.vec2i, s1: wp.vec2i, s2: wp.vec2i, width: int, height: int
         pb = pixel_bbox(s0, a, b, width, height)
         if pb[0] <= pb[2] and pb[1] <= pb[3]:
             bb = pb
+            # sub-pixel triangles: a bbox of one or two pixel centres that none of them is covered
+            # by is dropped here (at 4 triangles per pixel that is a third of all tile pairs)
+            nx = pb[2] - pb[0]
+            ny = pb[3] - pb[1]
+            if nx + ny <= 1:
+                if not covers(s0, a, b, pb[0], pb[1]) and not covers(s0, a, b, pb[2], pb[3]):
+                    bb = wp.vec4i(1, 1, 0, 0)
     return a, b, bb
 
 
