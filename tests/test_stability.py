@@ -312,6 +312,71 @@ def test_roughness_to_zero_keeps_microfacet_fits_and_slices_finite():
 
 
 # ------------------------------------------------------------------------------------------------
+# kernel-side BRDFs (what the renderer and the reference evaluate) at extremes
+# ------------------------------------------------------------------------------------------------
+from warp_sg.brdf import material_wp as MW  # noqa: E402
+
+
+@wp.kernel
+def _brdf_kernel(mats: wp.array(dtype=MW.Material), mi: wp.array(dtype=int), o: wp.array(dtype=wp.vec3),
+                 i: wp.array(dtype=wp.vec3), u: wp.array(dtype=wp.vec2), f: wp.array(dtype=wp.vec3),
+                 pdf: wp.array(dtype=float), smp: wp.array(dtype=wp.vec3), spdf: wp.array(dtype=float)):
+    t = wp.tid()
+    m = mats[mi[t]]
+    f[t] = MW.brdf_eval(m, o[t], i[t])
+    pdf[t] = MW.brdf_pdf(m, o[t], i[t])
+    d = MW.brdf_sample(m, o[t], u[t])
+    smp[t] = d
+    spdf[t] = MW.brdf_pdf(m, o[t], d)
+
+
+def test_kernel_brdfs_are_finite_and_match_numpy_at_extreme_parameters_and_grazing_angles(device):
+    rng = np.random.default_rng(7)
+    B = ws.brdf
+    models = [B.Lambert(kd=0.5), B.OrenNayar(kd=0.5, sigma=1.2), B.Phong(kd=0.1, ks=0.5, n=1e5),
+              B.BlinnPhong(kd=0.1, ks=0.5, n=1e5), B.BlinnPhong(ks=0.5, n=1.0), B.CookTorrance(ks=0.5, m=1e-3),
+              B.CookTorrance(ks=0.5, m=1.0, fresnel="gold"), B.TorranceSparrow(ks=0.5, m=1e-3, fresnel={"eta": 1.5}),
+              B.Ward(ks=0.5, alpha=1e-3), B.Ward(ks=0.5, alpha_x=0.01, alpha_y=0.5),
+              B.AshikhminShirley(ks=0.5, nu=1e5, nv=10.0, lobes=5)]
+    table = MW.pack_materials(models, 1, device)
+    n = 12_000
+    mi = rng.integers(0, len(models), n)
+    o = grazing_dirs(rng, n)
+    i = grazing_dirs(rng, n)
+    i[: n // 5] = o[: n // 5] * [-1, -1, 1]  # mirror configurations: the peaks
+    u = rng.random((n, 2))
+    A = lambda x, dt: wp.array(np.ascontiguousarray(x, np.float32), dtype=dt, device=device)  # noqa: E731
+    outs = [wp.empty(n, dtype=wp.vec3, device=device), wp.empty(n, dtype=float, device=device),
+            wp.empty(n, dtype=wp.vec3, device=device), wp.empty(n, dtype=float, device=device)]
+    wp.launch(_brdf_kernel, dim=n, inputs=[table.materials, wp.array(mi.astype(np.int32), dtype=int, device=device),
+                                           A(o, wp.vec3), A(i, wp.vec3), A(u, wp.vec2)] + outs, device=device)
+    f, pdf, smp, spdf = (x.numpy() for x in outs)
+    for x in (f, pdf, smp, spdf):
+        assert np.all(np.isfinite(x))
+    assert np.all(f >= 0) and np.all(pdf >= 0) and np.all(spdf >= 0)
+    np.testing.assert_allclose(np.linalg.norm(smp, axis=1), 1.0, atol=1e-4)
+    # float32 kernel vs float64 numpy on the same (float32-rounded) directions, away from the
+    # razor-sharp peaks where float32 direction rounding alone moves the value
+    o32, i32 = o.astype(np.float32).astype(np.float64), i.astype(np.float32).astype(np.float64)
+    for k, model in enumerate(models):
+        sel = mi == k
+        ref = model.eval(o32[sel], i32[sel])
+        got = f[sel]
+        sharp = {"Phong": 1e5, "BlinnPhong": getattr(model, "n", 0), "CookTorrance": 2 / getattr(model, "m", 1) ** 2,
+                 "TorranceSparrow": 2 / getattr(model, "m", 1) ** 2, "AshikhminShirley": 1e5}.get(type(model).__name__, 0)
+        if type(model).__name__ == "Ward":
+            sharp = 2 / min(model.alpha_x, model.alpha_y) ** 2 if hasattr(model, "alpha_x") else 2 / model.alpha ** 2
+        scale = max(ref.max(), 1e-30)
+        tol = 2e-3 + 1e-6 * sharp  # relative: exponent error ~ sharpness · ε32
+        # absolute floor 1e-5 of the model's peak: material_wp's ln(h_z) loses relative precision
+        # for half vectors at grazing (h_z < 1e-4), where the BRDF is ~1e-6 of its peak anyway
+        err = np.abs(got - ref)
+        ok = err <= tol * ref + 1e-5 * scale
+        assert ok.mean() > 0.995, (type(model).__name__, float(np.max(err / (ref + 1e-5 * scale))))
+    _count(n)
+
+
+# ------------------------------------------------------------------------------------------------
 # lights at the surface / very far, and scene scale (Monte-Carlo reference and renderer)
 # ------------------------------------------------------------------------------------------------
 _PLANE_V = np.array([[-50, 0, -50], [50, 0, -50], [50, 0, 50], [-50, 0, 50]], float)
@@ -398,6 +463,29 @@ def test_renderer_is_the_same_image_for_a_scene_scaled_by_1e_minus4_and_1e4(devi
         assert im.shape == (9, 12, 3) and np.all(np.isfinite(im)), k
     for k in (1e-4, 1e4):
         np.testing.assert_allclose(imgs[k], imgs[1.0], rtol=2e-3, atol=2e-3 * float(imgs[1.0].mean()), err_msg=str(k))
+
+
+@pytest.mark.parametrize("material", ["cook_torrance_m1e-3", "blinn_phong_n1e5", "ashikhmin_shirley_1e5", "ward_1e-3"])
+def test_renderer_and_reference_stay_finite_with_extreme_materials_and_lights(device, cache_dir, material):
+    from warp_sg.lights import PointLight
+    from warp_sg.reference import render_reference
+
+    sc = _small_scene(1.0)
+    B = ws.brdf
+    sc.materials["a"]._brdf = {
+        "cook_torrance_m1e-3": B.CookTorrance(kd=0.1, ks=0.8, m=1e-3),
+        "blinn_phong_n1e5": B.BlinnPhong(kd=0.1, ks=0.8, n=1e5),
+        "ashikhmin_shirley_1e5": B.AshikhminShirley(kd=0.1, ks=0.8, nu=1e5, nv=10.0, lobes=5),
+        "ward_1e-3": B.Ward(kd=0.1, ks=0.8, alpha=1e-3),
+    }[material]
+    # a light touching the sphere (inside its convex hull: allowed to be wrong, not to be NaN) and a far one
+    sc.lights = sc.lights[:2] + [PointLight(position=(0.0, 0.8, 0.0), radius=0.05, intensity=(1.0, 1.0, 1.0)),
+                                 PointLight(position=(1e6, 1e6, 1e6), radius=1e3, intensity=(3e12,) * 3)]
+    img = ws.render(sc, device=device)
+    ref = render_reference(sc, spp=4, device=device, progress=False)
+    for im in (img, ref.image, ref.stderr):
+        assert np.all(np.isfinite(im)) and np.all(im >= 0), material
+    _count(2 * img.size // 3)
 
 
 # ------------------------------------------------------------------------------------------------
