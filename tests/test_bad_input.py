@@ -398,3 +398,29 @@ def test_truncated_cache_entry_is_rebuilt(cache_dir):
     with pytest.warns(Warning):
         out = cache.load_or_build("test_kind", key, lambda: {"x": np.zeros(100)})
     assert out["x"].sum() == 0
+
+
+def test_renderer_interrupted_during_precompute_leaves_a_clean_cache(tmp_path, cache_dir, monkeypatch):
+    """Ctrl-C inside the SSDF precompute: nothing half-written in the cache; the next run rebuilds
+    and renders the same image as an uninterrupted run."""
+    import precompute.ssdf as pss
+    from warp_sg.render import Renderer
+
+    text = replace("shadows = false", "shadows = true")
+    sc = ws.load_scene(write_scene(tmp_path, text))
+    real = pss.compute_ssdf
+
+    def interrupted(*a, **k):
+        real(*a, **k)  # do the work, then get interrupted before the result is stored
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(pss, "compute_ssdf", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        Renderer(sc)
+    leftovers = [f for f in Path(cache_dir).rglob("*") if f.is_file() and "ssdf" in str(f)]
+    assert leftovers == []
+    monkeypatch.setattr(pss, "compute_ssdf", real)
+    img = Renderer(ws.load_scene(write_scene(tmp_path, text))).render()
+    assert np.all(np.isfinite(img))
+    again = Renderer(ws.load_scene(write_scene(tmp_path, text))).render()  # from the cache now
+    np.testing.assert_array_equal(img, again)
