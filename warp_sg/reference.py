@@ -357,7 +357,7 @@ def _reference_pass(
     b1 = q.v
     b2 = 1.0 - q.u - q.v
     p = ro + rd * q.t
-    ng = q.normal  # unit geometric normal (winding order)
+    ng = wp.normalize(q.normal)  # geometric normal (winding order)
     n = ng
     if geo.has_normals != 0:
         ns = b0 * geo.normals[i0] + b1 * geo.normals[i1] + b2 * geo.normals[i2]
