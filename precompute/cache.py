@@ -15,7 +15,6 @@ import hashlib
 import io
 import json
 import os
-import tempfile
 import warnings
 import zipfile
 from pathlib import Path
@@ -23,6 +22,7 @@ from typing import Callable, Mapping
 
 import numpy as np
 
+from warp_sg.atomic import atomic_output
 from warp_sg.errors import CacheError
 
 #: Bump whenever the layout or meaning of any cached entry changes (old entries then miss).
@@ -122,20 +122,10 @@ def _write_atomic(path: Path, arrays: Mapping[str, np.ndarray]) -> None:
     payload[_CHECKSUM] = np.asarray(_checksum(payload))
     buf = io.BytesIO()
     np.savez(buf, **payload)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(buf.getbuffer())
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-
+    with atomic_output(path) as tmp, open(tmp, "wb") as f:
+        f.write(buf.getbuffer())
+        f.flush()
+        os.fsync(f.fileno())
 
 def load(kind: str, key: str) -> dict[str, np.ndarray] | None:
     """The verified entry, or ``None`` when missing or corrupt (a corrupt file is deleted with a warning)."""

@@ -148,12 +148,19 @@ def test_unreadable_and_wrong_channel_files_name_the_file(tmp_path):
 
 
 def test_permission_denied_on_temp_file_is_an_image_error(tmp_path, monkeypatch):
-    import warp_sg.image_io as io_mod
+    import warp_sg.atomic as atomic_mod
 
     def denied(*a, **k):
         raise PermissionError(13, "Permission denied")
 
-    monkeypatch.setattr(io_mod.tempfile, "mkstemp", denied)
+    monkeypatch.setattr(atomic_mod.tempfile, "mkstemp", denied)
     with pytest.raises(ImageError, match=r"out.exr.*cannot write to folder.*Permission denied"):
         save_image(tmp_path / "out.exr", np.zeros((2, 2, 3)))
     assert os.listdir(tmp_path) == []
+
+
+def test_saved_files_get_normal_permissions_not_mkstemp_0600(tmp_path):
+    out = save_image(tmp_path / "p.png", np.ones((2, 2, 3)))
+    mask = os.umask(0)
+    os.umask(mask)
+    assert os.stat(out).st_mode & 0o777 == 0o666 & ~mask

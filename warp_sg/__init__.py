@@ -27,6 +27,7 @@ _LAZY = {
     "Scene": ("warp_sg.scene", "Scene"),
     "load_scene": ("warp_sg.scene", "load_scene"),
     "render": ("warp_sg.render", "render"),
+    "Renderer": ("warp_sg.render", "Renderer"),
     "reference": ("warp_sg.reference", "reference"),
     "save_image": ("warp_sg.image_io", "save_image"),
     "load_image": ("warp_sg.image_io", "load_image"),

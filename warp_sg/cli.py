@@ -210,13 +210,9 @@ def _message(e: BaseException) -> str:
 def main(argv=None) -> int:
     """Entry point of the ``warp-sg`` console script. Returns the exit status."""
     argv = sys.argv[1:] if argv is None else [str(a) for a in argv]
-    try:  # keep the terminal for our own output (Warp's banner and module-load lines)
-        import warp as wp
+    from .device import quiet_warp
 
-        wp.config.log_level = getattr(wp, "LOG_ERROR", 40)  # Warp >= 1.19 (``quiet`` is gone)
-        wp.config.quiet = True  # older Warp
-    except ImportError:  # pragma: no cover
-        pass
+    quiet_warp()  # keep the terminal for our own output (Warp's banner and module-load lines)
     command = next((a for a in argv if not a.startswith("-")), None)
     parser = build_parser(command)
     args = parser.parse_args(argv)

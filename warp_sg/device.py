@@ -12,9 +12,15 @@ import warp as wp
 from .errors import InputError
 
 
+def quiet_warp() -> None:
+    """Keep Warp's banner and module-load lines off the terminal (errors still show)."""
+    wp.config.log_level = getattr(wp, "LOG_ERROR", 40)  # Warp >= 1.19 (``config.quiet`` is gone)
+    wp.config.quiet = True  # older Warp
+
+
 @functools.lru_cache(maxsize=None)
 def _init() -> None:
-    wp.config.quiet = True
+    quiet_warp()
     wp.init()
 
 

@@ -35,11 +35,11 @@ Images are ``(H, W, C)`` float32 numpy arrays of *linear* values, row 0 at the t
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from .atomic import atomic_output
 from .errors import ImageError
 
 EXR_EXTS = (".exr",)
@@ -144,26 +144,17 @@ def save_image(path, img, exposure: float = 0.0, half: bool = False) -> Path:
     if not folder.is_dir():
         raise ImageError(f"folder '{folder}' does not exist", where=str(path))
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".tmp{ext}", dir=folder)
-    except OSError as e:
-        raise ImageError(f"cannot write to folder '{folder}' ({e.strerror or e})", where=str(path)) from None
-    os.close(fd)
-    try:
-        if ext in EXR_EXTS:
-            _write_exr(tmp, a, half)
-        else:
-            _write_ldr(tmp, a, LDR_EXTS[ext], exposure)
-        os.replace(tmp, path)
-    except BaseException as e:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        if isinstance(e, ImageError):
-            raise
-        if isinstance(e, Exception):
-            raise ImageError(f"cannot write image ({type(e).__name__}: {e})", where=str(path)) from None
+        with atomic_output(path, suffix=f".tmp{ext}") as tmp:
+            if ext in EXR_EXTS:
+                _write_exr(tmp, a, half)
+            else:
+                _write_ldr(tmp, a, LDR_EXTS[ext], exposure)
+    except ImageError:
         raise
+    except PermissionError as e:
+        raise ImageError(f"cannot write to folder '{folder}' ({e.strerror or e})", where=str(path)) from None
+    except Exception as e:
+        raise ImageError(f"cannot write image ({type(e).__name__}: {e})", where=str(path)) from None
     return path
 
 

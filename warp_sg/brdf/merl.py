@@ -28,12 +28,11 @@ Tables in memory are float64 arrays of shape ``(3, 90, 90, 180)`` holding the *s
 from __future__ import annotations
 
 import functools
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from ..atomic import atomic_output
 from ..errors import InputError
 
 N_THETA_H = 90
@@ -219,16 +218,7 @@ def write_merl(path, table):
         raise InputError(f"expected a (3, 90, 90, 180) table, got shape {table.shape}", where=str(path))
     path = Path(path)
     raw = (table / SCALE[:, None, None, None]).astype("<f8")
-    fd, tmp = tempfile.mkstemp(dir=path.parent if str(path.parent) else ".", prefix=path.name, suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(np.asarray(SHAPE, dtype="<i4").tobytes())
-            fh.write(raw.tobytes())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    with atomic_output(path) as tmp, open(tmp, "wb") as fh:
+        fh.write(np.asarray(SHAPE, dtype="<i4").tobytes())
+        fh.write(raw.tobytes())
     return path
