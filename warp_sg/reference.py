@@ -45,11 +45,11 @@ import warp as wp
 from . import sampling as S
 from .device import resolve_device
 from .errors import InputError
-from .frames import frame_bitangent, frame_tangent, local_to_world, world_to_local
-from .textures import TextureAtlas
+from .frames import local_to_world, world_to_local
 
 from .brdf import material_wp as M  # noqa: E402  (contract: Material, pack_materials, brdf_*)
-from .textures import build_atlas, tex_sample  # noqa: E402
+from .surface import MaterialTextures, apply_shading_maps, tangent_in_plane, textured_material  # noqa: E402
+from .textures import build_atlas  # noqa: E402
 
 LIGHT_POINT = 0
 LIGHT_DIRECTIONAL = 1
@@ -82,60 +82,6 @@ class Geometry:
     has_tangents: int
     tri_material: wp.array(dtype=int)  # T
     eps: float  # shadow-ray offset (world units)
-
-
-@wp.struct
-class Textures:
-    """Per-material texture slots (columns as ``warp_sg.shading``: kd, ks, param 0, param 1,
-    normal map, tangent map; −1 = constant) into one atlas."""
-
-    enabled: int
-    slots: wp.array2d(dtype=int)
-    atlas: TextureAtlas
-
-
-@wp.func
-def _textured(mat: M.Material, tex: Textures, mi: int, uv: wp.vec2) -> M.Material:
-    """Per-texel parameters, exactly as ``shading.textured_material``."""
-    m = mat
-    s = tex.slots[mi, 0]
-    if s >= 0:
-        c = tex_sample(tex.atlas, s, uv)
-        m.kd = wp.vec3(wp.max(c[0], 0.0), wp.max(c[1], 0.0), wp.max(c[2], 0.0))
-    s = tex.slots[mi, 1]
-    if s >= 0:
-        c = tex_sample(tex.atlas, s, uv)
-        m.ks = wp.vec3(wp.max(c[0], 0.0), wp.max(c[1], 0.0), wp.max(c[2], 0.0))
-    p = m.params
-    s = tex.slots[mi, 2]
-    if s >= 0:
-        v = tex_sample(tex.atlas, s, uv)[0]
-        if m.model == 1:  # Oren-Nayar: σ -> (A, B, σ)
-            s2 = v * v
-            p = wp.vec4(1.0 - 0.5 * s2 / (s2 + 0.33), 0.45 * s2 / (s2 + 0.09), v, p[3])
-        else:
-            p = wp.vec4(wp.max(v, 1.0e-4), p[1], p[2], p[3])
-    s = tex.slots[mi, 3]
-    if s >= 0:
-        v = tex_sample(tex.atlas, s, uv)[0]
-        p = wp.vec4(p[0], wp.max(v, 1.0e-4), p[2], p[3])
-    m.params = p
-    return m
-
-
-@wp.func
-def _rotate_to(v: wp.vec3, a: wp.vec3, b: wp.vec3) -> wp.vec3:
-    """Minimal rotation taking unit a to unit b applied to v (as ``shading.rotate_to``)."""
-    k = wp.cross(a, b)
-    s = wp.length(k)
-    c = wp.dot(a, b)
-    if s < 1.0e-7:
-        if c > 0.0:
-            return v
-        t = frame_tangent(a)
-        return 2.0 * wp.dot(v, t) * t - v
-    k = k / s
-    return v * c + wp.cross(k, v) * s + k * (wp.dot(k, v) * (1.0 - c))
 
 
 @wp.func
@@ -321,7 +267,7 @@ def _shade_sample(
 def _reference_pass(
     geo: Geometry,
     materials: wp.array(dtype=M.Material),
-    tex: Textures,
+    tex: MaterialTextures,
     env: S.EnvSampler,
     lights: LightTable,
     origins: wp.array(dtype=wp.vec3),
@@ -370,34 +316,13 @@ def _reference_pass(
         ng = -ng  # the geometric normal on the side of the shading normal (shadow-ray offsets)
     mi = geo.tri_material[f]
     mat = materials[mi]
-    uv = wp.vec2(0.0, 0.0)
-    if tex.enabled != 0:
-        uv = b0 * geo.uvs[i0] + b1 * geo.uvs[i1] + b2 * geo.uvs[i2]
-        mat = _textured(mat, tex, mi, uv)
-    # shading frame as the renderer's: mesh tangent made orthogonal to the normal, normal/tangent maps
-    t = frame_tangent(n)
+    # texels and shading frame exactly as the renderer (warp_sg.surface); all-(−1) slots are a no-op
+    uv = b0 * geo.uvs[i0] + b1 * geo.uvs[i1] + b2 * geo.uvs[i2]
+    mat = textured_material(mat, tex, mi, uv)
+    tg = wp.vec3(0.0)
     if geo.has_tangents != 0:
         tg = b0 * geo.tangents[i0] + b1 * geo.tangents[i1] + b2 * geo.tangents[i2]
-        tg = tg - n * wp.dot(tg, n)
-        if wp.length(tg) >= 1.0e-6:
-            t = wp.normalize(tg)
-    if tex.enabled != 0:
-        s = tex.slots[mi, 4]
-        if s >= 0:
-            c = tex_sample(tex.atlas, s, uv)
-            nt = wp.vec3(2.0 * c[0] - 1.0, 2.0 * c[1] - 1.0, 2.0 * c[2] - 1.0)
-            if wp.length(nt) > 1.0e-6:
-                bs0 = wp.cross(n, t)
-                nn = wp.normalize(local_to_world(wp.normalize(nt), t, bs0, n))
-                t = wp.normalize(_rotate_to(t, n, nn))
-                n = nn
-        s = tex.slots[mi, 5]
-        if s >= 0:
-            c = tex_sample(tex.atlas, s, uv)
-            a = 2.0 * c[0] - 1.0
-            bb = 2.0 * c[1] - 1.0
-            if a * a + bb * bb > 1.0e-10:
-                t = wp.normalize(a * t + bb * wp.cross(n, t))
+    n, t = apply_shading_maps(tex, mi, uv, n, tangent_in_plane(tg, n))
     b = wp.cross(n, t)
     o = world_to_local(-rd, t, b, n)
     acc = wp.vec3(0.0)
@@ -528,16 +453,14 @@ class _Prepared:
         else:
             geo.tangents = wp.zeros(1, dtype=wp.vec3, device=device)
             geo.has_tangents = 0
-        tex = Textures()
+        tex = MaterialTextures()
         slots = inp.texture_slots
         if slots is not None and np.any(np.asarray(slots) >= 0):
             if inp.uvs is None:
                 raise InputError("textured materials need uvs", where="reference inputs")
-            tex.enabled = 1
             tex.slots = wp.array(np.ascontiguousarray(slots, np.int32), dtype=int, device=device)
             tex.atlas = build_atlas(list(inp.texture_images or []), device)
         else:
-            tex.enabled = 0
             tex.slots = wp.full((max(len(inp.materials), 1), 6), -1, dtype=int, device=device)
             tex.atlas = build_atlas([], device)
         self.tex = tex

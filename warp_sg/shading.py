@@ -44,25 +44,23 @@ thread pool (``raster.parallel.launch``; Warp runs one CPU launch on one core).
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the kernel annotations at definition
 # time and the kernel variants are closures.
-import math
 from dataclasses import dataclass
 
-import numpy as np
 import warp as wp
 
-from .brdf.material_wp import Material, brdf_diffuse, oren_nayar_params, slice_lobe, slice_lobe_count
+from .brdf.material_wp import Material, brdf_diffuse, slice_lobe, slice_lobe_count
 from .fh import fh_hemisphere_wp
 from .frames import frame_bitangent, frame_tangent, local_to_world, world_to_local
 from .lights import LightArrays, light_sg
 from .sg_wp import sg_inner, sg_integral, sg_product
+from .surface import (  # noqa: F401  (re-exported: slot constants, MaterialTextures)
+    N_SLOTS, SLOT_KD, SLOT_KS, SLOT_NORMAL, SLOT_P0, SLOT_P1, SLOT_TANGENT, MaterialTextures,
+    apply_shading_maps, tangent_in_plane, textured_material,
+)
 from .ssdf_product import sg_visibility_scale, sg_visibility_scale_sigmoid
-from .textures import TextureAtlas, tex_sample
+
 
 from precompute.ssdf_wp import ssdf_eval_bary  # noqa: E402
-
-#: texture slots per material (columns of ``MaterialTextures.slots``)
-SLOT_KD, SLOT_KS, SLOT_P0, SLOT_P1, SLOT_NORMAL, SLOT_TANGENT = range(6)
-N_SLOTS = 6
 
 ENV_NONE, ENV_SG, ENV_PREFILTERED = 0, 1, 2
 
@@ -80,14 +78,6 @@ class GeometryArrays:
     tangents: wp.array(dtype=wp.vec3)
     tris: wp.array(dtype=wp.vec3i)
     tri_material: wp.array(dtype=int)
-
-
-@wp.struct
-class MaterialTextures:
-    """``slots[m, s]``: texture index in ``atlas`` for material m and slot s (−1 = constant)."""
-
-    slots: wp.array2d(dtype=int)
-    atlas: TextureAtlas
 
 
 @wp.struct
@@ -158,50 +148,6 @@ def above(v: wp.vec3) -> wp.vec3:
     xy = wp.sqrt(wp.max(v[0] * v[0] + v[1] * v[1], 1.0e-30))
     s = wp.sqrt(1.0 - COS_MIN * COS_MIN) / xy
     return wp.vec3(v[0] * s, v[1] * s, COS_MIN)
-
-
-@wp.func
-def rotate_to(v: wp.vec3, a: wp.vec3, b: wp.vec3) -> wp.vec3:
-    """Apply the minimal rotation taking unit a to unit b (Rodrigues) to v."""
-    k = wp.cross(a, b)
-    s = wp.length(k)
-    c = wp.dot(a, b)
-    if s < 1.0e-7:
-        if c > 0.0:
-            return v
-        # opposite: rotate by π about any axis orthogonal to a
-        t = frame_tangent(a)
-        return 2.0 * wp.dot(v, t) * t - v
-    k = k / s
-    return v * c + wp.cross(k, v) * s + k * (wp.dot(k, v) * (1.0 - c))
-
-
-@wp.func
-def textured_material(mat: Material, tex: MaterialTextures, mi: int, uv: wp.vec2) -> Material:
-    """Per-texel material parameters (kd, ks, model parameters 0 and 1; Oren-Nayar σ → A, B)."""
-    m = mat
-    s = tex.slots[mi, 0]
-    if s >= 0:
-        c = tex_sample(tex.atlas, s, uv)
-        m.kd = wp.vec3(wp.max(c[0], 0.0), wp.max(c[1], 0.0), wp.max(c[2], 0.0))
-    s = tex.slots[mi, 1]
-    if s >= 0:
-        c = tex_sample(tex.atlas, s, uv)
-        m.ks = wp.vec3(wp.max(c[0], 0.0), wp.max(c[1], 0.0), wp.max(c[2], 0.0))
-    p = m.params
-    s = tex.slots[mi, 2]
-    if s >= 0:
-        v = tex_sample(tex.atlas, s, uv)[0]
-        if m.model == 1:  # Oren-Nayar: σ -> (A, B, σ)
-            p = oren_nayar_params(wp.max(v, 0.0))
-        else:
-            p = wp.vec4(wp.max(v, 1.0e-4), p[1], p[2], p[3])
-    s = tex.slots[mi, 3]
-    if s >= 0:
-        v = tex_sample(tex.atlas, s, uv)[0]
-        p = wp.vec4(p[0], wp.max(v, 1.0e-4), p[2], p[3])
-    m.params = p
-    return m
 
 
 @wp.func
@@ -288,30 +234,11 @@ def shade_kernel(f: Features):
         if wp.static(TEX):
             mat = textured_material(mat, tex, mi, uv)
 
-        # shading frame: mesh tangent made orthogonal to the normal
-        tg = geo.tangents[i0] * b0 + geo.tangents[i1] * b1 + geo.tangents[i2] * b2
-        tg = tg - ng * wp.dot(tg, ng)
-        if wp.length(tg) < 1.0e-6:
-            tg = td
-        ts = wp.normalize(tg)
+        # shading frame: mesh tangent made orthogonal to the normal, then normal/tangent maps
+        ts = tangent_in_plane(geo.tangents[i0] * b0 + geo.tangents[i1] * b1 + geo.tangents[i2] * b2, ng)
         ns = ng
         if wp.static(NMAP):
-            s = tex.slots[mi, 4]
-            if s >= 0:
-                c = tex_sample(tex.atlas, s, uv)
-                nt = wp.vec3(2.0 * c[0] - 1.0, 2.0 * c[1] - 1.0, 2.0 * c[2] - 1.0)
-                if wp.length(nt) > 1.0e-6:
-                    bs0 = wp.cross(ng, ts)
-                    nn = wp.normalize(local_to_world(wp.normalize(nt), ts, bs0, ng))
-                    ts = wp.normalize(rotate_to(ts, ng, nn))
-                    ns = nn
-            s = tex.slots[mi, 5]
-            if s >= 0:
-                c = tex_sample(tex.atlas, s, uv)
-                a = 2.0 * c[0] - 1.0
-                bb = 2.0 * c[1] - 1.0
-                if a * a + bb * bb > 1.0e-10:
-                    ts = wp.normalize(a * ts + bb * wp.cross(ns, ts))
+            ns, ts = apply_shading_maps(tex, mi, uv, ng, ts)
         bs = wp.cross(ns, ts)
         o_l = above(world_to_local(o, ts, bs, ns))
 

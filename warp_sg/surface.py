@@ -1,0 +1,101 @@
+"""The shading point's surface description, shared by the SG renderer (``warp_sg.shading``) and the
+Monte-Carlo reference (``warp_sg.reference``) so both shade exactly the same surface:
+per-texel material parameters (paper §7, spatially varying BRDFs) and the shading frame with
+normal and tangent maps (§7: a per-point rotation applied to the lobes and to the view).
+"""
+from __future__ import annotations
+
+import warp as wp
+
+from .brdf.material_wp import Material, oren_nayar_params
+from .frames import frame_tangent, local_to_world
+from .textures import TextureAtlas, tex_sample
+
+#: texture slots per material (columns of ``MaterialTextures.slots``)
+SLOT_KD, SLOT_KS, SLOT_P0, SLOT_P1, SLOT_NORMAL, SLOT_TANGENT = range(6)
+N_SLOTS = 6
+
+
+@wp.struct
+class MaterialTextures:
+    """``slots[m, s]``: texture index in ``atlas`` for material m and slot s (−1 = constant)."""
+
+    slots: wp.array2d(dtype=int)
+    atlas: TextureAtlas
+
+
+@wp.func
+def rotate_to(v: wp.vec3, a: wp.vec3, b: wp.vec3) -> wp.vec3:
+    """Apply the minimal rotation taking unit a to unit b (Rodrigues) to v."""
+    k = wp.cross(a, b)
+    s = wp.length(k)
+    c = wp.dot(a, b)
+    if s < 1.0e-7:
+        if c > 0.0:
+            return v
+        # opposite: rotate by π about any axis orthogonal to a
+        t = frame_tangent(a)
+        return 2.0 * wp.dot(v, t) * t - v
+    k = k / s
+    return v * c + wp.cross(k, v) * s + k * (wp.dot(k, v) * (1.0 - c))
+
+
+@wp.func
+def textured_material(mat: Material, tex: MaterialTextures, mi: int, uv: wp.vec2) -> Material:
+    """Per-texel material parameters (kd, ks, model parameters 0 and 1; Oren-Nayar σ → A, B)."""
+    m = mat
+    s = tex.slots[mi, 0]
+    if s >= 0:
+        c = tex_sample(tex.atlas, s, uv)
+        m.kd = wp.vec3(wp.max(c[0], 0.0), wp.max(c[1], 0.0), wp.max(c[2], 0.0))
+    s = tex.slots[mi, 1]
+    if s >= 0:
+        c = tex_sample(tex.atlas, s, uv)
+        m.ks = wp.vec3(wp.max(c[0], 0.0), wp.max(c[1], 0.0), wp.max(c[2], 0.0))
+    p = m.params
+    s = tex.slots[mi, 2]
+    if s >= 0:
+        v = tex_sample(tex.atlas, s, uv)[0]
+        if m.model == 1:  # Oren-Nayar: σ -> (A, B, σ)
+            p = oren_nayar_params(wp.max(v, 0.0))
+        else:
+            p = wp.vec4(wp.max(v, 1.0e-4), p[1], p[2], p[3])
+    s = tex.slots[mi, 3]
+    if s >= 0:
+        v = tex_sample(tex.atlas, s, uv)[0]
+        p = wp.vec4(p[0], wp.max(v, 1.0e-4), p[2], p[3])
+    m.params = p
+    return m
+
+
+@wp.func
+def tangent_in_plane(tg: wp.vec3, n: wp.vec3) -> wp.vec3:
+    """The mesh tangent made orthogonal to n; the Duff frame's tangent when there is none."""
+    t = tg - n * wp.dot(tg, n)
+    if wp.length(t) < 1.0e-6:
+        return frame_tangent(n)
+    return wp.normalize(t)
+
+
+@wp.func
+def apply_shading_maps(tex: MaterialTextures, mi: int, uv: wp.vec2, n: wp.vec3, t: wp.vec3):
+    """Normal map (tangent-space RGB → normal, the tangent rotated along with it) then tangent map
+    (RG → in-plane tangent direction). Returns the shading (normal, tangent)."""
+    ns = n
+    ts = t
+    s = tex.slots[mi, SLOT_NORMAL]
+    if s >= 0:
+        c = tex_sample(tex.atlas, s, uv)
+        nt = wp.vec3(2.0 * c[0] - 1.0, 2.0 * c[1] - 1.0, 2.0 * c[2] - 1.0)
+        if wp.length(nt) > 1.0e-6:
+            nn = wp.normalize(local_to_world(wp.normalize(nt), ts, wp.cross(n, ts), n))
+            ts = wp.normalize(rotate_to(ts, n, nn))
+            ns = nn
+    s = tex.slots[mi, SLOT_TANGENT]
+    if s >= 0:
+        c = tex_sample(tex.atlas, s, uv)
+        a = 2.0 * c[0] - 1.0
+        b = 2.0 * c[1] - 1.0
+        if a * a + b * b > 1.0e-10:
+            ts = wp.normalize(a * ts + b * wp.cross(ns, ts))
+    return ns, ts
