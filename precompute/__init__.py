@@ -5,7 +5,7 @@ Names load on first use (PEP 562) so importing one step does not compile the oth
 """
 from __future__ import annotations
 
-import importlib
+from warp_sg.lazy import lazy_getattr
 
 _LAZY = {
     "cache": ("precompute.cache", None),
@@ -27,14 +27,7 @@ _LAZY = {
 }
 
 
-def __getattr__(name):
-    if name in _LAZY:
-        mod, attr = _LAZY[name]
-        m = importlib.import_module(mod)
-        val = m if attr is None else getattr(m, attr)
-        globals()[name] = val
-        return val
-    raise AttributeError(f"module 'precompute' has no attribute {name!r}")
+__getattr__ = lazy_getattr(globals(), _LAZY)
 
 
 __all__ = list(_LAZY)

@@ -15,10 +15,9 @@ loading load on first use (PEP 562), so ``raster`` and ``precompute`` can import
 """
 from __future__ import annotations
 
-import importlib
-
 from . import errors, sg
 from .errors import InputError
+from .lazy import lazy_getattr
 
 __version__ = "0.1.0"
 
@@ -34,14 +33,7 @@ _LAZY = {
 }
 
 
-def __getattr__(name):
-    if name in _LAZY:
-        mod, attr = _LAZY[name]
-        m = importlib.import_module(mod)
-        val = m if attr is None else getattr(m, attr)
-        globals()[name] = val
-        return val
-    raise AttributeError(f"module 'warp_sg' has no attribute {name!r}")
+__getattr__ = lazy_getattr(globals(), _LAZY)
 
 
 __all__ = ["errors", "sg", "InputError", *_LAZY]
