@@ -595,41 +595,11 @@ def render_reference_inputs(
 # --------------------------------------------------------------------------------------------
 def texture_tables(scene, material_names):
     """(slots (n_materials, 6) int, images [(h, w, 4)]) for the scene's textured parameters and
-    normal/tangent maps, with the renderer's slot layout (``warp_sg.render.Renderer``)."""
+    normal/tangent maps, with the renderer's slot layout (``warp_sg.surface``)."""
     from .scene import COLOUR_PARAMS
-    from .shading import N_SLOTS, SLOT_KD, SLOT_KS, SLOT_NORMAL, SLOT_P0, SLOT_P1, SLOT_TANGENT
+    from .surface import material_texture_slots
 
-    mats = [scene.materials[n] for n in material_names]
-    slots = np.full((max(len(mats), 1), N_SLOTS), -1, np.int32)
-    images, index = [], {}
-
-    def add(tex, colour, raw):
-        key = (id(tex), colour, raw)
-        if key not in index:
-            index[key] = len(images)
-            images.append(tex.raw() if raw else tex.rgba(colour=colour))
-        return index[key]
-
-    for mi, m in enumerate(mats):
-        for pname, tex in m.textures.items():
-            t = add(tex, pname in COLOUR_PARAMS, False)
-            if pname == "kd":
-                slots[mi, SLOT_KD] = t
-            elif pname == "ks":
-                slots[mi, SLOT_KS] = t
-            elif pname in ("m", "n", "nu", "alpha", "alpha_x", "sigma"):
-                slots[mi, SLOT_P0] = t
-                if pname == "alpha":
-                    slots[mi, SLOT_P1] = t
-            elif pname in ("nv", "alpha_y"):
-                slots[mi, SLOT_P1] = t
-            else:
-                raise InputError(f"parameter '{pname}' cannot be a texture", where=f"[materials.{m.name}]")
-        if m.normal_map is not None:
-            slots[mi, SLOT_NORMAL] = add(m.normal_map, False, True)
-        if m.tangent_map is not None:
-            slots[mi, SLOT_TANGENT] = add(m.tangent_map, False, True)
-    return slots, images
+    return material_texture_slots([scene.materials[n] for n in material_names], COLOUR_PARAMS)
 
 
 def inputs_from_scene(scene, device="cpu") -> ReferenceInputs:

@@ -35,6 +35,7 @@ from .errors import InputError, SceneError
 from .lights import DirectionalLight, EnvironmentLight, PointLight, light_arrays
 from .scene import COLOUR_PARAMS, Material, Scene
 from .sg import CLAMPED_COSINE_AMPLITUDE, CLAMPED_COSINE_SHARPNESS
+from .surface import material_texture_slots
 from . import shading as S
 from .textures import Texture, build_atlas
 
@@ -219,42 +220,10 @@ class Renderer:
         except InputError as e:
             raise SceneError(f"materials: {e}") from None
         self.has_specular = any(r["model"] >= 2 for r in self.material_table.records)
-        # textures
-        images, slots = [], np.full((max(len(mats), 1), S.N_SLOTS), -1, np.int32)
-        index = {}
-
-        def add(tex: Texture, colour: bool, raw: bool):
-            key = (id(tex), colour, raw)
-            if key not in index:
-                index[key] = len(images)
-                images.append(tex.raw() if raw else tex.rgba(colour=colour))
-            return index[key]
-
-        self.has_textures = False
-        self.has_normal_maps = False
-        for mi, m in enumerate(mats):
-            for pname, tex in m.textures.items():
-                colour = pname in COLOUR_PARAMS
-                t = add(tex, colour, False)
-                self.has_textures = True
-                if pname == "kd":
-                    slots[mi, S.SLOT_KD] = t
-                elif pname == "ks":
-                    slots[mi, S.SLOT_KS] = t
-                elif pname in ("m", "n", "nu", "alpha", "alpha_x", "sigma"):
-                    slots[mi, S.SLOT_P0] = t
-                    if pname == "alpha":
-                        slots[mi, S.SLOT_P1] = t
-                elif pname in ("nv", "alpha_y"):
-                    slots[mi, S.SLOT_P1] = t
-                else:
-                    raise SceneError(f"[materials.{m.name}] parameter '{pname}' cannot be a texture")
-            if m.normal_map is not None:
-                slots[mi, S.SLOT_NORMAL] = add(m.normal_map, False, True)
-                self.has_normal_maps = True
-            if m.tangent_map is not None:
-                slots[mi, S.SLOT_TANGENT] = add(m.tangent_map, False, True)
-                self.has_normal_maps = True
+        # textures (atlas layout shared with the reference: warp_sg.surface)
+        slots, images = material_texture_slots(mats, COLOUR_PARAMS)
+        self.has_textures = bool(np.any(slots[:, :S.SLOT_NORMAL] >= 0))
+        self.has_normal_maps = bool(np.any(slots[:, S.SLOT_NORMAL:] >= 0))
         mt = S.MaterialTextures()
         mt.slots = wp.array(slots, dtype=int, device=self.device)
         mt.atlas = build_atlas(images, self.device)

@@ -5,9 +5,11 @@ normal and tangent maps (§7: a per-point rotation applied to the lobes and to t
 """
 from __future__ import annotations
 
+import numpy as np
 import warp as wp
 
 from .brdf.material_wp import Material, oren_nayar_params
+from .errors import SceneError
 from .frames import frame_tangent, local_to_world
 from .textures import TextureAtlas, tex_sample
 
@@ -99,3 +101,37 @@ def apply_shading_maps(tex: MaterialTextures, mi: int, uv: wp.vec2, n: wp.vec3, 
         if a * a + b * b > 1.0e-10:
             ts = wp.normalize(a * ts + b * wp.cross(ns, ts))
     return ns, ts
+
+
+#: material parameters a texture may drive, by slot (``alpha`` drives both roughness slots)
+_PARAM_SLOTS = {"kd": (SLOT_KD,), "ks": (SLOT_KS,), "m": (SLOT_P0,), "n": (SLOT_P0,), "nu": (SLOT_P0,),
+                "alpha_x": (SLOT_P0,), "sigma": (SLOT_P0,), "alpha": (SLOT_P0, SLOT_P1),
+                "nv": (SLOT_P1,), "alpha_y": (SLOT_P1,)}
+
+
+def material_texture_slots(materials, colour_params):
+    """``(slots (n_materials, N_SLOTS) int32, images [(h, w, 4)])``: the texture atlas layout of
+    ``MaterialTextures`` for scene materials (textured parameters, normal and tangent maps), shared
+    by the renderer and the reference. Images used twice are stored once."""
+    slots = np.full((max(len(materials), 1), N_SLOTS), -1, np.int32)
+    images, index = [], {}
+
+    def add(tex, colour: bool, raw: bool) -> int:
+        key = (id(tex), colour, raw)
+        if key not in index:
+            index[key] = len(images)
+            images.append(tex.raw() if raw else tex.rgba(colour=colour))
+        return index[key]
+
+    for mi, m in enumerate(materials):
+        for pname, tex in m.textures.items():
+            if pname not in _PARAM_SLOTS:
+                raise SceneError(f"parameter '{pname}' cannot be a texture", where=f"[materials.{m.name}]")
+            t = add(tex, pname in colour_params, False)
+            for slot in _PARAM_SLOTS[pname]:
+                slots[mi, slot] = t
+        if m.normal_map is not None:
+            slots[mi, SLOT_NORMAL] = add(m.normal_map, False, True)
+        if m.tangent_map is not None:
+            slots[mi, SLOT_TANGENT] = add(m.tangent_map, False, True)
+    return slots, images
