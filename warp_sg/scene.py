@@ -69,37 +69,7 @@ from .textures import Texture
 # --------------------------------------------------------------------------------------------
 # camera
 # --------------------------------------------------------------------------------------------
-try:  # the rasterizer's camera when it is importable
-    from raster import Camera  # type: ignore
-except Exception:  # noqa: BLE001 - raster is built concurrently; keep a stand-in with the same fields
-
-    @dataclass
-    class Camera:  # type: ignore[no-redef]
-        """Stand-in for ``raster.Camera`` (same fields): pinhole, vertical ``fov`` in degrees."""
-
-        origin: tuple = (0.0, 1.0, 4.0)
-        target: tuple = (0.0, 0.0, 0.0)
-        up: tuple = (0.0, 1.0, 0.0)
-        fov: float = 40.0
-        width: int = 256
-        height: int = 256
-        near: float = 1e-2
-        far: float = 1e4
-
-        def ray_directions(self, supersample: int = 1) -> np.ndarray:
-            k = int(supersample)
-            o, t, u = (np.asarray(x, np.float64) for x in (self.origin, self.target, self.up))
-            f = (t - o) / np.linalg.norm(t - o)
-            r = np.cross(f, u)
-            r /= np.linalg.norm(r)
-            uu = np.cross(r, f)
-            h, w = self.height * k, self.width * k
-            th = math.tan(math.radians(self.fov) / 2)
-            x = ((np.arange(w) + 0.5) / w * 2 - 1) * th * w / h
-            y = (1 - (np.arange(h) + 0.5) / h * 2) * th
-            d = f + x[None, :, None] * r + y[:, None, None] * uu
-            return (d / np.linalg.norm(d, axis=-1, keepdims=True)).astype(np.float32)
-
+from raster import Camera  # noqa: E402  (the scene's camera is the rasterizer's)
 
 CAMERA_KEYS = ("origin", "target", "up", "fov", "width", "height", "near", "far")
 
