@@ -66,6 +66,10 @@ ENV_NONE, ENV_SG, ENV_PREFILTERED = 0, 1, 2
 
 #: smallest cosine of the (clamped) view / lobe directions in the shading frame
 COS_MIN = wp.constant(1.0e-3)
+#: n·o range over which the specular cosine moves from the SG product (eq. 41) to its value at
+#: the slice lobe's axis (see the specular block of the shading kernel)
+GRAZE_LO = wp.constant(0.1)
+GRAZE_HI = wp.constant(0.35)
 
 
 @wp.struct
@@ -271,29 +275,40 @@ def shade_kernel(f: Features):
                         th = vis_theta(SHADOWS, vis, pa, ng, td, bd, i0, i1, i2, b0, b1, b2)
                         w = mc * sc * vis_scale(FH, vis, th, lam) * fh_hemisphere_wp(lam)
                         col += wp.cw_mul(lm, diffuse_at(mat, o_l, world_to_local(pa, ts, bs, ns))) * w
-            # ---------------- specular (eq. 41, 43) ----------------
-            if wp.static(SPEC):
-                for k in range(nspec):
-                    pw_l, lw, mw = slice_lobe(mat, o_l, k)
-                    if wp.length_sq(mw) > 0.0:
-                        pw = local_to_world(pw_l, ts, bs, ns)
-                        pa, lam, sc = sg_product(ns, lc, pw, lw)  # C* ⊗ ρ*_k
-                        amp = mw * (mc * sc)
-                        if wp.static(ENV_S == 2):
-                            th = vis_theta(SHADOWS, vis, pa, ng, td, bd, i0, i1, i2, b0, b1, b2)
-                            g = gamma_lookup(gamma, pa, lam)
-                            col += wp.cw_mul(amp, g) * vis_fraction(FH, vis, th, lam)
-                        if wp.static(ENV_S == 1):
-                            th = vis_theta(SHADOWS, vis, pa, ng, td, bd, i0, i1, i2, b0, b1, b2)
-                            vs = vis_fraction(FH, vis, th, lam)
-                            for j in range(env.count):
-                                col += wp.cw_mul(amp, env.mu[j]) * (vs * sg_inner(pa, lam, env.axis[j], env.lam[j]))
-                        if wp.static(LIGHTS):
-                            for j in range(lights.count):
-                                la, ll, lm = light_sg(lights, j, P)
-                                pb, lb, s2 = sg_product(pa, lam, la, ll)
-                                th = vis_theta(SHADOWS, vis, pb, ng, td, bd, i0, i1, i2, b0, b1, b2)
-                                col += wp.cw_mul(amp, lm) * (s2 * vis_scale(FH, vis, th, lb) * fh_hemisphere_wp(lb))
+        # ---------------- specular (eq. 41, 43) ----------------
+        # C* ⊗ ρ*_k (eq. 41). At grazing views the clamped-cosine SG (0.14 at the horizon, where
+        # cos is 0) times Mo ∝ 1/(n·i) grows as 1/(n·o) (silhouette sparkles); there the cosine is
+        # taken at the slice lobe's axis instead (exact there), blended in as n·o falls from
+        # GRAZE_HI to GRAZE_LO so the image shows no seam.
+        if wp.static(SPEC):
+            wpull = wp.clamp((GRAZE_HI - o_l[2]) / (GRAZE_HI - GRAZE_LO), 0.0, 1.0)
+            for k in range(nspec):
+                pw_l, lw, mw = slice_lobe(mat, o_l, k)
+                if wp.length_sq(mw) > 0.0:
+                    pw = local_to_world(pw_l, ts, bs, ns)
+                    for c in range(cc.count + 1):
+                        pa = pw
+                        lam = lw
+                        amp = mw * (wpull * wp.max(pw_l[2], 0.0))
+                        if c < cc.count:
+                            pa, lam, sc = sg_product(ns, cc.lam[c], pw, lw)  # C* ⊗ ρ*_k
+                            amp = mw * ((1.0 - wpull) * cc.mu[c] * sc)
+                        if wp.length_sq(amp) > 0.0:
+                            if wp.static(ENV_S == 2):
+                                th = vis_theta(SHADOWS, vis, pa, ng, td, bd, i0, i1, i2, b0, b1, b2)
+                                g = gamma_lookup(gamma, pa, lam)
+                                col += wp.cw_mul(amp, g) * vis_fraction(FH, vis, th, lam)
+                            if wp.static(ENV_S == 1):
+                                th = vis_theta(SHADOWS, vis, pa, ng, td, bd, i0, i1, i2, b0, b1, b2)
+                                vs = vis_fraction(FH, vis, th, lam)
+                                for j in range(env.count):
+                                    col += wp.cw_mul(amp, env.mu[j]) * (vs * sg_inner(pa, lam, env.axis[j], env.lam[j]))
+                            if wp.static(LIGHTS):
+                                for j in range(lights.count):
+                                    la, ll, lm = light_sg(lights, j, P)
+                                    pb, lb, s2 = sg_product(pa, lam, la, ll)
+                                    th = vis_theta(SHADOWS, vis, pb, ng, td, bd, i0, i1, i2, b0, b1, b2)
+                                    col += wp.cw_mul(amp, lm) * (s2 * vis_scale(FH, vis, th, lb) * fh_hemisphere_wp(lb))
         # multi-lobe clamped cosines have signed amplitudes: keep radiance non-negative
         out[y, x] = wp.vec3(wp.max(col[0], 0.0), wp.max(col[1], 0.0), wp.max(col[2], 0.0))
 
