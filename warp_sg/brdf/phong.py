@@ -24,33 +24,10 @@ def _cos_pow(v, n):
         return np.where(vz > 0, np.exp(n * log_cos_theta(v)), 0.0)
 
 
-class BlinnPhong(SpecularBRDF):
-    NAME = "blinn_phong"
-    MODEL_ID = 3
-    PARAMS = ("kd", "ks", "n")
+class _CosinePower(SpecularBRDF):
+    """Shared by Phong and Blinn–Phong: parameters (kd, ks, n), ``Mo = (n+2)/(2π)``, analytic SG
+    sharpness ``λ = n`` and the kernel parameters."""
 
-    def __init__(self, kd=(0.0, 0.0, 0.0), ks=(1.0, 1.0, 1.0), n=50.0):
-        self.kd = as_rgb(kd, "kd")
-        self.ks = as_rgb(ks, "ks")
-        self.n = as_scalar(n, "n", lo=0.0)
-
-    def mo(self, o, i):
-        o, i = dirs(o, i)
-        return np.full(o.shape[:-1] + (3,), (self.n + 2.0) / (2.0 * np.pi))
-
-    def ndf(self, h):
-        return _cos_pow(np.asarray(h, dtype=np.float64), self.n)
-
-    def ndf_analytic_lambda(self):
-        return max(self.n, 1e-6)
-
-    def kernel_params(self):
-        return (self.n, 0.0, 0.0, 0.0)
-
-
-class Phong(SpecularBRDF):
-    NAME = "phong"
-    MODEL_ID = 2
     PARAMS = ("kd", "ks", "n")
 
     def __init__(self, kd=(0.0, 0.0, 0.0), ks=(1.0, 1.0, 1.0), n=50.0):
@@ -63,8 +40,25 @@ class Phong(SpecularBRDF):
         return np.full(o.shape[:-1] + (3,), (self.n + 2.0) / (2.0 * np.pi))
 
     def ndf(self, v):
-        """Lobe ``max(0, v_z)^n`` of the direction ``v`` expressed in the mirror frame (v_z = r·i)."""
+        """``max(0, v_z)^n``: of the half vector (Blinn–Phong) or of the direction expressed in the
+        mirror frame, ``v_z = r·i`` (Phong)."""
         return _cos_pow(np.asarray(v, dtype=np.float64), self.n)
+
+    def ndf_analytic_lambda(self):
+        return max(self.n, 1e-6)
+
+    def kernel_params(self):
+        return (self.n, 0.0, 0.0, 0.0)
+
+
+class BlinnPhong(_CosinePower):
+    NAME = "blinn_phong"
+    MODEL_ID = 3
+
+
+class Phong(_CosinePower):
+    NAME = "phong"
+    MODEL_ID = 2
 
     def specular(self, o, i):
         o, i = dirs(o, i)
@@ -78,9 +72,3 @@ class Phong(SpecularBRDF):
         val = (self.n + 2.0) / (2.0 * np.pi) * lobe
         up = (o[..., 2] > 0) & (i[..., 2] > 0)
         return np.where(up[..., None], val[..., None] * np.ones(3), 0.0)
-
-    def ndf_analytic_lambda(self):
-        return max(self.n, 1e-6)
-
-    def kernel_params(self):
-        return (self.n, 0.0, 0.0, 0.0)
