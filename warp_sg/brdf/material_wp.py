@@ -43,7 +43,7 @@ from ..errors import InputError
 from ..frames import frame_bitangent, frame_tangent
 from .fit import is_anisotropic as _is_anisotropic
 from .fit import lobe_count as _lobe_count
-from .measured_wp import measured_mo, merl_eval
+from .measured_wp import fresnel_dielectric, measured_mo, merl_eval
 
 MODEL_LAMBERT = wp.constant(0)
 MODEL_OREN_NAYAR = wp.constant(1)
@@ -170,20 +170,8 @@ def fresnel_eval(mat: Material, c_in: float) -> wp.vec3:
         q2 = q * q
         return f0 + (wp.vec3(1.0, 1.0, 1.0) - f0) * (q2 * q2 * q)
     if kind == 2:
-        out = wp.vec3(1.0, 1.0, 1.0)
-        for ch in range(3):
-            eta = mat.fresnel_a[ch]
-            g2 = eta * eta + c * c - 1.0
-            if g2 > 0.0:
-                g = wp.sqrt(g2)
-                a = (g - c) * (g - c) / wp.max(2.0 * (g + c) * (g + c), 1.0e-30)
-                num = c * (g + c) - 1.0
-                den = c * (g - c) + 1.0
-                if wp.abs(den) < 1.0e-30:
-                    den = 1.0e-30
-                r = num / den
-                out[ch] = wp.clamp(a * (1.0 + r * r), 0.0, 1.0)
-        return out
+        eta = mat.fresnel_a
+        return wp.vec3(fresnel_dielectric(eta[0], c), fresnel_dielectric(eta[1], c), fresnel_dielectric(eta[2], c))
     if kind == 3:
         out = wp.vec3(1.0, 1.0, 1.0)
         c2 = c * c
