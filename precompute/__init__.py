@@ -18,6 +18,8 @@ _LAZY = {
     "ssdf_for_mesh": ("precompute.ssdf", "ssdf_for_mesh"),
     "compute_ssdf": ("precompute.ssdf", "compute_ssdf"),
     "ray_visibility": ("precompute.visibility", "ray_visibility"),
+    "Refinement": ("precompute.refine", "Refinement"),
+    "refine_for_visibility": ("precompute.refine", "refine_for_visibility"),
     "envmap": ("precompute.envmap", None),
     "load_envmap": ("precompute.envmap", "load_envmap"),
     "procedural_sky": ("precompute.envmap", "procedural_sky"),
