@@ -23,11 +23,26 @@ precompute time)::
     # per pixel, triangle (i0, i1, i2), barycentrics (b0, b1, b2):
     theta_d = ssdf_eval_bary(mean, basis, w, i0, i1, i2, b0, b1, b2, d)
     # or at one vertex:  ssdf_eval_vertex(mean, basis, w, v, d)
+
+**Frame seam and** :func:`ssdf_eval_world`. Each vertex's SSDF is stored in *that vertex's* frame
+(:mod:`warp_sg.frames`, Duff et al.). That frame field is discontinuous where ``n.z`` changes sign:
+across it the tangent turns by up to 180° about the normal (``t⁺·t⁻ = n_y² − n_x²`` on ``n.z = 0``).
+On a triangle whose vertices lie on both sides, blending PCA weights and looking them up in the
+pixel's frame (:func:`ssdf_eval_bary`) reads some vertices' maps at directions rotated by up to
+180° — a visible seam in the shadows. :func:`ssdf_eval_world` takes a *world* direction and
+evaluates the SSDF of each vertex whose frame is far from the pixel frame in that vertex's own frame,
+``V^d_k(F_k^T p)``, and interpolates with the barycentrics; vertices whose frames agree with the
+pixel frame share the one-lookup blended-weight path (see its docstring)::
+
+    normals = wp.array(unit per-vertex normals used by ssdf_for_mesh, dtype=wp.vec3)   # (V,)
+    theta_d = ssdf_eval_world(mean, basis, w, normals, i0, i1, i2, b0, b1, b2, p_world, ng)
 """
 from __future__ import annotations
 
 import numpy as np
 import warp as wp
+
+from warp_sg.frames import frame_basis, frame_bitangent, frame_tangent, world_to_local
 
 _PI_4 = np.pi / 4.0
 _PI_2 = np.pi / 2.0
@@ -113,6 +128,68 @@ def ssdf_eval_np(mean, basis, weights, d):
     v = lookup_np(img, d)
     below = z < 0
     return np.where(below, np.minimum(v, 0.0) - np.arcsin(np.clip(-z, 0, 1)), v)
+
+
+def _maps_at_np(mean, basis, d):
+    """Bilinear values of the mean (N,) and of every basis image (N, NV) at local directions d (N, 3)."""
+    R = mean.shape[-1]
+    a, b = dir_to_concentric(d)
+    x = np.clip((a + 1.0) * 0.5 * R - 0.5, 0.0, R - 1.0)
+    y = np.clip((b + 1.0) * 0.5 * R - 0.5, 0.0, R - 1.0)
+    x0 = np.minimum(np.floor(x).astype(int), R - 2)
+    y0 = np.minimum(np.floor(y).astype(int), R - 2)
+    fx = x - x0
+    fy = y - y0
+    img = np.concatenate([np.asarray(mean, np.float64)[None], np.asarray(basis, np.float64)])  # (1+NV, R, R)
+    v = (img[:, y0, x0] * (1 - fx) * (1 - fy) + img[:, y0, x0 + 1] * fx * (1 - fy)
+         + img[:, y0 + 1, x0] * (1 - fx) * fy + img[:, y0 + 1, x0 + 1] * fx * fy)
+    return v[0], v[1:].T
+
+
+def _frame_cos_np(nk, t, b, n):
+    """cos of the rotation angle between the frame of unit normals nk and the frame (t, b, n)."""
+    from warp_sg.frames import frame_from_normal
+
+    tk, bk = frame_from_normal(nk)
+    return 0.5 * (np.sum(tk * t, -1) + np.sum(bk * b, -1) + np.sum(nk * n, -1) - 1.0)
+
+
+def _smoothstep_np(e0, e1, x):
+    u = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
+    return u * u * (3.0 - 2.0 * u)
+
+
+def ssdf_eval_world_np(mean, basis, weights, normals, tris, bary, p_world, ng):
+    """numpy twin of :func:`ssdf_eval_world` (float64) for N points: ``tris`` (N, 3) vertex ids,
+    ``bary`` (N, 3), ``p_world`` (N, 3) unit world directions, ``ng`` (N, 3) unit shading normals."""
+    from warp_sg.frames import frame_from_normal, to_local
+
+    weights = np.asarray(weights, np.float64)
+    normals = np.asarray(normals, np.float64)
+    tris = np.asarray(tris)
+    bary = np.asarray(bary, np.float64)
+    p = np.asarray(p_world, np.float64)
+    ng = np.asarray(ng, np.float64)
+    t, b = frame_from_normal(ng)
+    nk = normals[tris]
+    nk = nk / np.linalg.norm(nk, axis=-1, keepdims=True)  # (N, 3, 3)
+    lo, hi = float(FRAME_COS_EXACT), float(FRAME_COS_FAST)
+    alpha = _smoothstep_np(lo, hi, _frame_cos_np(nk, t[:, None], b[:, None], ng[:, None]))  # (N, 3)
+    c = alpha * bary
+    d = np.stack([np.sum(p * t, -1), np.sum(p * b, -1), np.sum(p * ng, -1)], -1)
+    m, B = _maps_at_np(mean, basis, d)
+    csum = c.sum(-1)
+    u = csum * m + np.einsum("nk,nkj,nj->n", c, weights[tris], B)
+    z = d[:, 2]
+    out = np.where(z < 0, np.minimum(u, 0.0) - csum * np.arcsin(np.clip(-z, 0, 1)), u)
+    for k in range(3):
+        dk = to_local(p, nk[:, k])
+        mk, Bk = _maps_at_np(mean, basis, dk)
+        vk = mk + np.sum(weights[tris[:, k]] * Bk, -1)
+        zk = dk[:, 2]
+        vk = np.where(zk < 0, np.minimum(vk, 0.0) - np.arcsin(np.clip(-zk, 0, 1)), vk)
+        out = out + (1.0 - alpha[:, k]) * bary[:, k] * vk
+    return out
 
 
 # ---------------------------------------------------------------------------------------------
@@ -234,3 +311,101 @@ def ssdf_eval_vertex(mean: wp.array2d(dtype=float), basis: wp.array3d(dtype=floa
                      weights: wp.array2d(dtype=float), vertex: int, d: wp.vec3) -> float:
     """SSDF (eq. 24) of one vertex at local direction d: mean(d) + Σ_j w[vertex, j] basis_j(d)."""
     return ssdf_eval_bary(mean, basis, weights, vertex, vertex, vertex, 1.0, 0.0, 0.0, d)
+
+
+#: Per-vertex path thresholds of :func:`ssdf_eval_world`, on ``c_k = cos∠(F_k, F)`` (rotation angle
+#: between the frame of vertex k and the pixel frame): ``c_k ≥ FRAME_COS_FAST`` (within 20°) → the
+#: vertex joins the shared blended-weight lookup in the pixel frame; ``c_k ≤ FRAME_COS_EXACT``
+#: (30° or more) → its own lookup in its own frame; smoothstep blend between.
+FRAME_COS_FAST = wp.constant(float(np.cos(np.radians(20.0))))   # 0.940
+FRAME_COS_EXACT = wp.constant(float(np.cos(np.radians(30.0))))  # 0.866
+
+
+@wp.func
+def _ssdf_combo(mean: wp.array2d(dtype=float), basis: wp.array3d(dtype=float),
+                weights: wp.array2d(dtype=float), i0: int, i1: int, i2: int,
+                c0: float, c1: float, c2: float, d: wp.vec3) -> float:
+    """Σ_k c_k V^d_k(d) for local direction d (one bilinear footprint; below-horizon rule applied to
+    the combination as ``min(U, 0) − (Σc_k)·asin(−z)``, i.e. :func:`_below_horizon` scaled by Σc_k)."""
+    R = mean.shape[0]
+    t = _texel_coords(d, R)
+    x0 = int(t[0])
+    y0 = int(t[1])
+    fx = t[2]
+    fy = t[3]
+    w00 = (1.0 - fx) * (1.0 - fy)
+    w01 = fx * (1.0 - fy)
+    w10 = (1.0 - fx) * fy
+    w11 = fx * fy
+    csum = c0 + c1 + c2
+    v = csum * (mean[y0, x0] * w00 + mean[y0, x0 + 1] * w01 + mean[y0 + 1, x0] * w10 + mean[y0 + 1, x0 + 1] * w11)
+    for j in range(basis.shape[0]):
+        wj = c0 * weights[i0, j] + c1 * weights[i1, j] + c2 * weights[i2, j]
+        v += wj * (basis[j, y0, x0] * w00 + basis[j, y0, x0 + 1] * w01
+                   + basis[j, y0 + 1, x0] * w10 + basis[j, y0 + 1, x0 + 1] * w11)
+    if d[2] < 0.0:
+        return wp.min(v, 0.0) - csum * wp.asin(wp.min(-d[2], 1.0))
+    return v
+
+
+@wp.func
+def _own_frame_term(mean: wp.array2d(dtype=float), basis: wp.array3d(dtype=float),
+                    weights: wp.array2d(dtype=float), vertex: int, c: float, nk: wp.vec3, tk: wp.vec3,
+                    bk: wp.vec3, p: wp.vec3) -> float:
+    """c · V^d_vertex(F_k^T p): one vertex's SSDF at world direction p in its own frame (0 if c = 0)."""
+    if c == 0.0:
+        return 0.0
+    return c * ssdf_eval_vertex(mean, basis, weights, vertex, world_to_local(p, tk, bk, nk))
+
+
+@wp.func
+def ssdf_eval_world(mean: wp.array2d(dtype=float), basis: wp.array3d(dtype=float),
+                    weights: wp.array2d(dtype=float), normals: wp.array(dtype=wp.vec3),
+                    i0: int, i1: int, i2: int, b0: float, b1: float, b2: float,
+                    p_world: wp.vec3, ng: wp.vec3) -> float:
+    """SSDF θd (eq. 24, radians) of a point inside triangle (i0, i1, i2) with barycentrics
+    (b0, b1, b2) at the unit WORLD direction ``p_world``, consistent across the frame seam.
+
+    ``normals``: the per-vertex normals given to :func:`precompute.ssdf_for_mesh` (normalised here,
+    as there); ``ng``: the interpolated unit shading normal, which defines the pixel frame ``F``.
+
+    Computed, with ``F_k`` the frame of vertex k (:mod:`warp_sg.frames`, the frame its SSDF was
+    computed in), ``α_k = smoothstep(FRAME_COS_EXACT, FRAME_COS_FAST, cos∠(F_k, F))`` and
+    ``c_k = α_k b_k``::
+
+        θd = H(Σ_k c_k V^d_k(F^T p), p·ng; Σ_k c_k) + Σ_k (1 − α_k) b_k H(V^d_k(F_k^T p), p·n_k; 1)
+        H(v, z; c) = v if z ≥ 0 else min(v, 0) − c·asin(−z)       (:func:`_below_horizon`, scaled)
+
+    * vertices whose frame is within 20° of the pixel frame (α_k = 1) share ONE lookup in the pixel
+      frame with their PCA weights blended — where all three do, this is :func:`ssdf_eval_bary`
+      (the paper's interpolation, one lookup);
+    * a vertex whose frame is 30° or more away (α_k = 0; e.g. across ``n.z = 0``, where the Duff
+      frame turns by up to 180°) is read in its own frame at the same world direction: one more
+      lookup, below-horizon rule at ``p·n_k`` (:func:`_below_horizon`, per vertex);
+    * between, a smoothstep blend, so θd is continuous in the barycentrics and across triangle edges
+      (a vertex with ``b_k = 0`` contributes nothing, and α_k depends only on F_k and F).
+
+    The SSDF is 1-Lipschitz in the direction, so the pixel-frame read of a vertex differs from its
+    own-frame read by at most the angle between the frames (< 30°), plus the PCA error. Cost: three
+    frames and dot products per call on top of the lookups (≈ +10 % over :func:`ssdf_eval_bary` on
+    a finely tessellated scene, ≈ +40 % on a coarse one where more vertices need their own lookup).
+    """
+    t = frame_tangent(ng)
+    b = frame_bitangent(ng)
+    n0 = wp.normalize(normals[i0])
+    n1 = wp.normalize(normals[i1])
+    n2 = wp.normalize(normals[i2])
+    t0, s0 = frame_basis(n0)
+    t1, s1 = frame_basis(n1)
+    t2, s2 = frame_basis(n2)
+    # cos of the rotation angle between F_k and F: (trace(F_k^T F) − 1) / 2
+    a0 = wp.smoothstep(FRAME_COS_EXACT, FRAME_COS_FAST, 0.5 * (wp.dot(t0, t) + wp.dot(s0, b) + wp.dot(n0, ng) - 1.0))
+    a1 = wp.smoothstep(FRAME_COS_EXACT, FRAME_COS_FAST, 0.5 * (wp.dot(t1, t) + wp.dot(s1, b) + wp.dot(n1, ng) - 1.0))
+    a2 = wp.smoothstep(FRAME_COS_EXACT, FRAME_COS_FAST, 0.5 * (wp.dot(t2, t) + wp.dot(s2, b) + wp.dot(n2, ng) - 1.0))
+    v = float(0.0)
+    if a0 * b0 != 0.0 or a1 * b1 != 0.0 or a2 * b2 != 0.0:
+        v = _ssdf_combo(mean, basis, weights, i0, i1, i2, a0 * b0, a1 * b1, a2 * b2, world_to_local(p_world, t, b, ng))
+    v += _own_frame_term(mean, basis, weights, i0, (1.0 - a0) * b0, n0, t0, s0, p_world)
+    v += _own_frame_term(mean, basis, weights, i1, (1.0 - a1) * b1, n1, t1, s1, p_world)
+    v += _own_frame_term(mean, basis, weights, i2, (1.0 - a2) * b2, n2, t2, s2, p_world)
+    return v

@@ -51,6 +51,15 @@ def frame_bitangent(n: wp.vec3) -> wp.vec3:
 
 
 @wp.func
+def frame_basis(n: wp.vec3):
+    """(t, b) of unit normal n in one pass: the same values as frame_tangent(n), frame_bitangent(n)."""
+    s = wp.where(n[2] >= 0.0, 1.0, -1.0)
+    a = -1.0 / (s + n[2])
+    b = n[0] * n[1] * a
+    return wp.vec3(1.0 + s * n[0] * n[0] * a, s * b, -s * n[0]), wp.vec3(b, s + n[1] * n[1] * a, -n[1])
+
+
+@wp.func
 def world_to_local(v: wp.vec3, t: wp.vec3, b: wp.vec3, n: wp.vec3) -> wp.vec3:
     return wp.vec3(wp.dot(v, t), wp.dot(v, b), wp.dot(v, n))
 
