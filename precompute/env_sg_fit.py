@@ -115,11 +115,25 @@ def irradiance_reference(env, normals, supersample: int = 1):
     return out.reshape(np.shape(normals)[:-1] + (3,))
 
 
-def sg_irradiance(axes, sharpness, amplitude, normals, cosine=None):
-    """``E*(n) = Σ_k ⟨C*(n), G_k⟩`` with the clamped-cosine SG ``C*`` (default eq. 40).
+def _exact_irradiance_matrix(normals, axes, lam):
+    """``∫ G(i; p_k, λ_k, 1) max(n·i, 0) di`` (..., K) by ``warp_sg.sg_irradiance`` (within 2 %)."""
+    from warp_sg.sg_irradiance import sg_irradiance_norm_np
 
-    ``cosine``: an optional ``(λc, μc)`` pair (or lists of them for a multi-lobe cosine fit).
+    c = np.einsum("...d,kd->...k", np.asarray(normals, np.float64), np.asarray(axes, np.float64))
+    lam = np.asarray(lam, np.float64)
+    return sg_irradiance_norm_np(c, np.broadcast_to(lam, c.shape)) * sgm.integral(lam, 1.0)
+
+
+def sg_irradiance(axes, sharpness, amplitude, normals, cosine=None):
+    """``E*(n) = Σ_k ⟨C*(n), G_k⟩`` with the clamped-cosine SG ``C*`` (default eq. 40), or with
+    ``cosine="exact"`` the exact irradiance of each SG (``warp_sg.sg_irradiance``, what the renderer
+    evaluates).
+
+    ``cosine``: ``"exact"`` or an optional ``(λc, μc)`` pair (or lists of them for a multi-lobe cosine fit).
     """
+    if isinstance(cosine, str):
+        return np.einsum("...k,kc->...c", _exact_irradiance_matrix(normals, axes, sharpness),
+                         np.asarray(amplitude, np.float64))
     lc, mc = cosine if cosine is not None else (sgm.CLAMPED_COSINE_SHARPNESS, sgm.CLAMPED_COSINE_AMPLITUDE)
     lc = np.atleast_1d(np.asarray(lc, np.float64))
     mc = np.atleast_1d(np.asarray(mc, np.float64))
@@ -190,10 +204,13 @@ def _greedy_peaks(d, om, L, n_max, lam_max, min_fraction=0.03):
 
 
 def _design(d, om, normals, axes, lam, w_e, lc, mc):
-    """Stacked linear system of the amplitudes: rows √Ω G(d_j) and w_E ⟨C*(n_m), G⟩."""
+    """Stacked linear system of the amplitudes: rows √Ω G(d_j) and w_E ⟨C*(n_m), G⟩ (or, with
+    ``lc = "exact"``, w_E times the exact irradiance of G)."""
     g = np.exp(-lam[None, :] * 0.5 * np.sum((d[:, None, :] - axes[None, :, :]) ** 2, -1))
     A = [np.sqrt(om)[:, None] * g]
-    if w_e > 0:
+    if w_e > 0 and isinstance(lc, str):
+        A.append(w_e * _exact_irradiance_matrix(normals, axes, lam))
+    elif w_e > 0:
         ip = 0.0
         for l_c, m_c in zip(lc, mc):  # a multi-lobe clamped cosine is a sum of inner products
             ip = ip + sgm.inner_product(normals[:, None, :], l_c, m_c, axes[None], lam[None], 1.0)
@@ -224,9 +241,12 @@ def _fit(env, n_lobes, rows, irradiance_weight, n_normals, max_nfev, cosine=None
     lam_max = float(4.0 * (h / np.pi) ** 2)  # a lobe about one working texel wide
     normals = _fibonacci_normals(n_normals)
     E = irradiance_reference(work, normals) / scale
-    lc, mc = cosine if cosine is not None else (sgm.CLAMPED_COSINE_SHARPNESS, sgm.CLAMPED_COSINE_AMPLITUDE)
-    lc = np.atleast_1d(np.asarray(lc, np.float64))
-    mc = np.atleast_1d(np.asarray(mc, np.float64))
+    if isinstance(cosine, str):
+        lc, mc = "exact", None
+    else:
+        lc, mc = cosine if cosine is not None else (sgm.CLAMPED_COSINE_SHARPNESS, sgm.CLAMPED_COSINE_AMPLITUDE)
+        lc = np.atleast_1d(np.asarray(lc, np.float64))
+        mc = np.atleast_1d(np.asarray(mc, np.float64))
     # the irradiance block has one row per normal (~4π/M sr each); E ~ π L: scale it like radiance
     w_e = irradiance_weight * math.sqrt(4 * math.pi / n_normals) / math.pi
     B = np.concatenate([np.sqrt(om)[:, None] * Ln] + ([w_e * E] if w_e > 0 else []), 0)
@@ -263,7 +283,7 @@ def _fit(env, n_lobes, rows, irradiance_weight, n_normals, max_nfev, cosine=None
     # statistics on the working map
     model, _ = _model(d, ax, lam, mu)
     rad_rel = float(np.sqrt((om[:, None] * (model - L) ** 2).sum() / (om[:, None] * L**2).sum()))
-    Ef = sg_irradiance(ax, lam, mu, normals, cosine=(lc, mc))
+    Ef = sg_irradiance(ax, lam, mu, normals, cosine=lc if isinstance(lc, str) else (lc, mc))
     Et = E * scale
     e_rel = np.abs(Ef - Et).max(1) / np.abs(Et).max(1)
     order = np.argsort(-(mu @ LUMINANCE) * sgm.integral(lam))
@@ -297,7 +317,8 @@ def fit_environment_sgs(
     ``env`` (H, W, 3) unscaled radiance in the map's frame. ``rows``: working resolution
     (rows × 2·rows). ``irradiance_weight`` = 0 fits the radiance only. ``cosine``: the
     clamped-cosine SG(s) ``(λc, μc)`` (scalars or lists) the renderer uses (default eq. 40);
-    the irradiance block is fitted through it. Returns
+    the irradiance block is fitted through it; ``"exact"`` fits through the exact SG irradiance
+    (``warp_sg.sg_irradiance``), what the renderer evaluates. Returns
     ``EnvSGFit(axes (K,3), sharpness (K,), amplitude (K,3))``; ``.info`` has ``radiance_rel_rms``
     (solid-angle-weighted relative RMS radiance error on the working map), ``irradiance_rel_max``
     / ``irradiance_rel_mean`` (relative error of ``E*(n)`` over ``n_normals`` normals, per-normal
@@ -307,7 +328,10 @@ def fit_environment_sgs(
     if not 1 <= n_lobes <= 64:
         raise ValueError(f"n_lobes must be in [1, 64], got {n_lobes}")
     env = validate_envmap(env)
-    cos_key = None if cosine is None else [np.atleast_1d(np.asarray(c, float)).tolist() for c in cosine]
+    if isinstance(cosine, str) and cosine != "exact":
+        raise ValueError(f"cosine must be 'exact' or (λc, μc) pairs, got {cosine!r}")
+    cos_key = (cosine if isinstance(cosine, str) or cosine is None
+               else [np.atleast_1d(np.asarray(c, float)).tolist() for c in cosine])
     params = dict(v=_VERSION, n=n_lobes, rows=int(rows), iw=float(irradiance_weight), nn=int(n_normals),
                   nfev=int(max_nfev), cosine=cos_key)
 

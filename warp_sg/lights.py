@@ -269,6 +269,23 @@ def light_sg(lights: LightArrays, j: int, x: wp.vec3):
     return axis, lam, mu
 
 
+@wp.func
+def light_irradiance(lights: LightArrays, j: int, x: wp.vec3):
+    """(unit direction towards light ``j`` from ``x``, its SG sharpness λ = fa⁻¹(solid angle),
+    irradiance E (RGB) on a surface facing it): ``s/d²`` for a point light, ``E`` for a directional one."""
+    r = lights.radius[j]
+    axis = lights.vec[j]
+    area = _TWO_PI * r * r
+    irr = lights.intensity[j]
+    if lights.kind[j] == LIGHT_POINT:
+        v = lights.vec[j] - x
+        d2 = wp.max(wp.dot(v, v), 1.0e-20)
+        axis = v / wp.sqrt(d2)
+        area = area / d2
+        irr = irr / d2
+    return axis, _FA_NUM / wp.max(area, _MIN_AREA), irr
+
+
 def light_arrays(lights: list, device) -> LightArrays:
     """Pack Point/DirectionalLights into :class:`LightArrays` (dummy entry when empty)."""
     n = len(lights)
@@ -297,4 +314,4 @@ def light_arrays(lights: list, device) -> LightArrays:
 
 __all__ = ["PointLight", "DirectionalLight", "EnvironmentLight", "point_light_sg", "directional_light_sg",
            "light_sharpness", "amplitude_for_integral", "rotation_y", "rotate_equirect", "LightArrays",
-           "light_sg", "light_arrays", "LIGHT_POINT", "LIGHT_DIRECTIONAL"]
+           "light_sg", "light_irradiance", "light_arrays", "LIGHT_POINT", "LIGHT_DIRECTIONAL"]

@@ -33,22 +33,23 @@ import warp as wp
 from .device import resolve_device
 from .errors import InputError, SceneError
 from .lights import DirectionalLight, EnvironmentLight, PointLight, light_arrays
-from .scene import COLOUR_PARAMS, Material, Scene
-from .sg import CLAMPED_COSINE_AMPLITUDE, CLAMPED_COSINE_SHARPNESS
+from .scene import COLOUR_PARAMS, Geometry, Material, Scene
 from .surface import material_texture_slots
 from . import shading as S
 from .textures import Texture, build_atlas
 
 
-def clamped_cosine_lobes(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """(λ (n,), μ (n,)) of the clamped cosine about z (eq. 40 for n = 1; multi-lobe fits from
-    :mod:`warp_sg.clamped_cosine` for n > 1)."""
-    if n == 1:
-        return np.array([CLAMPED_COSINE_SHARPNESS]), np.array([CLAMPED_COSINE_AMPLITUDE])
-    from . import clamped_cosine as CC
-
-    lam, mu = CC.lobes(n)
-    return np.asarray(lam, np.float64).reshape(-1), np.asarray(mu, np.float64).reshape(-1)
+def refined_geometry(g: Geometry, ref) -> Geometry:
+    """``g`` carried onto a :class:`precompute.refine.Refinement` of its mesh: positions and
+    normals from the refinement, uvs and tangents interpolated (tangents renormalised), triangle
+    attributes from the parent triangle, vertex objects from the nearest input vertex."""
+    tang = ref.interpolate(np.asarray(g.tangents, np.float64))
+    tang /= np.maximum(np.linalg.norm(tang, axis=1, keepdims=True), 1e-30)
+    return replace(g, vertices=np.asarray(ref.vertices, np.float32), normals=np.asarray(ref.normals, np.float32),
+                   uvs=ref.interpolate(np.asarray(g.uvs, np.float64)).astype(np.float32),
+                   tangents=tang.astype(np.float32), triangles=np.asarray(ref.triangles, np.int32),
+                   tri_material=g.tri_material[ref.parent_tri], tri_object=g.tri_object[ref.parent_tri],
+                   vertex_object=ref.interpolate(g.vertex_object))
 
 
 def _timer(device):
@@ -77,7 +78,6 @@ class Renderer:
             self._setup_environment()
             self._ensure_gamma()
             self._setup_lights()
-            self._setup_clamped_cosine()
         wp.synchronize_device(self.device)
         self.timings["precompute"] = time.perf_counter() - t0
         self._background_key = None
@@ -85,8 +85,30 @@ class Renderer:
 
     # ------------------------------------------------------------------ setup
     def _setup_geometry(self):
+        """The scene's flattened mesh; with shadows, refined where the visibility changes
+        (``precompute.refine_for_visibility``, ``[render] visibility_budget`` vertices at most) so
+        the per-vertex SSDFs do not depend on how the user tessellated (a floor exported as two
+        triangles still gets its shadows). Raster, SSDF precompute and shading use the refined mesh."""
         g = self.scene.geometry()
+        rs = self.scene.render
         d = self.device
+        self.shadows = False
+        if rs.shadows:
+            import precompute
+
+            self.shadows = bool(precompute.needs_visibility(g.vertices, g.triangles, shadows=True))
+        self.input_geometry = g
+        self.refinement = None
+        if self.shadows and rs.visibility_budget > len(g.vertices):
+            from precompute.refine import refine_for_visibility
+
+            t = time.perf_counter()
+            ref = refine_for_visibility(g.vertices, g.triangles, g.normals, budget=rs.visibility_budget, device=d,
+                                        progress=self.progress)
+            self.timings["precompute_parts"]["refine"] = time.perf_counter() - t
+            if len(ref.vertices) > len(g.vertices):
+                self.refinement = ref
+                g = refined_geometry(g, ref)
         self.geometry = g
         ga = S.GeometryArrays()
         ga.positions = wp.array(g.vertices, dtype=wp.vec3, device=d)
@@ -101,15 +123,11 @@ class Renderer:
         rs = self.scene.render
         g = self.geometry
         d = self.device
-        self.shadows = False
         vis = S.Visibility()
         from .fh import fh_table_array
 
         vis.fh_table = fh_table_array(d)
-        if rs.shadows:
-            import precompute
-
-            self.shadows = bool(precompute.needs_visibility(g.vertices, g.triangles, shadows=True))
+        vis.normals = self.geo_arrays.normals
         if self.shadows:
             import precompute
 
@@ -126,35 +144,36 @@ class Renderer:
         self.vis = vis
 
     def _setup_environment(self):
+        """Environment: sharp peaks (a sun) become directional lights (``precompute.env_peaks``,
+        ``[render] env_peaks``); the broad remainder is fitted by an SG mixture for the diffuse
+        term (eq. 34, fitted through the exact SG irradiance) and prefiltered (ΓL) for the
+        specular term (lazily, only when a material is specular)."""
         env = self.scene.environment
         rs = self.scene.render
-        d = self.device
         self.env_light = env
         self.env_diffuse_mode = S.ENV_NONE
         self.env_specular_mode = S.ENV_NONE
         self._env_sg_base = None  # (axes in the map frame, λ, μ unscaled)
+        self.env_peaks = []
         self.gamma = None
         if env is None:
             return
-        import precompute
+        from precompute.env_peaks import extract_peaks
 
         base = env.base_radiance()
-        self.env_base = base
+        self.env_base = base  # what the background shows
+        t = time.perf_counter()
+        self.env_residual, self.env_peaks = extract_peaks(base, max_peaks=rs.env_peaks)
+        self.timings["precompute_parts"]["env_peaks"] = time.perf_counter() - t
         t = time.perf_counter()
         if env.procedural == "constant":
             # a constant map is exactly one SG of vanishing sharpness: no fit needed
             rad = np.asarray(base.reshape(-1, 3)[0], np.float64)
             lam0 = 1.0e-4
             self._env_sg_base = (np.array([[0.0, 1.0, 0.0]]), np.array([lam0]), (rad * np.exp(lam0))[None, :])
-            self.env_diffuse_mode = S.ENV_SG
-        elif rs.env_diffuse == "sg":
-            try:
-                self._env_sg_base = self._fit_env(base, rs.env_lobes, rs.clamped_cosine_lobes)
-                self.env_diffuse_mode = S.ENV_SG
-            except ImportError:  # the SG fit is not available: prefiltered diffuse
-                self.env_diffuse_mode = S.ENV_PREFILTERED
         else:
-            self.env_diffuse_mode = S.ENV_PREFILTERED
+            self._env_sg_base = self._fit_env(self.env_residual, rs.env_lobes)
+        self.env_diffuse_mode = S.ENV_SG
         self.timings["precompute_parts"]["env_fit"] = time.perf_counter() - t
 
     def _ensure_gamma(self):
@@ -163,12 +182,12 @@ class Renderer:
         env = self.env_light
         if env is None or self.gamma is not None:
             return
-        if not (self.has_specular or self.env_diffuse_mode == S.ENV_PREFILTERED):
+        if not self.has_specular:
             return
         import precompute
 
         rs = self.scene.render
-        base = self.env_base
+        base = self.env_residual
         t = time.perf_counter()
         kw = {}
         if rs.gamma_levels > 0:
@@ -182,10 +201,10 @@ class Renderer:
         self.timings["precompute_parts"]["env_prefilter"] = time.perf_counter() - t
 
     @staticmethod
-    def _fit_env(base, n_lobes, cc_lobes=1):
+    def _fit_env(base, n_lobes):
         from precompute.env_sg_fit import fit_environment_sgs
 
-        axes, lam, mu = fit_environment_sgs(base, n_lobes, cosine=clamped_cosine_lobes(cc_lobes))
+        axes, lam, mu = fit_environment_sgs(base, n_lobes, cosine="exact")
         return (np.asarray(axes, np.float64).reshape(-1, 3), np.asarray(lam, np.float64).reshape(-1),
                 np.asarray(mu, np.float64).reshape(-1, 3))
 
@@ -229,23 +248,29 @@ class Renderer:
         mt.atlas = build_atlas(images, self.device)
         self.material_textures = mt
 
-    def _setup_lights(self):
-        self.light_arrays = light_arrays(self.scene.local_lights, self.device)
+    def peak_lights(self) -> list:
+        """The environment's sharp peaks as world-space directional lights (rotation and scale
+        of the environment applied)."""
+        env = self.env_light
+        if env is None or not self.env_peaks:
+            return []
+        R = env.rotation_matrix()
+        return [DirectionalLight(direction=R @ p.direction, radius=p.radius, intensity=p.irradiance * env.scale)
+                for p in self.env_peaks]
 
-    def _setup_clamped_cosine(self):
-        lam, mu = clamped_cosine_lobes(self.scene.render.clamped_cosine_lobes)
-        cc = S.ClampedCosine()
-        cc.count = len(lam)
-        cc.lam = wp.array(lam.astype(np.float32), dtype=float, device=self.device)
-        cc.mu = wp.array(mu.astype(np.float32), dtype=float, device=self.device)
-        self.cc = cc
+    def _setup_lights(self):
+        from .sg_irradiance import irradiance_table_array
+
+        self.shading_lights = list(self.scene.local_lights) + self.peak_lights()
+        self.light_arrays = light_arrays(self.shading_lights, self.device)
+        self.irr_table = irradiance_table_array(self.device)
 
     # ------------------------------------------------------------------ features
     def features(self) -> S.Features:
         return S.Features(
             env_diffuse=self.env_diffuse_mode,
             env_specular=self.env_specular_mode if self.has_specular else S.ENV_NONE,
-            lights=len(self.scene.local_lights) > 0,
+            lights=len(self.shading_lights) > 0,
             specular=self.has_specular,
             shadows=self.shadows,
             textures=self.has_textures,
@@ -301,6 +326,7 @@ class Renderer:
             raise SceneError("the scene has no environment light", where="set_environment_rotation")
         self.env_light.rotation = float(degrees)
         self._background_key = None
+        self._setup_lights()
 
     def set_environment_scale(self, scale: float) -> None:
         if self.env_light is None:
@@ -309,6 +335,7 @@ class Renderer:
             raise SceneError(f"must be >= 0, got {scale}", where="environment scale")
         self.env_light.scale = float(scale)
         self._background_key = None
+        self._setup_lights()
 
     def set_camera(self, **fields) -> None:
         """Change camera fields (origin, target, up, fov, width, height)."""
@@ -395,7 +422,7 @@ class Renderer:
         es = self._env_arrays()
         f = self.features()
         kern = S.shade_kernel(f)
-        if f.env_diffuse == S.ENV_PREFILTERED or f.env_specular == S.ENV_PREFILTERED:
+        if f.env_specular == S.ENV_PREFILTERED:
             env = self.env_light
             gamma = self.gamma.table(rotation=env.rotation_matrix(), scale=env.scale, device=d)
         else:
@@ -404,7 +431,7 @@ class Renderer:
 
         n = int(tri_id.shape[0]) * int(tri_id.shape[1])
         parallel.launch(kern, n, [tri_id, bary, bg, wp.vec3(*np.asarray(eye, np.float32)), self.geo_arrays,
-                                  self.material_table.materials, self.material_textures, self.cc,
+                                  self.material_table.materials, self.material_textures, self.irr_table,
                                   self.light_arrays, es, gamma, self.vis, out], d, min_chunk=2048)
 
 
@@ -414,7 +441,7 @@ def render(scene: Scene, device: str | None = None, progress: bool = False) -> n
     return Renderer(scene, device, progress=progress).render()
 
 
-__all__ = ["Renderer", "render", "clamped_cosine_lobes"]
+__all__ = ["Renderer", "render"]
 
 
 # ``import warp_sg.render`` makes the package attribute ``warp_sg.render`` this module (the import

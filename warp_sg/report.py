@@ -42,7 +42,7 @@ KNOBS: dict[str, tuple[list, list]] = {
     "lobes": ([1, 2, 3, 4], [1, 3]),
     "ndf_lobes": ([1, 2, 3, 4], [1, 3]),
     "cosine_lobes": ([1, 2, 3, 4], [1, 3]),
-    "clamped_cosine_lobes": ([1, 2, 3, 4], [1, 3]),
+    "env_peaks": ([0, 1, 4], [0, 1]),
     "env_lobes": ([2, 4, 6, 9, 12], [2, 6]),
     "env_sg_lobes": ([2, 4, 6, 9, 12], [2, 6]),
     "gamma_resolution": ([8, 16, 32, 64, 96], [8, 16]),

@@ -48,7 +48,7 @@ Scene file schema (keys beyond DESIGN.md's are marked +)::
                 type = "directional": direction, radius, intensity
                 type = "environment": file | procedural ("sky" | "constant"), options+ (table),
                 scale, rotation+ (degrees about +Y)
-    [render]    shadows, supersampling, lobes, clamped_cosine_lobes, env_lobes, env_diffuse,
+    [render]    shadows, supersampling, lobes, env_lobes, env_peaks, visibility_budget,
                 pca_terms, ssdf_resolution, gamma_levels, gamma_resolution, fh, background, device
 """
 from __future__ import annotations
@@ -188,12 +188,14 @@ class RenderSettings:
     """The ``[render]`` table: quality knobs of the SG renderer.
 
     * ``shadows`` — SSDF visibility (eq. 23–31); off → V = 1 and no SSDF precompute.
-    * ``supersampling`` — k: raster at k·H × k·W, box-resolved.
+    * ``supersampling`` — k: raster at k·H × k·W, box-resolved (antialiasing; default 2).
     * ``lobes`` — SG lobes of the NDF of isotropic models (anisotropic Ashikhmin-Shirley uses its
       own ``lobes`` parameter).
-    * ``clamped_cosine_lobes`` — SG lobes of the clamped cosine (1 = eq. 40, λc = 2.133, μc = 1.170).
-    * ``env_lobes`` — SG mixture of the environment for the diffuse term (eq. 39), < 10 in the paper;
-      ``env_diffuse = "sg"`` (paper) or ``"prefiltered"`` (ΓL lookup of the clamped-cosine lobe).
+    * ``env_lobes`` — SG mixture of the environment for the diffuse term (eq. 39), < 10 in the paper.
+    * ``env_peaks`` — at most this many sharp peaks of the environment (a sun) are separated from
+      the map and shaded as directional lights (``precompute.env_peaks``; 0 = off).
+    * ``visibility_budget`` — with shadows, the mesh is refined where its visibility changes, up to
+      this many vertices (``precompute.refine_for_visibility``; 0 = use the mesh as given).
     * ``pca_terms``, ``ssdf_resolution`` — SSDF compression (NV) and map resolution.
     * ``gamma_levels`` — number of λ levels of the ΓL pyramid (0 = precompute's default ladder,
       λ0 = 0.5 growing by √2 up to the map's resolution); ``gamma_resolution`` — largest cube face.
@@ -203,11 +205,11 @@ class RenderSettings:
     """
 
     shadows: bool = True
-    supersampling: int = 1
+    supersampling: int = 2
     lobes: int = 1
-    clamped_cosine_lobes: int = 1
     env_lobes: int = 8
-    env_diffuse: str = "sg"
+    env_peaks: int = 4
+    visibility_budget: int = 20000
     pca_terms: int = 16
     ssdf_resolution: int = 32
     gamma_levels: int = 0
@@ -217,7 +219,7 @@ class RenderSettings:
     device: str = "cpu"
 
     def validate(self, where="[render]"):
-        ints = {"supersampling": (1, 16), "lobes": (1, 16), "clamped_cosine_lobes": (1, 4), "env_lobes": (1, 64),
+        ints = {"supersampling": (1, 16), "lobes": (1, 16), "env_lobes": (1, 64), "env_peaks": (0, 16), "visibility_budget": (0, 10_000_000),
                 "pca_terms": (1, 256), "ssdf_resolution": (4, 1024), "gamma_levels": (0, 64),
                 "gamma_resolution": (4, 1024)}
         for k, (lo, hi) in ints.items():
@@ -229,8 +231,6 @@ class RenderSettings:
         for k in ("shadows", "background"):
             if not isinstance(getattr(self, k), bool):
                 raise SceneError(f"{where} key '{k}' must be true or false, got {getattr(self, k)!r}")
-        if self.env_diffuse not in ("sg", "prefiltered"):
-            raise SceneError(f"{where} key 'env_diffuse' must be 'sg' or 'prefiltered', got {self.env_diffuse!r}")
         if self.fh not in ("table", "sigmoid"):
             raise SceneError(f"{where} key 'fh' must be 'table' or 'sigmoid', got {self.fh!r}")
         if not isinstance(self.device, str):

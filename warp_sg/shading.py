@@ -48,11 +48,13 @@ from dataclasses import dataclass
 
 import warp as wp
 
-from .brdf.material_wp import Material, brdf_diffuse, slice_lobe, slice_lobe_count
-from .fh import fh_hemisphere_wp
+from .brdf.material_wp import (WARP_COS_EPS, Material, brdf_diffuse, brdf_eval, brdf_mo, ndf_lobe, slice_lobe,
+                                slice_lobe_count)
 from .frames import frame_bitangent, frame_tangent, local_to_world, world_to_local
-from .lights import LightArrays, light_sg
-from .sg_wp import sg_inner, sg_integral, sg_product
+from .lights import LightArrays, light_irradiance
+from .sg import CLAMPED_COSINE_SHARPNESS
+from .sg_irradiance import sg_irradiance_norm
+from .sg_wp import sg_integral, sg_product
 from .surface import (  # noqa: F401  (re-exported: slot constants, MaterialTextures)
     N_SLOTS, SLOT_KD, SLOT_KS, SLOT_NORMAL, SLOT_P0, SLOT_P1, SLOT_TANGENT, MaterialTextures,
     apply_shading_maps, tangent_in_plane, textured_material,
@@ -60,16 +62,15 @@ from .surface import (  # noqa: F401  (re-exported: slot constants, MaterialText
 from .ssdf_product import sg_visibility_scale, sg_visibility_scale_sigmoid
 
 
-from precompute.ssdf_wp import ssdf_eval_bary  # noqa: E402
+from precompute.ssdf_wp import ssdf_eval_world  # noqa: E402
 
 ENV_NONE, ENV_SG, ENV_PREFILTERED = 0, 1, 2
+#: sharpness of the eq. 40 clamped-cosine lobe: only used to place and size the product lobe
+#: C* ⊗ G whose visibility / ΓL lookup stands for the cosine-weighted lobe
+CC_LAM = wp.constant(CLAMPED_COSINE_SHARPNESS)
 
 #: smallest cosine of the (clamped) view / lobe directions in the shading frame
 COS_MIN = wp.constant(1.0e-3)
-#: n·o range over which the specular cosine moves from the SG product (eq. 41) to its value at
-#: the slice lobe's axis (see the specular block of the shading kernel)
-GRAZE_LO = wp.constant(0.1)
-GRAZE_HI = wp.constant(0.35)
 
 
 @wp.struct
@@ -91,6 +92,7 @@ class Visibility:
     mean: wp.array2d(dtype=float)
     basis: wp.array3d(dtype=float)
     weights: wp.array2d(dtype=float)
+    normals: wp.array(dtype=wp.vec3)  # the per-vertex normals (frames) the SSDFs were computed in
     fh_table: wp.array2d(dtype=float)
 
 
@@ -104,26 +106,18 @@ class EnvSG:
     mu: wp.array(dtype=wp.vec3)
 
 
-@wp.struct
-class ClampedCosine:
-    """Clamped-cosine SG lobes about the shading normal (eq. 40 or a multi-lobe fit)."""
-
-    count: int
-    lam: wp.array(dtype=float)
-    mu: wp.array(dtype=float)
-
-
 # --------------------------------------------------------------------------------------------
 # building blocks (@wp.func)
 # --------------------------------------------------------------------------------------------
 @wp.func
 def vis_theta(shadows: int, vis: Visibility, p: wp.vec3, ng: wp.vec3, td: wp.vec3, bd: wp.vec3,
               i0: int, i1: int, i2: int, b0: float, b1: float, b2: float) -> float:
-    """θd(p): the SSDF of the shading point at world direction p (eq. 24), or the horizon's
-    signed angular distance ``asin(p·Ng)`` when there is no SSDF (unoccluded)."""
+    """θd(p): the SSDF of the shading point at world direction p (eq. 24; each vertex's SSDF read
+    in that vertex's own frame where the frames disagree, ``precompute.ssdf_wp.ssdf_eval_world``:
+    no seam where the frame turns), or the horizon's signed angular distance ``asin(p·Ng)`` when
+    there is no SSDF (unoccluded)."""
     if shadows != 0:
-        return ssdf_eval_bary(vis.mean, vis.basis, vis.weights, i0, i1, i2, b0, b1, b2,
-                              world_to_local(p, td, bd, ng))
+        return ssdf_eval_world(vis.mean, vis.basis, vis.weights, vis.normals, i0, i1, i2, b0, b1, b2, p, ng)
     return wp.asin(wp.clamp(wp.dot(p, ng), -1.0, 1.0))
 
 
@@ -136,15 +130,6 @@ def vis_scale(fh_mode: int, vis: Visibility, theta: float, lam: float) -> float:
 
 
 @wp.func
-def vis_fraction(fh_mode: int, vis: Visibility, theta: float, lam: float) -> float:
-    """⟨G, V⟩ / ∫G = fh(θd, λ) / ∫G(λ) (eq. 30 normalised): the visible fraction of a lobe.
-    Used for ``(G ⊗ V) · L ≈ μ ΓL(p, λ) · fh(θd, λ)/∫G(λ)``: unlike the amplitude factor of eq. 31
-    (fh(θd)/fh(π/2)), it also removes the lobe's mass below the horizon, which matters for the
-    broad clamped-cosine lobe (λc = 2.133: eq. 31 would count 12% of it twice)."""
-    return vis_scale(fh_mode, vis, theta, lam) * fh_hemisphere_wp(lam) / sg_integral(lam)
-
-
-@wp.func
 def above(v: wp.vec3) -> wp.vec3:
     """v with its z clamped to ≥ COS_MIN (renormalised): keeps grazing directions shadeable."""
     if v[2] >= COS_MIN:
@@ -152,6 +137,46 @@ def above(v: wp.vec3) -> wp.vec3:
     xy = wp.sqrt(wp.max(v[0] * v[0] + v[1] * v[1], 1.0e-30))
     s = wp.sqrt(1.0 - COS_MIN * COS_MIN) / xy
     return wp.vec3(v[0] * s, v[1] * s, COS_MIN)
+
+
+@wp.func
+def vis_ratio(shadows: int, fh_mode: int, vis: Visibility, p: wp.vec3, lam: float, ng: wp.vec3, td: wp.vec3,
+              bd: wp.vec3, i0: int, i1: int, i2: int, b0: float, b1: float, b2: float) -> float:
+    """The visible fraction of a lobe (p, λ) relative to the unoccluded point:
+    ``fh(θd(p), λ) / fh(θh(p), λ)`` with θd the SSDF (eq. 24, 30) and ``θh = asin(p·Ng)`` the SSDF
+    of an unoccluded point (its horizon). The unshadowed response (exact BRDF and cosine, or the
+    exact SG irradiance) already accounts for the horizon, so the SSDF supplies only what the
+    occluders take away. 1 without shadows."""
+    if shadows == 0:
+        return 1.0
+    th = vis_theta(shadows, vis, p, ng, td, bd, i0, i1, i2, b0, b1, b2)
+    th_h = wp.asin(wp.clamp(wp.dot(p, ng), -1.0, 1.0))
+    a = vis_scale(fh_mode, vis, th, lam)
+    b = vis_scale(fh_mode, vis, th_h, lam)
+    return wp.clamp(a / wp.max(b, 1.0e-8), 0.0, 1.0)
+
+
+@wp.func
+def shading_slice_lobe(mat: Material, o: wp.vec3, k: int):
+    """SG lobe k of the slice ks ρs(o, ·) (spherical warp, eq. 17–22) for shading: as
+    ``material_wp.slice_lobe``, but ``Mo`` is taken at the warped axis lifted to just above the
+    horizon instead of dropping the whole lobe once its axis dips below it (at grazing views half
+    of such a lobe is still above the horizon; the cosine weight ``e(n·pW, λW)`` of the caller
+    removes the rest)."""
+    m = mat.model
+    if m == 2 or m == 8:
+        return slice_lobe(mat, o, k)
+    axis, lam, mu = ndf_lobe(mat, k)
+    c = wp.dot(axis, o)
+    pW = 2.0 * c * axis - o
+    ln = wp.length(pW)
+    if ln > 0.0:
+        pW = pW / ln
+    lamW = lam / (4.0 * wp.max(wp.abs(c), WARP_COS_EPS))
+    amp = wp.vec3(0.0, 0.0, 0.0)
+    if c > 0.0:
+        amp = brdf_mo(mat, o, above(pW)) * mu
+    return pW, lamW, amp
 
 
 @wp.func
@@ -167,8 +192,8 @@ def diffuse_at(mat: Material, o_l: wp.vec3, p_l: wp.vec3) -> wp.vec3:
 class Features:
     """What a scene needs; one compiled kernel per distinct value."""
 
-    env_diffuse: int = ENV_NONE   # ENV_NONE | ENV_SG | ENV_PREFILTERED
-    env_specular: int = ENV_NONE  # ENV_NONE | ENV_SG | ENV_PREFILTERED
+    env_diffuse: int = ENV_NONE   # ENV_NONE | ENV_SG (the environment's SG mixture)
+    env_specular: int = ENV_NONE  # ENV_NONE | ENV_PREFILTERED (the ΓL pyramid)
     lights: bool = False
     specular: bool = False
     shadows: bool = False
@@ -199,7 +224,7 @@ def shade_kernel(f: Features):
     TEX = bool(f.textures)
     NMAP = bool(f.normal_maps)
     FH = 1 if f.fh_sigmoid else 0
-    USE_GAMMA = ENV_D == ENV_PREFILTERED or ENV_S == ENV_PREFILTERED
+    USE_GAMMA = ENV_S == ENV_PREFILTERED
     if USE_GAMMA:
         GammaT, gamma_lookup = _gamma_parts()
     else:
@@ -207,7 +232,7 @@ def shade_kernel(f: Features):
 
     def shade(base: int, tri_id: wp.array2d(dtype=int), bary: wp.array2d(dtype=wp.vec2), background: wp.array2d(dtype=wp.vec3),
               cam: wp.vec3, geo: GeometryArrays, mats: wp.array(dtype=Material), tex: MaterialTextures,
-              cc: ClampedCosine, lights: LightArrays, env: EnvSG, gamma: GammaT, vis: Visibility,
+              irr: wp.array2d(dtype=float), lights: LightArrays, env: EnvSG, gamma: GammaT, vis: Visibility,
               out: wp.array2d(dtype=wp.vec3)):
         pix = base + wp.tid()  # row-major pixel index (CPU launches split it over threads)
         y = pix // tri_id.shape[1]
@@ -248,68 +273,55 @@ def shade_kernel(f: Features):
 
         col = wp.vec3(0.0, 0.0, 0.0)
         has_kd = wp.length_sq(mat.kd) > 0.0
-        nspec = int(0)
-        if wp.static(SPEC):
-            nspec = slice_lobe_count(mat)
 
-        for c in range(cc.count):
-            lc = cc.lam[c]
-            mc = cc.mu[c]
-            # ---------------- diffuse (eq. 39, 42) ----------------
+        # ---------------- local lights (eq. 42–43, exact where it is cheap) ----------------
+        # The unshadowed response to a point / spherical / directional light is the exact BRDF at
+        # the light's direction times its irradiance, weighted by the exact cosine of the light's
+        # SG over the hemisphere e(n·l, λ) (→ max(n·l, 0) for small lights; smooth at the horizon
+        # for large ones). The SSDF supplies only the occluded fraction (vis_ratio).
+        if wp.static(LIGHTS):
+            for j in range(lights.count):
+                la, ll, E = light_irradiance(lights, j, P)
+                li = world_to_local(la, ts, bs, ns)
+                e = sg_irradiance_norm(irr, li[2], ll)
+                if e > 0.0:
+                    f = brdf_eval(mat, o_l, above(li))
+                    vr = vis_ratio(SHADOWS, FH, vis, la, ll, ng, td, bd, i0, i1, i2, b0, b1, b2)
+                    col += wp.cw_mul(f, E) * (e * vr)
+
+        # ---------------- environment, diffuse (eq. 39) ----------------
+        # Σ_j ρd μ_j ∫G_j e(n·p_j, λ_j): the exact irradiance of each SG of the environment's
+        # mixture (sg_irradiance: within 2 % for every λ, where eq. 40's single clamped-cosine lobe
+        # is 17 % low at 54°), times the visible fraction of the product lobe C* ⊗ G_j.
+        if wp.static(ENV_D == 1):
             if has_kd:
-                if wp.static(ENV_D == 1):
-                    for j in range(env.count):
-                        pe, le, se = sg_product(ns, lc, env.axis[j], env.lam[j])
-                        th = vis_theta(SHADOWS, vis, pe, ng, td, bd, i0, i1, i2, b0, b1, b2)
-                        w = mc * se * vis_scale(FH, vis, th, le) * fh_hemisphere_wp(le)
-                        col += wp.cw_mul(env.mu[j], diffuse_at(mat, o_l, world_to_local(pe, ts, bs, ns))) * w
-                if wp.static(ENV_D == 2):
-                    th = vis_theta(SHADOWS, vis, ns, ng, td, bd, i0, i1, i2, b0, b1, b2)
-                    w = mc * vis_fraction(FH, vis, th, lc)
-                    g = gamma_lookup(gamma, ns, lc)
-                    col += wp.cw_mul(g, diffuse_at(mat, o_l, wp.vec3(0.0, 0.0, 1.0))) * w
-                if wp.static(LIGHTS):
-                    for j in range(lights.count):
-                        la, ll, lm = light_sg(lights, j, P)
-                        pa, lam, sc = sg_product(ns, lc, la, ll)
-                        th = vis_theta(SHADOWS, vis, pa, ng, td, bd, i0, i1, i2, b0, b1, b2)
-                        w = mc * sc * vis_scale(FH, vis, th, lam) * fh_hemisphere_wp(lam)
-                        col += wp.cw_mul(lm, diffuse_at(mat, o_l, world_to_local(pa, ts, bs, ns))) * w
-        # ---------------- specular (eq. 41, 43) ----------------
-        # C* ⊗ ρ*_k (eq. 41). At grazing views the clamped-cosine SG (0.14 at the horizon, where
-        # cos is 0) times Mo ∝ 1/(n·i) grows as 1/(n·o) (silhouette sparkles); there the cosine is
-        # taken at the slice lobe's axis instead (exact there), blended in as n·o falls from
-        # GRAZE_HI to GRAZE_LO so the image shows no seam.
-        if wp.static(SPEC):
-            wpull = wp.clamp((GRAZE_HI - o_l[2]) / (GRAZE_HI - GRAZE_LO), 0.0, 1.0)
+                for j in range(env.count):
+                    aj = env.axis[j]
+                    lj = env.lam[j]
+                    e = sg_irradiance_norm(irr, wp.dot(ns, aj), lj) * sg_integral(lj)
+                    if e > 0.0:
+                        pe, le, se = sg_product(ns, CC_LAM, aj, lj)
+                        vr = vis_ratio(SHADOWS, FH, vis, pe, le, ng, td, bd, i0, i1, i2, b0, b1, b2)
+                        col += wp.cw_mul(env.mu[j], diffuse_at(mat, o_l, world_to_local(pe, ts, bs, ns))) * (e * vr)
+
+        # ---------------- environment, specular (eq. 41) ----------------
+        # For each slice lobe G_k (axis pW, λW, amplitude μ_k ∝ Mo): ∫ G_k(i) max(n·i, 0) L(i) di ≈
+        # [μ_k ∫G_k e(n·pW, λW)] · L̄, the lobe's exact cosine-weighted mass times the mean radiance
+        # L̄ = ΓL(p, λ)/∫G(λ) over the cosine-weighted lobe (p, λ) = C* ⊗ G_k (eq. 35). Exact for a
+        # constant environment and for sharp lobes, and bounded at grazing views, where the
+        # paper's C* ⊗ ρ*_k (0.14 of its peak at the horizon times Mo ∝ 1/(n·i)) grows as 1/(n·o).
+        if wp.static(SPEC and ENV_S == 2):
+            nspec = slice_lobe_count(mat)
             for k in range(nspec):
-                pw_l, lw, mw = slice_lobe(mat, o_l, k)
+                pw_l, lw, mw = shading_slice_lobe(mat, o_l, k)
                 if wp.length_sq(mw) > 0.0:
-                    pw = local_to_world(pw_l, ts, bs, ns)
-                    for c in range(cc.count + 1):
-                        pa = pw
-                        lam = lw
-                        amp = mw * (wpull * wp.max(pw_l[2], 0.0))
-                        if c < cc.count:
-                            pa, lam, sc = sg_product(ns, cc.lam[c], pw, lw)  # C* ⊗ ρ*_k
-                            amp = mw * ((1.0 - wpull) * cc.mu[c] * sc)
-                        if wp.length_sq(amp) > 0.0:
-                            if wp.static(ENV_S == 2):
-                                th = vis_theta(SHADOWS, vis, pa, ng, td, bd, i0, i1, i2, b0, b1, b2)
-                                g = gamma_lookup(gamma, pa, lam)
-                                col += wp.cw_mul(amp, g) * vis_fraction(FH, vis, th, lam)
-                            if wp.static(ENV_S == 1):
-                                th = vis_theta(SHADOWS, vis, pa, ng, td, bd, i0, i1, i2, b0, b1, b2)
-                                vs = vis_fraction(FH, vis, th, lam)
-                                for j in range(env.count):
-                                    col += wp.cw_mul(amp, env.mu[j]) * (vs * sg_inner(pa, lam, env.axis[j], env.lam[j]))
-                            if wp.static(LIGHTS):
-                                for j in range(lights.count):
-                                    la, ll, lm = light_sg(lights, j, P)
-                                    pb, lb, s2 = sg_product(pa, lam, la, ll)
-                                    th = vis_theta(SHADOWS, vis, pb, ng, td, bd, i0, i1, i2, b0, b1, b2)
-                                    col += wp.cw_mul(amp, lm) * (s2 * vis_scale(FH, vis, th, lb) * fh_hemisphere_wp(lb))
-        # multi-lobe clamped cosines have signed amplitudes: keep radiance non-negative
+                    e = sg_irradiance_norm(irr, pw_l[2], lw) * sg_integral(lw)
+                    if e > 0.0:
+                        pw = local_to_world(pw_l, ts, bs, ns)
+                        pa, lam, sc = sg_product(ns, CC_LAM, pw, lw)
+                        g = gamma_lookup(gamma, pa, lam) / sg_integral(lam)
+                        vr = vis_ratio(SHADOWS, FH, vis, pa, lam, ng, td, bd, i0, i1, i2, b0, b1, b2)
+                        col += wp.cw_mul(mw, g) * (e * vr)
         out[y, x] = wp.vec3(wp.max(col[0], 0.0), wp.max(col[1], 0.0), wp.max(col[2], 0.0))
 
     key = "shade_" + "_".join(str(int(v)) for v in (ENV_D, ENV_S, LIGHTS, SPEC, SHADOWS, TEX, NMAP, FH))
@@ -332,5 +344,5 @@ def resolve_box(src: wp.array2d(dtype=wp.vec3), k: int, out: wp.array2d(dtype=wp
 
 
 __all__ = ["Features", "shade_kernel", "resolve_box", "GeometryArrays", "MaterialTextures", "Visibility", "EnvSG",
-           "ClampedCosine", "SLOT_KD", "SLOT_KS", "SLOT_P0", "SLOT_P1", "SLOT_NORMAL", "SLOT_TANGENT", "N_SLOTS",
+           "SLOT_KD", "SLOT_KS", "SLOT_P0", "SLOT_P1", "SLOT_NORMAL", "SLOT_TANGENT", "N_SLOTS",
            "ENV_NONE", "ENV_SG", "ENV_PREFILTERED"]
