@@ -15,7 +15,6 @@ torus (equators across ``n.z = 0``) on a floor:
 """
 from __future__ import annotations
 
-import inspect
 
 import numpy as np
 import pytest
@@ -286,14 +285,6 @@ def test_sun_visibility_image_has_no_seam(device):
     assert seam_new < 2 * other_new + 0.01
 
 
-def _shading_uses_eval_world() -> bool:
-    from warp_sg import shading
-
-    return "ssdf_eval_world" in inspect.getsource(shading.vis_theta.func)
-
-
-@pytest.mark.xfail(condition=not _shading_uses_eval_world(), strict=True,
-                   reason="warp_sg.shading.vis_theta still calls ssdf_eval_bary (issue 11, item 5)")
 def test_renderer_sun_on_sphere_has_no_seam():
     import warp_sg as ws
     from warp_sg.scene import Camera, DirectionalLight, RenderSettings, Scene, SceneObject
