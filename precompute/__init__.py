@@ -20,6 +20,7 @@ _LAZY = {
     "ray_visibility": ("precompute.visibility", "ray_visibility"),
     "Refinement": ("precompute.refine", "Refinement"),
     "refine_for_visibility": ("precompute.refine", "refine_for_visibility"),
+    "refine_cached": ("precompute.refine", "refine_cached"),
     "envmap": ("precompute.envmap", None),
     "load_envmap": ("precompute.envmap", "load_envmap"),
     "procedural_sky": ("precompute.envmap", "procedural_sky"),

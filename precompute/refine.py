@@ -424,3 +424,26 @@ def refine_for_visibility(vertices, triangles, normals, *, budget: int = 20000, 
     stats["seconds"] = time.perf_counter() - t0
     return Refinement(vertices=st.V, normals=st.N, triangles=st.T, parent_tri=st.tparent,
                       vertex_parent=st.vparent, bary=st.vbary, input_triangles=f, stats=stats)
+
+
+_FIELDS = ("vertices", "normals", "triangles", "parent_tri", "vertex_parent", "bary", "input_triangles")
+_VERSION = "refine-v1"
+
+
+def refine_cached(vertices, triangles, normals, *, budget: int = 20000, device="cpu", progress=False,
+                  **kwargs) -> Refinement:
+    """:func:`refine_for_visibility`, cached on disk (``precompute.cache``, kind ``refine``) by the
+    mesh's content and the parameters, so a renderer built twice on one scene refines once."""
+    from .cache import content_key, load_or_build
+
+    key = content_key(np.asarray(vertices, np.float64), np.asarray(triangles, np.int64),
+                      np.asarray(normals, np.float64), dict(v=_VERSION, budget=int(budget), **kwargs))
+
+    def build():
+        r = refine_for_visibility(vertices, triangles, normals, budget=budget, device=device, progress=progress,
+                                  **kwargs)
+        return {k: getattr(r, k) for k in _FIELDS}
+
+    data = load_or_build("refine", key, build)
+    return Refinement(**{k: np.asarray(data[k]) for k in _FIELDS},
+                      stats={"vertices": int(len(data["vertices"])), "triangles": int(len(data["triangles"]))})

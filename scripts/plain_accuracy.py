@@ -42,9 +42,9 @@ def main():
             img = r.render()
             img = r.render()
             t_frame = r.timings["frame"]
-            ref = box_reference(ws.load_scene(path), spp=a.spp)
+            ref, se = box_reference(ws.load_scene(path), spp=a.spp, return_stderr=True)
             regs = scene_regions(ws.load_scene(path))
-            errs = region_errors(img, ref, regs)
+            errs = region_errors(img, ref, regs, stderr=se)
             allm = float(np.sum((img - ref) ** 2) / np.sum(ref ** 2))
             print(f"\n## {case}  (image rel MSE {allm:.4f}; precompute {t_pre:.1f} s, frame {1000 * t_frame:.0f} ms)")
             print(format_region_table(errs))

@@ -31,7 +31,8 @@ def test_quick_bench_prints_every_section_with_its_columns(cache_dir):
     assert shading[0]["shade_ratio"] == 1.0
     assert all(r["shade_s"] > 0 for r in shading[:5])
     eq = res.sections["equal error: SG renderer vs Monte-Carlo reference"]
-    assert eq[0]["case"].startswith("SG renderer") and "spp" in eq[2]["case"]
+    assert eq[0]["case"].startswith("bench scene: SG renderer") and "spp" in eq[2]["case"]
+    assert eq[4]["case"].startswith("plain inputs: SG renderer") and "spp" in eq[6]["case"]
     assert all(math.isfinite(r["rel_mse"]) for r in eq)
     pre = res.sections["precompute cost"]
     assert all(r["total_s"] > 0 for r in pre)

@@ -43,7 +43,7 @@ def test_lambert_sphere_under_constant_environment_equals_kd_times_L(device):
     L = np.array([1.0, 0.5, 0.25])
     kd = np.array([0.5, 0.7, 0.9])
     env = EnvironmentLight(procedural="constant", options={"radiance": L.tolist(), "width": 32, "height": 16})
-    scene = sphere_scene(ws.brdf.Lambert(kd=kd), [env], env_lobes=4, supersampling=1)
+    scene = sphere_scene(ws.brdf.Lambert(kd=kd), [env], env_lobes=4, supersampling=1, antialias=1)
     img = ws.render(scene, device=device)
     x, n, o = ray_sphere(scene.camera, (0, 0, 0), 0.6)
     inside = interior(n, o)
@@ -58,7 +58,7 @@ def test_blinn_phong_sphere_under_directional_light_matches_the_exact_brdf(devic
     E = 2.0
     ldir = np.array([0.3, 0.5, 1.0]) / np.linalg.norm([0.3, 0.5, 1.0])
     mat = ws.brdf.BlinnPhong(kd=(0.3, 0.3, 0.3), ks=(0.5, 0.5, 0.5), n=40.0)
-    scene = sphere_scene(mat, [DirectionalLight(direction=ldir, radius=0.01, intensity=E)], size=48, supersampling=1)
+    scene = sphere_scene(mat, [DirectionalLight(direction=ldir, radius=0.01, intensity=E)], size=48, supersampling=1, antialias=1)
     scene.render.background = False
     img = ws.render(scene, device=device)
     x, n, o = ray_sphere(scene.camera, (0, 0, 0), 0.6)
@@ -96,7 +96,7 @@ def shadow_scene(shadows=True, size=40):
                  materials={"ball": ws.brdf.Lambert(kd=0.5), "floor": ws.brdf.Lambert(kd=0.8)},
                  lights=[DirectionalLight(direction=SHADOW_LIGHT, radius=0.1, intensity=3.0)],
                  render=RenderSettings(shadows=shadows, ssdf_resolution=16, pca_terms=10, background=False,
-                                                supersampling=1))
+                                                supersampling=1, antialias=1))
 
 
 def test_sphere_shadows_the_plane_by_the_occluded_fraction_of_the_light(cache_dir):
@@ -159,7 +159,7 @@ def test_kd_texture_and_normal_map_change_the_pixels_they_cover():
 def test_supersampling_is_the_box_average_of_the_finer_image():
     mat = ws.brdf.BlinnPhong(kd=0.4, ks=0.4, n=20.0)
     lights = [DirectionalLight(direction=(0.5, 0.7, 1.0), radius=0.05, intensity=2.0)]
-    fine = sphere_scene(mat, lights, size=32, supersampling=1)
+    fine = sphere_scene(mat, lights, size=32, supersampling=1, antialias=1)
     coarse = sphere_scene(mat, lights, size=16, supersampling=2)
     a = ws.render(fine)
     b = ws.render(coarse)
@@ -198,7 +198,7 @@ def test_lambert_under_a_directional_light_has_the_exact_cosine_not_eq40s_lobe()
     terminator); lights are now shaded with the exact cosine."""
     ldir = np.array([0.3, 0.5, 1.0]) / np.linalg.norm([0.3, 0.5, 1.0])
     sc = sphere_scene(ws.brdf.Lambert(kd=0.5), [DirectionalLight(direction=ldir, radius=0.01, intensity=1.0)],
-                      size=32, supersampling=1)
+                      size=32, supersampling=1, antialias=1)
     sc.render.background = False
     img = ws.render(sc)
     _, nn, o = ray_sphere(sc.camera, (0, 0, 0), 0.6)

@@ -74,3 +74,20 @@ def test_tiny_report_writes_csv_markdown_plots_with_decreasing_mc_error(tmp_path
     assert rep.noise_floor_rel_mse < mc[-1]["rel_mse"]
     md = rep.files["markdown"].read_text()
     assert "error_vs_time.png" in md and "| knob |" in md
+    assert "## Error by region" in md and "| lit_floor |" in md and "| silhouette |" in md
+
+
+def test_region_errors_give_bias_per_channel_and_count_pixels_off_by_three_times():
+    from warp_sg.regions import region_errors
+
+    ref = np.ones((4, 5, 3))
+    img = ref * np.array([1.1, 1.0, 0.7])  # +10 %, 0, −30 %
+    img[0, 0] = 5.0  # one pixel off by 5×
+    m = np.zeros((4, 5), bool)
+    m[0] = True  # 5 pixels
+    e = region_errors(img, ref, {"object": m})["object"]
+    assert e["pixels"] == 5
+    np.testing.assert_allclose(e["bias_rgb"], [(4 * 1.1 + 5) / 5 - 1, (4 + 5) / 5 - 1, (4 * 0.7 + 5) / 5 - 1])
+    assert e["bias"] == pytest.approx(0.88)  # the worst channel (red)
+    assert e["off3"] == pytest.approx(1 / 5)
+    np.testing.assert_allclose(e["rel_mse"], np.sum((img[m] - 1) ** 2) / 15)

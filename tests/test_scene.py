@@ -81,7 +81,7 @@ def test_scene_file_loads_camera_objects_materials_lights_and_render_settings(tm
     (light,) = sc.lights
     assert light.type == "point" and light.radius == pytest.approx(0.1)
     assert np.allclose(light.intensity, 20.0)
-    assert sc.render.shadows is False and sc.render.supersampling == 2  # antialiased by default
+    assert sc.render.shadows is False and sc.render.supersampling == 1 and sc.render.antialias == 4
     assert sc.environment is None and sc.local_lights == [light]
 
 

@@ -13,7 +13,8 @@ ratios are meant to carry over between machines):
    outputs go to a temporary folder).
 4. **equal error** — the SG renderer against our Monte-Carlo reference: the renderer's relative
    MSE against a high-sample reference, the samples per pixel the reference needs to reach the
-   same error (log-log interpolation between powers of two) and the time ratio.
+   same error (log-log interpolation between powers of two) and the time ratio; on the bench
+   scene and on a plain-input scene (2-triangle floor, sun-sky EXR).
 
 The bench scene (:func:`bench_scene`) is a Torrance-Sparrow sphere, a Ward torus and a Lambert
 floor under the procedural sky with one point light and one directional light.
@@ -219,15 +220,12 @@ def spp_for_error(curve, target):
     return spp, t * spp / s
 
 
-def equal_error_section(device="cpu", quick=False, truth_spp=None, progress=False):
+def _equal_error_rows(scene, label, device, quick, truth_spp, progress, seed):
     from .reference import render_reference
     from .render import Renderer
     from .report import fresh_cache, image_errors
 
-    w, h = (24, 18) if quick else (96, 72)
-    truth_spp = truth_spp or (32 if quick else 1024)
-    scene = bench_scene(w, h, quick=quick)
-    truth = render_reference(scene, spp=truth_spp, device=device, progress=progress, seed=11)
+    truth = render_reference(scene, spp=truth_spp, device=device, progress=progress, seed=seed)
     with fresh_cache():
         r = Renderer(scene, device=device)
         pre = r.timings.get("precompute", float("nan"))
@@ -240,20 +238,37 @@ def equal_error_section(device="cpu", quick=False, truth_spp=None, progress=Fals
         if spp & (spp - 1) == 0:
             curve.append((spp, image_errors(im, truth.image)["rel_mse"], seconds))
 
-    render_reference(scene, spp=max(1, truth_spp // 8), device=device, progress=progress, seed=12, callback=cb)
+    render_reference(scene, spp=max(1, truth_spp // 8), device=device, progress=progress, seed=seed + 1, callback=cb)
     spp, t_mc = spp_for_error(curve, err["rel_mse"])
     floor = float(np.sum(truth.stderr.astype(np.float64) ** 2) / max(np.sum(truth.image.astype(np.float64) ** 2),
                                                                         1e-300))
     return [
-        {"case": "SG renderer (frame)", "rel_mse": err["rel_mse"], "psnr_db": err["psnr_db"], "seconds": frame,
-         "ratio": 1.0},
-        {"case": "SG renderer (precompute + frame)", "rel_mse": err["rel_mse"], "seconds": pre + frame,
+        {"case": f"{label}: SG renderer (frame)", "rel_mse": err["rel_mse"], "psnr_db": err["psnr_db"],
+         "seconds": frame, "ratio": 1.0},
+        {"case": f"{label}: SG renderer (precompute + frame)", "rel_mse": err["rel_mse"], "seconds": pre + frame,
          "ratio": (pre + frame) / frame},
-        {"case": f"MC reference at equal error ({spp:.3g} spp)", "rel_mse": err["rel_mse"], "seconds": t_mc,
-         "ratio": t_mc / frame},
-        {"case": f"ground truth ({truth_spp} spp) noise floor", "rel_mse": floor, "seconds": truth.seconds,
+        {"case": f"{label}: MC reference at equal error ({spp:.3g} spp)", "rel_mse": err["rel_mse"],
+         "seconds": t_mc, "ratio": t_mc / frame},
+        {"case": f"{label}: ground truth ({truth_spp} spp) noise floor", "rel_mse": floor, "seconds": truth.seconds,
          "ratio": truth.seconds / frame},
     ]
+
+
+def equal_error_section(device="cpu", quick=False, truth_spp=None, progress=False):
+    """Equal error against our MC reference on the bench scene and on a plain-input scene (a
+    sphere on a floor of two triangles under a sky EXR whose sun holds half the irradiance:
+    ``warp_sg.plain_scenes``); ratios are MC time at the renderer's error over its frame time."""
+    from .plain_scenes import write_plain_scene
+    from .scene import load_scene
+
+    w, h = (24, 18) if quick else (96, 72)
+    truth_spp = truth_spp or (32 if quick else 1024)
+    rows = _equal_error_rows(bench_scene(w, h, quick=quick), "bench scene", device, quick, truth_spp, progress, 11)
+    with tempfile.TemporaryDirectory() as d:
+        plain = load_scene(write_plain_scene(d, obj="sphere", light="sky", material="lambert", size=h))
+        plain.render.visibility_budget = 3000 if quick else plain.render.visibility_budget
+        rows += _equal_error_rows(plain, "plain inputs", device, quick, truth_spp, progress, 21)
+    return rows
 
 
 SECTIONS = {

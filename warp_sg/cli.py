@@ -133,7 +133,8 @@ def render_main(args) -> int:
     save_image(out, img)
     if args.timings:
         t = r.timings
-        print(f"precompute {t['precompute']:.3f} s, raster {t['raster']:.4f} s, shade {t['shade']:.4f} s, "
+        parts = ", ".join(f"{k} {v:.3f} s" for k, v in t.get("precompute_parts", {}).items())
+        print(f"precompute {t['precompute']:.3f} s ({parts}), raster {t['raster']:.4f} s, shade {t['shade']:.4f} s, "
               f"frame {t['frame']:.4f} s")
     return 0
 

@@ -99,24 +99,30 @@ def scene_regions(scene, supersample: int = 4, device: str = "cpu") -> dict[str,
     return {"object": is_object, "lit_floor": sel & lit, "shadow": sel & ~lit, "silhouette": silhouette}
 
 
-def box_reference(scene, spp: int = 512, supersample: int = 4, device: str = "cpu", seed: int = 0):
+def box_reference(scene, spp: int = 1024, supersample: int = 8, device: str = "cpu", seed: int = 0,
+                  return_stderr: bool = False):
     """The Monte-Carlo reference box-filtered over each pixel: ``supersample``² point-sampled
     sub-pixels (``spp / supersample²`` samples each), averaged — what an antialiased image is
-    compared with (the renderer's own supersampling does not matter to it)."""
+    compared with (the renderer's own supersampling does not matter to it). With
+    ``return_stderr``: ``(image, per-pixel standard error)``."""
     import copy
 
     from .reference import reference
 
     sc = copy.deepcopy(scene)
     sc.render.supersampling = int(supersample)
-    return reference(sc, spp=max(1, int(round(spp / supersample ** 2))), device=device, progress=False, seed=seed)
+    return reference(sc, spp=max(1, int(round(spp / supersample ** 2))), device=device, progress=False, seed=seed,
+                     return_stderr=return_stderr)
 
 
-def region_errors(img, ref, regions: dict[str, np.ndarray]) -> dict[str, dict]:
+def region_errors(img, ref, regions: dict[str, np.ndarray], stderr=None) -> dict[str, dict]:
     """Per region: ``pixels``, ``rel_mse``, ``bias`` (worst channel, signed), ``bias_rgb`` and
-    ``off3`` (fraction of pixels off by more than 3× in luminance)."""
+    ``off3`` (fraction of pixels off by more than 3× in luminance). With the reference's per-pixel
+    standard error ``stderr``, ``rel_mse`` is corrected for the reference's own noise
+    (E[(x − r)²] = (x − E r)² + se², so Σ se² is subtracted; ``noise`` reports Σ se² / Σ r²)."""
     img = np.asarray(img, np.float64)
     ref = np.asarray(ref, np.float64)
+    se = None if stderr is None else np.asarray(stderr, np.float64)
     out = {}
     for name, m in regions.items():
         n = int(np.count_nonzero(m))
@@ -126,7 +132,9 @@ def region_errors(img, ref, regions: dict[str, np.ndarray]) -> dict[str, dict]:
             continue
         x, r = img[m], ref[m]
         denom = float(np.sum(r * r))
-        rel = float(np.sum((x - r) ** 2) / denom) if denom > 0 else float("nan")
+        sq = float(np.sum((x - r) ** 2))
+        noise = float(np.sum(se[m] ** 2)) if se is not None else 0.0
+        rel = max(sq - noise, 0.0) / denom if denom > 0 else float("nan")
         mr = r.mean(0)
         bias_rgb = np.where(mr > 0, x.mean(0) / np.maximum(mr, 1e-30) - 1.0, np.nan)
         worst = float(bias_rgb[np.nanargmax(np.abs(bias_rgb))]) if np.any(np.isfinite(bias_rgb)) else float("nan")
@@ -135,6 +143,8 @@ def region_errors(img, ref, regions: dict[str, np.ndarray]) -> dict[str, dict]:
         ratio = (lx + eps) / (lr + eps)
         off3 = float(np.mean((ratio > 3.0) | (ratio < 1.0 / 3.0)))
         out[name] = {"pixels": n, "rel_mse": rel, "bias": worst, "bias_rgb": bias_rgb.tolist(), "off3": off3}
+        if se is not None:
+            out[name]["noise"] = noise / denom if denom > 0 else float("nan")
     if out.get("shadow", {}).get("pixels") and out.get("lit_floor", {}).get("pixels"):
         # a shadow lit by nothing else is ~black: its relative bias is ill-conditioned, so also
         # give the shadow's error as a fraction of the lit floor's level

@@ -14,7 +14,9 @@ the error/time plane, next to the Monte-Carlo reference's own error-vs-samples c
    warm frames) are measured separately, and the image error against the ground truth.
 
 Errors (:func:`image_errors`): relative MSE ``Σ(x − r)² / Σ r²`` on linear radiance, PSNR of the
-tone-mapped (``tonemap_srgb``) images, and the max absolute error (linear). Outputs in ``DIR``:
+tone-mapped (``tonemap_srgb``) images, and the max absolute error (linear); for the scene's own
+settings also per region (object, lit floor, shadow, silhouette band) with relative MSE, bias and
+the fraction of pixels off by more than 3× (:mod:`warp_sg.regions`). Outputs in ``DIR``:
 ``report.csv``, ``report.md`` (summary + table + embedded plots), ``error_vs_time.png`` (log-log,
 one curve per knob, the MC curve on the same axes), ``psnr_vs_time.png``, ``images.png`` (truth,
 renderer, difference), ``report.json``.
@@ -259,7 +261,11 @@ def run_report(scene, out_dir, device="cpu", quick=False, truth_spp=None, mc_max
         if bar is not None:
             bar.close()
 
-    files = write_outputs(out, rows, truth.image, base_img, truth_spp, floor, truth_time, scene, k_truth)
+    from .regions import region_errors, scene_regions
+
+    regions = region_errors(base_img, truth.image, scene_regions(scene, device=device)) if base_img is not None else None
+    files = write_outputs(out, rows, truth.image, base_img, truth_spp, floor, truth_time, scene, k_truth,
+                          regions=regions)
     return Report(out, rows, truth_spp, floor, files)
 
 
@@ -361,7 +367,8 @@ def plot_images(truth, img, path):
     os.replace(tmp, path)
 
 
-def write_outputs(out: Path, rows, truth, base_img, truth_spp, floor, truth_time, scene=None, k_truth=1) -> dict:
+def write_outputs(out: Path, rows, truth, base_img, truth_spp, floor, truth_time, scene=None, k_truth=1,
+                  regions=None) -> dict:
     files = {}
     p = out / "report.csv"
     tmp = out / ".report.csv.tmp"
@@ -407,12 +414,19 @@ def write_outputs(out: Path, rows, truth, base_img, truth_spp, floor, truth_time
             lines += [f"The renderer at the scene's settings (rel. MSE {b['rel_mse']:.3g}, {b['frame_s']:.3g} s/frame) "
                       f"is more accurate than the MC reference at {r['value']} spp ({r['total_s']:.3g} s, "
                       f"rel. MSE {r['rel_mse']:.3g}).", ""]
+    if regions:
+        from .regions import format_region_table
+
+        lines += ["## Error by region (scene's settings)", "",
+                  "Bias = mean(render)/mean(reference) − 1 (worst channel); off by >3× = fraction of the "
+                  "region's pixels whose luminance is off by more than 3× (`warp_sg.regions`).", "",
+                  format_region_table(regions), ""]
     lines += ["![error vs time](error_vs_time.png)", "", "![PSNR vs time](psnr_vs_time.png)", "",
               "![images](images.png)", "", "## All measurements", "", markdown_table(rows)]
     _atomic_write_text(out / "report.md", "\n".join(lines))
     files["markdown"] = out / "report.md"
     meta = {"truth_spp": truth_spp, "noise_floor_rel_mse": floor, "truth_seconds": truth_time,
-            "width": int(w), "height": int(h), "rows": rows}
+            "width": int(w), "height": int(h), "rows": rows, "regions": regions}
     _atomic_write_text(out / "report.json", json.dumps(meta, indent=1, default=str))
     files["json"] = out / "report.json"
     return files

@@ -48,7 +48,7 @@ Scene file schema (keys beyond DESIGN.md's are marked +)::
                 type = "directional": direction, radius, intensity
                 type = "environment": file | procedural ("sky" | "constant"), options+ (table),
                 scale, rotation+ (degrees about +Y)
-    [render]    shadows, supersampling, lobes, env_lobes, env_peaks, visibility_budget,
+    [render]    shadows, supersampling, antialias, lobes, env_lobes, env_peaks, visibility_budget,
                 pca_terms, ssdf_resolution, gamma_levels, gamma_resolution, fh, background, device
 """
 from __future__ import annotations
@@ -188,7 +188,9 @@ class RenderSettings:
     """The ``[render]`` table: quality knobs of the SG renderer.
 
     * ``shadows`` — SSDF visibility (eq. 23–31); off → V = 1 and no SSDF precompute.
-    * ``supersampling`` — k: raster at k·H × k·W, box-resolved (antialiasing; default 2).
+    * ``supersampling`` — k: raster and shade at k·H × k·W, box-resolved.
+    * ``antialias`` — a (default 4; 1 = off; used when ``supersampling`` is 1): coverage at a×a
+      sub-pixels, shading edge-adaptive (interior pixels once, edge pixels at every sub-pixel).
     * ``lobes`` — SG lobes of the NDF of isotropic models (anisotropic Ashikhmin-Shirley uses its
       own ``lobes`` parameter).
     * ``env_lobes`` — SG mixture of the environment for the diffuse term (eq. 39), < 10 in the paper.
@@ -205,12 +207,13 @@ class RenderSettings:
     """
 
     shadows: bool = True
-    supersampling: int = 2
+    supersampling: int = 1
+    antialias: int = 4
     lobes: int = 1
     env_lobes: int = 8
     env_peaks: int = 4
     visibility_budget: int = 20000
-    pca_terms: int = 16
+    pca_terms: int = 32
     ssdf_resolution: int = 32
     gamma_levels: int = 0
     gamma_resolution: int = 128
@@ -219,7 +222,7 @@ class RenderSettings:
     device: str = "cpu"
 
     def validate(self, where="[render]"):
-        ints = {"supersampling": (1, 16), "lobes": (1, 16), "env_lobes": (1, 64), "env_peaks": (0, 16), "visibility_budget": (0, 10_000_000),
+        ints = {"supersampling": (1, 16), "antialias": (1, 8), "lobes": (1, 16), "env_lobes": (1, 64), "env_peaks": (0, 16), "visibility_budget": (0, 10_000_000),
                 "pca_terms": (1, 256), "ssdf_resolution": (4, 1024), "gamma_levels": (0, 64),
                 "gamma_resolution": (4, 1024)}
         for k, (lo, hi) in ints.items():

@@ -1,0 +1,73 @@
+"""Compile every Warp kernel module of the project for CUDA ahead of time (no GPU needed).
+
+    python scripts/cuda_aot_check.py [--arch 90]
+
+Warp's NVRTC builds PTX for the given architecture on a machine without a CUDA driver, so the
+CUDA path of every kernel (rasterizer, precompute, shading variants, reference) is at least
+compiled on the CPU-only machines. Imports every module of ``warp_sg``, ``raster`` and
+``precompute``, instantiates the shading kernel variants a scene can select (all features on, and
+each feature off in turn), and calls ``wp.compile_aot_module(..., arch=ARCH, use_ptx=True)`` on
+each module that holds kernels. Exits 1 and names the module when one fails.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import sys
+import tempfile
+from dataclasses import fields, replace
+
+import warp as wp
+
+
+def project_modules() -> list[str]:
+    names = []
+    for pkg in ("warp_sg", "raster", "precompute"):
+        mod = importlib.import_module(pkg)
+        names.append(pkg)
+        names += [m.name for m in pkgutil.walk_packages(mod.__path__, pkg + ".")]
+    return names
+
+
+def shading_variants():
+    from warp_sg import shading as S
+
+    full = S.Features(env_diffuse=S.ENV_SG, env_specular=S.ENV_PREFILTERED, lights=True, specular=True,
+                      shadows=True, textures=True, normal_maps=True, fh_sigmoid=False)
+    off = {"env_diffuse": S.ENV_NONE, "env_specular": S.ENV_NONE, "lights": False, "specular": False,
+           "shadows": False, "textures": False, "normal_maps": False, "fh_sigmoid": True}
+    variants = [full] + [replace(full, **{f.name: off[f.name]}) for f in fields(S.Features)]
+    return [S.shade_kernel(f) for f in variants]
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--arch", type=int, default=90)
+    a = ap.parse_args()
+    wp.config.quiet = True
+    wp.init()
+    mods = []
+    for name in project_modules():
+        importlib.import_module(name)
+        m = wp.get_module(name)
+        if m.kernels or m.functions:
+            mods.append(m)
+    mods += [k.module for k in shading_variants()]
+    failed = []
+    with tempfile.TemporaryDirectory() as out:
+        for m in mods:
+            if not m.kernels:
+                continue
+            try:
+                wp.compile_aot_module(m, arch=a.arch, use_ptx=True, module_dir=out)
+                print(f"ok    {m.name} ({len(m.kernels)} kernels)")
+            except Exception as e:  # noqa: BLE001 - report every module, then fail
+                failed.append(m.name)
+                print(f"FAIL  {m.name}: {type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}")
+    print(f"{len(mods) - len(failed)} modules compiled for sm_{a.arch}, {len(failed)} failed")
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
