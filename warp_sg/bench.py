@@ -221,11 +221,21 @@ def spp_for_error(curve, target):
 
 
 def _equal_error_rows(scene, label, device, quick, truth_spp, progress, seed):
+    """Rows of one scene. The renderer's image is antialiased (``antialias`` a×a coverage): the
+    truth and the MC curve are then box-filtered the same way (a×a sub-pixels, ``spp`` counted per
+    pixel), as a path tracer's jittered pixels would be."""
+    import copy
+
     from .reference import render_reference
     from .render import Renderer
     from .report import fresh_cache, image_errors
 
-    truth = render_reference(scene, spp=truth_spp, device=device, progress=progress, seed=seed)
+    rs = scene.render
+    k = rs.supersampling if rs.supersampling > 1 else max(1, rs.antialias)
+    ref_scene = copy.deepcopy(scene)
+    ref_scene.render.supersampling = k
+    per = k * k  # samples per pixel for one sample per sub-pixel
+    truth = render_reference(ref_scene, spp=max(1, truth_spp // per), device=device, progress=progress, seed=seed)
     with fresh_cache():
         r = Renderer(scene, device=device)
         pre = r.timings.get("precompute", float("nan"))
@@ -236,9 +246,10 @@ def _equal_error_rows(scene, label, device, quick, truth_spp, progress, seed):
 
     def cb(spp, seconds, im, se):
         if spp & (spp - 1) == 0:
-            curve.append((spp, image_errors(im, truth.image)["rel_mse"], seconds))
+            curve.append((spp * per, image_errors(im, truth.image)["rel_mse"], seconds))
 
-    render_reference(scene, spp=max(1, truth_spp // 8), device=device, progress=progress, seed=seed + 1, callback=cb)
+    render_reference(ref_scene, spp=max(1, truth_spp // (8 * per)), device=device, progress=progress, seed=seed + 1,
+                     callback=cb)
     spp, t_mc = spp_for_error(curve, err["rel_mse"])
     floor = float(np.sum(truth.stderr.astype(np.float64) ** 2) / max(np.sum(truth.image.astype(np.float64) ** 2),
                                                                         1e-300))
