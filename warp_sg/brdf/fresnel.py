@@ -46,6 +46,27 @@ def _c(c):
     return np.clip(np.asarray(c, dtype=np.float64), 0.0, 1.0)[..., None]
 
 
+def fresnel_eq14(eta, c):
+    """Paper eq. 14: ``g = √(η² + c² − 1)``, ``F = (g−c)²/(2(g+c)²) (1 + ((c(g+c)−1)/(c(g−c)+1))²)``,
+    1 under total internal reflection (``g² ≤ 0``); ``c`` clipped to [0, 1]; broadcasts ``eta``
+    against ``c``. The one numpy implementation (:class:`Dielectric`, ``brdf.measured``)."""
+    c = np.clip(np.asarray(c, dtype=np.float64), 0.0, 1.0)
+    eta = np.asarray(eta, dtype=np.float64)
+    g2 = eta * eta + c * c - 1.0
+    g = np.sqrt(np.maximum(g2, 0.0))
+    a = (g - c) ** 2 / np.maximum(2.0 * (g + c) ** 2, 1e-300)
+    den = c * (g - c) + 1.0
+    den = np.where(np.abs(den) < 1e-300, 1e-300, den)
+    q = (c * (g + c) - 1.0) / den
+    return np.where(g2 > 0, np.clip(a * (1.0 + q * q), 0.0, 1.0), 1.0)
+
+
+def fresnel_normalised(eta, c):
+    """``F(c)/F(1)`` of :func:`fresnel_eq14` (1 where ``F(1) = 0``, i.e. η = 1)."""
+    f1 = fresnel_eq14(eta, 1.0)
+    return np.where(f1 > 1e-12, fresnel_eq14(eta, c) / np.where(f1 > 1e-12, f1, 1.0), 1.0)
+
+
 class NoFresnel:
     kind = 0
 
@@ -88,16 +109,7 @@ class Dielectric:
             raise InputError(f"must be > 0, got {self.eta.tolist()}", where=where)
 
     def __call__(self, c):
-        c = _c(c)
-        g2 = self.eta**2 + c * c - 1.0
-        tir = g2 <= 0
-        g = np.sqrt(np.maximum(g2, 0.0))
-        c = np.broadcast_to(c, g.shape)
-        a = (g - c) ** 2 / np.maximum(2.0 * (g + c) ** 2, 1e-300)
-        num = c * (g + c) - 1.0
-        den = c * (g - c) + 1.0
-        f = a * (1.0 + (num / np.where(den == 0, 1e-300, den)) ** 2)
-        return np.where(tir, 1.0, np.clip(f, 0.0, 1.0))
+        return fresnel_eq14(self.eta, _c(c))
 
     def record(self):
         return 2, tuple(self.eta), (0.0, 0.0, 0.0)

@@ -56,6 +56,7 @@ import numpy as np
 from ..errors import InputError
 from . import merl
 from .base import SpecularBRDF, as_scalar, dirs, half_vector, upper
+from .fresnel import fresnel_eq14, fresnel_normalised  # noqa: F401  (eq. 14, normalised at normal incidence)
 
 N_S = 90
 #: shadowing nodes θ_a = a/(N_S − 1) · π/2
@@ -67,29 +68,6 @@ _D_EDGES = (np.arange(merl.N_THETA_H + 1) / merl.N_THETA_H) ** 2 * (np.pi / 2)
 D_SOLID_ANGLE = 2 * np.pi * (np.cos(_D_EDGES[:-1]) - np.cos(_D_EDGES[1:]))
 COS_MIN = 0.05
 FIT_VERSION = 1
-
-
-# --------------------------------------------------------------------------------------------
-# Fresnel (paper eq. 14), normalised at normal incidence
-# --------------------------------------------------------------------------------------------
-def fresnel_eq14(eta, c):
-    """Paper eq. 14: ``g = √(η² + c² − 1)``, ``F = (g−c)²/(2(g+c)²) (1 + ((c(g+c)−1)/(c(g−c)+1))²)``,
-    1 under total internal reflection; broadcasts."""
-    c = np.clip(np.asarray(c, dtype=np.float64), 0.0, 1.0)
-    eta = np.asarray(eta, dtype=np.float64)
-    g2 = eta * eta + c * c - 1.0
-    g = np.sqrt(np.maximum(g2, 0.0))
-    a = (g - c) ** 2 / np.maximum(2.0 * (g + c) ** 2, 1e-300)
-    den = c * (g - c) + 1.0
-    den = np.where(np.abs(den) < 1e-300, 1e-300, den)
-    q = (c * (g + c) - 1.0) / den
-    return np.where(g2 > 0, np.clip(a * (1.0 + q * q), 0.0, 1.0), 1.0)
-
-
-def fresnel_normalised(eta, c):
-    """``F(c)/F(1)`` (1 where ``F(1) = 0``, i.e. η = 1)."""
-    f1 = fresnel_eq14(eta, 1.0)
-    return np.where(f1 > 1e-12, fresnel_eq14(eta, c) / np.where(f1 > 1e-12, f1, 1.0), 1.0)
 
 
 # --------------------------------------------------------------------------------------------
