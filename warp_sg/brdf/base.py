@@ -13,94 +13,10 @@ Numerical forms used by every model (float64 here, same forms in ``material_wp``
 """
 from __future__ import annotations
 
-import difflib
-
 import numpy as np
 
-from ..errors import InputError
-
-INV_PI = 1.0 / np.pi
-#: Smallest cosine used where a model divides by a cosine (grazing guard).
-COS_EPS = 1e-6
-
-
-def closest(name, options):
-    m = difflib.get_close_matches(str(name), list(options), n=1, cutoff=0.0)
-    return m[0] if m else None
-
-
-def suggest(name, options):
-    c = closest(name, options)
-    return f" (did you mean '{c}'?)" if c else ""
-
-
-def as_rgb(value, name, *, nonneg=True):
-    """A number or 3 numbers -> float64 (3,) array; raises InputError naming ``name``."""
-    try:
-        a = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputError(f"expected a number or 3 numbers (RGB), got {value!r}", where=name) from None
-    if a.ndim == 0:
-        a = np.full(3, float(a))
-    if a.shape != (3,):
-        raise InputError(f"expected a number or 3 numbers (RGB), got shape {a.shape}", where=name)
-    if not np.all(np.isfinite(a)):
-        raise InputError("must be finite", where=name)
-    if nonneg and np.any(a < 0):
-        raise InputError(f"must be >= 0, got {a.tolist()}", where=name)
-    return a
-
-
-def as_scalar(value, name, *, lo=None, lo_open=False, hi=None):
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"expected a number, got {value!r}", where=name) from None
-    if not np.isfinite(v):
-        raise InputError("must be finite", where=name)
-    if lo is not None and (v < lo or (lo_open and v <= lo)):
-        raise InputError(f"must be {'>' if lo_open else '>='} {lo}, got {v}", where=name)
-    if hi is not None and v > hi:
-        raise InputError(f"must be <= {hi}, got {v}", where=name)
-    return v
-
-
-def dirs(*vs):
-    """Broadcast direction arrays to float64 (..., 3)."""
-    out = [np.asarray(v, dtype=np.float64) for v in vs]
-    for v in out:
-        if v.shape[-1:] != (3,):
-            raise InputError(f"directions must have a trailing axis of size 3, got shape {v.shape}", where="direction")
-    return np.broadcast_arrays(*out)
-
-
-def half_vector(o, i):
-    h = o + i
-    n = np.linalg.norm(h, axis=-1, keepdims=True)
-    return h / np.where(n > 0, n, 1.0)
-
-
-def sin2_theta(v):
-    return v[..., 0] ** 2 + v[..., 1] ** 2
-
-
-def log_cos_theta(h):
-    """``ln(h_z)`` computed as ``log1p(−(hx²+hy²)/(1+hz))`` (accurate near the normal)."""
-    hz = np.maximum(h[..., 2], 0.0)
-    return np.log1p(-np.minimum(sin2_theta(h) / (1.0 + hz), 1.0))
-
-
-def theta_of(h):
-    return np.arctan2(np.sqrt(sin2_theta(h)), h[..., 2])
-
-
-def reflect_z(o):
-    """Mirror direction of ``o`` about the normal: ``2 (n·o) n − o`` = (−ox, −oy, oz)."""
-    return o * np.array([-1.0, -1.0, 1.0])
-
-
-def upper(o, i):
-    return (o[..., 2] > 0) & (i[..., 2] > 0)
+from .helpers import (COS_EPS, INV_PI, as_rgb, as_scalar, closest, dirs, half_vector, log_cos_theta,  # noqa: F401
+                      reflect_z, sin2_theta, suggest, theta_of, upper)
 
 
 class BRDF:

@@ -27,6 +27,7 @@ import functools
 import numpy as np
 
 from ..errors import InputError
+from .helpers import half_vector, suggest
 from .warp import WARP_COS_EPS
 
 EPSILON = 0.1
@@ -396,8 +397,6 @@ def ndf_sg_for(model, n_lobes=1, method="analytic"):
     ``method="analytic"`` with ``n_lobes > 1`` on an isotropic model falls back to the
     nonlinear fit (there is no analytic multi-lobe rule)."""
     if method not in METHODS:
-        from .base import suggest
-
         raise InputError(f"unknown fit method '{method}'{suggest(method, METHODS)}", where="method")
     try:
         n = int(n_lobes)
@@ -462,8 +461,6 @@ def fit_error(model, n_lobes=1, method="analytic", **kw):
     axes, lam, mu = model.ndf_sg(n_lobes, method)
 
     def approx(o, i):
-        from .base import half_vector
-
         hh = half_vector(o, i)
         d = (mu * np.exp(-lam * (1.0 - hh @ axes.T))).sum(-1)
         return model.mo(o, i) * d[..., None]
