@@ -19,14 +19,15 @@ Rotation is dynamic: an environment carries a rotation ``R`` (environment → wo
 into a resampled map for tests and export.
 
 Public API: :func:`load_envmap`, :func:`procedural_sky`, :func:`dir_to_uv`, :func:`uv_to_dir`,
-:func:`texel_directions`, :func:`texel_solid_angles`, :func:`downsample_envmap`,
-:func:`rotation_matrix`, :func:`rotate_envmap`, :func:`env_lookup_numpy`, and the ``@wp.func``
-twins ``wp_dir_to_uv(d) -> vec2``, ``wp_uv_to_dir(u, v) -> vec3``,
+:func:`dir_to_texel`, :func:`texel_directions`, :func:`row_solid_angles`, :func:`texel_solid_angles`,
+:func:`downsample_envmap`, :func:`rotation_matrix`, :func:`rotation_y`, :func:`rotate_envmap`,
+:func:`env_lookup_numpy`, and the ``@wp.func`` twins ``wp_dir_to_uv(d) -> vec2``, ``wp_uv_to_dir(u, v) -> vec3``,
 ``env_lookup(radiance: array2d(vec3), to_env: mat33, d: vec3) -> vec3`` (bilinear) and
 ``env_lookup_nearest(radiance, to_env, d)`` (piecewise constant).
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -49,6 +50,15 @@ def dir_to_uv(d):
     u = np.where(u >= 1.0, 0.0, u)
     v = np.arccos(np.clip(d[..., 1], -1.0, 1.0)) / np.pi
     return u, v
+
+
+def dir_to_texel(d, height: int, width: int):
+    """Unit directions ``(..., 3)`` → ``(row, col)`` int64 arrays of the texel that contains them
+    (the piecewise-constant lookup of :func:`env_lookup_nearest` and the reference's sampler)."""
+    u, v = dir_to_uv(d)
+    c = np.clip((u * width).astype(np.int64), 0, width - 1)
+    r = np.clip((v * height).astype(np.int64), 0, height - 1)
+    return r, c
 
 
 def uv_to_dir(u, v):
@@ -164,11 +174,10 @@ def env_lookup_numpy(env, dirs, rotation=None, bilinear: bool = True) -> np.ndar
     if rotation is not None:
         d = d @ np.asarray(rotation, dtype=np.float64)  # (Rᵀ d)ᵀ = dᵀ R
     d = d / np.linalg.norm(d, axis=-1, keepdims=True)
-    u, v = dir_to_uv(d)
     if not bilinear:
-        c = np.clip((u * w).astype(np.int64), 0, w - 1)
-        r = np.clip((v * h).astype(np.int64), 0, h - 1)
+        r, c = dir_to_texel(d, h, w)
         return env[r, c]
+    u, v = dir_to_uv(d)
     x = u * w - 0.5
     y = np.clip(v * h - 0.5, 0.0, h - 1)
     x0 = np.floor(x)
@@ -199,12 +208,45 @@ def rotation_matrix(axis=(0.0, 1.0, 0.0), angle_deg: float = 0.0) -> np.ndarray:
     return np.eye(3) + np.sin(t) * K + (1 - np.cos(t)) * (K @ K)
 
 
+def rotation_y(degrees: float) -> np.ndarray:
+    """``R_y(degrees)``: :func:`rotation_matrix` about +Y in closed form (exact entries), the
+    rotation of an ``EnvironmentLight`` (``world = R · map frame``)."""
+    t = math.radians(degrees)
+    c, s = math.cos(t), math.sin(t)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def _is_y_rotation(R) -> bool:
+    return bool(abs(R[1, 1] - 1.0) <= 1e-12 and np.all(np.abs(R[[0, 1, 1, 2], [1, 0, 2, 1]]) <= 1e-12))
+
+
+def _shift_u(env: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """``out(d) = env(Rᵀ d)`` for a rotation about +Y: only the azimuth moves, so this is an exact
+    linear resampling along u (wrapping), whatever the resolution."""
+    h, w = env.shape[:2]
+    # u = atan2(x, −z)/2π. The u shift of Rᵀ on one direction is the shift of every direction.
+    s = R.T @ np.array([0.0, 0.0, -1.0])  # u = 0
+    du = (math.atan2(s[0], -s[2]) / (2 * math.pi)) % 1.0
+    x = (np.arange(w) + 0.5) / w + du  # source u of each output column
+    xs = x * w - 0.5
+    x0 = np.floor(xs).astype(np.int64)
+    f = (xs - x0)[None, :, None]
+    return env[:, x0 % w] * (1 - f) + env[:, (x0 + 1) % w] * f
+
+
 def rotate_envmap(env, rotation, supersample: int = 2) -> np.ndarray:
     """Resample ``env`` so that the result, read unrotated, equals ``env`` rotated by ``R``.
 
-    ``out(d) = env(Rᵀ d)`` (bilinear, ``supersample²`` samples per output texel). Rendering
-    never needs this — rotation is applied at lookup time — it exists for tests and export.
+    ``out(d) = env(Rᵀ d)`` (bilinear, ``supersample²`` samples per output texel); a rotation about
+    +Y (an ``EnvironmentLight``'s) is the exact linear resampling along u instead, and the
+    identity returns the map unchanged. Returns float32. Rendering never needs this — rotation is
+    applied at lookup time — except the Monte-Carlo reference, which reads the rotated map.
     """
+    R = np.asarray(rotation, dtype=np.float64)
+    if np.array_equal(R, np.eye(3)):
+        return np.asarray(env).astype(np.float32)
+    if _is_y_rotation(R):
+        return _shift_u(np.asarray(env), R).astype(np.float32)
     env = np.asarray(env, dtype=np.float64)
     h, w = env.shape[:2]
     s = int(supersample)
@@ -390,12 +432,14 @@ __all__ = [
     "procedural_sky",
     "sky_radiance",
     "dir_to_uv",
+    "dir_to_texel",
     "uv_to_dir",
     "texel_directions",
     "row_solid_angles",
     "texel_solid_angles",
     "downsample_envmap",
     "rotation_matrix",
+    "rotation_y",
     "rotate_envmap",
     "env_lookup_numpy",
     "wp_dir_to_uv",

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 import warp as wp
 
+from precompute import envmap as em
 from warp_sg import sampling as S
 
 
@@ -53,7 +54,7 @@ def test_env_sampling_estimates_the_exact_integral_of_a_piecewise_constant_map(d
     rng = np.random.default_rng(1)
     env = _random_env(rng)
     h, w, _ = env.shape
-    exact = np.sum(env * S.texel_solid_angles(h, w)[:, None, None], axis=(0, 1))
+    exact = np.sum(env * em.row_solid_angles(h, w)[:, None, None], axis=(0, 1))
     sampler = S.make_env_sampler(env, 2.0, device)
     n = 200_000
     dirs = wp.empty(n, dtype=wp.vec3, device=device)
@@ -68,8 +69,8 @@ def test_env_sampling_estimates_the_exact_integral_of_a_piecewise_constant_map(d
     assert np.all(se / mean < 0.02)
     # sampled texel frequencies follow the table probabilities
     _, _, _, tpdf = S.env_tables(env, 2.0)
-    prob = tpdf * S.texel_solid_angles(h, w)[:, None]
-    r, c = S.env_direction_to_texel(dirs.numpy(), h, w)
+    prob = tpdf * em.row_solid_angles(h, w)[:, None]
+    r, c = em.dir_to_texel(dirs.numpy(), h, w)
     counts = np.bincount(r * w + c, minlength=h * w).reshape(h, w)
     expected = prob * n
     big = expected > 50
@@ -84,7 +85,7 @@ def test_env_tables_pdf_integrates_to_one_and_solid_angles_to_four_pi():
     rng = np.random.default_rng(2)
     env = _random_env(rng, 9, 20)
     _, marg, cond, tpdf = S.env_tables(env)
-    om = S.texel_solid_angles(9, 20)
+    om = em.row_solid_angles(9, 20)
     assert abs(om.sum() * 20 - 4 * np.pi) < 1e-12
     assert abs(np.sum(tpdf * om[:, None]) - 1.0) < 1e-12
     assert marg[0] == 0 and marg[-1] == 1 and np.all(np.diff(marg) > 0)

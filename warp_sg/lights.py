@@ -171,32 +171,23 @@ class EnvironmentLight:
 
     def radiance(self) -> np.ndarray:
         """The world-space map: ``scale`` applied and rotated about +Y (exact resampling along u)."""
-        a = self.base_radiance() * np.float32(self.scale)
-        return rotate_equirect(a, self.rotation).astype(np.float32)
+        return rotate_equirect(self.base_radiance() * np.float32(self.scale), self.rotation)
 
 
+# The environment's rotation is implemented once, in precompute.envmap (imported on use).
 def rotation_y(degrees: float) -> np.ndarray:
-    t = math.radians(degrees)
-    c, s = math.cos(t), math.sin(t)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+    """``R_y(degrees)`` (:func:`precompute.envmap.rotation_y`)."""
+    from precompute.envmap import rotation_y as _rotation_y
+
+    return _rotation_y(degrees)
 
 
 def rotate_equirect(env: np.ndarray, degrees: float) -> np.ndarray:
-    """``L_out(d) = L_in(R_y(degrees)ᵀ d)`` for an equirectangular map (Mitsuba's convention).
-    A rotation about +Y only shifts the azimuth, so this is a linear resampling along u."""
-    if degrees % 360.0 == 0.0:
-        return env
-    h, w = env.shape[:2]
-    # u = atan2(x, −z)/2π. Find the u shift of R_yᵀ on a test direction (exact for all directions).
-    R = rotation_y(degrees)
-    d = np.array([0.0, 0.0, -1.0])  # u = 0
-    s = R.T @ d
-    du = (math.atan2(s[0], -s[2]) / (2 * math.pi)) % 1.0
-    x = (np.arange(w) + 0.5) / w + du  # source u of each output column
-    xs = x * w - 0.5
-    x0 = np.floor(xs).astype(np.int64)
-    f = (xs - x0)[None, :, None]
-    return (env[:, x0 % w] * (1 - f) + env[:, (x0 + 1) % w] * f).astype(env.dtype)
+    """``L_out(d) = L_in(R_y(degrees)ᵀ d)`` as float32: :func:`precompute.envmap.rotate_envmap` of
+    :func:`rotation_y` (a rotation about +Y is an exact resampling along u)."""
+    from precompute.envmap import rotate_envmap
+
+    return rotate_envmap(env, rotation_y(degrees))
 
 
 # --------------------------------------------------------------------------------------------

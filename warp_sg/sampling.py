@@ -9,7 +9,8 @@ reference treats the map as **piecewise constant** (texel ``(r, c)`` covers
 ``θ ∈ [π r/H, π (r+1)/H]``, ``φ ∈ [2π c/W, 2π (c+1)/W]``), which is the exact radiance function of
 the file. Texel ``(r, c)`` is chosen with probability ``∝ (lum + ε) · Ω_rc`` where
 ``Ω_rc = (2π/W)(cos θ_r − cos θ_{r+1})`` is its solid angle (this is the sin θ factor, integrated
-exactly); inside the texel the direction is uniform in solid angle (uniform φ and cos θ), so the
+exactly; the convention, the solid angles and the texel lookup are ``precompute.envmap``'s:
+``row_solid_angles``, ``dir_to_texel``, ``wp_dir_to_uv``); inside the texel the direction is uniform in solid angle (uniform φ and cos θ), so the
 solid-angle pdf is constant per texel: ``pdf = P_rc / Ω_rc``. ``ε`` (a 1e-4 fraction of the mean
 luminance) keeps the pdf positive wherever the map may be non-zero.
 
@@ -25,6 +26,8 @@ import math
 
 import numpy as np
 import warp as wp
+
+from precompute.envmap import row_solid_angles, wp_dir_to_uv
 
 from .frames import frame_bitangent, frame_tangent, local_to_world
 from .sg_wp import one_minus_dot
@@ -53,12 +56,6 @@ class EnvSampler:
     texel_pdf: wp.array2d(dtype=float)  # (H, W) solid-angle pdf inside each texel
 
 
-def texel_solid_angles(height: int, width: int) -> np.ndarray:
-    """(H,) solid angle of one texel of each row, float64 (sums to 4π over the map)."""
-    theta = np.pi * np.arange(height + 1) / height
-    return (2.0 * np.pi / width) * (np.cos(theta[:-1]) - np.cos(theta[1:]))
-
-
 def env_tables(env: np.ndarray, scale=1.0):
     """Sampling tables of an equirectangular map, float64.
 
@@ -72,7 +69,7 @@ def env_tables(env: np.ndarray, scale=1.0):
     h, w, _ = rad.shape
     lum = np.clip(rad, 0.0, None) @ LUMINANCE
     lum = np.where(np.isfinite(lum), lum, 0.0)
-    omega = texel_solid_angles(h, w)
+    omega = row_solid_angles(h, w)
     mean = float(np.sum(lum * omega[:, None]) / (4.0 * np.pi))
     eps = 1e-4 * mean if mean > 0 else 1.0
     weight = (lum + eps) * omega[:, None]
@@ -105,17 +102,6 @@ def make_env_sampler(env: np.ndarray | None, scale=1.0, device="cpu") -> EnvSamp
     s.conditional_cdf = wp.array(cond.astype(np.float32), dtype=float, device=device)
     s.texel_pdf = wp.array(pdf.astype(np.float32), dtype=float, device=device)
     return s
-
-
-def env_direction_to_texel(d: np.ndarray, height: int, width: int):
-    """numpy twin of the kernel lookup: unit directions (...,3) -> (row, col) int arrays."""
-    d = np.asarray(d, dtype=np.float64)
-    u = np.arctan2(d[..., 0], -d[..., 2]) / (2.0 * np.pi)
-    u = u - np.floor(u)
-    v = np.arccos(np.clip(d[..., 1], -1.0, 1.0)) / np.pi
-    c = np.minimum((u * width).astype(np.int64), width - 1)
-    r = np.minimum((v * height).astype(np.int64), height - 1)
-    return r, c
 
 
 # --------------------------------------------------------------------------------------------
@@ -155,12 +141,10 @@ def cdf_search_row(cdf: wp.array2d(dtype=float), row: int, n: int, u: float) -> 
 
 @wp.func
 def env_texel(env: EnvSampler, d: wp.vec3) -> wp.vec2i:
-    """(row, col) of the texel containing unit direction ``d``."""
-    u = wp.atan2(d[0], -d[2]) / TWO_PI
-    u = u - wp.floor(u)
-    v = wp.acos(wp.clamp(d[1], -1.0, 1.0)) / PI
-    c = wp.min(int(u * float(env.width)), env.width - 1)
-    r = wp.min(int(v * float(env.height)), env.height - 1)
+    """(row, col) of the texel containing unit direction ``d`` (kernel twin of ``envmap.dir_to_texel``)."""
+    uv = wp_dir_to_uv(d)
+    c = wp.min(int(uv[0] * float(env.width)), env.width - 1)
+    r = wp.min(int(uv[1] * float(env.height)), env.height - 1)
     return wp.vec2i(wp.max(r, 0), wp.max(c, 0))
 
 
@@ -297,8 +281,6 @@ __all__ = [
     "EnvSampler",
     "env_tables",
     "make_env_sampler",
-    "texel_solid_angles",
-    "env_direction_to_texel",
     "env_texel",
     "env_radiance",
     "env_pdf",
