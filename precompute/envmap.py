@@ -289,7 +289,7 @@ def load_envmap(path, scale: float = 1.0) -> np.ndarray:
     NaN/inf or negative texels, a grey-only file, a non-EXR file or an unreadable file raise
     :class:`ImageError` naming the file.
     """
-    from warp_sg.image_io import _read_exr, exr_channel_names
+    from warp_sg.image_io import exr_channel_names, read_exr
 
     path = Path(path)
     where = str(path)
@@ -308,7 +308,7 @@ def load_envmap(path, scale: float = 1.0) -> np.ndarray:
             f"environment map has channels [{', '.join(sorted(exr_channel_names(path)))}]; need R, G, B",
             where=where,
         )
-    img = _read_exr(path)[..., :3]
+    img = read_exr(path)[..., :3]
     s = float(scale)
     if not np.isfinite(s) or s < 0:
         raise ImageError(f"scale must be a finite non-negative number, got {scale}", where=where)

@@ -177,7 +177,11 @@ def _exr_channels(path: Path) -> tuple[dict[str, np.ndarray], tuple[int, int]]:
     return chans, next(iter(shapes))
 
 
-def _read_exr(path: Path) -> np.ndarray:
+def read_exr(path) -> np.ndarray:
+    """An OpenEXR file's pixels as ``(H, W, C)`` float32, as stored: channels R, G, B[, A] or
+    Y[, A] (a single layer prefix such as ``diffuse.`` is stripped). Unreadable files, several
+    layers or no usable channel set raise :class:`ImageError` naming the file."""
+    path = Path(path)
     chans, _ = _exr_channels(path)
     # Strip a single layer prefix ("diffuse.R" -> "R").
     base = {}
@@ -289,7 +293,7 @@ def load_image(path, *, linear: bool | None = None, channels: int | None = None)
                 is_exr = f.read(4) == b"\x76\x2f\x31\x01"
         except OSError as e:
             raise ImageError(f"cannot open image ({e.strerror or e})", where=str(path)) from None
-    a = _read_exr(path) if is_exr else _read_ldr(path, bool(linear))
+    a = read_exr(path) if is_exr else _read_ldr(path, bool(linear))
     if channels is not None and channels not in (1, 3, 4):
         raise ValueError(f"channels must be 1, 3, 4 or None, got {channels}")
     return np.ascontiguousarray(_convert_channels(a, channels, path), dtype=np.float32)
@@ -302,4 +306,5 @@ __all__ = [
     "linear_to_srgb",
     "srgb_to_linear",
     "exr_channel_names",
+    "read_exr",
 ]
