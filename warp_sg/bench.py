@@ -105,7 +105,7 @@ def bench_scene(width=160, height=120, *, env=True, lights=True, diffuse_only=Fa
     rs = RenderSettings(shadows=shadows, supersampling=supersampling)
     if quick:
         rs = RenderSettings(shadows=shadows, supersampling=supersampling, ssdf_resolution=16, pca_terms=8,
-                            gamma_resolution=16, gamma_levels=4, env_lobes=4)
+                            gamma_resolution=16, gamma_levels=4, env_lobes=4, visibility_budget=1500)
     return Scene(camera=cam, objects=objs, materials=mats, lights=ls, render=rs)
 
 
@@ -277,7 +277,8 @@ def equal_error_section(device="cpu", quick=False, truth_spp=None, progress=Fals
     rows = _equal_error_rows(bench_scene(w, h, quick=quick), "bench scene", device, quick, truth_spp, progress, 11)
     with tempfile.TemporaryDirectory() as d:
         plain = load_scene(write_plain_scene(d, obj="sphere", light="sky", material="lambert", size=h))
-        plain.render.visibility_budget = 3000 if quick else plain.render.visibility_budget
+        if quick:
+            plain.render.visibility_budget, plain.render.ssdf_resolution, plain.render.pca_terms = 1500, 16, 8
         rows += _equal_error_rows(plain, "plain inputs", device, quick, truth_spp, progress, 21)
     return rows
 
