@@ -22,6 +22,7 @@ import warp as wp
 
 from warp_sg.device import resolve_device
 from warp_sg.errors import InputError, MeshError
+from warp_sg.meshcheck import check_mesh
 from warp_sg.frames import frame_bitangent, frame_tangent, local_to_world
 
 from .ssdf_wp import texel_directions
@@ -37,48 +38,9 @@ OFFSET_SCALE = 1e-4
 def validate_mesh(vertices, triangles, normals=None):
     """Return float64 vertices (V,3), int64 triangles (F,3), float64 unit normals (V,3) or None.
 
-    Raises :class:`MeshError` naming the first bad element.
-    """
-    v = np.asarray(vertices)
-    if v.ndim != 2 or v.shape[1] != 3:
-        raise MeshError(f"vertices must have shape (V, 3), got {v.shape}")
-    if not np.issubdtype(v.dtype, np.number):
-        raise MeshError(f"vertices must be numeric, got dtype {v.dtype}")
-    v = v.astype(np.float64)
-    if len(v) == 0:
-        raise MeshError("mesh has no vertices")
-    bad = ~np.isfinite(v).all(axis=1)
-    if bad.any():
-        k = int(np.argmax(bad))
-        raise MeshError(f"vertex {k} has non-finite coordinates {v[k].tolist()}")
-    f = np.asarray(triangles)
-    if f.ndim != 2 or f.shape[1] != 3:
-        raise MeshError(f"triangles must have shape (F, 3), got {f.shape}")
-    if f.size and not np.issubdtype(f.dtype, np.integer):
-        if not np.all(np.isfinite(f)) or np.any(f != np.round(f)):
-            raise MeshError("triangle indices must be integers")
-    f = f.astype(np.int64)
-    nv = len(v)
-    oob = (f < 0) | (f >= nv)
-    if oob.any():
-        t, c = np.argwhere(oob)[0]
-        raise MeshError(f"triangle {t} index {f[t, c]} out of range (mesh has {nv} vertices)")
-    n = None
-    if normals is not None:
-        n = np.asarray(normals)
-        if n.shape != v.shape:
-            raise MeshError(f"normals must have shape {v.shape} (one per vertex), got {n.shape}")
-        n = n.astype(np.float64)
-        bad = ~np.isfinite(n).all(axis=1)
-        if bad.any():
-            k = int(np.argmax(bad))
-            raise MeshError(f"vertex {k} has a non-finite normal {n[k].tolist()}")
-        ln = np.linalg.norm(n, axis=1)
-        if (ln < 1e-12).any():
-            k = int(np.argmax(ln < 1e-12))
-            raise MeshError(f"vertex {k} has a zero-length normal")
-        n = n / ln[:, None]
-    return v, f, n
+    Raises :class:`MeshError` naming the first bad element (:func:`warp_sg.meshcheck.check_mesh`;
+    a mesh without vertices is an error, one without triangles is checked where rays are cast)."""
+    return check_mesh(vertices, triangles, normals, require_vertices=True)
 
 
 def bbox_diagonal(vertices) -> float:

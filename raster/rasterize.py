@@ -26,7 +26,8 @@ import numpy as np
 import warp as wp
 
 from warp_sg.device import resolve_device
-from warp_sg.errors import InputError, MeshError
+from warp_sg.errors import InputError
+from warp_sg.meshcheck import check_mesh
 
 from . import parallel
 from .bin import TILE, bin_count_kernel, scan_counts
@@ -121,43 +122,17 @@ class VisibilityBuffer:
 
 
 def _as_numpy_mesh(vertices, triangles):
-    """Validated contiguous (N,3) float32 / (M,3) int32 numpy copies (no copy when already so)."""
+    """Validated contiguous (N,3) float32 / (M,3) int32 numpy copies (no copy when already so);
+    a flat index buffer (as ``wp.Mesh`` takes it) is accepted. Checks: :func:`warp_sg.meshcheck.check_mesh`."""
     if isinstance(vertices, wp.array):
         vertices = vertices.numpy()
     if isinstance(triangles, wp.array):
         triangles = triangles.numpy()
-    try:
-        v = np.ascontiguousarray(vertices, dtype=np.float32)
-    except (TypeError, ValueError) as e:
-        raise MeshError(f"vertices are not numeric ({e})", where="vertices") from None
-    t_raw = np.asarray(triangles)
-    if t_raw.size and not np.issubdtype(t_raw.dtype, np.integer):
-        try:
-            ok = np.all(np.isfinite(t_raw)) and np.all(t_raw == np.round(t_raw))
-        except TypeError:
-            ok = False
-        if not ok:
-            raise MeshError("triangle indices must be integers", where="triangles")
-    if v.size == 0:
-        v = v.reshape(0, 3)
-    if t_raw.size == 0:
-        t_raw = np.zeros((0, 3), np.int32)
-    if t_raw.ndim == 1 and t_raw.size % 3 == 0:  # flat index buffer (as wp.Mesh takes it)
-        t_raw = t_raw.reshape(-1, 3)
-    if v.ndim != 2 or v.shape[1] != 3:
-        raise MeshError(f"vertices must have shape (N, 3), got {v.shape}", where="vertices")
-    if t_raw.ndim != 2 or t_raw.shape[1] != 3:
-        raise MeshError(f"triangles must have shape (M, 3), got {t_raw.shape}", where="triangles")
-    if v.size and not np.isfinite(v).all():
-        bad = ~np.isfinite(v).all(axis=1)
-        i = int(np.argmax(bad))
-        raise MeshError(f"vertex {i} is not finite: {v[i].tolist()}", where=f"vertices[{i}]")
-    if t_raw.size and (t_raw.min() < 0 or t_raw.max() >= v.shape[0]):
-        badt = ((t_raw < 0) | (t_raw >= v.shape[0])).any(axis=1)
-        j = int(np.argmax(badt))
-        raise MeshError(f"triangle {j} has a vertex index out of range [0, {v.shape[0]}): {t_raw[j].tolist()}",
-                        where=f"triangles[{j}]")
-    return v, np.ascontiguousarray(t_raw, dtype=np.int32)
+    t = np.asarray(triangles)
+    if t.ndim == 1 and t.size % 3 == 0:  # flat index buffer
+        t = t.reshape(-1, 3)
+    v, t, _ = check_mesh(vertices, t, dtype=np.float32, index_dtype=np.int32)
+    return np.ascontiguousarray(v), np.ascontiguousarray(t)
 
 
 def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: int = 1,

@@ -62,6 +62,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ImageError, InputError, MeshError, SceneError
+from .meshcheck import check_mesh
 from .lights import DirectionalLight, EnvironmentLight, PointLight
 from .primitives import PRIMITIVE_PARAMS, PRIMITIVES, MeshData, make_primitive
 from .textures import Texture
@@ -348,33 +349,8 @@ def validate_mesh(vertices, triangles, where: str) -> tuple[np.ndarray, np.ndarr
     """Check a mesh; returns (vertices f32, triangles i32, keep mask of non-degenerate triangles).
 
     Non-finite vertices and out-of-range / non-integer indices raise :class:`MeshError` naming
-    the first bad element."""
-    try:
-        v = np.asarray(vertices, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise MeshError("vertices are not numbers", where=where) from None
-    if v.ndim != 2 or v.shape[1] != 3:
-        raise MeshError(f"vertices must have shape (N, 3), got {v.shape}", where=where)
-    bad = ~np.all(np.isfinite(v), axis=1)
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise MeshError(f"vertex {i} has a non-finite coordinate {v[i].tolist()} "
-                        f"({int(bad.sum())} bad vertices)", where=where)
-    t = np.asarray(triangles)
-    if t.ndim != 2 or t.shape[1] != 3:
-        raise MeshError(f"triangles must have shape (M, 3), got {t.shape}", where=where)
-    if t.size and not np.issubdtype(t.dtype, np.integer):
-        if not np.all(np.isfinite(t)) or np.any(t != np.round(t)):
-            raise MeshError("triangle indices must be integers", where=where)
-        t = t.astype(np.int64)
-    n = len(v)
-    oob = np.any((t < 0) | (t >= n), axis=1)
-    if oob.any():
-        j = int(np.argmax(oob))
-        raise MeshError(f"triangle {j} references vertex {t[j].tolist()} out of range (the mesh has {n} vertices)",
-                        where=where)
-    if len(t) == 0:
-        raise MeshError("mesh has no triangles", where=where)
+    the first bad element (:func:`warp_sg.meshcheck.check_mesh`)."""
+    v, t, _ = check_mesh(vertices, triangles, where=where, require_triangles=True)
     e = np.cross(v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]])
     area2 = np.linalg.norm(e, axis=1)
     scale = max(float(np.max(np.ptp(v, axis=0))), 1e-30)

@@ -1,0 +1,101 @@
+"""Mesh validation shared by the scene, the rasterizer and the precompute (base layer).
+
+:func:`check_mesh` is the one check of a triangle mesh's arrays; every problem raises
+:class:`~warp_sg.errors.MeshError` whose message names the first bad element, prefixed with
+``where`` (the object or file) when given:
+
+* ``vertices are not numbers`` / ``vertices must have shape (N, 3), got (...)``;
+* ``vertex 3 has a non-finite coordinate [nan, 0.0, 0.0]`` (with the count when several are bad);
+* ``triangles must have shape (M, 3), got (...)``;
+* ``triangle 4 has a non-integer vertex index [0.0, 1.5, 2.0]``;
+* ``triangle 1 references vertex [0, 1, 7] out of range (the mesh has 3 vertices)``;
+* ``normals must have shape (N, 3) (one per vertex), got (...)``, ``vertex 3 has a non-finite
+  normal [...]``, ``vertex 3 has a zero-length normal``;
+* optionally ``mesh has no vertices`` / ``mesh has no triangles``.
+
+Like :mod:`warp_sg.errors` it imports nothing else from the project, so ``raster`` and
+``precompute`` can use it.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import MeshError
+
+
+def _first(bad: np.ndarray) -> int:
+    return int(np.argmax(bad))
+
+
+def check_mesh(vertices, triangles, normals=None, *, where: str | None = None, dtype=np.float64,
+               index_dtype=np.int64, require_vertices: bool = False, require_triangles: bool = False):
+    """Validate a triangle mesh; returns ``(vertices (N, 3) dtype, triangles (M, 3) index_dtype,
+    unit normals (N, 3) float64 or None)``.
+
+    Vertices are checked after conversion to ``dtype`` (a coordinate that overflows float32 is
+    non-finite for a float32 consumer); indices are range-checked before the conversion to
+    ``index_dtype``. An empty array of any shape is an empty vertex / triangle list. No copy is made
+    of arrays that already have the requested dtype.
+    """
+    try:
+        v = np.asarray(vertices, dtype=dtype)
+    except (TypeError, ValueError):
+        raise MeshError("vertices are not numbers", where=where) from None
+    if v.size == 0:
+        v = v.reshape(0, 3)
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise MeshError(f"vertices must have shape (N, 3), got {v.shape}", where=where)
+    n = len(v)
+    if require_vertices and n == 0:
+        raise MeshError("mesh has no vertices", where=where)
+    if v.size and not np.isfinite(v).all():
+        bad = ~np.isfinite(v).all(axis=1)
+        i = _first(bad)
+        count = int(bad.sum())
+        more = f" ({count} bad vertices)" if count > 1 else ""
+        raise MeshError(f"vertex {i} has a non-finite coordinate {v[i].tolist()}{more}", where=where)
+
+    t = np.asarray(triangles)
+    if t.size == 0:
+        t = np.zeros((0, 3), index_dtype)
+    if t.ndim != 2 or t.shape[1] != 3:
+        raise MeshError(f"triangles must have shape (M, 3), got {t.shape}", where=where)
+    if t.size and not np.issubdtype(t.dtype, np.integer):
+        try:
+            tf = t.astype(np.float64)
+        except (TypeError, ValueError):
+            raise MeshError("triangle indices are not numbers", where=where) from None
+        bad = ~(np.isfinite(tf) & (tf == np.round(tf))).all(axis=1)
+        if bad.any():
+            j = _first(bad)
+            raise MeshError(f"triangle {j} has a non-integer vertex index {t[j].tolist()}", where=where)
+        t = tf.astype(np.int64)
+    if t.size and (t.min() < 0 or t.max() >= n):
+        bad = ((t < 0) | (t >= n)).any(axis=1)
+        j = _first(bad)
+        raise MeshError(f"triangle {j} references vertex {t[j].tolist()} out of range (the mesh has {n} vertices)",
+                        where=where)
+    if require_triangles and len(t) == 0:
+        raise MeshError("mesh has no triangles", where=where)
+    t = t.astype(index_dtype, copy=False)
+
+    nn = None
+    if normals is not None:
+        try:
+            nn = np.asarray(normals, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise MeshError("normals are not numbers", where=where) from None
+        if nn.shape != v.shape:
+            raise MeshError(f"normals must have shape {v.shape} (one per vertex), got {nn.shape}", where=where)
+        bad = ~np.isfinite(nn).all(axis=1)
+        if bad.any():
+            k = _first(bad)
+            raise MeshError(f"vertex {k} has a non-finite normal {nn[k].tolist()}", where=where)
+        ln = np.linalg.norm(nn, axis=1)
+        if (ln < 1e-12).any():
+            raise MeshError(f"vertex {_first(ln < 1e-12)} has a zero-length normal", where=where)
+        nn = nn / ln[:, None]
+    return v, t, nn
+
+
+__all__ = ["check_mesh"]
