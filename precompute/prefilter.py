@@ -62,7 +62,6 @@ code); :func:`gamma_reference` is direct quadrature of eq. 35 (the test referenc
 from __future__ import annotations
 
 import math
-import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
@@ -71,6 +70,7 @@ import warp as wp
 
 from warp_sg.device import resolve_device
 from warp_sg.sg_wp import one_minus_dot, sg_integral
+from warp_sg.workers import cpu_workers
 
 from .envmap import downsample_envmap, row_solid_angles, validate_envmap, wp_dir_to_uv
 
@@ -630,7 +630,7 @@ def _build_tables(env, lambdas, sizes, device, samples_per_sigma, max_sub, progr
     out = wp.zeros(total, dtype=wp.vec3, device=device)
     src_cache = {}
     is_cpu = wp.get_device(device).is_cpu
-    n_threads = max(1, min(4, os.cpu_count() or 1)) if is_cpu else 1
+    n_threads = cpu_workers("cpu", limit=4) if is_cpu else 1
 
     plan = []
     for k, lam in enumerate(lambdas):

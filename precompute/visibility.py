@@ -14,7 +14,6 @@ small thread pool (Warp CPU launches are serial per call; several launches scale
 from __future__ import annotations
 
 import concurrent.futures as cf
-import os
 import threading
 
 import numpy as np
@@ -23,6 +22,7 @@ import warp as wp
 from warp_sg.device import resolve_device
 from warp_sg.errors import InputError, MeshError
 from warp_sg.meshcheck import check_mesh
+from warp_sg.workers import cpu_workers as _cpu_workers
 from warp_sg.frames import frame_bitangent, frame_tangent, local_to_world
 
 from .ssdf_wp import texel_directions
@@ -99,13 +99,9 @@ class _MeshContext:
 
 
 def cpu_workers(device: str) -> int:
-    """Threads for CPU batch launches (``WARP_SG_THREADS`` or the core count, at most 8); 1 on CUDA."""
-    if device != "cpu":
-        return 1
-    env = os.environ.get("WARP_SG_THREADS")
-    if env:
-        return max(1, int(env))
-    return max(1, min(8, os.cpu_count() or 1))
+    """Threads for CPU batch launches (``WARP_SG_THREADS`` or the usable cores, at most 8); 1 on CUDA
+    (:func:`warp_sg.workers.cpu_workers`)."""
+    return _cpu_workers(device, limit=8)
 
 
 def run_batches(n_items: int, batch: int, work, device: str, progress=None, desc: str = ""):

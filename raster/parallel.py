@@ -11,10 +11,12 @@ plain read-modify-writes, which are only safe when one range owns each written e
 """
 from __future__ import annotations
 
-import os
 from concurrent.futures import ThreadPoolExecutor
 
 import warp as wp
+
+from warp_sg.workers import THREADS_ENV
+from warp_sg.workers import cpu_workers as _cpu_workers
 
 _POOL: ThreadPoolExecutor | None = None
 _LOADED: set = set()
@@ -29,14 +31,9 @@ def _ensure_loaded(kernel, device) -> None:
 
 
 def cpu_workers() -> int:
-    """Threads used for CPU launches (``RASTER_THREADS`` overrides; default = usable cores)."""
-    env = os.environ.get("RASTER_THREADS")
-    if env:
-        return max(1, int(env))
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover - non-Linux
-        return max(1, os.cpu_count() or 1)
+    """Threads used for CPU launches (:func:`warp_sg.workers.cpu_workers`: ``RASTER_THREADS`` or
+    ``WARP_SG_THREADS`` override; default = usable cores)."""
+    return _cpu_workers("cpu", env=("RASTER_THREADS", THREADS_ENV))
 
 
 def _pool() -> ThreadPoolExecutor:

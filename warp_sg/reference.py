@@ -46,6 +46,7 @@ from . import sampling as S
 from .device import resolve_device
 from .errors import InputError
 from .frames import local_to_world, world_to_local
+from .workers import cpu_workers
 
 from .brdf import material_wp as M  # noqa: E402  (contract: Material, pack_materials, brdf_*)
 from .surface import MaterialTextures, apply_shading_maps, tangent_in_plane, textured_material  # noqa: E402
@@ -549,9 +550,7 @@ def render_reference_inputs(
     t0 = time.perf_counter()
     prep = _Prepared(inp, device)
     if threads is None:
-        import os
-
-        threads = max(1, min(os.cpu_count() or 1, 8))
+        threads = cpu_workers(device, limit=8)
     kh, kw = prep.shape
     if kh % k or kw % k:
         raise InputError(f"ray grid {kh}x{kw} is not a multiple of supersampling {k}", where="supersample")
