@@ -13,7 +13,7 @@ the error/time plane, next to the Monte-Carlo reference's own error-vs-samples c
    precompute time (fresh cache folder, so nothing is reused) and the per-frame time (median of
    warm frames) are measured separately, and the image error against the ground truth.
 
-Errors (:func:`image_errors`): relative MSE ``Σ(x − r)² / Σ r²`` on linear radiance, PSNR of the
+Errors (:func:`warp_sg.regions.image_errors`): relative MSE ``Σ(x − r)² / Σ r²`` on linear radiance, PSNR of the
 tone-mapped (``tonemap_srgb``) images, and the max absolute error (linear); for the scene's own
 settings also per region (object, lit floor, shadow, silhouette band) with relative MSE, bias and
 the fraction of pixels off by more than 3× (:mod:`warp_sg.regions`). Outputs in ``DIR``:
@@ -23,7 +23,6 @@ renderer, difference), ``report.json``.
 """
 from __future__ import annotations
 
-import contextlib
 import copy
 import csv
 import dataclasses
@@ -31,13 +30,16 @@ import json
 import math
 import os
 import statistics
-import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
+from precompute.cache import fresh_cache
+
+from .atomic import atomic_output
 from .errors import InputError
+from .regions import image_errors
 
 # knob name -> (full sweep, quick sweep); only knobs present in the scene's render settings run.
 KNOBS: dict[str, tuple[list, list]] = {
@@ -53,6 +55,7 @@ KNOBS: dict[str, tuple[list, list]] = {
     "ssdf_resolution": ([12, 16, 24, 32, 48], [16, 32]),
     "pca_terms": ([2, 4, 8, 16, 24], [4, 16]),
     "supersampling": ([1, 2, 3], [1, 2]),
+    "antialias": ([1, 4, 6], [1, 4]),
 }
 
 CSV_FIELDS = ["knob", "value", "precompute_s", "frame_s", "total_s", "rel_mse", "psnr_db", "max_err", "spp"]
@@ -61,24 +64,6 @@ CSV_FIELDS = ["knob", "value", "precompute_s", "frame_s", "total_s", "rel_mse", 
 # --------------------------------------------------------------------------------------------
 # errors
 # --------------------------------------------------------------------------------------------
-def image_errors(img, ref) -> dict:
-    """``rel_mse`` (linear), ``psnr_db`` (tone-mapped sRGB in [0,1]) and ``max_err`` (linear)."""
-    from .image_io import tonemap_srgb
-
-    img = np.asarray(img, np.float64)
-    ref = np.asarray(ref, np.float64)
-    if img.shape != ref.shape:
-        raise InputError(f"image shape {img.shape} does not match the reference {ref.shape}", where="report")
-    diff = img - ref
-    denom = float(np.sum(ref * ref))
-    rel = float(np.sum(diff * diff) / denom) if denom > 0 else float(np.sum(diff * diff))
-    a = tonemap_srgb(img).astype(np.float64)
-    b = tonemap_srgb(ref).astype(np.float64)
-    mse = float(np.mean((a - b) ** 2))
-    psnr = 10.0 * math.log10(1.0 / mse) if mse > 0 else float("inf")
-    return {"rel_mse": rel, "psnr_db": psnr, "max_err": float(np.max(np.abs(diff))) if diff.size else 0.0}
-
-
 # --------------------------------------------------------------------------------------------
 # scene plumbing (Scene / Renderer come from warp_sg.scene and warp_sg.render)
 # --------------------------------------------------------------------------------------------
@@ -124,21 +109,6 @@ def with_setting(scene, knob, value):
     else:
         sc.settings = s2
     return sc
-
-
-@contextlib.contextmanager
-def fresh_cache():
-    """A private, empty precompute cache for the duration (so precompute is really measured)."""
-    old = os.environ.get("WARP_SG_CACHE_DIR")
-    with tempfile.TemporaryDirectory(prefix="warp-sg-report-") as d:
-        os.environ["WARP_SG_CACHE_DIR"] = d
-        try:
-            yield Path(d)
-        finally:
-            if old is None:
-                os.environ.pop("WARP_SG_CACHE_DIR", None)
-            else:
-                os.environ["WARP_SG_CACHE_DIR"] = old
 
 
 def time_renderer(scene, device="cpu", frames=3):
@@ -226,9 +196,11 @@ def run_report(scene, out_dir, device="cpu", quick=False, truth_spp=None, mc_max
     if knobs is not None:
         avail = {k: v for k, v in avail.items() if k in knobs}
     sweep = [(k, v) for k, cur in avail.items() for v in (KNOBS[k][1] if quick else KNOBS[k][0])]
-    # the ground truth resolves pixels at least as finely as any swept supersampling, so the
-    # supersampling knob's error includes its aliasing
-    k_truth = max([int(_settings(scene).supersampling)] + [int(v) for k, v in sweep if k == "supersampling"])
+    # the ground truth resolves pixels at least as finely as any swept supersampling or
+    # antialiasing grid, so those knobs' errors include their aliasing
+    rs0 = _settings(scene)
+    aa = [int(getattr(rs0, "antialias", 1))] + [int(v) for k, v in sweep if k == "antialias"]
+    k_truth = max([int(rs0.supersampling)] + [int(v) for k, v in sweep if k == "supersampling"] + aa)
     truth_scene = scene if k_truth == _settings(scene).supersampling else with_setting(scene, "supersampling", k_truth)
 
     t0 = time.perf_counter()
@@ -293,9 +265,19 @@ def markdown_table(rows) -> str:
 
 
 def _atomic_write_text(path: Path, text: str):
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
+    with atomic_output(path) as tmp:
+        Path(tmp).write_text(text)
+
+
+def _save_figure(fig, path) -> None:
+    """``fig.savefig`` atomically (the format follows ``path``'s suffix); closes the figure."""
+    import matplotlib.pyplot as plt
+
+    try:
+        with atomic_output(path, suffix=Path(path).suffix) as tmp:
+            fig.savefig(tmp)
+    finally:
+        plt.close(fig)
 
 
 def plot_error_vs_time(rows, path, floor=None, metric="rel_mse", time_key=None):
@@ -332,10 +314,7 @@ def plot_error_vs_time(rows, path, floor=None, metric="rel_mse", time_key=None):
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, loc="best")
     fig.tight_layout()
-    tmp = Path(path).with_name(f".{Path(path).stem}.tmp.png")
-    fig.savefig(tmp)
-    plt.close(fig)
-    os.replace(tmp, path)
+    _save_figure(fig, path)
 
 
 def plot_images(truth, img, path):
@@ -361,23 +340,18 @@ def plot_images(truth, img, path):
     for a in axs:
         a.axis("off")
     fig.tight_layout()
-    tmp = Path(path).with_name(f".{Path(path).stem}.tmp.png")
-    fig.savefig(tmp)
-    plt.close(fig)
-    os.replace(tmp, path)
+    _save_figure(fig, path)
 
 
 def write_outputs(out: Path, rows, truth, base_img, truth_spp, floor, truth_time, scene=None, k_truth=1,
                   regions=None) -> dict:
     files = {}
     p = out / "report.csv"
-    tmp = out / ".report.csv.tmp"
-    with open(tmp, "w", newline="") as f:
+    with atomic_output(p) as tmp, open(tmp, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=CSV_FIELDS, extrasaction="ignore")
         w.writeheader()
         for r in rows:
             w.writerow({k: r.get(k, "") for k in CSV_FIELDS})
-    os.replace(tmp, p)
     files["csv"] = p
     plot_error_vs_time(rows, out / "error_vs_time.png", floor)
     files["plot"] = out / "error_vs_time.png"
