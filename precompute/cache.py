@@ -1,6 +1,7 @@
 """On-disk precompute cache (DESIGN.md "Conventions", architecture.md "Precompute contract").
 
 * :func:`cache_dir` — ``$WARP_SG_CACHE_DIR`` or ``~/.cache/warp-sg``; deleting it is always safe.
+* :func:`fresh_cache` — a private empty cache folder for a ``with`` block (timings of precompute).
 * :func:`content_key` — a stable SHA-256 over numpy arrays (dtype, shape and bytes) and JSON-able
   parameters, plus :data:`FORMAT_VERSION` (bump it whenever a cached format changes).
 * :func:`load_or_build` — ``kind/key.npz`` files holding ``dict[str, np.ndarray]``. Files are
@@ -11,10 +12,12 @@
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import io
 import json
 import os
+import tempfile
 import warnings
 import zipfile
 from pathlib import Path
@@ -35,6 +38,22 @@ def cache_dir() -> Path:
     """The cache folder: ``$WARP_SG_CACHE_DIR`` if set (and non-empty), else ``~/.cache/warp-sg``."""
     env = os.environ.get("WARP_SG_CACHE_DIR")
     return Path(env).expanduser() if env else Path.home() / ".cache" / "warp-sg"
+
+
+@contextlib.contextmanager
+def fresh_cache():
+    """A private, empty cache folder for the duration (so precompute is really measured): sets
+    ``$WARP_SG_CACHE_DIR`` to a temporary folder, restores it and deletes the folder afterwards."""
+    old = os.environ.get("WARP_SG_CACHE_DIR")
+    with tempfile.TemporaryDirectory(prefix="warp-sg-report-") as d:
+        os.environ["WARP_SG_CACHE_DIR"] = d
+        try:
+            yield Path(d)
+        finally:
+            if old is None:
+                os.environ.pop("WARP_SG_CACHE_DIR", None)
+            else:
+                os.environ["WARP_SG_CACHE_DIR"] = old
 
 
 def _update(h, part) -> None:

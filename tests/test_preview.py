@@ -1,6 +1,8 @@
 """pyvista preview: the headless screenshot shows the objects in the renderer's colours."""
 from __future__ import annotations
 
+import os
+
 import numpy as np
 from PIL import Image
 
@@ -70,6 +72,9 @@ def test_preview_screenshot_shows_the_objects_in_their_rendered_colours(tmp_path
     corner = img[:4, :4].mean((0, 1))
     assert corner.max() < 10  # no environment: black background
     assert not [f for f in tmp_path.iterdir() if f.name.startswith(".shot")]  # no temporary left behind
+    umask = os.umask(0)
+    os.umask(umask)
+    assert shot.stat().st_mode & 0o777 == 0o666 & ~umask  # atomic_output: umask permissions, not mkstemp's 0600
 
 
 def test_vertex_colours_are_the_renderers_shading_at_the_vertices():

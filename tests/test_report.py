@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import csv
 import math
+import os
 
 import numpy as np
 import pytest
@@ -53,8 +54,12 @@ def test_tiny_report_writes_csv_markdown_plots_with_decreasing_mc_error(tmp_path
     sc = bench_scene(12, 9, quick=True)
     rep = run_report(sc, tmp_path / "rep", quick=True, truth_spp=64, mc_max_spp=8,
                      knobs=["lobes", "supersampling"], progress=False)
+    umask = os.umask(0)
+    os.umask(umask)
     for key in ("csv", "markdown", "plot", "plot_psnr", "images", "json"):
         assert rep.files[key].is_file() and rep.files[key].stat().st_size > 0, key
+        assert rep.files[key].stat().st_mode & 0o777 == 0o666 & ~umask, key  # written by atomic_output
+    assert not [f for f in rep.files["csv"].parent.iterdir() if f.name.startswith(".")]  # no temporaries left
     with open(rep.files["csv"]) as f:
         rows = list(csv.DictReader(f))
     kinds = [r["knob"] for r in rows]

@@ -123,8 +123,9 @@ def _frames(renderer, n):
 
 
 def shading_section(device="cpu", quick=False, frames=None):
+    from precompute.cache import fresh_cache
+
     from .render import Renderer
-    from .report import fresh_cache
 
     w, h = (48, 36) if quick else (320, 240)
     n = frames or (1 if quick else 5)
@@ -167,7 +168,7 @@ def precompute_section(device="cpu", quick=False):
     """SSDF + PCA precompute time (``precompute.ssdf_for_mesh``, empty cache) by mesh size, on the
     plane-and-box meshes of ``precompute.bench`` (whose ``run_bench`` has the detailed study with
     the product error: docs/precompute.md)."""
-    from .report import fresh_cache
+    from precompute.cache import fresh_cache
 
     try:
         import precompute
@@ -226,9 +227,11 @@ def _equal_error_rows(scene, label, device, quick, truth_spp, progress, seed):
     pixel), as a path tracer's jittered pixels would be."""
     import copy
 
+    from precompute.cache import fresh_cache
+
     from .reference import render_reference
     from .render import Renderer
-    from .report import fresh_cache, image_errors
+    from .regions import image_errors
 
     rs = scene.render
     k = rs.supersampling if rs.supersampling > 1 else max(1, rs.antialias)
@@ -334,11 +337,10 @@ def cli_main(args) -> int:
     res = run_bench(device=args.device, quick=args.quick, sections=args.section)
     print(f"bench finished in {res.seconds:.1f} s on {res.device}")
     if out is not None:
-        import os
+        from .atomic import atomic_output
 
-        tmp = out.with_name(f".{out.name}.tmp")
-        tmp.write_text(res.to_markdown())
-        os.replace(tmp, out)
+        with atomic_output(out) as tmp:
+            Path(tmp).write_text(res.to_markdown())
     return 0
 
 

@@ -13,12 +13,11 @@ the scene camera, and writes the PNG atomically.
 """
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from .atomic import atomic_output
 from .errors import InputError
 
 
@@ -94,15 +93,11 @@ def preview(scene, screenshot=None, device=None, window_size=None, exposure: flo
     if not folder.is_dir():
         raise InputError(f"folder '{folder}' does not exist", where=str(out))
     pl = build_plotter(scene, device=device, off_screen=True, window_size=window_size, exposure=exposure)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.stem}-", suffix=".png", dir=folder)
-    os.close(fd)
     try:
-        pl.screenshot(tmp)
-        pl.close()
-        os.replace(tmp, out)
+        with atomic_output(out, suffix=".png") as tmp:  # umask permissions, never a partial file
+            pl.screenshot(tmp)
     finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+        pl.close()
     return out
 
 

@@ -13,7 +13,8 @@ splits a scene's pixels into
 from a 4×4-supersampled rasterisation of the scene's own geometry. "The floor" is the object
 named ``floor`` (else none: every object pixel is ``object``).
 
-:func:`region_errors` then gives, per region: ``rel_mse`` = Σ(x − r)²/Σr², ``bias`` = the
+:func:`image_errors` gives the image-wide errors (relative MSE, PSNR of the tone-mapped images,
+max error); :func:`region_errors` then gives, per region: ``rel_mse`` = Σ(x − r)²/Σr², ``bias`` = the
 worst channel (by magnitude) of mean(x)/mean(r) − 1, and ``off3`` = the fraction of pixels whose
 luminance is off by more than 3× either way (the "sparkle" count, with a floor of 1 % of the
 region's mean so near-black pixels do not count). The shadow also gets ``leak``: its mean error
@@ -21,6 +22,8 @@ as a fraction of the lit floor's mean (a shadow lit by nothing else is black, an
 bias of a black region says little).
 """
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -115,6 +118,25 @@ def box_reference(scene, spp: int = 1024, supersample: int = 8, device: str = "c
                      return_stderr=return_stderr)
 
 
+def image_errors(img, ref) -> dict:
+    """``rel_mse`` (linear), ``psnr_db`` (tone-mapped sRGB in [0,1]) and ``max_err`` (linear)."""
+    from .errors import InputError
+    from .image_io import tonemap_srgb
+
+    img = np.asarray(img, np.float64)
+    ref = np.asarray(ref, np.float64)
+    if img.shape != ref.shape:
+        raise InputError(f"image shape {img.shape} does not match the reference {ref.shape}", where="report")
+    diff = img - ref
+    denom = float(np.sum(ref * ref))
+    rel = float(np.sum(diff * diff) / denom) if denom > 0 else float(np.sum(diff * diff))
+    a = tonemap_srgb(img).astype(np.float64)
+    b = tonemap_srgb(ref).astype(np.float64)
+    mse = float(np.mean((a - b) ** 2))
+    psnr = 10.0 * math.log10(1.0 / mse) if mse > 0 else float("inf")
+    return {"rel_mse": rel, "psnr_db": psnr, "max_err": float(np.max(np.abs(diff))) if diff.size else 0.0}
+
+
 def region_errors(img, ref, regions: dict[str, np.ndarray], stderr=None) -> dict[str, dict]:
     """Per region: ``pixels``, ``rel_mse``, ``bias`` (worst channel, signed), ``bias_rgb`` and
     ``off3`` (fraction of pixels off by more than 3× in luminance). With the reference's per-pixel
@@ -164,4 +186,4 @@ def format_region_table(errs: dict[str, dict]) -> str:
     return "\n".join(rows)
 
 
-__all__ = ["REGIONS", "scene_regions", "box_reference", "region_errors", "format_region_table"]
+__all__ = ["REGIONS", "scene_regions", "box_reference", "image_errors", "region_errors", "format_region_table"]
