@@ -276,57 +276,12 @@ def ssdf_bilinear(image: wp.array2d(dtype=float), d: wp.vec3) -> float:
 
 
 @wp.func
-def _below_horizon(v: float, d: wp.vec3) -> float:
-    if d[2] < 0.0:
-        return wp.min(v, 0.0) - wp.asin(wp.min(-d[2], 1.0))
-    return v
-
-
-@wp.func
-def ssdf_eval_bary(mean: wp.array2d(dtype=float), basis: wp.array3d(dtype=float),
-                   weights: wp.array2d(dtype=float), i0: int, i1: int, i2: int,
-                   b0: float, b1: float, b2: float, d: wp.vec3) -> float:
-    """SSDF (eq. 24) at local direction d with PCA weights interpolated from vertices i0..i2
-    (barycentrics b0..b2): mean(d) + Σ_j (b0 w[i0,j] + b1 w[i1,j] + b2 w[i2,j]) basis_j(d)."""
-    R = mean.shape[0]
-    t = _texel_coords(d, R)
-    x0 = int(t[0])
-    y0 = int(t[1])
-    fx = t[2]
-    fy = t[3]
-    w00 = (1.0 - fx) * (1.0 - fy)
-    w01 = fx * (1.0 - fy)
-    w10 = (1.0 - fx) * fy
-    w11 = fx * fy
-    v = (mean[y0, x0] * w00 + mean[y0, x0 + 1] * w01 + mean[y0 + 1, x0] * w10 + mean[y0 + 1, x0 + 1] * w11)
-    for j in range(basis.shape[0]):
-        wj = b0 * weights[i0, j] + b1 * weights[i1, j] + b2 * weights[i2, j]
-        v += wj * (basis[j, y0, x0] * w00 + basis[j, y0, x0 + 1] * w01
-                   + basis[j, y0 + 1, x0] * w10 + basis[j, y0 + 1, x0 + 1] * w11)
-    return _below_horizon(v, d)
-
-
-@wp.func
-def ssdf_eval_vertex(mean: wp.array2d(dtype=float), basis: wp.array3d(dtype=float),
-                     weights: wp.array2d(dtype=float), vertex: int, d: wp.vec3) -> float:
-    """SSDF (eq. 24) of one vertex at local direction d: mean(d) + Σ_j w[vertex, j] basis_j(d)."""
-    return ssdf_eval_bary(mean, basis, weights, vertex, vertex, vertex, 1.0, 0.0, 0.0, d)
-
-
-#: Per-vertex path thresholds of :func:`ssdf_eval_world`, on ``c_k = cos∠(F_k, F)`` (rotation angle
-#: between the frame of vertex k and the pixel frame): ``c_k ≥ FRAME_COS_FAST`` (within 20°) → the
-#: vertex joins the shared blended-weight lookup in the pixel frame; ``c_k ≤ FRAME_COS_EXACT``
-#: (30° or more) → its own lookup in its own frame; smoothstep blend between.
-FRAME_COS_FAST = wp.constant(float(np.cos(np.radians(20.0))))   # 0.940
-FRAME_COS_EXACT = wp.constant(float(np.cos(np.radians(30.0))))  # 0.866
-
-
-@wp.func
 def _ssdf_combo(mean: wp.array2d(dtype=float), basis: wp.array3d(dtype=float),
                 weights: wp.array2d(dtype=float), i0: int, i1: int, i2: int,
                 c0: float, c1: float, c2: float, d: wp.vec3) -> float:
     """Σ_k c_k V^d_k(d) for local direction d (one bilinear footprint; below-horizon rule applied to
-    the combination as ``min(U, 0) − (Σc_k)·asin(−z)``, i.e. :func:`_below_horizon` scaled by Σc_k)."""
+    the combination as ``min(U, 0) − (Σc_k)·asin(−z)``: a direction below a vertex's horizon is at
+    least its angle below it from the visible set)."""
     R = mean.shape[0]
     t = _texel_coords(d, R)
     x0 = int(t[0])
@@ -346,6 +301,30 @@ def _ssdf_combo(mean: wp.array2d(dtype=float), basis: wp.array3d(dtype=float),
     if d[2] < 0.0:
         return wp.min(v, 0.0) - csum * wp.asin(wp.min(-d[2], 1.0))
     return v
+
+
+@wp.func
+def ssdf_eval_bary(mean: wp.array2d(dtype=float), basis: wp.array3d(dtype=float),
+                   weights: wp.array2d(dtype=float), i0: int, i1: int, i2: int,
+                   b0: float, b1: float, b2: float, d: wp.vec3) -> float:
+    """SSDF (eq. 24) at local direction d with PCA weights interpolated from vertices i0..i2
+    (barycentrics b0..b2): mean(d) + Σ_j (b0 w[i0,j] + b1 w[i1,j] + b2 w[i2,j]) basis_j(d)."""
+    return _ssdf_combo(mean, basis, weights, i0, i1, i2, b0, b1, b2, d)
+
+
+@wp.func
+def ssdf_eval_vertex(mean: wp.array2d(dtype=float), basis: wp.array3d(dtype=float),
+                     weights: wp.array2d(dtype=float), vertex: int, d: wp.vec3) -> float:
+    """SSDF (eq. 24) of one vertex at local direction d: mean(d) + Σ_j w[vertex, j] basis_j(d)."""
+    return ssdf_eval_bary(mean, basis, weights, vertex, vertex, vertex, 1.0, 0.0, 0.0, d)
+
+
+#: Per-vertex path thresholds of :func:`ssdf_eval_world`, on ``c_k = cos∠(F_k, F)`` (rotation angle
+#: between the frame of vertex k and the pixel frame): ``c_k ≥ FRAME_COS_FAST`` (within 20°) → the
+#: vertex joins the shared blended-weight lookup in the pixel frame; ``c_k ≤ FRAME_COS_EXACT``
+#: (30° or more) → its own lookup in its own frame; smoothstep blend between.
+FRAME_COS_FAST = wp.constant(float(np.cos(np.radians(20.0))))   # 0.940
+FRAME_COS_EXACT = wp.constant(float(np.cos(np.radians(30.0))))  # 0.866
 
 
 @wp.func
@@ -374,14 +353,14 @@ def ssdf_eval_world(mean: wp.array2d(dtype=float), basis: wp.array3d(dtype=float
     ``c_k = α_k b_k``::
 
         θd = H(Σ_k c_k V^d_k(F^T p), p·ng; Σ_k c_k) + Σ_k (1 − α_k) b_k H(V^d_k(F_k^T p), p·n_k; 1)
-        H(v, z; c) = v if z ≥ 0 else min(v, 0) − c·asin(−z)       (:func:`_below_horizon`, scaled)
+        H(v, z; c) = v if z ≥ 0 else min(v, 0) − c·asin(−z)       (the below-horizon rule, scaled)
 
     * vertices whose frame is within 20° of the pixel frame (α_k = 1) share ONE lookup in the pixel
       frame with their PCA weights blended — where all three do, this is :func:`ssdf_eval_bary`
       (the paper's interpolation, one lookup);
     * a vertex whose frame is 30° or more away (α_k = 0; e.g. across ``n.z = 0``, where the Duff
       frame turns by up to 180°) is read in its own frame at the same world direction: one more
-      lookup, below-horizon rule at ``p·n_k`` (:func:`_below_horizon`, per vertex);
+      lookup, below-horizon rule at ``p·n_k`` (the below-horizon rule, per vertex);
     * between, a smoothstep blend, so θd is continuous in the barycentrics and across triangle edges
       (a vertex with ``b_k = 0`` contributes nothing, and α_k depends only on F_k and F).
 

@@ -48,3 +48,14 @@ def resolve_device(device: str | None = "cpu") -> str:
             raise InputError(f"device '{name}' requested but no CUDA device is available", where="--device")
         return "cuda:0" if name == "cuda" else name
     raise InputError(f"unknown device '{name}' (use cpu, cuda, cuda:N or auto)", where="--device")
+
+
+def device_table(cache: dict, build, device="cpu") -> wp.array:
+    """A constant 2-D float table as a ``wp.array`` on ``device``, built once per device:
+    ``cache`` maps device names to arrays, ``build()`` returns the numpy table."""
+    dev = resolve_device(device)
+    arr = cache.get(dev)
+    if arr is None:
+        arr = wp.array(build(), dtype=float, device=dev)
+        cache[dev] = arr
+    return arr

@@ -174,14 +174,9 @@ _device_tables: dict = {}
 
 def fh_table_array(device="cpu") -> wp.array:
     """The ratio table as a ``wp.array2d(dtype=float)`` on ``device`` (built once per device)."""
-    from warp_sg.device import resolve_device
+    from warp_sg.device import device_table
 
-    dev = resolve_device(device)
-    arr = _device_tables.get(dev)
-    if arr is None:
-        arr = wp.array(fh_table(), dtype=float, device=dev)
-        _device_tables[dev] = arr
-    return arr
+    return device_table(_device_tables, fh_table, device)
 
 
 @wp.func

@@ -242,25 +242,6 @@ class LightArrays:
 
 
 @wp.func
-def light_sg(lights: LightArrays, j: int, x: wp.vec3):
-    """SG (axis, λ, μ RGB) of light ``j`` at world point ``x`` (eq. 32–33, integral-preserving μ)."""
-    r = lights.radius[j]
-    s = lights.intensity[j]
-    axis = lights.vec[j]
-    area = _TWO_PI * r * r
-    irr = s
-    if lights.kind[j] == LIGHT_POINT:
-        v = lights.vec[j] - x
-        d2 = wp.max(wp.dot(v, v), 1.0e-20)
-        axis = v / wp.sqrt(d2)
-        area = area / d2
-        irr = s / d2
-    lam = _FA_NUM / wp.max(area, _MIN_AREA)
-    mu = irr * (lam / (_TWO_PI * expm1_neg(2.0 * lam)))
-    return axis, lam, mu
-
-
-@wp.func
 def light_irradiance(lights: LightArrays, j: int, x: wp.vec3):
     """(unit direction towards light ``j`` from ``x``, its SG sharpness λ = fa⁻¹(solid angle),
     irradiance E (RGB) on a surface facing it): ``s/d²`` for a point light, ``E`` for a directional one."""
@@ -275,6 +256,14 @@ def light_irradiance(lights: LightArrays, j: int, x: wp.vec3):
         area = area / d2
         irr = irr / d2
     return axis, _FA_NUM / wp.max(area, _MIN_AREA), irr
+
+
+@wp.func
+def light_sg(lights: LightArrays, j: int, x: wp.vec3):
+    """SG (axis, λ, μ RGB) of light ``j`` at world point ``x`` (eq. 32–33, integral-preserving μ:
+    ``∫G = 2πμ(1 − e^{−2λ})/λ`` equals the irradiance)."""
+    axis, lam, irr = light_irradiance(lights, j, x)
+    return axis, lam, irr * (lam / (_TWO_PI * expm1_neg(2.0 * lam)))
 
 
 def light_arrays(lights: list, device) -> LightArrays:

@@ -214,14 +214,9 @@ _device_tables: dict = {}
 
 def irradiance_table_array(device="cpu") -> wp.array:
     """The ``ln e(c, λ)`` table as a ``wp.array2d(dtype=float)`` on ``device`` (built once per device)."""
-    from warp_sg.device import resolve_device
+    from warp_sg.device import device_table
 
-    dev = resolve_device(device)
-    arr = _device_tables.get(dev)
-    if arr is None:
-        arr = wp.array(irradiance_table(), dtype=float, device=dev)
-        _device_tables[dev] = arr
-    return arr
+    return device_table(_device_tables, irradiance_table, device)
 
 
 @wp.func

@@ -48,8 +48,8 @@ from dataclasses import dataclass
 
 import warp as wp
 
-from .brdf.material_wp import (WARP_COS_EPS, Material, brdf_diffuse, brdf_eval, brdf_mo, ndf_lobe, slice_lobe,
-                                slice_lobe_count)
+from .brdf.material_wp import (Material, brdf_diffuse, brdf_eval, brdf_mo, ndf_lobe, slice_lobe, slice_lobe_count,
+                                warp_axis)
 from .frames import frame_bitangent, frame_tangent, local_to_world, world_to_local
 from .lights import LightArrays, light_irradiance
 from .sg import CLAMPED_COSINE_SHARPNESS
@@ -167,12 +167,7 @@ def shading_slice_lobe(mat: Material, o: wp.vec3, k: int):
     if m == 2 or m == 8:
         return slice_lobe(mat, o, k)
     axis, lam, mu = ndf_lobe(mat, k)
-    c = wp.dot(axis, o)
-    pW = 2.0 * c * axis - o
-    ln = wp.length(pW)
-    if ln > 0.0:
-        pW = pW / ln
-    lamW = lam / (4.0 * wp.max(wp.abs(c), WARP_COS_EPS))
+    pW, lamW, c = warp_axis(axis, lam, o)
     amp = wp.vec3(0.0, 0.0, 0.0)
     if c > 0.0:
         amp = brdf_mo(mat, o, above(pW)) * mu

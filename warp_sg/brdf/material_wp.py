@@ -406,14 +406,21 @@ def slice_lobe_count(mat: Material) -> int:
 
 
 @wp.func
-def warp_lobe(mat: Material, pD: wp.vec3, lam: float, mu: float, o: wp.vec3):
-    """Spherical warp (eq. 17–22): (pW, λD/(4|pD·o|), ks ∘ Mo(o, pW) μ)."""
+def warp_axis(pD: wp.vec3, lam: float, o: wp.vec3):
+    """Spherical warp of an NDF lobe's axis and sharpness (eq. 17–22): (pW = reflection of o about
+    pD, λW = λD/(4|pD·o|), pD·o); the grazing limit pD·o → 0 is guarded by WARP_COS_EPS."""
     c = wp.dot(pD, o)
     pW = 2.0 * c * pD - o
     l = wp.length(pW)
     if l > 0.0:
         pW = pW / l
-    lamW = lam / (4.0 * wp.max(wp.abs(c), WARP_COS_EPS))
+    return pW, lam / (4.0 * wp.max(wp.abs(c), WARP_COS_EPS)), c
+
+
+@wp.func
+def warp_lobe(mat: Material, pD: wp.vec3, lam: float, mu: float, o: wp.vec3):
+    """Spherical warp (eq. 17–22): (pW, λD/(4|pD·o|), ks ∘ Mo(o, pW) μ)."""
+    pW, lamW, c = warp_axis(pD, lam, o)
     amp = wp.vec3(0.0, 0.0, 0.0)
     if c > 0.0 and pW[2] > 0.0 and o[2] > 0.0:
         amp = brdf_mo(mat, o, pW) * mu
