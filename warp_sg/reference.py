@@ -46,6 +46,7 @@ from . import sampling as S
 from .device import resolve_device
 from .errors import InputError
 from .frames import local_to_world, world_to_local
+from .lights import DirectionalLight, PointLight
 from .workers import cpu_workers
 
 from .brdf import material_wp as M  # noqa: E402  (contract: Material, pack_materials, brdf_*)
@@ -342,15 +343,15 @@ def _reference_pass(
 # --------------------------------------------------------------------------------------------
 # Host side
 # --------------------------------------------------------------------------------------------
-@dataclass
-class Light:
-    """A light in the reference's terms (see the module docstring)."""
-
-    kind: str  # "point" | "directional"
-    position: np.ndarray | None = None  # point
-    direction: np.ndarray | None = None  # directional: unit direction *towards* the light
-    radius: float = 0.0
-    intensity: np.ndarray = field(default_factory=lambda: np.ones(3))  # s (point) or E (directional)
+def Light(kind: str, position=None, direction=None, radius: float = 0.0, intensity=(1.0, 1.0, 1.0)):
+    """The reference's lights are the scene's :class:`~warp_sg.lights.PointLight` /
+    :class:`~warp_sg.lights.DirectionalLight`; this builds one from the older record form
+    ``Light("point" | "directional", position=..., direction=..., radius=0, intensity=...)``."""
+    if kind == "point":
+        return PointLight(position=position, radius=radius, intensity=intensity)
+    if kind == "directional":
+        return DirectionalLight(direction=direction, radius=radius, intensity=intensity)
+    raise InputError(f"unknown light type {kind!r} (use point or directional)", where="light.type")
 
 
 @dataclass
@@ -365,7 +366,7 @@ class ReferenceInputs:
     ray_directions: np.ndarray  # (kH, kW, 3) unit
     supersample: int = 1
     normals: np.ndarray | None = None  # (V, 3) per-vertex shading normals
-    lights: list = field(default_factory=list)  # [Light]
+    lights: list = field(default_factory=list)  # [PointLight | DirectionalLight] (warp_sg.lights)
     environment: np.ndarray | None = None  # (H, W, 3) radiance (scale applied)
     background: bool = True
     uvs: np.ndarray | None = None  # (V, 2)
@@ -392,22 +393,16 @@ def _light_table(lights, device) -> LightTable:
     rad = np.zeros(max(n, 1), np.float32)
     le = np.zeros((max(n, 1), 3), np.float32)
     omc = np.zeros(max(n, 1), np.float32)
-    for j, li in enumerate(lights):
+    for j, li in enumerate(lights):  # validated by the light classes (finite, radius >= 0, unit direction)
         r = float(li.radius)
-        if not np.isfinite(r) or r < 0:
-            raise InputError(f"light radius must be >= 0, got {r}", where=f"lights[{j}].radius")
         s = np.asarray(li.intensity, np.float64) * np.ones(3)
-        if li.kind == "point":
+        if isinstance(li, PointLight):
             kind[j] = LIGHT_POINT
-            pos[j] = np.asarray(li.position, np.float64)
+            pos[j] = li.position
             le[j] = s / (np.pi * r * r) if r > 0 else s
-        elif li.kind == "directional":
+        elif isinstance(li, DirectionalLight):
             kind[j] = LIGHT_DIRECTIONAL
-            d = np.asarray(li.direction, np.float64)
-            nd = np.linalg.norm(d)
-            if not np.isfinite(nd) or nd == 0:
-                raise InputError("direction must be a non-zero vector", where=f"lights[{j}].direction")
-            pos[j] = d / nd
+            pos[j] = li.direction
             if r > 0:
                 r = min(r, np.pi / 2)
                 le[j] = s / (np.pi * math.sin(r) ** 2)
@@ -415,7 +410,7 @@ def _light_table(lights, device) -> LightTable:
             else:
                 le[j] = s
         else:
-            raise InputError(f"unknown light type {li.kind!r}", where=f"lights[{j}].type")
+            raise InputError(f"not a point or directional light: {li!r}", where=f"lights[{j}]")
         rad[j] = r
     t = LightTable()
     t.count = n
@@ -604,18 +599,23 @@ def texture_tables(scene, material_names):
 def inputs_from_scene(scene, device="cpu") -> ReferenceInputs:
     """Build :class:`ReferenceInputs` from a :class:`warp_sg.Scene`: the renderer's geometry
     (shading normals, uvs, tangents), camera rays of the k×k supersampled grid, exact constant
-    materials plus the same textures / normal maps, the lights, the world-space environment, and
-    the renderer's background (bilinear environment lookup) for pixels that see no object."""
-    from .scene import scene_reference_inputs
-
-    inp = scene_reference_inputs(scene, device)
+    materials (``Material.brdf``) plus the same textures / normal maps, the point and directional
+    lights, the world-space environment (scale and rotation applied), and the renderer's
+    background (bilinear environment lookup) for pixels that see no object."""
     g = scene.geometry()
-    inp.uvs = g.uvs
-    inp.tangents = g.tangents
+    k = scene.render.supersampling
+    dirs = np.asarray(scene.camera.ray_directions(supersample=k), np.float32)
+    origins = np.broadcast_to(np.asarray(scene.camera.origin, np.float32), dirs.shape).copy()
+    env = scene.environment
+    inp = ReferenceInputs(
+        vertices=g.vertices, triangles=g.triangles, tri_material=g.tri_material,
+        materials=[scene.materials[n].brdf for n in g.material_names],
+        ray_origins=origins, ray_directions=dirs, supersample=k, normals=g.normals,
+        lights=list(scene.local_lights), environment=None if env is None else env.radiance(),
+        background=scene.render.background, uvs=g.uvs, tangents=g.tangents)
     slots, images = texture_tables(scene, g.material_names)
     if np.any(slots >= 0):
         inp.texture_slots, inp.texture_images = slots, images
-    env = scene.environment
     if env is not None and scene.render.background:
         from precompute.envmap import env_lookup_numpy
 

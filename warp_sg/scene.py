@@ -62,8 +62,8 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ImageError, InputError, MeshError, SceneError
-from .meshcheck import check_mesh
 from .lights import DirectionalLight, EnvironmentLight, PointLight
+from .meshcheck import check_mesh
 from .primitives import PRIMITIVE_PARAMS, PRIMITIVES, MeshData, make_primitive
 from .textures import Texture
 
@@ -859,34 +859,5 @@ def load_scene(path) -> Scene:
         raise SceneError(msg, where=path.name) from None
 
 
-# --------------------------------------------------------------------------------------------
-# reference adapter (used by warp_sg.reference.inputs_from_scene)
-# --------------------------------------------------------------------------------------------
-def scene_reference_inputs(scene: Scene, device="cpu"):
-    """The Monte-Carlo reference's :class:`~warp_sg.reference.ReferenceInputs` for ``scene``:
-    same geometry, constant materials (``Material.brdf``), camera rays of the k×k supersampled
-    grid, lights, and the world-space environment map (scale and rotation applied)."""
-    from .reference import Light as RLight
-    from .reference import ReferenceInputs
-
-    g = scene.geometry()
-    k = scene.render.supersampling
-    dirs = np.asarray(scene.camera.ray_directions(supersample=k), np.float32)
-    origins = np.broadcast_to(np.asarray(scene.camera.origin, np.float32), dirs.shape).copy()
-    lights = []
-    for li in scene.local_lights:
-        if isinstance(li, PointLight):
-            lights.append(RLight("point", position=li.position, radius=li.radius, intensity=li.intensity))
-        else:
-            lights.append(RLight("directional", direction=li.direction, radius=li.radius, intensity=li.intensity))
-    env = scene.environment
-    return ReferenceInputs(
-        vertices=g.vertices, triangles=g.triangles, tri_material=g.tri_material,
-        materials=[scene.materials[n].brdf for n in g.material_names],
-        ray_origins=origins, ray_directions=dirs, supersample=k, normals=g.normals, lights=lights,
-        environment=None if env is None else env.radiance(), background=scene.render.background)
-
-
 __all__ = ["Scene", "SceneObject", "Material", "Transform", "RenderSettings", "Geometry", "Camera", "load_scene",
-           "PointLight", "DirectionalLight", "EnvironmentLight", "Texture", "validate_mesh", "build_geometry",
-           "scene_reference_inputs"]
+           "PointLight", "DirectionalLight", "EnvironmentLight", "Texture", "validate_mesh", "build_geometry"]
