@@ -144,3 +144,43 @@ def test_a_missing_external_module_makes_its_subcommand_exit_2(monkeypatch, caps
                         lambda name, *a: fake_import(name) if name == "warp_sg.bench" else real_import(name, fromlist=["x"]))
     rc, _, err = run(["bench"], capsys)
     assert rc == 2 and "bench" in err and "not available" in err
+
+
+def test_reference_creates_missing_output_folders_and_leaves_nothing_when_it_fails(scene_file, tmp_path, capsys):
+    from warp_sg.image_io import load_image
+
+    out = tmp_path / "out" / "ref" / "x.exr"
+    err_out = tmp_path / "out" / "se" / "x_se.exr"
+    rc, _, err = run(["reference", scene_file, "-o", out, "--stderr", err_out, "--spp", "2", "--no-progress"], capsys)
+    assert rc == 0, err
+    assert load_image(out).shape == (10, 12, 3) and load_image(err_out).shape == (10, 12, 3)
+    # a failed run (bad device) creates no folder and no file
+    rc, _, err = run(["reference", scene_file, "-o", tmp_path / "gone" / "x.exr", "--device", "tpu", "--spp", "1"],
+                     capsys)
+    assert rc == 2 and "tpu" in err and not (tmp_path / "gone").exists()
+
+
+def test_device_default_is_the_scenes_render_device_in_every_subcommand(scene_file, tmp_path, capsys):
+    import argparse
+
+    from warp_sg.cli import build_parser
+    from warp_sg.device import device_for
+    from warp_sg.scene import load_scene
+
+    for cmd in ("render", "preview", "reference", "report", "bench"):
+        parser = build_parser(cmd)
+        sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices[cmd]
+        dev = next(a for a in sub._actions if "--device" in a.option_strings)
+        assert dev.default is None, cmd
+        assert "default: " in dev.help and ("[render] device" in dev.help), (cmd, dev.help)
+    sc = load_scene(scene_file)
+    assert device_for(None, sc) == "cpu" and device_for("auto", sc) == "auto"
+    sc.render.device = "cuda"
+    assert device_for(None, sc) == "cuda" and device_for(None) == "cpu"
+    # the scene's [render] device is what render and reference use without --device
+    p = tmp_path / "tpu.toml"
+    p.write_text(scene_file.read_text().replace("shadows = false", 'shadows = false\ndevice = "tpu"'))
+    for cmd in ("render", "reference"):
+        rc, _, err = run([cmd, p, "-o", tmp_path / f"{cmd}.png", "--spp", "1"], capsys)
+        assert rc == 2 and "tpu" in err, (cmd, err)
+        assert not (tmp_path / f"{cmd}.png").exists()

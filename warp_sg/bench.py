@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .device import add_device_argument, device_for
 from .errors import InputError
 
 
@@ -321,7 +322,7 @@ def run_bench(device="cpu", quick=False, sections=None, print_fn=print) -> Bench
 # CLI
 # --------------------------------------------------------------------------------------------
 def add_cli_arguments(p) -> None:
-    p.add_argument("--device", default="cpu", help="cpu, cuda, cuda:N or auto")
+    add_device_argument(p, scene=False)
     p.add_argument("--quick", action="store_true", help="tiny sizes (smoke test)")
     p.add_argument("--section", action="append", default=None,
                    help="run only sections whose name contains this (repeatable)")
@@ -334,7 +335,7 @@ def cli_main(args) -> int:
         out = Path(args.output)
         if out.is_dir() or not out.parent.is_dir():
             raise InputError("cannot write the bench tables here", where=str(out))
-    res = run_bench(device=args.device, quick=args.quick, sections=args.section)
+    res = run_bench(device=device_for(args.device), quick=args.quick, sections=args.section)
     print(f"bench finished in {res.seconds:.1f} s on {res.device}")
     if out is not None:
         from .atomic import atomic_output

@@ -8,6 +8,9 @@
     warp-sg report SCENE -o DIR                    (arguments from warp_sg.report)
     warp-sg bench                                  (arguments from warp_sg.bench)
 
+``--device`` defaults to the scene's ``[render] device`` (``cpu`` unless the scene sets it) in
+every subcommand; ``bench``, which has no scene, defaults to ``cpu``.
+
 ``reference``, ``report`` and ``bench`` take their arguments and their work from the modules of
 the same name (``add_cli_arguments(parser)``, ``cli_main(args) -> int``), imported lazily; a missing
 module makes its subcommand say so and exit 2.
@@ -21,10 +24,10 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import os
 import sys
-from pathlib import Path
 
+from .atomic import IMAGE_SUFFIXES, check_output_path, make_parents  # noqa: F401  (IMAGE_SUFFIXES: old home)
+from .device import add_device_argument
 from .errors import InputError
 
 EXTERNAL = {
@@ -32,43 +35,10 @@ EXTERNAL = {
     "report": ("warp_sg.report", "error-vs-run-time report against the Monte-Carlo reference"),
     "bench": ("warp_sg.bench", "performance benchmarks (rasterizer, shading, precompute)"),
 }
-IMAGE_SUFFIXES = (".exr", ".png")
 
 
 class _Fail(Exception):
     """A one-line failure with exit status 2."""
-
-
-def check_output_path(path, suffixes=IMAGE_SUFFIXES, create_parents: bool = False) -> Path:
-    """Fail early (before rendering) when ``path`` cannot be written as an image.
-
-    ``create_parents``: missing folders are allowed (created by :func:`make_parents` once the image
-    exists) as long as the nearest existing ancestor is a writable folder."""
-    p = Path(path)
-    if p.suffix.lower() not in suffixes:
-        raise InputError(f"unknown image format '{p.suffix}' (use {' or '.join(suffixes)})", where=str(p))
-    if p.is_dir():
-        raise InputError("is a folder, not a file", where=str(p))
-    parent = p.parent if str(p.parent) else Path(".")
-    if not parent.is_dir():
-        if not create_parents:
-            raise InputError(f"folder '{parent}' does not exist", where=str(p))
-        anc = parent
-        while not anc.exists() and anc != anc.parent:
-            anc = anc.parent
-        if not anc.is_dir():
-            raise InputError(f"'{anc}' is not a folder", where=str(p))
-        parent = anc
-    if not os.access(parent, os.W_OK):
-        raise InputError(f"folder '{parent}' is not writable", where=str(p))
-    return p
-
-
-def make_parents(path: Path) -> None:
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise InputError(f"cannot create folder '{path.parent}' ({e.strerror})", where=str(path)) from None
 
 
 def _positive_int(name):
@@ -98,7 +68,7 @@ def add_render_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scene", help="scene file (TOML)")
     p.add_argument("-o", "--output", required=True,
                    help="output image: .exr (linear HDR) or .png (sRGB); missing folders are created")
-    p.add_argument("--device", default=None, help="cpu, cuda, cuda:N or auto (default: the scene's [render] device)")
+    add_device_argument(p)
     p.add_argument("--spp", "--supersampling", dest="supersampling", type=_positive_int("--supersampling"),
                    default=None, help="supersampling factor k (k×k samples per pixel, box filter)")
     p.add_argument("--exposure", type=_float, default=0.0, help="exposure in stops applied before writing (default 0)")
@@ -145,7 +115,7 @@ def render_main(args) -> int:
 def add_preview_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scene", help="scene file (TOML)")
     p.add_argument("--screenshot", default=None, help="render off-screen into this PNG instead of opening a window")
-    p.add_argument("--device", default=None, help="cpu, cuda, cuda:N or auto")
+    add_device_argument(p)
     p.add_argument("--window-size", type=_positive_int("--window-size"), nargs=2, default=None,
                    metavar=("W", "H"), help="window / screenshot size (default: the scene camera's)")
 

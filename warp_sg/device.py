@@ -24,6 +24,26 @@ def _init() -> None:
     wp.init()
 
 
+#: The device when neither ``--device`` nor the scene's ``[render] device`` names one.
+DEFAULT_DEVICE = "cpu"
+
+
+def add_device_argument(parser, *, scene: bool = True) -> None:
+    """``--device`` with the same default in every ``warp-sg`` subcommand: the scene's ``[render]
+    device`` (itself ``cpu`` unless the scene sets it); without a scene (``bench``) ``cpu``."""
+    default = ("the scene's [render] device, which is cpu unless the scene sets it" if scene
+               else f"{DEFAULT_DEVICE}, the default [render] device")
+    parser.add_argument("--device", default=None, help=f"cpu, cuda, cuda:N or auto (default: {default})")
+
+
+def device_for(device, scene=None) -> str:
+    """``device`` (a ``--device`` value) if given, else ``scene``'s ``[render] device``, else
+    :data:`DEFAULT_DEVICE`."""
+    if device is not None:
+        return device
+    return getattr(getattr(scene, "render", None), "device", None) or DEFAULT_DEVICE
+
+
 def cuda_available() -> bool:
     _init()
     return wp.get_cuda_device_count() > 0

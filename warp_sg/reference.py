@@ -43,7 +43,7 @@ import numpy as np
 import warp as wp
 
 from . import sampling as S
-from .device import resolve_device
+from .device import add_device_argument, device_for, resolve_device
 from .errors import InputError
 from .frames import local_to_world, world_to_local
 from .lights import DirectionalLight, PointLight
@@ -646,27 +646,32 @@ def reference(scene, spp: int = 256, device="cpu", progress: bool = True, seed: 
 # --------------------------------------------------------------------------------------------
 def add_cli_arguments(p) -> None:
     p.add_argument("scene", help="scene file (TOML)")
-    p.add_argument("-o", "--output", required=True, help="output image (.exr or .png)")
+    p.add_argument("-o", "--output", required=True,
+                   help="output image: .exr (linear HDR) or .png (sRGB); missing folders are created")
     p.add_argument("--spp", type=int, default=256, help="samples per (sub)pixel (default 256)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--device", default="cpu", help="cpu, cuda, cuda:N or auto")
+    add_device_argument(p)
     p.add_argument("--stderr", default=None, help="also write the per-pixel standard error image here")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
 
 def cli_main(args) -> int:
-    from .cli import check_output_path
+    from .atomic import check_output_path, make_parents
     from .image_io import save_image
     from .scene import load_scene
 
     if args.spp < 1:
         raise InputError(f"must be >= 1, got {args.spp}", where="--spp")
-    out = check_output_path(args.output)  # fail before any work, never a partial file
-    err_out = check_output_path(args.stderr) if args.stderr else None
+    # fail before any work; folders are created only once the images exist (never a partial file)
+    out = check_output_path(args.output, create_parents=True)
+    err_out = check_output_path(args.stderr, create_parents=True) if args.stderr else None
     scene = load_scene(args.scene)
-    res = render_reference(scene, spp=args.spp, device=args.device, progress=not args.no_progress, seed=args.seed)
+    res = render_reference(scene, spp=args.spp, device=device_for(args.device, scene), progress=not args.no_progress,
+                           seed=args.seed)
+    make_parents(out)
     save_image(out, res.image)
     if err_out is not None:
+        make_parents(err_out)
         save_image(err_out, res.stderr)
     return 0
 

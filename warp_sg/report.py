@@ -38,6 +38,7 @@ import numpy as np
 from precompute.cache import fresh_cache
 
 from .atomic import atomic_output
+from .device import add_device_argument, device_for
 from .errors import InputError
 from .regions import image_errors
 
@@ -173,14 +174,16 @@ def with_resolution(scene, width=None, height=None):
     return sc
 
 
-def run_report(scene, out_dir, device="cpu", quick=False, truth_spp=None, mc_max_spp=None, knobs=None,
+def run_report(scene, out_dir, device=None, quick=False, truth_spp=None, mc_max_spp=None, knobs=None,
                progress=True, frames=None, width=None, height=None) -> Report:
     """Run the sweep for ``scene`` (a Scene or a path) and write the report into ``out_dir``.
 
-    ``width``/``height`` override the camera's resolution (the reference's cost grows with it)."""
+    ``width``/``height`` override the camera's resolution (the reference's cost grows with it);
+    ``device=None`` is the scene's ``[render] device``."""
     from .reference import render_reference
 
     scene = with_resolution(_load(scene), width, height)
+    device = device_for(device, scene)
     out = Path(out_dir)
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -412,7 +415,7 @@ def write_outputs(out: Path, rows, truth, base_img, truth_spp, floor, truth_time
 def add_cli_arguments(p) -> None:
     p.add_argument("scene", help="scene file (TOML)")
     p.add_argument("-o", "--output", required=True, help="output folder")
-    p.add_argument("--device", default="cpu", help="cpu, cuda, cuda:N or auto")
+    add_device_argument(p)
     p.add_argument("--quick", action="store_true", help="small sweep (smoke test)")
     p.add_argument("--truth-spp", type=int, default=None, help="samples per pixel of the ground truth")
     p.add_argument("--width", type=int, default=None, help="override the camera width (keeps the aspect)")
