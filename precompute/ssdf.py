@@ -225,32 +225,6 @@ def compute_ssdf(vertices, triangles, normals, *, resolution: int = DEFAULT_RESO
     return out
 
 
-def brute_force_ssdf(visibility: np.ndarray) -> np.ndarray:
-    """Reference for tests: eq. 23 on a binary map (R, R) by exhaustive search over all boundary
-    midpoints (O(R⁴), numpy) with the same discretisation as the kernels (horizon included)."""
-    vis = np.asarray(visibility).astype(bool)
-    R = vis.shape[0]
-    d = texel_directions(R)
-    mids = []
-    for axis in (0, 1):
-        a = vis[:-1, :] if axis == 0 else vis[:, :-1]
-        b = vis[1:, :] if axis == 0 else vis[:, 1:]
-        da = d[:-1, :] if axis == 0 else d[:, :-1]
-        db = d[1:, :] if axis == 0 else d[:, 1:]
-        m = (da + db)[a != b]
-        mids.append(m / np.linalg.norm(m, axis=-1, keepdims=True))
-    mids = np.concatenate(mids)
-    flat = d.reshape(-1, 3)
-    if len(mids):
-        dist = np.arccos(np.clip(flat @ mids.T, -1, 1)).min(axis=1)
-    else:
-        dist = np.full(len(flat), np.pi / 2)
-    dist = np.minimum(dist, np.pi / 2)
-    elev = np.arcsin(np.clip(flat[:, 2], 0, 1))
-    out = np.where(vis.ravel(), np.minimum(dist, elev), -dist)
-    return out.reshape(R, R).astype(np.float32)
-
-
 # ---------------------------------------------------------------------------------------------
 # compressed, cached per mesh
 # ---------------------------------------------------------------------------------------------

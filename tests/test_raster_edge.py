@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import raster
-from raster.bench import raycast_visibility
+from raster.reference_checks import raycast_visibility
 from warp_sg.errors import InputError, MeshError
 
 CAM = dict(origin=(0.0, 0.0, 0.0), target=(0.0, 0.0, -1.0), up=(0.0, 1.0, 0.0), fov=60.0, width=48, height=40)

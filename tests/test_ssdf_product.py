@@ -6,7 +6,7 @@ import pytest
 import warp as wp
 
 from precompute import ssdf as S
-from precompute.bench import bowl_scene, plane_box_scene, product_error, sg_visibility_reference
+from precompute.reference_checks import bowl_scene, plane_box_scene, product_error, sg_visibility_reference
 from warp_sg import fh
 from warp_sg import ssdf_product as P
 

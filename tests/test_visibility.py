@@ -6,7 +6,7 @@ import pytest
 import warp as wp
 
 from precompute import ssdf_wp
-from precompute.bench import plane_box_scene
+from precompute.reference_checks import plane_box_scene
 from precompute.visibility import hemisphere_visibility, needs_visibility, ray_visibility
 from warp_sg.errors import InputError, MeshError
 from warp_sg.frames import to_world
