@@ -557,7 +557,9 @@ def fit_file(path, lobes=1, eta=1.33, pca_terms=8):
 # --------------------------------------------------------------------------------------------
 def synthetic_materials():
     """Analytic BRDFs standing in for MERL measurements (no downloads): name -> (model, note)."""
-    from . import BlinnPhong, CookTorrance, TorranceSparrow, Ward
+    from .microfacet import CookTorrance, TorranceSparrow
+    from .phong import BlinnPhong
+    from .ward import Ward
 
     return {
         "ct_m0.05": CookTorrance(kd=(0.02, 0.02, 0.02), ks=(30, 25, 20), m=0.05, fresnel={"eta": 1.33}),
