@@ -39,26 +39,6 @@ from . import shading as S
 from .textures import Texture, build_atlas
 
 
-#: an antialiasing block whose inverse depths leave a plane fitted to them by more than this
-#: fraction is an edge (an object in front of itself) even when all its sub-pixels see one object.
-#: (1/depth is affine in screen space across a flat triangle, and nearly so across a pixel of a
-#: smooth surface, however grazing.)
-EDGE_DEPTH_RESIDUAL = 0.01
-
-
-#: pass 2 of the adaptive antialiasing supersamples interior pixels whose luminance differs from a
-#: neighbour's by more than this fraction of the larger one
-CONTRAST = 0.2
-
-
-def _plane_residual_operator(a: int) -> np.ndarray:
-    """(a², a²) matrix I − P, P the least-squares projection onto affine functions of the sub-pixel
-    position: applied to a block's 1/depth it leaves what no plane explains."""
-    y, x = np.mgrid[:a, :a]
-    A = np.stack([np.ones(a * a), x.ravel(), y.ravel()], 1).astype(np.float64)
-    return np.eye(a * a) - A @ np.linalg.pinv(A)
-
-
 def refined_geometry(g: Geometry, ref) -> Geometry:
     """``g`` carried onto a :class:`precompute.refine.Refinement` of its mesh: positions and
     normals from the refinement, uvs and tangents interpolated (tangents renormalised), triangle
@@ -139,6 +119,7 @@ class Renderer:
         ga.tris = wp.array(g.triangles, dtype=wp.vec3i, device=d)
         ga.tri_material = wp.array(g.tri_material, dtype=int, device=d)
         self.geo_arrays = ga
+        self._tri_object = wp.array(np.asarray(g.tri_object, np.int32), dtype=int, device=d)
 
     def _setup_visibility(self):
         rs = self.scene.render
@@ -431,71 +412,23 @@ class Renderer:
         return img
 
     def _render_adaptive(self, a: int) -> np.ndarray:
-        """Edge-adaptive antialiasing (``[render] antialias`` a): coverage at a×a sub-pixels; pass 1
-        shades each interior pixel once (its central sub-pixel) and each geometric edge pixel (its
-        sub-pixels see different objects, or one object in front of itself) at all a×a; pass 2
-        shades at all a×a the interior pixels whose value differs from a neighbour's by more than
-        ``CONTRAST`` (luminance; shadow edges, glints, texture edges), then box-filters."""
+        """Edge- and contrast-adaptive antialiasing on the device (:mod:`warp_sg.antialias`)."""
+        from .antialias import render_adaptive
+
         d = self.device
         cam = self.scene.camera
-        H, W = cam.height, cam.width
         t0 = _timer(d)
         vb = self.rasterize(a)
-        tri = vb.tri_id.numpy().reshape(-1)
-        depth = vb.depth.numpy()
-        bary = vb.bary.numpy().reshape(-1, 2)
-        bg = self._background_numpy(a).reshape(-1, 3)
         t1 = _timer(d)
-        g = self.geometry
-        obj = np.where(tri >= 0, g.tri_object[np.maximum(tri, 0)], -1).reshape(H * a, W * a)
-
-        def blocks(x):
-            return x.reshape(H, a, W, a).transpose(0, 2, 1, 3).reshape(H, W, a * a)
-
-        ob = blocks(obj)
-        edge = ~np.all(ob == ob[..., :1], axis=-1)
-        iz = blocks(np.where(np.isfinite(depth) & (depth > 0), 1.0 / np.maximum(depth, 1e-30), 0.0))
-        resid = np.abs(iz @ _plane_residual_operator(a)).max(-1)
-        edge |= resid > EDGE_DEPTH_RESIDUAL * np.maximum(iz.max(-1), 1e-30)
-        c = a // 2
-        aw = W * a
-        sub = (np.arange(a)[:, None] * aw + np.arange(a)[None, :]).reshape(-1)
-
-        def shade(idx):
-            n = len(idx)
-            if n == 0:
-                return np.zeros((0, 3), np.float32)
-            out = wp.empty((1, n), dtype=wp.vec3, device=d)
-            self._launch_shade(wp.array(tri[idx].reshape(1, n), dtype=int, device=d),
-                               wp.array(bary[idx].reshape(1, n, 2), dtype=wp.vec2, device=d),
-                               wp.array(bg[idx].reshape(1, n, 3), dtype=wp.vec3, device=d), cam.origin, out)
-            return out.numpy().reshape(n, 3)
-
-        def full(ys, xs):  # all a×a sub-pixels of pixels (ys, xs), box-filtered
-            res = shade((((ys * a) * aw + xs * a)[:, None] + sub[None, :]).reshape(-1))
-            return res.reshape(len(ys), a * a, 3).mean(1)
-
-        img = np.empty((H, W, 3), np.float32)
-        iy, ix = np.nonzero(~edge)
-        ey, ex = np.nonzero(edge)
-        img[iy, ix] = shade((iy * a + c) * aw + ix * a + c)
-        img[ey, ex] = full(ey, ex)
-        # pass 2: shading contrast between interior pixels and their neighbours
-        lum = img @ np.array([0.2126, 0.7152, 0.0722], np.float32)
-        hi = np.zeros((H, W), bool)
-        for dy, dx in ((0, 1), (1, 0)):
-            la, lb = lum[: H - dy, : W - dx], lum[dy:, dx:]
-            big = np.abs(la - lb) > CONTRAST * np.maximum(np.maximum(la, lb), 1e-30)
-            hi[: H - dy, : W - dx] |= big
-            hi[dy:, dx:] |= big
-        hy, hx = np.nonzero(hi & ~edge)
-        img[hy, hx] = full(hy, hx)
+        img, st = render_adaptive(vb, self._tri_object, self._background_image(a), a, cam.height, cam.width,
+                                  lambda tri, bary, bg, out: self._launch_shade(tri, bary, bg, cam.origin, out), d)
         t2 = _timer(d)
+        out = img.numpy().astype(np.float32)
         t3 = time.perf_counter()
         self.timings.update(raster=t1 - t0, shade=t2 - t1, resolve=t3 - t2, frame=t3 - t0,
-                            shaded_samples=len(iy) + (len(ey) + len(hy)) * a * a,
-                            edge_pixels=len(ey), contrast_pixels=len(hy))
-        return img
+                            shaded_samples=st["pass1_samples"] + st["pass2_samples"], edge_pixels=st["edge_pixels"],
+                            contrast_samples=st["pass2_samples"])
+        return out
 
     def shade_vertices(self, eye=None) -> np.ndarray:
         """The renderer's shading evaluated at every mesh vertex (V, 3) float32, seen from ``eye``
