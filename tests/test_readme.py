@@ -1,0 +1,237 @@
+"""The README's commands work as written (issue 12): the shell commands of its first code block and
+of its "Using it" block are parsed by the real CLI, the cheap ones are run (at small sizes, via
+documented flags) with every output redirected into a temporary folder, and every file the README
+names exists in the repository.
+
+Run in a fresh clone by CI (``.ci/run``), so this is the "newcomer" check of the README.
+"""
+from __future__ import annotations
+
+import os
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+
+#: the two newcomer commands (CI and the README's first paragraph rely on them, word for word)
+FIRST_COMMANDS = [
+    "pip install -e '.[dev]' && warp-sg render examples/cook_torrance.toml -o out/cook_torrance.png",
+    "python3 -m pytest -q",
+]
+SMALL = ["--width", "64", "--height", "64"]
+
+
+def _blocks(text: str):
+    """``(heading, language, body)`` of every fenced code block, in order."""
+    out, heading = [], ""
+    fence = re.compile(r"^```(\w*)\n(.*?)^```", re.S | re.M)
+    pos = 0
+    for m in fence.finditer(text):
+        for line in text[pos:m.start()].splitlines():
+            if line.startswith("#"):
+                heading = line.lstrip("#").strip()
+        out.append((heading, m.group(1), m.group(2)))
+        pos = m.end()
+    return out
+
+
+def _lines(body: str) -> list[str]:
+    return [ln.strip() for ln in body.splitlines() if ln.strip() and not ln.strip().startswith("#")]
+
+
+def _commands(line: str) -> list[list[str]]:
+    """A shell line split into its ``&&``-joined commands (tokens, comments removed)."""
+    cmds, cur = [], []
+    for tok in shlex.split(line, comments=True):
+        if tok == "&&":
+            cmds.append(cur)
+            cur = []
+        else:
+            cur.append(tok)
+    return cmds + ([cur] if cur else [])
+
+
+def _readme_lines() -> tuple[list[str], list[str]]:
+    blocks = _blocks(README.read_text(encoding="utf-8"))
+    first = blocks[0]
+    assert first[1] == "bash", "the README's first code block is the shell quick start"
+    using = [b for b in blocks if b[0] == "Using it" and b[1] == "bash"]
+    assert len(using) == 1, "the README has one shell block under '## Using it'"
+    return _lines(first[2]), _lines(using[0][2])
+
+
+def _warp_sg_commands() -> list[list[str]]:
+    first, using = _readme_lines()
+    cmds = [c for line in first + using for c in _commands(line)]
+    return [c[1:] for c in cmds if c and c[0] == "warp-sg"]
+
+
+def _find(sub: str, scene: str | None = None) -> list[str]:
+    """The README command for ``warp-sg SUB [SCENE]`` (the first one if several)."""
+    for c in _warp_sg_commands():
+        if c[0] == sub and (scene is None or scene in c):
+            return list(c)
+    raise AssertionError(f"the README has no 'warp-sg {sub} {scene or ''}' command")
+
+
+def _redirect(argv: list[str], tmp: Path) -> list[str]:
+    """Outputs under ``out/`` go to ``tmp/out/`` (which does not exist yet)."""
+    return [str(tmp / a) if a.startswith("out/") else a for a in argv]
+
+
+def _cli() -> list[str]:
+    exe = Path(sys.executable).parent / ("warp-sg.exe" if os.name == "nt" else "warp-sg")
+    if exe.exists():
+        return [str(exe)]  # the installed entry point, as the README uses it
+    found = shutil.which("warp-sg")
+    return [found] if found else [sys.executable, "-m", "warp_sg.cli"]
+
+
+def _run(argv: list[str], timeout: float = 300) -> subprocess.CompletedProcess:
+    env = dict(os.environ)
+    env.setdefault("PYVISTA_OFF_SCREEN", "true")
+    return subprocess.run(_cli() + argv, cwd=ROOT, env=env, capture_output=True, text=True, timeout=timeout)
+
+
+def _ok(res: subprocess.CompletedProcess, *files: Path) -> None:
+    assert res.returncode == 0, f"exit {res.returncode}\n{res.stderr[-3000:]}"
+    for f in files:
+        assert f.is_file() and f.stat().st_size > 0, f"{f} was not written"
+
+
+# --------------------------------------------------------------------------------------------
+# the text
+# --------------------------------------------------------------------------------------------
+def test_first_block_is_the_newcomer_commands():
+    first, _ = _readme_lines()
+    assert first == FIRST_COMMANDS
+
+
+def test_using_it_covers_every_command():
+    _, using = _readme_lines()
+    subs = {c[1] for line in using for c in _commands(line) if c[0] == "warp-sg"}
+    assert {"render", "reference", "report", "preview", "bench"} <= subs
+
+
+def test_every_readme_command_parses():
+    """Each ``warp-sg`` command of the README is accepted by the CLI's own parser and names files
+    that exist (also the ones too slow to run here: report, the full bench, the preview window)."""
+    from warp_sg.cli import build_parser
+
+    cmds = _warp_sg_commands()
+    assert len(cmds) >= 6
+    for argv in cmds:
+        try:
+            args = build_parser(argv[0]).parse_args(argv)
+        except SystemExit as e:  # argparse rejects unknown flags with exit 2
+            pytest.fail(f"'warp-sg {' '.join(argv)}' is rejected by the CLI (exit {e.code})")
+        scene = getattr(args, "scene", None)
+        if scene is not None:
+            assert (ROOT / scene).is_file(), f"'warp-sg {' '.join(argv)}': no file {scene}"
+
+
+def _paths(text: str) -> set[str]:
+    """Repository paths in backticks: words with a '/' or a file suffix."""
+    out = set()
+    for tok in re.findall(r"`([^`\n]+)`", text):
+        for word in re.split(r"[\s(),]+", tok):
+            word = word.strip("'\"")
+            if word and ("/" in word or re.search(r"\.(py|md|toml|ipynb)$", word)):
+                if not word.startswith(("out/", "~/", "$", "http", ".venv", "-")):
+                    out.add(word)
+    return out
+
+
+def test_named_files_exist():
+    """Every repository path the README names exists: links, paths in backticks, and in the
+    "What is where" table the file names of each row, relative to the row's folder(s)."""
+    text = README.read_text(encoding="utf-8")
+    prose = re.sub(r"^```.*?^```", "", text, flags=re.S | re.M)
+    missing = [n for n in re.findall(r"\]\(([^)#\s]+)\)", text) if not (ROOT / n).exists()]
+    for line in prose.splitlines():
+        cells = line.split("|")
+        if line.startswith("|") and len(cells) > 2 and "`" in cells[1]:  # table row: `dir/` | names
+            bases = [ROOT / d for d in _paths(cells[1])]
+            names = _paths("|".join(cells[2:]))
+        else:
+            bases, names = [ROOT], _paths(line)
+        missing += [n for n in sorted(names) if not any((b / n).exists() or (ROOT / n).exists() for b in bases)]
+    assert not missing, f"README names files that do not exist: {missing}"
+
+
+def test_python_snippet_names_exist():
+    import warp_sg as ws
+
+    for name in ("load_scene", "Renderer", "render", "reference", "save_image"):
+        assert callable(getattr(ws, name)), name
+    assert callable(ws.Renderer.render)
+
+
+# --------------------------------------------------------------------------------------------
+# the commands, run
+# --------------------------------------------------------------------------------------------
+@pytest.mark.slow
+def test_quick_start_render(tmp_path):
+    """``warp-sg render examples/cook_torrance.toml -o out/cook_torrance.png`` at 64², into a
+    folder that does not exist yet."""
+    argv = _redirect(_find("render", "examples/cook_torrance.toml"), tmp_path)
+    out = tmp_path / "out" / "cook_torrance.png"
+    assert str(out) in argv
+    _ok(_run(argv + SMALL + ["--no-progress"]), out)
+
+
+def test_render_exr_device_auto(tmp_path):
+    """``warp-sg render examples/shadows.toml -o out/shadows.exr --device auto`` at 64²; the SSDF
+    precompute of this scene takes a minute on a fresh cache, so shadows are off here (the shadow
+    path is covered by the quick-start render and tests/test_render.py)."""
+    argv = _redirect(_find("render", "examples/shadows.toml"), tmp_path)
+    assert "--device" in argv
+    out = tmp_path / "out" / "shadows.exr"
+    _ok(_run(argv + SMALL + ["--no-shadows", "--no-progress"]), out)
+
+
+def _reference_argv(tmp_path: Path) -> list[str]:
+    argv = _redirect(_find("reference"), tmp_path)
+    i = argv.index("--spp")
+    argv[i + 1] = "1"  # 256 spp is minutes; one sample per sub-pixel checks the command
+    return argv + ["--no-progress"]
+
+
+def test_reference_into_an_existing_folder(tmp_path):
+    (tmp_path / "out").mkdir()
+    argv = _reference_argv(tmp_path)
+    _ok(_run(argv), Path(argv[argv.index("-o") + 1]))
+
+
+def test_reference_creates_missing_folders(tmp_path):
+    """As written in the README, ``-o out/...`` into a fresh checkout where ``out/`` (here
+    ``tmp/out/sub/dir``) does not exist yet."""
+    argv = _reference_argv(tmp_path)
+    i = argv.index("-o")
+    out = tmp_path / "out" / "sub" / "dir" / "ref.exr"
+    argv[i + 1] = str(out)
+    _ok(_run(argv), out)
+
+
+@pytest.mark.slow
+def test_preview_screenshot(tmp_path):
+    """``warp-sg preview examples/ward.toml --screenshot out/ward_preview.png`` in a 64² window."""
+    argv = _redirect(next(c for c in _warp_sg_commands() if c[0] == "preview" and "--screenshot" in c), tmp_path)
+    out = tmp_path / "out" / "ward_preview.png"
+    assert str(out) in argv
+    _ok(_run(argv + ["--window-size", "64", "64"]), out)
+
+
+def test_bench_help():
+    """``warp-sg bench`` itself runs for minutes (tests/test_bench.py runs its quick mode)."""
+    assert _find("bench")
+    res = _run(["bench", "--help"], timeout=120)
+    _ok(res)
+    assert "--quick" in res.stdout
