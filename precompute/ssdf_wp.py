@@ -132,17 +132,8 @@ def ssdf_eval_np(mean, basis, weights, d):
 
 def _maps_at_np(mean, basis, d):
     """Bilinear values of the mean (N,) and of every basis image (N, NV) at local directions d (N, 3)."""
-    R = mean.shape[-1]
-    a, b = dir_to_concentric(d)
-    x = np.clip((a + 1.0) * 0.5 * R - 0.5, 0.0, R - 1.0)
-    y = np.clip((b + 1.0) * 0.5 * R - 0.5, 0.0, R - 1.0)
-    x0 = np.minimum(np.floor(x).astype(int), R - 2)
-    y0 = np.minimum(np.floor(y).astype(int), R - 2)
-    fx = x - x0
-    fy = y - y0
     img = np.concatenate([np.asarray(mean, np.float64)[None], np.asarray(basis, np.float64)])  # (1+NV, R, R)
-    v = (img[:, y0, x0] * (1 - fx) * (1 - fy) + img[:, y0, x0 + 1] * fx * (1 - fy)
-         + img[:, y0 + 1, x0] * (1 - fx) * fy + img[:, y0 + 1, x0 + 1] * fx * fy)
+    v = lookup_np(img, d)  # (1+NV, N)
     return v[0], v[1:].T
 
 

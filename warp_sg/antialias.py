@@ -127,16 +127,16 @@ def gather_kernel(base: int, tri_id: wp.array2d(dtype=int), bary: wp.array2d(dty
         return
     y = k / W
     x = k - y * W
-    base = offset[k]
+    o0 = offset[k]
     if n == 1:
         c = a / 2
-        tri_s[0, base] = tri_id[y * a + c, x * a + c]
-        bary_s[0, base] = bary[y * a + c, x * a + c]
-        bg_s[0, base] = background[y * a + c, x * a + c]
+        tri_s[0, o0] = tri_id[y * a + c, x * a + c]
+        bary_s[0, o0] = bary[y * a + c, x * a + c]
+        bg_s[0, o0] = background[y * a + c, x * a + c]
         return
     for j in range(a):
         for i in range(a):
-            q = base + j * a + i
+            q = o0 + j * a + i
             tri_s[0, q] = tri_id[y * a + j, x * a + i]
             bary_s[0, q] = bary[y * a + j, x * a + i]
             bg_s[0, q] = background[y * a + j, x * a + i]
