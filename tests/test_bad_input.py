@@ -7,7 +7,6 @@ real ``warp-sg`` executable to check the installed entry point.
 """
 from __future__ import annotations
 
-import os
 import shutil
 import subprocess
 import sys
@@ -286,24 +285,38 @@ def test_cli_zero_spp_exits_2(tmp_path, capsys):
     assert not (tmp_path / "o.exr").exists()
 
 
-def test_cli_output_in_a_missing_folder_exits_2_and_writes_nothing(tmp_path, capsys):
+def test_cli_bad_scene_into_a_missing_folder_exits_2_and_creates_no_folder(tmp_path, capsys):
+    # missing output folders are created, but only once the image exists
     out = tmp_path / "no" / "such" / "dir" / "o.exr"
-    rc, _, err = run_cli(["reference", write_scene(tmp_path), "-o", out, "--spp", "1"], capsys)
-    assert_clean_failure(rc, err, "o.exr")
-    assert not out.exists()
+    p = write_scene(tmp_path, replace("fov = 40.0", "fvo = 40.0"))
+    rc, _, err = run_cli(["reference", p, "-o", out, "--spp", "1"], capsys)
+    assert_clean_failure(rc, err, "fvo")
+    assert not (tmp_path / "no").exists()
 
 
-@pytest.mark.skipif(hasattr(os, "geteuid") and os.geteuid() == 0, reason="root can write read-only folders")
-def test_cli_output_in_a_read_only_folder_exits_2(tmp_path, capsys):
-    ro = tmp_path / "ro"
+def test_cli_output_in_a_read_only_folder_exits_2(unprivileged):
+    # as root (how CI runs) the CLI runs as the unprivileged user 'nobody': root may write anywhere
+    scene = write_scene(unprivileged.dir)
+    ro = unprivileged.dir / "ro"
     ro.mkdir()
-    ro.chmod(0o500)
-    try:
-        rc, _, err = run_cli(["reference", write_scene(tmp_path), "-o", ro / "o.exr", "--spp", "1"], capsys)
-        assert_clean_failure(rc, err, "o.exr")
-        assert list(ro.iterdir()) == []
-    finally:
-        ro.chmod(0o700)
+    ro.chmod(0o555)
+    argv = ["reference", str(scene), "-o", str(ro / "o.exr"), "--spp", "1"]
+    setup = "import warp_sg.atomic, warp_sg.cli, warp_sg.image_io, warp_sg.reference, warp_sg.scene"
+    r = unprivileged.run(setup, f"sys.exit(warp_sg.cli.main({argv!r}))")
+    msg = assert_clean_failure(r.returncode, r.stderr, "o.exr", "writable")
+    assert msg.startswith("warp-sg: error:")
+    assert list(ro.iterdir()) == []
+
+
+@pytest.mark.parametrize("command", ["render", "reference"])
+def test_cli_output_under_a_regular_file_exits_2_and_writes_nothing(tmp_path, capsys, command):
+    # the output's folder cannot exist (nor be created): one of its parents is a regular file
+    f = tmp_path / "afile"
+    f.write_text("x")
+    extra = ["--spp", "1"] if command == "reference" else []
+    rc, _, err = run_cli([command, write_scene(tmp_path), "-o", f / "sub" / "o.exr", *extra], capsys)
+    assert_clean_failure(rc, err, "o.exr", "afile")
+    assert f.read_text() == "x" and sorted(x.name for x in tmp_path.iterdir()) == ["afile", "scene.toml"]
 
 
 def test_cli_output_path_that_is_a_folder_exits_2(tmp_path, capsys):
@@ -320,7 +333,6 @@ def test_cli_unknown_output_format_exits_2(tmp_path, capsys):
     assert not out.exists()
 
 
-@pytest.mark.skipif(ws.errors is None, reason="")
 def test_cli_cuda_device_without_cuda_exits_2(tmp_path, capsys):
     from warp_sg.device import cuda_available
 

@@ -32,15 +32,44 @@ def test_cell_centres_map_back_to_their_own_cells():
     assert np.array_equal(idx[up], expect[up])
 
 
-def test_lookup_is_reciprocal_and_matches_the_reference_indexing():
-    o, i = _random_pairs(5000)
-    assert np.array_equal(merl.merl_index(o, i), merl.merl_index(i, o))
-    # the specular configuration (h = n) lands in θh bin 0, θd from the angle of incidence
-    th, td, pd = merl.half_diff_angles(np.array([0.6, 0.0, 0.8]), np.array([-0.6, 0.0, 0.8]))
-    assert th == pytest.approx(0.0, abs=1e-12)
-    assert td == pytest.approx(np.arccos(0.8))
-    ih, idd, ip = merl.angle_indices(th, td, pd)
-    assert (int(ih), int(idd), int(ip)) == (0, int(np.arccos(0.8) / (np.pi / 2) * 90), 179)
+# --- MERL's reference code (BRDFRead.cpp, Matusik et al. 2003), transcribed, vectorised over pairs ---
+def _ref_rotate(v, axis, angle):
+    """rotate_vector(): Rodrigues' rotation of v about a unit axis."""
+    c, s = np.cos(angle)[..., None], np.sin(angle)[..., None]
+    axis = np.broadcast_to(axis, v.shape)
+    return v * c + axis * np.sum(axis * v, -1, keepdims=True) * (1 - c) + np.cross(axis, v) * s
+
+
+def _ref_index(i, o):
+    """lookup_brdf_val()'s flat index: std_coords_to_half_diff_coords() then the three index functions."""
+    half = (i + o) / 2.0
+    half /= np.linalg.norm(half, axis=-1, keepdims=True)
+    theta_half = np.arccos(np.clip(half[..., 2], -1, 1))
+    fi_half = np.arctan2(half[..., 1], half[..., 0])
+    tmp = _ref_rotate(i, np.array([0.0, 0.0, 1.0]), -fi_half)
+    diff = _ref_rotate(tmp, np.array([0.0, 1.0, 0.0]), -theta_half)
+    theta_diff = np.arccos(np.clip(diff[..., 2], -1, 1))
+    fi_diff = np.arctan2(diff[..., 1], diff[..., 0])
+    # theta_half_index: sqrt((θh / (π/2)) · 90 · 90), 0 for θh <= 0
+    ih = np.where(theta_half <= 0, 0, np.sqrt(theta_half / (np.pi / 2) * 90 * 90).astype(int).clip(0, 89))
+    idd = (theta_diff / (np.pi * 0.5) * 90).astype(int).clip(0, 89)
+    fd = np.where(fi_diff < 0, fi_diff + np.pi, fi_diff)
+    ip = (fd / np.pi * 360 / 2).astype(int).clip(0, 179)
+    return ip + idd * 180 + ih * 180 * 90
+
+
+def test_lookup_is_reciprocal_and_matches_the_reference_code_indexing():
+    o, i = _random_pairs(20000)
+    idx = merl.merl_index(o, i)
+    assert np.array_equal(idx, merl.merl_index(i, o))
+    ref = _ref_index(i, o)
+    # a different float path may round differently exactly at a bin edge: allow a handful of those
+    same = idx == ref
+    assert same.mean() > 0.9995, same.mean()
+    # the specular configuration (h = n): θh bin 0, θd = angle of incidence, as in the reference code
+    o1, i1 = np.array([[0.6, 0.0, 0.8]]), np.array([[-0.6, 0.0, 0.8]])
+    assert merl.merl_index(o1, i1)[0] == _ref_index(i1, o1)[0]
+    assert _ref_index(i1, o1)[0] // (180 * 90) == 0
 
 
 def test_written_file_reads_back_with_merl_scales(tmp_path, ct_table):
@@ -48,19 +77,37 @@ def test_written_file_reads_back_with_merl_scales(tmp_path, ct_table):
     raw = p.read_bytes()
     assert len(raw) == 12 + 3 * 90 * 90 * 180 * 8
     assert tuple(np.frombuffer(raw[:12], "<i4")) == (90, 90, 180)
-    # stored unscaled: green value = BRDF / (1.15/1500)
+    # stored unscaled, with the reference code's RED/GREEN/BLUE_SCALE = 1/1500, 1.15/1500, 1.66/1500
     stored = np.frombuffer(raw, "<f8", offset=12).reshape(3, 90, 90, 180)
-    np.testing.assert_allclose(stored[1, 3, 40, 7], ct_table[1, 3, 40, 7] * 1500 / 1.15, rtol=1e-12)
+    for c, scale in enumerate((1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0)):
+        np.testing.assert_allclose(stored[c] * scale, ct_table[c], rtol=1e-12, atol=1e-15)
     back = merl.read_merl(p)
     np.testing.assert_allclose(back, ct_table, rtol=1e-12, atol=1e-15)
 
 
-def test_lookup_reproduces_the_analytic_brdf_at_cell_centres(ct_table):
+def test_lookup_returns_the_brdf_at_the_centre_of_the_reference_codes_cell(ct_table):
+    """A lookup at any pair gives the analytic BRDF at the centre of the cell the reference code puts
+    the pair in; the centre (and a pair of directions with those angles) is built here from the
+    MERL parameterisation: θh = ((ih + ½)/90)² π/2, θd = (id + ½)/90 · π/2, φd = (ip + ½)/180 · π."""
     ct = CookTorrance(kd=(0.2, 0.1, 0.05), ks=(20.0, 25.0, 30.0), m=0.15, fresnel={"eta": 1.33})
-    o, i = merl.cell_directions()
-    sel = (slice(0, 90, 7), slice(0, 60, 5), slice(0, 180, 11))
-    got = merl.merl_lookup(ct_table, o[sel], i[sel])
-    np.testing.assert_allclose(got, ct.eval(o[sel], i[sel]), rtol=1e-12, atol=1e-12)
+    o, i = _random_pairs(3000, seed=5)
+    ref = _ref_index(i, o)
+    ih, rest = np.divmod(ref, 180 * 90)
+    idd, ip = np.divmod(rest, 180)
+    th = ((ih + 0.5) / 90) ** 2 * (np.pi / 2)
+    td = (idd + 0.5) / 90 * (np.pi / 2)
+    pd = (ip + 0.5) / 180 * np.pi
+    # the inverse of the reference code's transform (φh = 0: the BRDF is isotropic)
+    diff = np.stack([np.sin(td) * np.cos(pd), np.sin(td) * np.sin(pd), np.cos(td)], -1)
+    ic = _ref_rotate(diff, np.array([0.0, 1.0, 0.0]), th)
+    h = np.stack([np.sin(th), 0 * th, np.cos(th)], -1)
+    oc = 2 * np.sum(ic * h, -1, keepdims=True) * h - ic
+    up = (oc[:, 2] > 0) & (ic[:, 2] > 0)  # centres above the horizon (the table holds 0 below it)
+    assert up.mean() > 0.9
+    got = merl.merl_lookup(ct_table, o, i)
+    same = merl.merl_index(o, i) == ref
+    assert same.mean() > 0.999
+    np.testing.assert_allclose(got[same & up], ct.eval(oc[same & up], ic[same & up]), rtol=1e-9, atol=1e-12)
     # below the horizon: zero
     assert np.all(merl.merl_lookup(ct_table, [0, 0, 1.0], [0.0, 0.6, -0.8]) == 0)
 

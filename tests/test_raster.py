@@ -7,7 +7,7 @@ import numpy as np
 import trimesh
 
 import raster
-from raster.bench import raycast_visibility, torus_mesh, uv_sphere
+from raster.reference_checks import raycast_visibility, torus_mesh, uv_sphere
 
 
 def _cam(w=96, h=72, origin=(0.0, 1.2, 3.0), target=(0.0, 0.0, 0.0), fov=40.0, **kw):
@@ -162,17 +162,20 @@ def test_interpolated_positions_equal_raycast_hit_points(device):
     P = raster.interpolate(vb, F, V).numpy()
     assert P.shape == (48, 64, 3)
     t = vb.tri_id.numpy()
+    # hit points of the camera rays from an independent wp.Mesh ray cast (its own depth along the view axis)
+    ct, _, cd = raycast_visibility(V, F, cam, device=device)
     d = cam.ray_directions().astype(np.float64)
-    depth = vb.depth.numpy()
-    hit = np.asarray(cam.origin) + d * (depth / (d @ cam.forward()))[..., None]
-    m = t >= 0
-    assert m.sum() > 300
+    hit = np.asarray(cam.origin) + d * (cd / (d @ cam.forward()))[..., None]
+    m = (t >= 0) & (t == ct)
+    assert m.sum() > 300 and m.sum() >= 0.999 * (t >= 0).sum()
     assert np.abs(P[m] - hit[m]).max() < 1e-3
-    assert (P[~m] == 0).all()
-    # a scalar attribute (N,) works too: vertex index 0..N-1 interpolated is within the triangle's range
-    s = raster.interpolate(vb, F, np.arange(V.shape[0], dtype=np.float32)).numpy()[..., 0]
-    lo, hi = V.shape[0] * 0, V.shape[0] - 1
-    assert (s[m] >= lo).all() and (s[m] <= hi).all()
+    assert (P[~(t >= 0)] == 0).all()
+    # a scalar attribute (N,): an affine function of position interpolates to its value at the hit point
+    a, c = np.array([0.7, -1.3, 2.1]), 0.25
+    s = raster.interpolate(vb, F, (V @ a + c).astype(np.float32)).numpy()
+    assert s.shape == (48, 64, 1)
+    np.testing.assert_allclose(s[m, 0], hit[m] @ a + c, atol=3e-3)
+    assert np.ptp(s[m, 0]) > 1.0  # the attribute varies over the image
 
 
 def test_small_queue_budget_gives_identical_buffers_in_several_passes(device):
@@ -211,7 +214,8 @@ def test_camera_fov_and_aspect_follow_mitsuba_vertical_fov():
     assert np.isclose(P[1, 1], 1 / math.tan(math.radians(30))) and np.isclose(P[0, 0], P[1, 1] / 2)
 
 
-def test_quick_benchmark_reports_rasterizer_faster_than_ray_casting():
+def test_quick_benchmark_runs_and_its_buffers_agree_with_ray_casting():
+    # correctness only: speed claims are measured by `warp-sg bench`, not asserted in unit tests
     from raster.bench import format_rows, run_bench
 
     rows = run_bench(device="cpu", quick=True)
@@ -219,7 +223,6 @@ def test_quick_benchmark_reports_rasterizer_faster_than_ray_casting():
     r = rows[0]
     assert r["triangles"] > 90_000 and (r["width"], r["height"]) == (512, 512)
     assert r["tri_id_agreement"] >= 0.999
-    assert r["raster_s"] > 0 and r["speedup_1launch"] > 1.0
     assert "speedup" in format_rows(rows)
 
 
