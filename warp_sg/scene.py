@@ -8,9 +8,9 @@ key or element, e.g. ``scene.toml: [materials.copper] key 'rougness' unknown —
 
 Records (what the renderer *and* the Monte-Carlo reference read)
 ------------------------------------------------------------------
-* ``Scene.camera`` — ``raster.Camera(origin, target, up, fov, width, height, near, far)``
-  (vertical ``fov`` in degrees, Mitsuba ``look_at`` meaning); a local dataclass with the same
-  fields and ``ray_directions()`` stands in while ``raster`` is not importable.
+* ``Scene.camera`` — :class:`warp_sg.camera.Camera` ``(origin, target, up, fov, width, height,
+  near, far)`` (vertical ``fov`` in degrees, Mitsuba ``look_at`` meaning); ``raster.Camera`` is the
+  same class.
 * ``Scene.objects`` — :class:`SceneObject`: ``mesh`` (file path, any format trimesh reads) or
   ``primitive`` ("sphere" | "plane" | "torus" with ``params``) or inline ``vertices``/``triangles``
   (Python API); ``material`` (a key of ``Scene.materials``); a :class:`Transform`
@@ -70,7 +70,7 @@ from .textures import Texture
 # --------------------------------------------------------------------------------------------
 # camera
 # --------------------------------------------------------------------------------------------
-from raster import Camera  # noqa: E402  (the scene's camera is the rasterizer's)
+from .camera import Camera  # noqa: E402  (the rasterizer's camera is the scene's: raster.Camera)
 
 CAMERA_KEYS = ("origin", "target", "up", "fov", "width", "height", "near", "far")
 
