@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .envmap import texel_directions, texel_solid_angles
+from warp_sg.envmap import texel_directions, texel_solid_angles
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 

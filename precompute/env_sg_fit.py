@@ -40,8 +40,7 @@ import time
 import numpy as np
 
 from warp_sg import sg as sgm
-
-from .envmap import downsample_envmap, row_solid_angles, texel_directions, validate_envmap
+from warp_sg.envmap import downsample_envmap, row_solid_angles, texel_directions, validate_envmap
 
 _VERSION = "env-sg-fit-v1"
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
@@ -79,7 +78,7 @@ def _working_map(env: np.ndarray, rows: int) -> np.ndarray:
         env = downsample_envmap(env, 2)
         h, w = env.shape[:2]
     if h > 2 * rows:  # odd sizes: resample with supersampling (approximately energy preserving)
-        from .envmap import env_lookup_numpy
+        from warp_sg.envmap import env_lookup_numpy
 
         s = int(math.ceil(h / rows))
         d = texel_directions(rows * s, 2 * rows * s)

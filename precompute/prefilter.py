@@ -3,7 +3,7 @@ r"""Prefiltered environment ΓL(p, λ) for specular SG lighting (paper §6, eq. 
     ΓL(p, λ) = ∫_S² G(i; p, λ, 1) L(i) di,     ⟨G(·; p, λ, μ), L⟩ = μ ΓL(p, λ)        (eq. 34–35)
 
 ``L`` is the equirectangular map read as the piecewise-constant radiance function (the
-Monte-Carlo reference's reading, :mod:`precompute.envmap`).
+Monte-Carlo reference's reading, :mod:`warp_sg.envmap`).
 
 Table
 -----
@@ -70,9 +70,8 @@ import warp as wp
 
 from warp_sg.device import resolve_device
 from warp_sg.sg_wp import one_minus_dot, sg_integral
+from warp_sg.envmap import downsample_envmap, row_solid_angles, validate_envmap, wp_dir_to_uv
 from warp_sg.workers import cpu_workers
-
-from .envmap import downsample_envmap, row_solid_angles, validate_envmap, wp_dir_to_uv
 
 #: Cap of the quadrature window: texels with λ (1 − p·d) > CUTOFF are skipped (mass e^{−14}).
 CUTOFF = 14.0
@@ -558,7 +557,7 @@ def _mip_chain(env64: np.ndarray, min_rows: int = 8):
     children's energy at their centroid, which keeps the quadrature first-order exact for
     compact bright sources (a sun) that a coarse texel would otherwise move to its centre.
     """
-    from .envmap import uv_to_dir
+    from warp_sg.envmap import uv_to_dir
 
     h, w = env64.shape[:2]
     cos_mid = 0.5 * (np.cos(np.pi * np.arange(h) / h) + np.cos(np.pi * np.arange(1, h + 1) / h))
@@ -812,7 +811,7 @@ def erf_filtered_numpy(radiance, d_env, sigma):
 
 def gamma_normalized_numpy(pre: EnvPrefiltered, d_env, lam):
     """numpy twin of :func:`gamma_normalized` (directions in the map's frame, unit)."""
-    from .envmap import env_lookup_numpy
+    from warp_sg.envmap import env_lookup_numpy
 
     d = np.asarray(d_env, np.float64)
     lam = np.broadcast_to(np.asarray(lam, np.float64), d.shape[:-1])

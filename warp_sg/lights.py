@@ -8,7 +8,7 @@ Records (what a scene holds; the Monte-Carlo reference reads the same records):
   direction light comes *from*), angular radius ``radius`` (radians), ``intensity`` = irradiance E
   on a surface facing it.
 * :class:`EnvironmentLight` — equirectangular radiance (Mitsuba's convention) from ``file`` (EXR)
-  or ``procedural`` ("sky" → :func:`precompute.envmap.procedural_sky` with ``options``;
+  or ``procedural`` ("sky" → :func:`warp_sg.envmap.procedural_sky` with ``options``;
   "constant" → uniform radiance ``options.radiance``), times ``scale``, rotated by ``rotation``
   degrees about +Y: ``L_world(d) = L_map(R_y(rotation)ᵀ d)``.
 
@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 import warp as wp
 
+from .envmap import load_envmap, procedural_sky, rotate_envmap, rotation_y
 from .errors import InputError
 from .sg_wp import expm1_neg
 
@@ -155,12 +156,8 @@ class EnvironmentLight:
                                      where="environment light.options")
                 a = np.broadcast_to(rad.astype(np.float32), (h, w, 3)).copy()
             elif self.procedural == "sky":
-                from precompute.envmap import procedural_sky
-
                 a = np.asarray(procedural_sky(**self.options), np.float32)
             else:
-                from precompute.envmap import load_envmap
-
                 a = np.asarray(load_envmap(self.file), np.float32)
             self._cache["base"] = a
         return self._cache["base"]
@@ -174,19 +171,10 @@ class EnvironmentLight:
         return rotate_equirect(self.base_radiance() * np.float32(self.scale), self.rotation)
 
 
-# The environment's rotation is implemented once, in precompute.envmap (imported on use).
-def rotation_y(degrees: float) -> np.ndarray:
-    """``R_y(degrees)`` (:func:`precompute.envmap.rotation_y`)."""
-    from precompute.envmap import rotation_y as _rotation_y
-
-    return _rotation_y(degrees)
-
-
+# The environment's rotation is implemented once, in warp_sg.envmap (``rotation_y`` is imported from there).
 def rotate_equirect(env: np.ndarray, degrees: float) -> np.ndarray:
-    """``L_out(d) = L_in(R_y(degrees)ᵀ d)`` as float32: :func:`precompute.envmap.rotate_envmap` of
+    """``L_out(d) = L_in(R_y(degrees)ᵀ d)`` as float32: :func:`warp_sg.envmap.rotate_envmap` of
     :func:`rotation_y` (a rotation about +Y is an exact resampling along u)."""
-    from precompute.envmap import rotate_envmap
-
     return rotate_envmap(env, rotation_y(degrees))
 
 

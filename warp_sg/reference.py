@@ -617,7 +617,7 @@ def inputs_from_scene(scene, device="cpu") -> ReferenceInputs:
     if np.any(slots >= 0):
         inp.texture_slots, inp.texture_images = slots, images
     if env is not None and scene.render.background:
-        from precompute.envmap import env_lookup_numpy
+        from .envmap import env_lookup_numpy
 
         inp.background_image = (env_lookup_numpy(env.base_radiance(), np.asarray(inp.ray_directions, np.float64),
                                                  rotation=env.rotation_matrix()) * env.scale).astype(np.float32)

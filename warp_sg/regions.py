@@ -48,7 +48,7 @@ def _key_light(scene):
         if s > score:
             best, score = cand, s
     if best is None and scene.environment is not None:
-        from precompute.envmap import texel_directions
+        from .envmap import texel_directions
 
         env = scene.environment
         base = env.base_radiance()

@@ -357,7 +357,7 @@ class Renderer:
             if env is None or not self.scene.render.background:
                 img = np.zeros((h, w, 3), np.float32)
             else:
-                from precompute.envmap import env_lookup_numpy
+                from .envmap import env_lookup_numpy
 
                 dirs = np.asarray(cam.ray_directions(supersample=k), np.float64)
                 img = (env_lookup_numpy(self.env_base, dirs, rotation=env.rotation_matrix()) * env.scale)
