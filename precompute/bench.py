@@ -75,7 +75,7 @@ def run_bench(quick: bool = False, device="cpu", out_doc: str | Path | None = No
     the tables between the ``<!-- bench:begin -->`` / ``<!-- bench:end -->`` markers of
     ``docs/precompute.md``. ``quick`` uses small meshes (CI-sized)."""
     from . import ssdf as S
-    from .pca import pca
+    from warp_sg.pca import pca
 
     fig_dir = Path(fig_dir) if fig_dir else ROOT / "docs" / "figures"
     out_doc = Path(out_doc) if out_doc else ROOT / "docs" / "precompute.md"

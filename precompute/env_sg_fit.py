@@ -27,7 +27,7 @@ Algorithm (:func:`fit_environment_sgs`):
 Returns :class:`EnvSGFit`, a 3-tuple ``(axes (K, 3), sharpness (K,), amplitude (K, 3))``
 (float64) with the fit statistics in ``.info``. The axes are in the map's own frame: for an
 environment rotated by ``R`` (environment → world) use ``R p_k``. Cached on disk
-(``precompute.cache``, kind ``env_sg_fit``).
+(``warp_sg.cache``, kind ``env_sg_fit``).
 
 :func:`sg_irradiance` evaluates ``E*(n)`` of a mixture (numpy) and :func:`irradiance_reference`
 the quadrature ``Σ_j L_j Ω_j max(n·d_j, 0)`` of the piecewise-constant map (sub-sampled).
@@ -343,7 +343,7 @@ def fit_environment_sgs(
         return out
 
     if cache:
-        from .cache import content_key, load_or_build
+        from warp_sg.cache import content_key, load_or_build
 
         data = load_or_build("env_sg_fit", content_key(env, params), build)
     else:

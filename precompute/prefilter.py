@@ -702,7 +702,7 @@ def prefilter_environment(
     ``env`` (H, W, 3) linear radiance (unscaled: the scale and rotation are set at lookup time).
     ``lambdas``: an explicit geometric ladder (ascending, constant ratio) overriding
     ``lam0``/``step``; default :func:`default_ladder`. Face sizes follow
-    ``clamp(⌈face_factor √λ⌉, 16, base_face)``. Cached on disk (``precompute.cache``, kind
+    ``clamp(⌈face_factor √λ⌉, 16, base_face)``. Cached on disk (``warp_sg.cache``, kind
     ``env_prefilter``) keyed by the map's content and every parameter.
     """
     import time
@@ -732,7 +732,7 @@ def prefilter_environment(
         return {"texels": texels.astype(np.float32), "offsets": offsets.astype(np.int64)}
 
     if cache:
-        from .cache import content_key, load_or_build
+        from warp_sg.cache import content_key, load_or_build
 
         data = load_or_build("env_prefilter", content_key(env, params), build)
     else:

@@ -432,9 +432,9 @@ _VERSION = "refine-v1"
 
 def refine_cached(vertices, triangles, normals, *, budget: int = 20000, device="cpu", progress=False,
                   **kwargs) -> Refinement:
-    """:func:`refine_for_visibility`, cached on disk (``precompute.cache``, kind ``refine``) by the
+    """:func:`refine_for_visibility`, cached on disk (``warp_sg.cache``, kind ``refine``) by the
     mesh's content and the parameters, so a renderer built twice on one scene refines once."""
-    from .cache import content_key, load_or_build
+    from warp_sg.cache import content_key, load_or_build
 
     key = content_key(np.asarray(vertices, np.float64), np.asarray(triangles, np.int64),
                       np.asarray(normals, np.float64), dict(v=_VERSION, budget=int(budget), **kwargs))

@@ -21,8 +21,8 @@ on the device (:func:`compute_ssdf`):
 5. box downsampling ``ray_resolution → resolution`` (paper: 512² → 128²; defaults here 64² → 32²,
    see docs/precompute.md for the measured error of each setting).
 
-Then all vertices are compressed with PCA (:mod:`precompute.pca`, eq. 24) and cached on disk
-(:func:`precompute.cache.load_or_build`) under a content hash of mesh + parameters.
+Then all vertices are compressed with PCA (:mod:`warp_sg.pca`, eq. 24) and cached on disk
+(:func:`warp_sg.cache.load_or_build`) under a content hash of mesh + parameters.
 """
 from __future__ import annotations
 
@@ -32,11 +32,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
+from warp_sg import cache as _cache
 from warp_sg.device import resolve_device
 from warp_sg.errors import InputError
+from warp_sg.pca import pca
 
-from . import cache as _cache
-from .pca import pca
 from .ssdf_wp import texel_directions
 from .visibility import OFFSET_SCALE, _MeshContext, _tqdm, _visibility_kernel, run_batches, validate_mesh
 

@@ -1,4 +1,4 @@
-"""precompute.cache: keys, hits/misses, corruption detection, atomic writes."""
+"""warp_sg.cache (re-exported as precompute.cache): keys, hits/misses, corruption detection, atomic writes."""
 from __future__ import annotations
 
 import os
@@ -6,7 +6,7 @@ import os
 import numpy as np
 import pytest
 
-from precompute import cache
+from warp_sg import cache
 
 
 def _builder(counter, value=1.0):

@@ -124,7 +124,7 @@ def _frames(renderer, n):
 
 
 def shading_section(device="cpu", quick=False, frames=None):
-    from precompute.cache import fresh_cache
+    from .cache import fresh_cache
 
     from .render import Renderer
 
@@ -169,7 +169,7 @@ def precompute_section(device="cpu", quick=False):
     """SSDF + PCA precompute time (``precompute.ssdf_for_mesh``, empty cache) by mesh size, on the
     plane-and-box meshes of ``precompute.bench`` (whose ``run_bench`` has the detailed study with
     the product error: docs/precompute.md)."""
-    from precompute.cache import fresh_cache
+    from .cache import fresh_cache
 
     try:
         import precompute
@@ -228,7 +228,7 @@ def _equal_error_rows(scene, label, device, quick, truth_spp, progress, seed):
     pixel), as a path tracer's jittered pixels would be."""
     import copy
 
-    from precompute.cache import fresh_cache
+    from .cache import fresh_cache
 
     from .reference import render_reference
     from .render import Renderer

@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from precompute.cache import fresh_cache
+from .cache import fresh_cache
 
 from .atomic import atomic_output
 from .device import add_device_argument, device_for

@@ -41,7 +41,7 @@ Errors (:meth:`Measured.errors`) use supplement eq. 11 over the MERL cells (meas
 for the full BRDF (``ρ`` the data) and the approximations ``microfacet`` (tabulated D and S),
 ``sg`` (SG NDF) and ``sg_pca`` (SG NDF and PCA-compressed S: what the renderer uses).
 
-The microfacet fit and the PCA are cached with :func:`precompute.cache.load_or_build` (kind
+The microfacet fit and the PCA are cached with :func:`warp_sg.cache.load_or_build` (kind
 ``measured_fit``, keyed by the table's content hash, ``eta`` and ``pca_terms``); the SG fit of the
 NDF (milliseconds) is redone for each lobe count.
 """
@@ -53,7 +53,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..cache import content_key, load_or_build
 from ..errors import InputError
+from ..pca import pca
 from . import merl
 from .base import SpecularBRDF, as_scalar, dirs, half_vector, upper
 from .fresnel import fresnel_eq14, fresnel_normalised  # noqa: F401  (eq. 14, normalised at normal incidence)
@@ -88,9 +90,7 @@ def _smith_family():
 def shadowing_basis(terms=8):
     """PCA basis of 1-D shadowing curves on the nodes :data:`S_THETA`: ``(mean (90,), basis (terms, 90))``
     learnt from Smith G1 (Beckmann, rational fit of Walter et al. 2007; GGX) for roughness
-    0.005..3 and the constant 1 (:func:`precompute.pca.pca`)."""
-    from precompute.pca import pca
-
+    0.005..3 and the constant 1 (:func:`warp_sg.pca.pca`)."""
     res = pca(_smith_family(), int(terms))
     return res.mean.astype(np.float64), res.basis.astype(np.float64)
 
@@ -427,10 +427,6 @@ class Measured(SpecularBRDF):
 
     def _fit(self, cache):
         if not cache:
-            return self._build()
-        try:
-            from precompute.cache import content_key, load_or_build
-        except ImportError:  # pragma: no cover - precompute is part of the distribution
             return self._build()
         digest = hashlib.sha256(np.ascontiguousarray(self.table).tobytes()).hexdigest()
         key = content_key("measured_fit", FIT_VERSION, digest, self.eta, self.pca_terms)

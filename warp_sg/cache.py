@@ -1,0 +1,197 @@
+"""On-disk precompute cache (DESIGN.md "Conventions", architecture.md "Precompute contract").
+
+Base layer: generic (arrays in, arrays out), used by the precompute engines and by the measured-BRDF
+fit; ``precompute.cache`` re-exports it.
+
+
+* :func:`cache_dir` — ``$WARP_SG_CACHE_DIR`` or ``~/.cache/warp-sg``; deleting it is always safe.
+* :func:`fresh_cache` — a private empty cache folder for a ``with`` block (timings of precompute).
+* :func:`content_key` — a stable SHA-256 over numpy arrays (dtype, shape and bytes) and JSON-able
+  parameters, plus :data:`FORMAT_VERSION` (bump it whenever a cached format changes).
+* :func:`load_or_build` — ``kind/key.npz`` files holding ``dict[str, np.ndarray]``. Files are
+  written atomically (a temporary file in the same folder, flushed and fsync-ed, then
+  ``os.replace``) and carry a SHA-256 checksum of their own contents (``__checksum__``); a file
+  that is truncated, corrupt, or whose checksum does not match is never trusted: it is deleted,
+  a warning is issued, and the entry is rebuilt.
+"""
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import io
+import json
+import os
+import tempfile
+import warnings
+import zipfile
+from pathlib import Path
+from typing import Callable, Mapping
+
+import numpy as np
+
+from warp_sg.atomic import atomic_output
+from warp_sg.errors import CacheError
+
+#: Bump whenever the layout or meaning of any cached entry changes (old entries then miss).
+FORMAT_VERSION = 1
+
+_CHECKSUM = "__checksum__"
+
+
+def cache_dir() -> Path:
+    """The cache folder: ``$WARP_SG_CACHE_DIR`` if set (and non-empty), else ``~/.cache/warp-sg``."""
+    env = os.environ.get("WARP_SG_CACHE_DIR")
+    return Path(env).expanduser() if env else Path.home() / ".cache" / "warp-sg"
+
+
+@contextlib.contextmanager
+def fresh_cache():
+    """A private, empty cache folder for the duration (so precompute is really measured): sets
+    ``$WARP_SG_CACHE_DIR`` to a temporary folder, restores it and deletes the folder afterwards."""
+    old = os.environ.get("WARP_SG_CACHE_DIR")
+    with tempfile.TemporaryDirectory(prefix="warp-sg-report-") as d:
+        os.environ["WARP_SG_CACHE_DIR"] = d
+        try:
+            yield Path(d)
+        finally:
+            if old is None:
+                os.environ.pop("WARP_SG_CACHE_DIR", None)
+            else:
+                os.environ["WARP_SG_CACHE_DIR"] = old
+
+
+def _update(h, part) -> None:
+    if isinstance(part, np.ndarray) or (hasattr(part, "__array__") and not isinstance(part, (str, bytes))):
+        a = np.ascontiguousarray(np.asarray(part))
+        h.update(b"A")
+        h.update(str(a.dtype.str).encode())
+        h.update(json.dumps(list(a.shape)).encode())
+        h.update(a.tobytes())
+    elif isinstance(part, bytes):
+        h.update(b"B")
+        h.update(len(part).to_bytes(8, "little"))
+        h.update(part)
+    else:
+        try:
+            s = json.dumps(part, sort_keys=True, separators=(",", ":"), default=_json_default)
+        except TypeError as e:  # pragma: no cover - message clarity only
+            raise TypeError(f"content_key: cannot hash {type(part).__name__}: {e}") from None
+        h.update(b"J")
+        h.update(len(s).to_bytes(8, "little"))
+        h.update(s.encode())
+
+
+def _json_default(o):
+    if isinstance(o, (np.integer,)):
+        return int(o)
+    if isinstance(o, (np.floating,)):
+        return float(o)
+    if isinstance(o, Path):
+        return str(o)
+    raise TypeError(f"not JSON-able: {type(o).__name__}")
+
+
+def content_key(*parts) -> str:
+    """Stable hex key of ``parts`` (numpy arrays: dtype + shape + bytes; others: canonical JSON).
+
+    The same inputs give the same key across processes and machines; any change of array
+    contents, dtype, shape, parameter value or :data:`FORMAT_VERSION` changes the key.
+    """
+    h = hashlib.sha256()
+    h.update(f"warp-sg-cache-v{FORMAT_VERSION}".encode())
+    for p in parts:
+        _update(h, p)
+    return h.hexdigest()[:40]
+
+
+def _checksum(arrays: Mapping[str, np.ndarray]) -> str:
+    h = hashlib.sha256()
+    for name in sorted(arrays):
+        a = np.ascontiguousarray(arrays[name])
+        h.update(name.encode() + b"\0")
+        h.update(a.dtype.str.encode() + b"\0")
+        h.update(json.dumps(list(a.shape)).encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def entry_path(kind: str, key: str) -> Path:
+    """Where ``load_or_build(kind, key, ...)`` stores its file."""
+    if not kind or any(c in kind for c in "/\\") or kind.startswith("."):
+        raise ValueError(f"cache kind must be a plain folder name, got {kind!r}")
+    return cache_dir() / kind / f"{key}.npz"
+
+
+def _read(path: Path) -> dict[str, np.ndarray]:
+    """Read and verify an entry; :class:`CacheError` if it cannot be trusted."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as e:
+        raise CacheError(f"{path}: unreadable cache entry ({type(e).__name__}: {e})") from None
+    except Exception as e:  # zlib.error, struct errors ... anything means corrupt
+        raise CacheError(f"{path}: unreadable cache entry ({type(e).__name__}: {e})") from None
+    stored = data.pop(_CHECKSUM, None)
+    if stored is None:
+        raise CacheError(f"{path}: cache entry has no checksum")
+    if str(stored) != _checksum(data):
+        raise CacheError(f"{path}: cache entry checksum mismatch")
+    return data
+
+
+def _write_atomic(path: Path, arrays: Mapping[str, np.ndarray]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    payload = {k: np.asarray(v) for k, v in arrays.items()}
+    payload[_CHECKSUM] = np.asarray(_checksum(payload))
+    buf = io.BytesIO()
+    np.savez(buf, **payload)
+    with atomic_output(path) as tmp, open(tmp, "wb") as f:
+        f.write(buf.getbuffer())
+        f.flush()
+        os.fsync(f.fileno())
+
+def load(kind: str, key: str) -> dict[str, np.ndarray] | None:
+    """The verified entry, or ``None`` when missing or corrupt (a corrupt file is deleted with a warning)."""
+    path = entry_path(kind, key)
+    if not path.exists():
+        return None
+    try:
+        return _read(path)
+    except CacheError as e:
+        warnings.warn(f"warp-sg cache: {e}; rebuilding", RuntimeWarning, stacklevel=3)
+        try:
+            path.unlink()
+        except FileNotFoundError:
+            pass
+        return None
+
+
+def load_or_build(
+    kind: str,
+    key: str,
+    builder: Callable[[], Mapping[str, np.ndarray]],
+    progress: bool = False,
+) -> dict[str, np.ndarray]:
+    """Return the cached ``dict[str, np.ndarray]`` for ``(kind, key)``, building it on a miss.
+
+    ``builder()`` must return a mapping of names (not starting with ``__``) to arrays. The entry
+    is stored atomically; if ``builder`` raises (or the process is interrupted) nothing is left
+    in the cache. A corrupt/truncated entry is detected by its checksum, reported with a
+    ``RuntimeWarning`` and rebuilt. ``progress`` prints a one-line note on a miss.
+    """
+    data = load(kind, key)
+    if data is not None:
+        return data
+    if progress:
+        print(f"warp-sg: building {kind} (cache miss {key[:12]})", flush=True)
+    built = builder()
+    arrays = {}
+    for k, v in dict(built).items():
+        if k.startswith("__"):
+            raise ValueError(f"cache entry names must not start with '__': {k!r}")
+        arrays[k] = np.asarray(v)
+    try:
+        _write_atomic(entry_path(kind, key), arrays)
+    except OSError as e:  # read-only cache folder etc.: still return the result
+        warnings.warn(f"warp-sg cache: cannot write {entry_path(kind, key)} ({e})", RuntimeWarning, stacklevel=2)
+    return arrays
