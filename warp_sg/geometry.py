@@ -1,0 +1,232 @@
+"""Scene geometry: every object of a scene flattened into one world-space triangle mesh
+(:class:`Geometry`) — mesh files (trimesh, with a minimal OBJ reader to name bad elements),
+validation, area-weighted vertex normals and UV tangent generation. ``warp_sg.scene`` re-exports
+these names; :meth:`warp_sg.scene.Scene.geometry` calls :func:`build_geometry`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError, MeshError, SceneError
+from .meshcheck import check_mesh
+from .primitives import MeshData, make_primitive
+
+
+@dataclass
+class Geometry:
+    """All objects of a scene flattened into one world-space triangle mesh (float32 / int32).
+
+    ``vertices`` (N, 3), ``normals`` (N, 3) unit shading normals, ``uvs`` (N, 2), ``tangents``
+    (N, 3) unit and orthogonal to the normals (∂P/∂u, or the Duff frame tangent where there are no
+    UVs), ``triangles`` (M, 3), ``tri_material`` (M,) index into ``material_names``,
+    ``tri_object`` (M,) and ``vertex_object`` (N,) index into ``object_names``;
+    ``dropped_triangles``: zero-area triangles removed while flattening.
+    """
+
+    vertices: np.ndarray
+    normals: np.ndarray
+    uvs: np.ndarray
+    tangents: np.ndarray
+    triangles: np.ndarray
+    tri_material: np.ndarray
+    tri_object: np.ndarray
+    vertex_object: np.ndarray
+    material_names: list
+    object_names: list
+    dropped_triangles: int = 0
+
+
+# --------------------------------------------------------------------------------------------
+# meshes
+# --------------------------------------------------------------------------------------------
+def validate_mesh(vertices, triangles, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Check a mesh; returns (vertices f32, triangles i32, keep mask of non-degenerate triangles).
+
+    Non-finite vertices and out-of-range / non-integer indices raise :class:`MeshError` naming
+    the first bad element (:func:`warp_sg.meshcheck.check_mesh`)."""
+    v, t, _ = check_mesh(vertices, triangles, where=where, require_triangles=True)
+    e = np.cross(v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]])
+    area2 = np.linalg.norm(e, axis=1)
+    scale = max(float(np.max(np.ptp(v, axis=0))), 1e-30)
+    keep = area2 > 1e-12 * scale * scale
+    if not keep.any():
+        raise MeshError("every triangle has zero area", where=where)
+    return v.astype(np.float32), t.astype(np.int32), keep
+
+
+def vertex_normals(v: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Area-weighted vertex normals (numpy, float64)."""
+    e = np.cross(v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]]).astype(np.float64)
+    n = np.zeros((len(v), 3))
+    for k in range(3):
+        np.add.at(n, t[:, k], e)
+    ln = np.linalg.norm(n, axis=1, keepdims=True)
+    fallback = np.tile([0.0, 1.0, 0.0], (len(v), 1))
+    return np.where(ln > 0, n / np.where(ln > 0, ln, 1), fallback)
+
+
+def uv_tangents(v, t, uv, n) -> np.ndarray:
+    """Per-vertex tangents ∂P/∂u from UVs (accumulated per triangle, Gram–Schmidt against ``n``);
+    the Duff frame tangent of ``n`` where the UVs are degenerate or absent."""
+    from .frames import frame_from_normal
+
+    v = v.astype(np.float64)
+    n = n.astype(np.float64)
+    acc = np.zeros((len(v), 3))
+    if uv is not None:
+        uv = uv.astype(np.float64)
+        d1 = v[t[:, 1]] - v[t[:, 0]]
+        d2 = v[t[:, 2]] - v[t[:, 0]]
+        w1 = uv[t[:, 1]] - uv[t[:, 0]]
+        w2 = uv[t[:, 2]] - uv[t[:, 0]]
+        det = w1[:, 0] * w2[:, 1] - w2[:, 0] * w1[:, 1]
+        ok = np.abs(det) > 1e-20
+        r = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+        T = (d1 * w2[:, 1:2] - d2 * w1[:, 1:2]) * r[:, None]
+        for k in range(3):
+            np.add.at(acc, t[:, k], T)
+    acc -= n * np.sum(acc * n, axis=1, keepdims=True)
+    ln = np.linalg.norm(acc, axis=1, keepdims=True)
+    duff, _ = frame_from_normal(n)
+    return np.where(ln > 1e-12, acc / np.where(ln > 1e-12, ln, 1), duff)
+
+
+def _read_simple_obj(path: Path) -> MeshData | None:
+    """Minimal OBJ reader ('v' and 'f' lines, fans triangulated) used only to diagnose files that
+    trimesh cannot load (e.g. out-of-range indices); None when it cannot parse the file either."""
+    try:
+        verts, faces = [], []
+        for line in path.read_text(errors="replace").splitlines():
+            parts = line.split()
+            if not parts:
+                continue
+            if parts[0] == "v":
+                verts.append([float(x) for x in parts[1:4]])
+            elif parts[0] == "f":
+                idx = [int(p.split("/")[0]) for p in parts[1:]]
+                idx = [i - 1 if i > 0 else len(verts) + i for i in idx]
+                faces.extend([idx[0], idx[k], idx[k + 1]] for k in range(1, len(idx) - 1))
+        return MeshData(np.asarray(verts, np.float64).reshape(-1, 3), np.asarray(faces, np.int64).reshape(-1, 3))
+    except (ValueError, IndexError, OSError):
+        return None
+
+
+def _load_mesh_file(path: Path, where: str) -> MeshData:
+    import trimesh
+
+    if not path.is_file():
+        raise SceneError(f"mesh file not found: {path}", where=where)
+    try:
+        m = trimesh.load(str(path), force="mesh", process=False)
+    except Exception as e:  # noqa: BLE001 - trimesh raises many types
+        if path.suffix.lower() == ".obj":  # name the bad element when we can (trimesh crashes on bad indices)
+            simple = _read_simple_obj(path)
+            if simple is not None:
+                validate_mesh(simple.vertices, simple.triangles, where=str(path))
+        raise MeshError(f"cannot read mesh ({type(e).__name__}: {e})", where=str(path)) from None
+    if not hasattr(m, "faces") or len(getattr(m, "faces", [])) == 0:
+        raise MeshError("file contains no triangles", where=str(path))
+    v = np.asarray(m.vertices)
+    f = np.asarray(m.faces)
+    uv = None
+    vis = getattr(m, "visual", None)
+    if vis is not None and getattr(vis, "uv", None) is not None and len(vis.uv) == len(v):
+        uv = np.asarray(vis.uv, np.float32)
+    normals = None
+    if "vertex_normals" in getattr(m, "_cache", {}) or getattr(m, "_vertex_normals", None) is not None:
+        normals = None  # trimesh keeps file normals in its cache; read them below when sane
+    try:
+        if np.all(np.isfinite(v)) and len(v):
+            vn = np.asarray(m.vertex_normals, np.float64)
+            if vn.shape == v.shape and np.all(np.isfinite(vn)):
+                normals = vn.astype(np.float32)
+    except Exception:  # noqa: BLE001 - normals are recomputed by us anyway
+        normals = None
+    return MeshData(v, f, normals, uv, None)
+
+
+def object_mesh(ob, index: int, base: Path | None) -> MeshData:
+    """The mesh of ``ob`` (a :class:`~warp_sg.scene.SceneObject`) in world space (transform applied),
+    attributes filled in."""
+    where = f"{'scene' if base is None else base}: [[objects]] #{index + 1}"
+    if ob.primitive is not None:
+        try:
+            mesh = make_primitive(ob.primitive, dict(ob.params), where=f"{ob.primitive}")
+        except InputError as e:
+            raise SceneError(str(e), where=where) from None
+    elif ob.mesh is not None:
+        p = Path(ob.mesh)
+        mesh = _load_mesh_file(p, where)
+    elif ob.vertices is not None and ob.triangles is not None:
+        mesh = MeshData(np.asarray(ob.vertices), np.asarray(ob.triangles),
+                        None if ob.normals is None else np.asarray(ob.normals, np.float32),
+                        None if ob.uvs is None else np.asarray(ob.uvs, np.float32),
+                        None if ob.tangents is None else np.asarray(ob.tangents, np.float32))
+    else:
+        raise SceneError("needs 'mesh', 'primitive' or vertices + triangles", where=where)
+    label = ob.label(index)
+    v, t, keep = validate_mesh(mesh.vertices, mesh.triangles, where=f"{where} ({label})")
+    n = mesh.normals
+    if n is None or n.shape != v.shape or not np.all(np.isfinite(n)) or np.any(np.linalg.norm(n, axis=1) < 1e-12):
+        n = vertex_normals(v, t[keep]).astype(np.float32)
+    else:
+        n = (n / np.linalg.norm(n, axis=1, keepdims=True)).astype(np.float32)
+    uv = mesh.uvs
+    if uv is not None and (uv.shape != (len(v), 2) or not np.all(np.isfinite(uv))):
+        raise MeshError(f"uvs must have shape ({len(v)}, 2) and be finite, got {uv.shape}", where=f"{where} ({label})")
+    tan = mesh.tangents
+    if tan is None or tan.shape != v.shape or not np.all(np.isfinite(tan)):
+        tan = uv_tangents(v, t[keep], uv, n).astype(np.float32)
+    mesh = MeshData(v, t[keep], n, np.zeros((len(v), 2), np.float32) if uv is None else uv.astype(np.float32), tan)
+    mesh = ob.transform.apply(mesh)
+    # re-orthogonalise the tangents against the (transformed) normals
+    tn = mesh.tangents.astype(np.float64)
+    nn = mesh.normals.astype(np.float64)
+    tn -= nn * np.sum(tn * nn, 1, keepdims=True)
+    ln = np.linalg.norm(tn, axis=1, keepdims=True)
+    from .frames import frame_from_normal
+
+    duff, _ = frame_from_normal(nn)
+    mesh.tangents = np.where(ln > 1e-12, tn / np.where(ln > 1e-12, ln, 1), duff).astype(np.float32)
+    mesh.dropped = int((~keep).sum())  # type: ignore[attr-defined]
+    return mesh
+
+
+def build_geometry(scene) -> Geometry:
+    """Every object of ``scene`` (a :class:`~warp_sg.scene.Scene`) flattened into one :class:`Geometry`."""
+    names = scene.material_names
+    vs, ns, uvs, ts, tris, tm, to, vo, labels = [], [], [], [], [], [], [], [], []
+    base = 0
+    dropped = 0
+    for i, ob in enumerate(scene.objects):
+        m = object_mesh(ob, i, scene.path)
+        vs.append(m.vertices)
+        ns.append(m.normals)
+        uvs.append(m.uvs)
+        ts.append(m.tangents)
+        tris.append(m.triangles + base)
+        tm.append(np.full(len(m.triangles), names.index(ob.material), np.int32))
+        to.append(np.full(len(m.triangles), i, np.int32))
+        vo.append(np.full(len(m.vertices), i, np.int32))
+        labels.append(ob.label(i))
+        dropped += getattr(m, "dropped", 0)
+        base += len(m.vertices)
+    return Geometry(
+        vertices=np.ascontiguousarray(np.concatenate(vs), np.float32),
+        normals=np.ascontiguousarray(np.concatenate(ns), np.float32),
+        uvs=np.ascontiguousarray(np.concatenate(uvs), np.float32),
+        tangents=np.ascontiguousarray(np.concatenate(ts), np.float32),
+        triangles=np.ascontiguousarray(np.concatenate(tris), np.int32),
+        tri_material=np.concatenate(tm).astype(np.int32),
+        tri_object=np.concatenate(to).astype(np.int32),
+        vertex_object=np.concatenate(vo).astype(np.int32),
+        material_names=names,
+        object_names=labels,
+        dropped_triangles=dropped,
+    )
+
+
+__all__ = ["Geometry", "validate_mesh", "vertex_normals", "uv_tangents", "object_mesh", "build_geometry"]

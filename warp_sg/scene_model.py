@@ -1,0 +1,268 @@
+"""The scene's data model: :class:`Scene` and its records :class:`SceneObject`, :class:`Transform`,
+:class:`Material` and :class:`RenderSettings` (what the renderer *and* the Monte-Carlo reference
+read; the fields are described in :mod:`warp_sg.scene`, which re-exports every name). Validation
+of a whole scene happens in ``Scene.__post_init__``; the TOML file is read by
+:mod:`warp_sg.scene_toml`, the geometry flattened by :mod:`warp_sg.geometry`.
+"""
+from __future__ import annotations
+
+import difflib
+import math
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+
+import numpy as np
+
+from .camera import Camera
+from .errors import SceneError
+from .geometry import Geometry, build_geometry
+from .lights import DirectionalLight, EnvironmentLight, PointLight
+from .primitives import MeshData
+from .textures import Texture
+
+
+# --------------------------------------------------------------------------------------------
+# records
+# --------------------------------------------------------------------------------------------
+@dataclass
+class Transform:
+    """``P' = translate + Rz·Ry·Rx·(scale ⊙ P)``; ``rotate`` = Euler angles (degrees) about X, Y, Z."""
+
+    translate: tuple = (0.0, 0.0, 0.0)
+    scale: tuple | float = (1.0, 1.0, 1.0)
+    rotate: tuple = (0.0, 0.0, 0.0)
+
+    def linear(self) -> np.ndarray:
+        ax, ay, az = (math.radians(float(a)) for a in self.rotate)
+        cx, sx, cy, sy, cz, sz = math.cos(ax), math.sin(ax), math.cos(ay), math.sin(ay), math.cos(az), math.sin(az)
+        Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+        Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+        Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+        s = np.broadcast_to(np.asarray(self.scale, np.float64), (3,))
+        return Rz @ Ry @ Rx @ np.diag(s)
+
+    def is_identity(self) -> bool:
+        return (np.allclose(self.translate, 0) and np.allclose(self.scale, 1) and np.allclose(self.rotate, 0))
+
+    def apply(self, mesh: MeshData) -> MeshData:
+        if self.is_identity():
+            return mesh
+        A = self.linear()
+        if abs(np.linalg.det(A)) < 1e-30:
+            raise SceneError("transform is singular (a zero scale?)", where="transform")
+        v = mesh.vertices.astype(np.float64) @ A.T + np.asarray(self.translate, np.float64)
+        n = t = None
+        if mesh.normals is not None:
+            n = mesh.normals.astype(np.float64) @ np.linalg.inv(A)  # (A⁻ᵀ n)ᵀ = nᵀ A⁻¹
+            n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+        if mesh.tangents is not None:
+            t = mesh.tangents.astype(np.float64) @ A.T
+            t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-30)
+        tri = mesh.triangles
+        if np.linalg.det(A) < 0:  # mirror: keep the winding consistent with the normals
+            tri = tri[:, [0, 2, 1]]
+        return MeshData(v.astype(np.float32), tri, None if n is None else n.astype(np.float32), mesh.uvs,
+                        None if t is None else t.astype(np.float32))
+
+
+@dataclass
+class SceneObject:
+    """One object: ``mesh`` (file), ``primitive`` (+ ``params``) or inline arrays; a material name."""
+
+    material: str
+    mesh: str | Path | None = None
+    primitive: str | None = None
+    params: dict = field(default_factory=dict)
+    transform: Transform = field(default_factory=Transform)
+    name: str | None = None
+    vertices: np.ndarray | None = None
+    triangles: np.ndarray | None = None
+    normals: np.ndarray | None = None
+    uvs: np.ndarray | None = None
+    tangents: np.ndarray | None = None
+
+    def label(self, index: int) -> str:
+        return self.name or (Path(self.mesh).name if self.mesh is not None else self.primitive) or f"objects[{index}]"
+
+
+#: Parameters that are RGB colours (others are scalars); parameters that cannot be textures.
+COLOUR_PARAMS = ("kd", "ks")
+NON_TEXTURE_PARAMS = ("fresnel", "lobes", "file")
+
+
+@dataclass
+class Material:
+    """A material: ``model`` name, constant ``params``, per-texel ``textures`` and normal/tangent maps."""
+
+    model: str
+    params: dict = field(default_factory=dict)
+    textures: dict = field(default_factory=dict)  # {param: Texture}
+    normal_map: Texture | None = None
+    tangent_map: Texture | None = None
+    name: str | None = None
+    _brdf: object = field(default=None, repr=False, compare=False)
+
+    @classmethod
+    def from_brdf(cls, model, name=None) -> "Material":
+        """Wrap a ``warp_sg.brdf`` model instance."""
+        m = cls(model=model.NAME, params={}, name=name)
+        m._brdf = model
+        return m
+
+    @property
+    def brdf(self):
+        """The ``warp_sg.brdf`` model (textured parameters replaced by the texture means)."""
+        if self._brdf is None:
+            from .brdf import make_model
+
+            p = dict(self.params)
+            for k, tex in self.textures.items():
+                mean = tex.mean(colour=k in COLOUR_PARAMS)
+                p[k] = mean.tolist() if k in COLOUR_PARAMS else float(mean[0])
+            self._brdf = make_model(self.model, **p)
+        return self._brdf
+
+    def invalidate(self) -> None:
+        """Forget the cached model (call after changing ``params``/``textures``)."""
+        self._brdf = None
+
+
+Light = PointLight | DirectionalLight | EnvironmentLight
+
+
+@dataclass
+class RenderSettings:
+    """The ``[render]`` table: quality knobs of the SG renderer.
+
+    * ``shadows`` — SSDF visibility (eq. 23–31); off → V = 1 and no SSDF precompute.
+    * ``supersampling`` — k: raster and shade at k·H × k·W, box-resolved.
+    * ``antialias`` — a (default 4; 1 = off; used when ``supersampling`` is 1): coverage at a×a
+      sub-pixels, shading edge-adaptive (interior pixels once, edge pixels at every sub-pixel).
+    * ``lobes`` — SG lobes of the NDF of isotropic models (anisotropic Ashikhmin-Shirley uses its
+      own ``lobes`` parameter).
+    * ``env_lobes`` — SG mixture of the environment for the diffuse term (eq. 39), < 10 in the paper.
+    * ``env_peaks`` — at most this many sharp peaks of the environment (a sun) are separated from
+      the map and shaded as directional lights (``precompute.env_peaks``; 0 = off).
+    * ``visibility_budget`` — with shadows, the mesh is refined where its visibility changes, up to
+      this many vertices (``precompute.refine_for_visibility``; 0 = use the mesh as given).
+    * ``pca_terms``, ``ssdf_resolution`` — SSDF compression (NV) and map resolution.
+    * ``gamma_levels`` — number of λ levels of the ΓL pyramid (0 = precompute's default ladder,
+      λ0 = 0.5 growing by √2 up to the map's resolution); ``gamma_resolution`` — largest cube face.
+    * ``fh`` — ``"table"`` (exact, tabulated) or ``"sigmoid"`` (paper appendix).
+    * ``background`` — pixels that see no object show the environment.
+    * ``device`` — default device for ``ws.render(scene)`` ("cpu", "cuda", "auto").
+    """
+
+    shadows: bool = True
+    supersampling: int = 1
+    antialias: int = 4
+    lobes: int = 1
+    env_lobes: int = 8
+    env_peaks: int = 4
+    visibility_budget: int = 20000
+    pca_terms: int = 32
+    ssdf_resolution: int = 32
+    gamma_levels: int = 0
+    gamma_resolution: int = 128
+    fh: str = "table"
+    background: bool = True
+    device: str = "cpu"
+
+    def validate(self, where="[render]"):
+        ints = {"supersampling": (1, 16), "antialias": (1, 8), "lobes": (1, 16), "env_lobes": (1, 64), "env_peaks": (0, 16), "visibility_budget": (0, 10_000_000),
+                "pca_terms": (1, 256), "ssdf_resolution": (4, 1024), "gamma_levels": (0, 64),
+                "gamma_resolution": (4, 1024)}
+        for k, (lo, hi) in ints.items():
+            v = getattr(self, k)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
+                raise SceneError(f"{where} key '{k}' must be an integer, got {v!r}")
+            if not lo <= v <= hi:
+                raise SceneError(f"{where} key '{k}' must be in [{lo}, {hi}], got {v}")
+        for k in ("shadows", "background"):
+            if not isinstance(getattr(self, k), bool):
+                raise SceneError(f"{where} key '{k}' must be true or false, got {getattr(self, k)!r}")
+        if self.fh not in ("table", "sigmoid"):
+            raise SceneError(f"{where} key 'fh' must be 'table' or 'sigmoid', got {self.fh!r}")
+        if not isinstance(self.device, str):
+            raise SceneError(f"{where} key 'device' must be a string, got {self.device!r}")
+
+
+RENDER_KEYS = tuple(f.name for f in fields(RenderSettings))
+
+
+# --------------------------------------------------------------------------------------------
+# Scene
+# --------------------------------------------------------------------------------------------
+@dataclass
+class Scene:
+    """A renderable scene (see :mod:`warp_sg.scene`). ``path`` is the scene file, if any."""
+
+    camera: Camera
+    objects: list = field(default_factory=list)
+    materials: dict = field(default_factory=dict)
+    lights: list = field(default_factory=list)
+    render: RenderSettings = field(default_factory=RenderSettings)
+    path: Path | None = None
+
+    def __post_init__(self):
+        where = str(self.path) if self.path else "scene"
+        mats = {}
+        for name, m in dict(self.materials).items():
+            if not isinstance(m, Material):
+                if hasattr(m, "NAME") and hasattr(m, "eval"):
+                    m = Material.from_brdf(m, name)
+                else:
+                    raise SceneError(f"[materials.{name}] must be a Material or a warp_sg.brdf model, got {m!r}",
+                                     where=where)
+            m.name = m.name or name
+            mats[name] = m
+        self.materials = mats
+        if not self.objects:
+            raise SceneError("the scene has no objects (add an [[objects]] table)", where=where)
+        for i, ob in enumerate(self.objects):
+            if ob.material not in self.materials:
+                raise SceneError(f"[[objects]] #{i + 1} material '{ob.material}' is not defined"
+                                 f"{_suggest(ob.material, self.materials)}", where=where)
+        envs = [li for li in self.lights if isinstance(li, EnvironmentLight)]
+        if len(envs) > 1:
+            raise SceneError("at most one environment light is supported", where=where)
+        for j, li in enumerate(self.lights):
+            if not isinstance(li, (PointLight, DirectionalLight, EnvironmentLight)):
+                raise SceneError(f"[[lights]] #{j + 1} is not a light record: {li!r}", where=where)
+        if not self.lights:
+            raise SceneError("the scene has no lights (add a [[lights]] table)", where=where)
+        self.render.validate(f"[render]" if self.path is None else "[render]")
+        self._geometry = None
+
+    # convenience views -------------------------------------------------------------------
+    @property
+    def material_names(self) -> list:
+        return list(self.materials)
+
+    @property
+    def environment(self) -> EnvironmentLight | None:
+        return next((li for li in self.lights if isinstance(li, EnvironmentLight)), None)
+
+    @property
+    def local_lights(self) -> list:
+        """Point and directional lights (in scene order)."""
+        return [li for li in self.lights if isinstance(li, (PointLight, DirectionalLight))]
+
+    def geometry(self) -> Geometry:
+        """Flatten all objects into one validated world-space :class:`Geometry` (cached; call
+        :meth:`invalidate_geometry` after changing objects)."""
+        if self._geometry is None:
+            self._geometry = build_geometry(self)
+        return self._geometry
+
+    def invalidate_geometry(self) -> None:
+        self._geometry = None
+
+
+def _suggest(name, options) -> str:
+    m = difflib.get_close_matches(str(name), [str(o) for o in options], n=1, cutoff=0.5)
+    return f" — did you mean '{m[0]}'?" if m else ""
+
+
+__all__ = ["Scene", "SceneObject", "Material", "Transform", "RenderSettings", "Light", "COLOUR_PARAMS",
+           "NON_TEXTURE_PARAMS", "RENDER_KEYS"]
