@@ -1,0 +1,223 @@
+r"""Importance sampling side of the kernel BRDF contract (:mod:`warp_sg.brdf.material_wp`, which
+re-exports every name and documents each model's sampling): ``brdf_sample`` / ``brdf_pdf`` of the
+specular part and their building blocks (cosine, cosine-power, Beckmann, Ashikhmin–Shirley and SG
+mixture directions with their densities).
+"""
+# NOTE: no ``from __future__ import annotations`` — Warp reads the @wp.func / struct annotations.
+import warp as wp
+
+from .material_eval_wp import as_exponent_log, expm1_neg_f, from_axis, log1p_f, log_cos_theta, reflect_z
+from .material_struct import INV_PI, PI, TWO_PI, Material
+
+
+# ------------------------------------------------------------------------------------------------
+# importance sampling of the specular part
+# ------------------------------------------------------------------------------------------------
+@wp.func
+def cosine_dir(u: wp.vec2) -> wp.vec3:
+    r = wp.sqrt(u[0])
+    phi = TWO_PI * u[1]
+    return wp.vec3(r * wp.cos(phi), r * wp.sin(phi), wp.sqrt(wp.max(1.0 - u[0], 0.0)))
+
+
+@wp.func
+def cos_power_dir(a: wp.vec3, n: float, u: wp.vec2) -> wp.vec3:
+    """Direction with density (n+1)/(2π) cos^n about a."""
+    ct = wp.pow(wp.max(u[0], 1.0e-30), 1.0 / (n + 1.0))
+    st = wp.sqrt(wp.max(1.0 - ct * ct, 0.0))
+    phi = TWO_PI * u[1]
+    return from_axis(a, st * wp.cos(phi), st * wp.sin(phi), ct)
+
+
+@wp.func
+def cos_power_pdf(a: wp.vec3, n: float, v: wp.vec3) -> float:
+    c = wp.dot(a, v)
+    if c <= 0.0:
+        return 0.0
+    d = a - v
+    return (n + 1.0) / TWO_PI * wp.exp(n * log1p_f(-wp.min(0.5 * wp.dot(d, d), 0.99999994)))
+
+
+@wp.func
+def reflect_about(o: wp.vec3, h: wp.vec3) -> wp.vec3:
+    return 2.0 * wp.dot(o, h) * h - o
+
+
+@wp.func
+def beckmann_alphas(mat: Material) -> wp.vec2:
+    m = mat.model
+    if m == 6:
+        return wp.vec2(mat.params[0], mat.params[1])
+    return wp.vec2(mat.params[0], mat.params[0])
+
+
+@wp.func
+def beckmann_h(ax: float, ay: float, u: wp.vec2) -> wp.vec3:
+    r = wp.sqrt(-wp.log(wp.max(1.0 - u[0], 1.0e-30)))
+    phi = TWO_PI * u[1]
+    sx = ax * r * wp.cos(phi)
+    sy = ay * r * wp.sin(phi)
+    return wp.normalize(wp.vec3(sx, sy, 1.0))
+
+
+@wp.func
+def beckmann_pdf_h(ax: float, ay: float, h: wp.vec3) -> float:
+    hz = h[2]
+    if hz <= 0.0:
+        return 0.0
+    e = (h[0] * h[0] / (ax * ax) + h[1] * h[1] / (ay * ay)) / (hz * hz)
+    if e > 80.0:
+        return 0.0
+    return wp.exp(-e) / (PI * ax * ay * wp.max(hz * hz * hz, 1.0e-30))
+
+
+@wp.func
+def as_h(nu: float, nv: float, u: wp.vec2) -> wp.vec3:
+    q = wp.min(int(u[0] * 4.0), 3)
+    uu = u[0] * 4.0 - float(q)
+    phi = wp.atan(wp.sqrt((nu + 1.0) / (nv + 1.0)) * wp.tan(0.5 * PI * wp.min(uu, 0.9999999)))
+    if q == 1:
+        phi = PI - phi
+    elif q == 2:
+        phi = PI + phi
+    elif q == 3:
+        phi = TWO_PI - phi
+    cp = wp.cos(phi)
+    sp = wp.sin(phi)
+    e = nu * cp * cp + nv * sp * sp
+    ct = wp.pow(wp.max(1.0 - u[1], 1.0e-30), 1.0 / (e + 1.0))
+    st = wp.sqrt(wp.max(1.0 - ct * ct, 0.0))
+    return wp.vec3(st * cp, st * sp, ct)
+
+
+@wp.func
+def as_pdf_h(nu: float, nv: float, h: wp.vec3) -> float:
+    if h[2] <= 0.0:
+        return 0.0
+    return wp.sqrt((nu + 1.0) * (nv + 1.0)) / TWO_PI * wp.exp(as_exponent_log(h, nu, nv))
+
+
+@wp.func
+def sg_lobe_weight(mat: Material, j: int) -> float:
+    lam = mat.lobe_sharpness[j]
+    return mat.lobe_amplitude[j] * TWO_PI * expm1_neg_f(2.0 * lam) / lam
+
+
+@wp.func
+def sg_sample_dir(a: wp.vec3, lam: float, u: wp.vec2) -> wp.vec3:
+    omc = wp.min(-log1p_f(-u[0] * expm1_neg_f(2.0 * lam)) / lam, 2.0)
+    ct = 1.0 - omc
+    st = wp.sqrt(wp.max(omc * (2.0 - omc), 0.0))
+    phi = TWO_PI * u[1]
+    return from_axis(a, st * wp.cos(phi), st * wp.sin(phi), ct)
+
+
+@wp.func
+def sg_mixture_pdf(mat: Material, h: wp.vec3) -> float:
+    num = float(0.0)
+    den = float(0.0)
+    for k in range(mat.lobe_count):
+        j = mat.lobe_start + k
+        w = sg_lobe_weight(mat, j)
+        den += w
+        d = h - mat.lobe_axis[j]
+        num += mat.lobe_amplitude[j] * wp.exp(-mat.lobe_sharpness[j] * 0.5 * wp.dot(d, d))
+    if den <= 0.0:
+        return 0.0
+    return num / den
+
+
+@wp.func
+def brdf_sample(mat: Material, o: wp.vec3, u_in: wp.vec2) -> wp.vec3:
+    """A direction i drawn from the specular sampling density ``brdf_pdf(mat, o, ·)``."""
+    m = mat.model
+    u = wp.vec2(wp.clamp(u_in[0], 0.0, 0.99999994), wp.clamp(u_in[1], 0.0, 0.99999994))
+    if m <= 1:
+        return cosine_dir(u)
+    if m == 2:
+        return cos_power_dir(reflect_z(o), mat.params[0], u)
+    if m == 8:
+        nl = wp.max(mat.lobe_count, 1)
+        q = wp.min(int(u[0] * float(nl)), nl - 1)
+        uu = wp.vec2(u[0] * float(nl) - float(q), u[1])
+        j = mat.lobe_start + q
+        v = wp.cw_mul(mat.lobe_axis[j], o)
+        if wp.length(v) <= 0.0:
+            return cosine_dir(uu)
+        return cos_power_dir(wp.normalize(v), mat.lobe_sharpness[j], uu)
+    h = wp.vec3(0.0, 0.0, 1.0)
+    if m == 3:
+        ct = wp.pow(wp.max(u[0], 1.0e-30), 1.0 / (mat.params[0] + 2.0))
+        st = wp.sqrt(wp.max(1.0 - ct * ct, 0.0))
+        phi = TWO_PI * u[1]
+        h = wp.vec3(st * wp.cos(phi), st * wp.sin(phi), ct)
+    elif m == 4 or m == 5 or m == 6:
+        al = beckmann_alphas(mat)
+        h = beckmann_h(al[0], al[1], u)
+    elif m == 7:
+        h = as_h(mat.params[0], mat.params[1], u)
+    elif m == 9:
+        total = float(0.0)
+        for k in range(mat.lobe_count):
+            total += sg_lobe_weight(mat, mat.lobe_start + k)
+        if total <= 0.0:
+            return cosine_dir(u)
+        t = u[0] * total
+        chosen = mat.lobe_start
+        acc = float(0.0)
+        lo = float(0.0)
+        found = int(0)
+        for k in range(mat.lobe_count):
+            w = sg_lobe_weight(mat, mat.lobe_start + k)
+            if found == 0 and (t < acc + w or k == mat.lobe_count - 1):
+                chosen = mat.lobe_start + k
+                lo = acc
+                found = 1
+            acc += w
+        wsel = sg_lobe_weight(mat, chosen)
+        uu = wp.vec2(wp.clamp((t - lo) / wp.max(wsel, 1.0e-30), 0.0, 0.99999994), u[1])
+        h = sg_sample_dir(mat.lobe_axis[chosen], mat.lobe_sharpness[chosen], uu)
+    return reflect_about(o, h)
+
+
+@wp.func
+def brdf_pdf(mat: Material, o: wp.vec3, i: wp.vec3) -> float:
+    """Solid-angle density of ``brdf_sample(mat, o, ·)`` at i."""
+    m = mat.model
+    if m <= 1:
+        if i[2] <= 0.0:
+            return 0.0
+        return i[2] * INV_PI
+    if m == 2:
+        return cos_power_pdf(reflect_z(o), mat.params[0], i)
+    if m == 8:
+        nl = wp.max(mat.lobe_count, 1)
+        s = float(0.0)
+        for k in range(mat.lobe_count):
+            j = mat.lobe_start + k
+            v = wp.cw_mul(mat.lobe_axis[j], o)
+            if wp.length(v) <= 0.0:
+                s += wp.max(i[2], 0.0) * INV_PI
+            else:
+                s += cos_power_pdf(wp.normalize(v), mat.lobe_sharpness[j], i)
+        return s / float(nl)
+    hh = o + i
+    l = wp.length(hh)
+    if l <= 0.0:
+        return 0.0
+    h = hh / l
+    oh = wp.dot(o, h)
+    if oh <= 0.0:
+        return 0.0
+    ph = float(0.0)
+    if m == 3:
+        if h[2] > 0.0:
+            ph = (mat.params[0] + 2.0) / TWO_PI * wp.exp((mat.params[0] + 1.0) * log_cos_theta(h))
+    elif m == 4 or m == 5 or m == 6:
+        al = beckmann_alphas(mat)
+        ph = beckmann_pdf_h(al[0], al[1], h)
+    elif m == 7:
+        ph = as_pdf_h(mat.params[0], mat.params[1], h)
+    elif m == 9:
+        ph = sg_mixture_pdf(mat, h)
+    return ph / (4.0 * wp.max(oh, 1.0e-6))
