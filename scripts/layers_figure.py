@@ -19,22 +19,23 @@ ROOT = Path(__file__).resolve().parents[1]
 #: bottom to top: (layer, modules: exact names or "pkg.*" prefixes); the first match wins.
 LAYERS = [
     ("base", ["warp_sg.errors", "warp_sg.device", "warp_sg.atomic", "warp_sg.workers", "warp_sg.meshcheck",
-              "warp_sg.image_io", "warp_sg.lazy"]),
+              "warp_sg.image_io", "warp_sg.lazy", "warp_sg.cache"]),
     ("math", ["warp_sg.sg", "warp_sg.sg_wp", "warp_sg.frames", "warp_sg.clamped_cosine", "warp_sg.fh",
-              "warp_sg.sg_irradiance", "warp_sg.ssdf_product", "warp_sg.anisotropy", "warp_sg.brdf",
+              "warp_sg.sg_irradiance", "warp_sg.ssdf_product", "warp_sg.anisotropy", "warp_sg.pca", "warp_sg.brdf",
               "warp_sg.brdf.*"]),
-    ("scene", ["warp_sg.scene", "warp_sg.primitives", "warp_sg.textures", "warp_sg.lights",
-               "warp_sg.plain_scenes"]),
+    ("scene", ["warp_sg.scene", "warp_sg.scene_model", "warp_sg.scene_toml", "warp_sg.geometry", "warp_sg.camera",
+               "warp_sg.envmap", "warp_sg.primitives", "warp_sg.textures", "warp_sg.lights", "warp_sg.plain_scenes"]),
     ("tools", ["warp_sg.cli", "warp_sg.report", "warp_sg.bench", "warp_sg.preview", "raster.bench",
                "precompute.bench"]),
     ("engines", ["raster", "raster.*", "precompute", "precompute.*", "warp_sg.surface", "warp_sg.shading"]),
-    ("render, reference", ["warp_sg.render", "warp_sg.reference", "warp_sg.sampling", "warp_sg.regions"]),
+    ("render, reference", ["warp_sg.render", "warp_sg.antialias", "warp_sg.reference", "warp_sg.reference_wp",
+                           "warp_sg.sampling", "warp_sg.regions"]),
 ]
 ORDER = ["base", "math", "scene", "engines", "render, reference", "tools"]
 HOLDS = {
-    "base": "errors, device, atomic writes, workers, mesh check, image I/O, lazy exports",
-    "math": "SG algebra (numpy + wp.func), frames, clamped cosine, fh, sg_irradiance, BRDFs + fits",
-    "scene": "data model, TOML loading/validation, primitives, textures, lights, plain_scenes",
+    "base": "errors, device, atomic writes, workers, mesh check, image I/O, lazy exports, disk cache",
+    "math": "SG algebra (numpy + wp.func), frames, clamped cosine, fh, sg_irradiance, PCA, BRDF fits",
+    "scene": "data model, TOML loading, geometry, camera, env maps, primitives, textures, lights",
     "engines": "raster/, precompute/ (refine, env_peaks, ...), surface + shading kernels",
     "render, reference": "Renderer (+ antialiasing), MC reference + sampling, regions",
     "tools": "CLI, report, bench (+ raster/precompute bench), preview",

@@ -7,11 +7,17 @@ An imported name that is itself a module (``from . import sampling``) points at 
 otherwise at the module it comes from. The tests then require
 
 * no import cycle between modules (strongly connected components of more than one module; the
-  failure shows one cycle of each), and
-* no library module importing the command line (``warp_sg.cli``): the CLI sits on top.
+  failure shows one cycle of each),
+* no library module importing the command line (``warp_sg.cli``): the CLI sits on top,
+* every module in a layer (:data:`LAYERS`, DESIGN.md's table: base → math → scene → engines →
+  render → tools) and every import going to the same or a lower layer (the failure names the
+  importing module, the line, and both layers), and
+* no library file longer than :data:`MAX_LINES` lines (one concept per file).
 
-Cycles between the three packages (``warp_sg`` ↔ ``raster`` ↔ ``precompute``) are not checked
-here: the package-level edges are listed by :func:`package_edges` (a restructure for later).
+Cycles between the three packages (``warp_sg`` ↔ ``raster`` ↔ ``precompute``) are allowed: the
+layers cut across the packages (base, math and scene live in ``warp_sg/``, the engines mostly in
+``raster/`` and ``precompute/``, render and tools in ``warp_sg/`` again); :func:`package_edges`
+lists the module pairs behind each package-level edge.
 """
 from __future__ import annotations
 
@@ -21,6 +27,33 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("warp_sg", "raster", "precompute")
+
+#: DESIGN.md "Layers", bottom to top: a module may import its own layer and the layers below.
+LAYER_ORDER = ("base", "math", "scene", "engines", "render", "tools")
+
+#: (layer, modules): exact dotted names, or ``"pkg.*"`` for every module below ``pkg``; the first
+#: match wins (so the bench modules of ``raster``/``precompute`` are tools, the rest engines).
+LAYERS = (
+    ("base", ("warp_sg.errors", "warp_sg.device", "warp_sg.atomic", "warp_sg.workers", "warp_sg.meshcheck",
+              "warp_sg.lazy", "warp_sg.image_io", "warp_sg.cache")),
+    ("math", ("warp_sg.sg", "warp_sg.sg_wp", "warp_sg.frames", "warp_sg.clamped_cosine", "warp_sg.fh",
+              "warp_sg.sg_irradiance", "warp_sg.ssdf_product", "warp_sg.anisotropy", "warp_sg.pca",
+              "warp_sg.brdf", "warp_sg.brdf.*")),
+    ("scene", ("warp_sg.scene", "warp_sg.scene_model", "warp_sg.scene_toml", "warp_sg.geometry", "warp_sg.camera",
+               "warp_sg.envmap", "warp_sg.primitives", "warp_sg.textures", "warp_sg.lights",
+               "warp_sg.plain_scenes")),
+    # the public facade ``warp_sg`` (``ws.render``, ``ws.reference``: lazy) sits on top with the tools
+    ("tools", ("warp_sg", "warp_sg.cli", "warp_sg.report", "warp_sg.bench", "warp_sg.preview", "raster.bench",
+               "precompute.bench")),
+    # surface: the shading point's textured material and frame, @wp.funcs shared by the shading
+    # kernels and the reference kernel (it reads the scene's textures, so it cannot sit lower)
+    ("engines", ("raster", "raster.*", "precompute", "precompute.*", "warp_sg.surface", "warp_sg.shading")),
+    ("render", ("warp_sg.render", "warp_sg.antialias", "warp_sg.reference", "warp_sg.reference_wp",
+                "warp_sg.sampling", "warp_sg.regions")),
+)
+
+#: the longest a library file may be (one concept per file; the aim is about 600)
+MAX_LINES = 650
 
 
 @lru_cache(maxsize=1)
@@ -73,7 +106,7 @@ def _targets(module: str, is_package: bool, node: ast.AST) -> list[str]:
 
 @lru_cache(maxsize=1)
 def import_graph() -> dict[str, dict[str, int]]:
-    """module -> {imported project module: line of the first such import} (self-imports left out)."""
+    """module -> {imported project module: line of its first import in the file} (self-imports left out)."""
     graph = {}
     for mod, path in modules().items():
         tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
@@ -81,7 +114,7 @@ def import_graph() -> dict[str, dict[str, int]]:
         for node in ast.walk(tree):
             for t in _targets(mod, path.name == "__init__.py", node):
                 if t != mod:
-                    edges.setdefault(t, node.lineno)
+                    edges[t] = min(edges.get(t, node.lineno), node.lineno)
         graph[mod] = edges
     return graph
 
@@ -163,6 +196,26 @@ def package_edges(graph=None) -> dict[tuple[str, str], list[tuple[str, str]]]:
     return out
 
 
+def layer_of(module: str, layers=LAYERS) -> str | None:
+    """The layer of ``module`` by :data:`LAYERS` (None when it has none)."""
+    for layer, patterns in layers:
+        for p in patterns:
+            if module == p or (p.endswith(".*") and module.startswith(p[:-1])):
+                return layer
+    return None
+
+
+def upward_imports(graph, layer=layer_of, order=LAYER_ORDER) -> list[str]:
+    """Every import that goes to a higher layer, as ``"a (layer, line n) imports b (layer)"``."""
+    out = []
+    for a in sorted(graph):
+        for b, line in sorted(graph[a].items()):
+            la, lb = layer(a), layer(b)
+            if la is not None and lb is not None and order.index(lb) > order.index(la):
+                out.append(f"{a} ({la}, line {line}) imports {b} ({lb})")
+    return out
+
+
 def test_the_graph_sees_the_packages_and_function_level_imports():
     g = import_graph()
     assert {"warp_sg", "warp_sg.cli", "warp_sg.brdf.base", "raster.rasterize", "precompute.envmap"} <= set(g)
@@ -189,3 +242,27 @@ def test_no_library_module_imports_the_cli():
     g = import_graph()
     bad = sorted(f"{m} (line {t['warp_sg.cli']})" for m, t in g.items() if "warp_sg.cli" in t)
     assert not bad, f"library modules import warp_sg.cli: {', '.join(bad)}"
+
+
+def test_layer_checker_reports_an_upward_import():
+    g = {"lo": {"hi": 7, "lo2": 3}, "hi": {"lo": 2}, "lo2": {}}
+    layers = (("base", ("lo", "lo2")), ("tools", ("hi",)))
+    assert upward_imports(g, lambda m: layer_of(m, layers)) == ["lo (base, line 7) imports hi (tools)"]
+    assert layer_of("raster.fine") == "engines" and layer_of("raster.bench") == "tools"
+    assert layer_of("warp_sg.brdf.material_wp") == "math" and layer_of("warp_sg") == "tools"
+
+
+def test_every_module_has_a_layer():
+    missing = sorted(m for m in modules() if layer_of(m) is None)
+    assert not missing, f"modules without a layer (add them to LAYERS): {', '.join(missing)}"
+
+
+def test_imports_go_down_the_layers_only():
+    bad = upward_imports(import_graph())
+    assert not bad, "imports that go up a layer (" + " < ".join(LAYER_ORDER) + "):\n  " + "\n  ".join(bad)
+
+
+def test_no_library_file_is_longer_than_the_limit():
+    long = sorted(f"{path.relative_to(ROOT)} ({n} lines)" for path in modules().values()
+                  if (n := len(path.read_text(encoding="utf-8").splitlines())) > MAX_LINES)
+    assert not long, f"library files over {MAX_LINES} lines (split them by concept): {', '.join(long)}"
