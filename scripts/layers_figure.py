@@ -34,7 +34,7 @@ LAYERS = [
 ORDER = ["base", "math", "scene", "engines", "render, reference", "tools"]
 HOLDS = {
     "base": "errors, device, atomic writes, workers, mesh check, image I/O, lazy exports, disk cache",
-    "math": "SG algebra (numpy + wp.func), frames, clamped cosine, fh, sg_irradiance, PCA, BRDF fits",
+    "math": "SG algebra (numpy + wp.func), frames, clamped cosine, fh, SG irradiance, PCA, BRDFs",
     "scene": "data model, TOML loading, geometry, camera, env maps, primitives, textures, lights",
     "engines": "raster/, precompute/ (refine, env_peaks, ...), surface + shading kernels",
     "render, reference": "Renderer (+ antialiasing), MC reference + sampling, regions",
