@@ -82,7 +82,6 @@ class Renderer:
         self.timings["precompute"] = time.perf_counter() - t0
         self._background_key = None
         self._background = None
-        self._background_np = None
 
     # ------------------------------------------------------------------ setup
     def _setup_geometry(self):
@@ -347,8 +346,8 @@ class Renderer:
                **fields})
 
     # ------------------------------------------------------------------ frame
-    def _background_numpy(self, k: int) -> np.ndarray:
-        """(k·H, k·W, 3) float32: what each (sub)pixel that sees no object shows (cached)."""
+    def _background_image(self, k: int):
+        """(k·H, k·W) vec3 on the device: what each (sub)pixel that sees no object shows (cached)."""
         cam = self.scene.camera
         env = self.env_light
         key = (repr(cam), k, None if env is None else (env.rotation, env.scale), self.scene.render.background)
@@ -361,15 +360,8 @@ class Renderer:
 
                 dirs = np.asarray(cam.ray_directions(supersample=k), np.float64)
                 img = (env_lookup_numpy(self.env_base, dirs, rotation=env.rotation_matrix()) * env.scale)
-            self._background_np = np.ascontiguousarray(img, np.float32)
-            self._background = None
+            self._background = wp.array(np.ascontiguousarray(img, np.float32), dtype=wp.vec3, device=self.device)
             self._background_key = key
-        return self._background_np
-
-    def _background_image(self, k: int):
-        bg = self._background_numpy(k)
-        if self._background is None:
-            self._background = wp.array(bg, dtype=wp.vec3, device=self.device)
         return self._background
 
     def rasterize(self, k: int | None = None):

@@ -1,46 +1,46 @@
 r"""Per-pixel deferred shading over the visibility buffer (paper §7, eq. 36–43).
 
-One kernel launch shades every (sub)pixel of the raster's visibility buffer once (deferred
-shading: the cost never depends on overdraw). Per pixel, with ``x`` the surface point, ``o`` the
-view direction, ``Ng`` the interpolated vertex normal (the frame of the precomputed visibility)
-and ``(Ts, Bs, Ns)`` the shading frame (tangent frame rotated by the normal/tangent maps)::
+One kernel launch shades every sample of a visibility buffer once (deferred shading: the cost
+never depends on overdraw). Per sample, with ``x`` the surface point, ``o`` the view direction,
+``Ng`` the interpolated vertex normal (the frame of the precomputed visibility), ``(Ts, Bs, Ns)``
+the shading frame (tangent frame rotated by the normal/tangent maps), ``e(c, λ)`` the exact
+normalised irradiance of an SG (``warp_sg.sg_irradiance``) and ``vis_ratio(p, λ) =
+fh(θd(p), λ)/fh(θh(p), λ)`` the SSDF's visible fraction of a lobe over an unoccluded point's::
 
-    R(o) = Σ_c [ Rd_c + Rs_c ]                                                    (eq. 36)
-    C*_c = G(i; Ns, λc, μc)          clamped-cosine lobe(s) (eq. 40: λc = 2.133, μc = 1.170)
+    R(o) = Rlights + Rd + Rs                                                        (eq. 36)
 
-Environment (distant), diffuse — eq. 39 ``Rd = (C*(Ns) ⊗ L*) · V``::
+Local lights (point, spherical, directional; environment peaks such as a sun), eq. 42–43 made
+exact where it is cheap — one BRDF evaluation at the light's direction l::
 
-    for each environment SG L*_j:  G = C*_c ⊗ L*_j  (eq. 5);  Rd += ρd(o, p_G) μ_G fh(θd(p_G), λ_G)
+    Rlights += ρ(o, l) E e(n·l, λ_l) vis_ratio(l, λ_l)
 
-Environment, specular — eq. 41 ``Rs = ((C* ⊗ ρ*s(o) ⊗ V) in world) · L``::
+Environment, diffuse — eq. 39 with the exact irradiance of each SG ``L*_j`` of the mixture::
 
-    for each slice lobe k of ks ρs(o, ·) (spherical warp of the NDF lobes, eq. 17–22, ``slice_lobe``):
-        G = C*_c ⊗ ρ*_k;  Rs += μ_G ΓL(p_G, λ_G) (eq. 35) · fh(θd, λ_G)/∫G(λ_G)
-    (the visible fraction of the lobe; eq. 31's factor fh(θd)/fh(π/2) equals it for sharp lobes and
-    additionally drops the below-horizon mass of broad ones, see ``vis_fraction``)
+    Rd += ρd(o, p_G) μ_j ∫G_j e(Ns·p_j, λ_j) vis_ratio(p_G, λ_G),   G = C* ⊗ L*_j (eq. 5, 40)
 
-Local lights (point/directional SGs, eq. 32–33) — eq. 42–43::
+Environment, specular — eq. 41, for each slice lobe G_k of ks ρs(o, ·) (spherical warp of the
+NDF lobes, eq. 17–22, ``shading_slice_lobe``)::
 
-    Rd = (L*_x ⊗ C*) · V,      Rs = (L*_x ⊗ C* ⊗ ρ*_k) · V = μ fh(θd(p), λ)     (eq. 30)
+    Rs += μ_k ∫G_k e(Ns·p_k, λ_k) · ΓL(p, λ)/∫G(λ) (eq. 35) · vis_ratio(p, λ),   (p, λ) = C* ⊗ G_k
 
-The diffuse BRDF ``ρd(o, i)`` (kd/π, or Oren-Nayar) is evaluated at the product lobe's axis, so
-``kd/π`` comes out exactly for Lambert. Visibility ``θd(p)`` is the SSDF of the surface point
-(eq. 24, per-vertex PCA weights interpolated with the barycentrics, ``precompute.ssdf_wp``); with
-shadows off (or a convex scene) it is the exact SSDF of an unoccluded point, the local horizon:
-``θd(p) = asin(p · Ng)``, so lobes are still clipped at the horizon.
+The clamped-cosine SG ``C*`` (eq. 40) only places and sizes the product lobe whose visibility
+and mean radiance stand for the cosine-weighted lobe; the cosine itself is exact. The diffuse BRDF
+``ρd(o, i)`` (kd/π, or Oren-Nayar) is evaluated at the product lobe's axis. ``θd(p)`` is the SSDF
+of the surface point (eq. 24, per-vertex PCA weights, ``precompute.ssdf_wp.ssdf_eval_world``);
+with shadows off (or a scene that cannot shadow itself) ``vis_ratio`` is 1.
 
 Normal and tangent maps (§7): a per-pixel rotation of the tangent frame, the minimal rotation
 taking ``Ng`` to the mapped normal (Rodrigues; equivalent to the paper's quaternion map), then a
-rotation about it to the mapped tangent. The clamped cosine and the BRDF slice are built in the
-rotated frame (with ``o' = ℜ o``); visibility stays in the vertex frame.
+rotation about it to the mapped tangent. The BRDF and its slice are built in the rotated frame
+(with ``o' = ℜ o``); visibility stays in the vertex frame.
 
 Kernel variants: the kernel is specialised by scene content (``Features``): environment diffuse
-(SG mixture | prefiltered ΓL | none), environment specular (ΓL | SG mixture | none), local lights,
-specular materials, shadows (SSDF), textures, normal/tangent maps, fh method, and the number of
-clamped-cosine lobes. Variants are created once per feature tuple and cached (``shade_kernel``);
-code a scene does not need is removed at compile time with ``wp.static``. The kernel is 1-D over
-row-major pixels with an index offset ``base``, so on the CPU disjoint pixel ranges run on a small
-thread pool (``raster.parallel.launch``; Warp runs one CPU launch on one core).
+(SG mixture | none), environment specular (ΓL | none), lights, specular materials, shadows
+(SSDF), textures, normal/tangent maps and the fh method. Variants are created once per feature
+tuple and cached (``shade_kernel``); code a scene does not need is removed at compile time with
+``wp.static``. The kernel is 1-D over row-major samples with an index offset ``base``, so on the
+CPU disjoint ranges run on a small thread pool (``raster.parallel.launch``; Warp runs one CPU
+launch on one core).
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the kernel annotations at definition
 # time and the kernel variants are closures.
@@ -50,10 +50,10 @@ import warp as wp
 
 from .brdf.material_wp import (Material, brdf_diffuse, brdf_eval, brdf_mo, ndf_lobe, slice_lobe, slice_lobe_count,
                                 warp_axis)
-from .frames import frame_bitangent, frame_tangent, local_to_world, world_to_local
+from .frames import local_to_world, world_to_local
 from .lights import LightArrays, light_irradiance
 from .sg import CLAMPED_COSINE_SHARPNESS
-from .sg_irradiance import sg_irradiance_norm
+from .sg_irradiance import sg_irradiance, sg_irradiance_norm
 from .sg_wp import sg_integral, sg_product
 from .surface import (  # noqa: F401  (re-exported: slot constants, MaterialTextures)
     N_SLOTS, SLOT_KD, SLOT_KS, SLOT_NORMAL, SLOT_P0, SLOT_P1, SLOT_TANGENT, MaterialTextures,
@@ -110,18 +110,6 @@ class EnvSG:
 # building blocks (@wp.func)
 # --------------------------------------------------------------------------------------------
 @wp.func
-def vis_theta(shadows: int, vis: Visibility, p: wp.vec3, ng: wp.vec3, td: wp.vec3, bd: wp.vec3,
-              i0: int, i1: int, i2: int, b0: float, b1: float, b2: float) -> float:
-    """θd(p): the SSDF of the shading point at world direction p (eq. 24; each vertex's SSDF read
-    in that vertex's own frame where the frames disagree, ``precompute.ssdf_wp.ssdf_eval_world``:
-    no seam where the frame turns), or the horizon's signed angular distance ``asin(p·Ng)`` when
-    there is no SSDF (unoccluded)."""
-    if shadows != 0:
-        return ssdf_eval_world(vis.mean, vis.basis, vis.weights, vis.normals, i0, i1, i2, b0, b1, b2, p, ng)
-    return wp.asin(wp.clamp(wp.dot(p, ng), -1.0, 1.0))
-
-
-@wp.func
 def vis_scale(fh_mode: int, vis: Visibility, theta: float, lam: float) -> float:
     """fh(θd, λ)/fh(π/2, λ) (eq. 31): amplitude factor of G ⊗ V."""
     if fh_mode == 1:
@@ -140,16 +128,18 @@ def above(v: wp.vec3) -> wp.vec3:
 
 
 @wp.func
-def vis_ratio(shadows: int, fh_mode: int, vis: Visibility, p: wp.vec3, lam: float, ng: wp.vec3, td: wp.vec3,
-              bd: wp.vec3, i0: int, i1: int, i2: int, b0: float, b1: float, b2: float) -> float:
+def vis_ratio(shadows: int, fh_mode: int, vis: Visibility, p: wp.vec3, lam: float, ng: wp.vec3,
+              i0: int, i1: int, i2: int, b0: float, b1: float, b2: float) -> float:
     """The visible fraction of a lobe (p, λ) relative to the unoccluded point:
-    ``fh(θd(p), λ) / fh(θh(p), λ)`` with θd the SSDF (eq. 24, 30) and ``θh = asin(p·Ng)`` the SSDF
-    of an unoccluded point (its horizon). The unshadowed response (exact BRDF and cosine, or the
-    exact SG irradiance) already accounts for the horizon, so the SSDF supplies only what the
-    occluders take away. 1 without shadows."""
+    ``fh(θd(p), λ) / fh(θh(p), λ)`` with θd the SSDF of the shading point at world direction p
+    (eq. 24, 30; each vertex's SSDF read in that vertex's own frame where the frames disagree,
+    ``precompute.ssdf_wp.ssdf_eval_world``: no seam where the frame turns) and ``θh = asin(p·Ng)``
+    the SSDF of an unoccluded point (its horizon). The unshadowed response (exact BRDF and cosine,
+    or the exact SG irradiance) already accounts for the horizon, so the SSDF supplies only what
+    the occluders take away. 1 without shadows."""
     if shadows == 0:
         return 1.0
-    th = vis_theta(shadows, vis, p, ng, td, bd, i0, i1, i2, b0, b1, b2)
+    th = ssdf_eval_world(vis.mean, vis.basis, vis.weights, vis.normals, i0, i1, i2, b0, b1, b2, p, ng)
     th_h = wp.asin(wp.clamp(wp.dot(p, ng), -1.0, 1.0))
     a = vis_scale(fh_mode, vis, th, lam)
     b = vis_scale(fh_mode, vis, th_h, lam)
@@ -246,8 +236,6 @@ def shade_kernel(f: Features):
         i2 = tri[2]
         P = geo.positions[i0] * b0 + geo.positions[i1] * b1 + geo.positions[i2] * b2
         ng = wp.normalize(geo.normals[i0] * b0 + geo.normals[i1] * b1 + geo.normals[i2] * b2)
-        td = frame_tangent(ng)
-        bd = frame_bitangent(ng)
         o = wp.normalize(cam - P)
 
         mi = geo.tri_material[t]
@@ -281,7 +269,7 @@ def shade_kernel(f: Features):
                 e = sg_irradiance_norm(irr, li[2], ll)
                 if e > 0.0:
                     f = brdf_eval(mat, o_l, above(li))
-                    vr = vis_ratio(SHADOWS, FH, vis, la, ll, ng, td, bd, i0, i1, i2, b0, b1, b2)
+                    vr = vis_ratio(SHADOWS, FH, vis, la, ll, ng, i0, i1, i2, b0, b1, b2)
                     col += wp.cw_mul(f, E) * (e * vr)
 
         # ---------------- environment, diffuse (eq. 39) ----------------
@@ -291,13 +279,11 @@ def shade_kernel(f: Features):
         if wp.static(ENV_D == 1):
             if has_kd:
                 for j in range(env.count):
-                    aj = env.axis[j]
-                    lj = env.lam[j]
-                    e = sg_irradiance_norm(irr, wp.dot(ns, aj), lj) * sg_integral(lj)
-                    if e > 0.0:
-                        pe, le, se = sg_product(ns, CC_LAM, aj, lj)
-                        vr = vis_ratio(SHADOWS, FH, vis, pe, le, ng, td, bd, i0, i1, i2, b0, b1, b2)
-                        col += wp.cw_mul(env.mu[j], diffuse_at(mat, o_l, world_to_local(pe, ts, bs, ns))) * (e * vr)
+                    E = sg_irradiance(irr, ns, env.axis[j], env.lam[j], env.mu[j])
+                    if wp.length_sq(E) > 0.0:
+                        pe, le, se = sg_product(ns, CC_LAM, env.axis[j], env.lam[j])
+                        vr = vis_ratio(SHADOWS, FH, vis, pe, le, ng, i0, i1, i2, b0, b1, b2)
+                        col += wp.cw_mul(E, diffuse_at(mat, o_l, world_to_local(pe, ts, bs, ns))) * vr
 
         # ---------------- environment, specular (eq. 41) ----------------
         # For each slice lobe G_k (axis pW, λW, amplitude μ_k ∝ Mo): ∫ G_k(i) max(n·i, 0) L(i) di ≈
@@ -315,7 +301,7 @@ def shade_kernel(f: Features):
                         pw = local_to_world(pw_l, ts, bs, ns)
                         pa, lam, sc = sg_product(ns, CC_LAM, pw, lw)
                         g = gamma_lookup(gamma, pa, lam) / sg_integral(lam)
-                        vr = vis_ratio(SHADOWS, FH, vis, pa, lam, ng, td, bd, i0, i1, i2, b0, b1, b2)
+                        vr = vis_ratio(SHADOWS, FH, vis, pa, lam, ng, i0, i1, i2, b0, b1, b2)
                         col += wp.cw_mul(mw, g) * (e * vr)
         out[y, x] = wp.vec3(wp.max(col[0], 0.0), wp.max(col[1], 0.0), wp.max(col[2], 0.0))
 
