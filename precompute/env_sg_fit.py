@@ -114,13 +114,24 @@ def irradiance_reference(env, normals, supersample: int = 1):
     return out.reshape(np.shape(normals)[:-1] + (3,))
 
 
-def _exact_irradiance_matrix(normals, axes, lam):
-    """``∫ G(i; p_k, λ_k, 1) max(n·i, 0) di`` (..., K) by ``warp_sg.sg_irradiance`` (within 2 %)."""
-    from warp_sg.sg_irradiance import sg_irradiance_norm_np
-
-    c = np.einsum("...d,kd->...k", np.asarray(normals, np.float64), np.asarray(axes, np.float64))
+def _irradiance_matrix(normals, axes, lam, cosine=None):
+    """Irradiance at each normal of each unit-amplitude SG, (..., K): ``⟨C*(n), G_k⟩`` through the
+    clamped-cosine SG(s) ``cosine = (λc, μc)`` (scalars or lists of a multi-lobe fit; default
+    eq. 40), or with ``cosine="exact"`` ``∫ G_k max(n·i, 0) di`` by ``warp_sg.sg_irradiance``
+    (within 2 %, what the renderer evaluates)."""
+    n = np.asarray(normals, np.float64)
+    ax = np.asarray(axes, np.float64)
     lam = np.asarray(lam, np.float64)
-    return sg_irradiance_norm_np(c, np.broadcast_to(lam, c.shape)) * sgm.integral(lam, 1.0)
+    if isinstance(cosine, str):
+        from warp_sg.sg_irradiance import sg_irradiance_norm_np
+
+        c = np.einsum("...d,kd->...k", n, ax)
+        return sg_irradiance_norm_np(c, np.broadcast_to(lam, c.shape)) * sgm.integral(lam, 1.0)
+    lc, mc = cosine if cosine is not None else (sgm.CLAMPED_COSINE_SHARPNESS, sgm.CLAMPED_COSINE_AMPLITUDE)
+    out = 0.0
+    for l_c, m_c in zip(np.atleast_1d(np.asarray(lc, np.float64)), np.atleast_1d(np.asarray(mc, np.float64))):
+        out = out + sgm.inner_product(n[..., None, :], l_c, m_c, ax, lam, 1.0)  # a sum over cosine lobes
+    return out
 
 
 def sg_irradiance(axes, sharpness, amplitude, normals, cosine=None):
@@ -130,21 +141,8 @@ def sg_irradiance(axes, sharpness, amplitude, normals, cosine=None):
 
     ``cosine``: ``"exact"`` or an optional ``(λc, μc)`` pair (or lists of them for a multi-lobe cosine fit).
     """
-    if isinstance(cosine, str):
-        return np.einsum("...k,kc->...c", _exact_irradiance_matrix(normals, axes, sharpness),
-                         np.asarray(amplitude, np.float64))
-    lc, mc = cosine if cosine is not None else (sgm.CLAMPED_COSINE_SHARPNESS, sgm.CLAMPED_COSINE_AMPLITUDE)
-    lc = np.atleast_1d(np.asarray(lc, np.float64))
-    mc = np.atleast_1d(np.asarray(mc, np.float64))
-    n = np.asarray(normals, np.float64)[..., None, :]  # (..., 1, 3)
-    ax = np.asarray(axes, np.float64)
-    lam = np.asarray(sharpness, np.float64)
-    mu = np.asarray(amplitude, np.float64)
-    out = 0.0
-    for l_c, m_c in zip(lc, mc):
-        ip = sgm.inner_product(n, l_c, m_c, ax, lam, 1.0)  # (..., K)
-        out = out + np.einsum("...k,kc->...c", ip, mu)
-    return out
+    return np.einsum("...k,kc->...c", _irradiance_matrix(normals, axes, sharpness, cosine),
+                     np.asarray(amplitude, np.float64))
 
 
 def _model(d, axes, lam, mu):
@@ -202,18 +200,13 @@ def _greedy_peaks(d, om, L, n_max, lam_max, min_fraction=0.03):
     return axes, lams
 
 
-def _design(d, om, normals, axes, lam, w_e, lc, mc):
-    """Stacked linear system of the amplitudes: rows √Ω G(d_j) and w_E ⟨C*(n_m), G⟩ (or, with
-    ``lc = "exact"``, w_E times the exact irradiance of G)."""
+def _design(d, om, normals, axes, lam, w_e, cosine):
+    """Stacked linear system of the amplitudes: rows √Ω G(d_j) and w_E E_G(n_m), the irradiance of
+    each SG through ``cosine`` (:func:`_irradiance_matrix`)."""
     g = np.exp(-lam[None, :] * 0.5 * np.sum((d[:, None, :] - axes[None, :, :]) ** 2, -1))
     A = [np.sqrt(om)[:, None] * g]
-    if w_e > 0 and isinstance(lc, str):
-        A.append(w_e * _exact_irradiance_matrix(normals, axes, lam))
-    elif w_e > 0:
-        ip = 0.0
-        for l_c, m_c in zip(lc, mc):  # a multi-lobe clamped cosine is a sum of inner products
-            ip = ip + sgm.inner_product(normals[:, None, :], l_c, m_c, axes[None], lam[None], 1.0)
-        A.append(w_e * ip)
+    if w_e > 0:
+        A.append(w_e * _irradiance_matrix(normals, axes, lam, cosine))
     return np.concatenate(A, 0)
 
 
@@ -240,12 +233,6 @@ def _fit(env, n_lobes, rows, irradiance_weight, n_normals, max_nfev, cosine=None
     lam_max = float(4.0 * (h / np.pi) ** 2)  # a lobe about one working texel wide
     normals = _fibonacci_normals(n_normals)
     E = irradiance_reference(work, normals) / scale
-    if isinstance(cosine, str):
-        lc, mc = "exact", None
-    else:
-        lc, mc = cosine if cosine is not None else (sgm.CLAMPED_COSINE_SHARPNESS, sgm.CLAMPED_COSINE_AMPLITUDE)
-        lc = np.atleast_1d(np.asarray(lc, np.float64))
-        mc = np.atleast_1d(np.asarray(mc, np.float64))
     # the irradiance block has one row per normal (~4π/M sr each); E ~ π L: scale it like radiance
     w_e = irradiance_weight * math.sqrt(4 * math.pi / n_normals) / math.pi
     B = np.concatenate([np.sqrt(om)[:, None] * Ln] + ([w_e * E] if w_e > 0 else []), 0)
@@ -266,7 +253,7 @@ def _fit(env, n_lobes, rows, irradiance_weight, n_normals, max_nfev, cosine=None
 
     def residual(x):
         ax, lam = unpack(x)
-        A = _design(d, om, normals, ax, lam, w_e, lc, mc)
+        A = _design(d, om, normals, ax, lam, w_e, cosine)
         mu = _solve_amplitudes(A, B)
         return (A @ mu - B).ravel()
 
@@ -278,11 +265,11 @@ def _fit(env, n_lobes, rows, irradiance_weight, n_normals, max_nfev, cosine=None
     res = least_squares(residual, x0, bounds=(lo, hi), method="trf", tr_solver="lsmr", max_nfev=max_nfev,
                         diff_step=1e-4)
     ax, lam = unpack(res.x)
-    mu = _solve_amplitudes(_design(d, om, normals, ax, lam, w_e, lc, mc), B) * scale
+    mu = _solve_amplitudes(_design(d, om, normals, ax, lam, w_e, cosine), B) * scale
     # statistics on the working map
     model, _ = _model(d, ax, lam, mu)
     rad_rel = float(np.sqrt((om[:, None] * (model - L) ** 2).sum() / (om[:, None] * L**2).sum()))
-    Ef = sg_irradiance(ax, lam, mu, normals, cosine=lc if isinstance(lc, str) else (lc, mc))
+    Ef = sg_irradiance(ax, lam, mu, normals, cosine=cosine)
     Et = E * scale
     e_rel = np.abs(Ef - Et).max(1) / np.abs(Et).max(1)
     order = np.argsort(-(mu @ LUMINANCE) * sgm.integral(lam))
