@@ -116,16 +116,10 @@ def test_shadows_on_a_two_triangle_floor_match_a_hand_subdivided_floor(tmp_path)
                              render={"visibility_budget": 0})
     import trimesh
 
-    quad = trimesh.creation.box()  # replaced below: a 64×64 grid of the same 6×6 quad
-    n = 64
-    g = np.linspace(-3.0, 3.0, n + 1)
-    X, Z = np.meshgrid(g, g)
-    V = np.stack([X.ravel(), np.zeros(X.size), Z.ravel()], 1)
-    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
-    a, b, c, d = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, 1:].ravel(), idx[1:, :-1].ravel()
-    F = np.concatenate([np.stack([a, d, c], 1), np.stack([a, c, b], 1)])
-    quad = trimesh.Trimesh(V, F, process=False)
-    quad.export(hand.parent / "floor.obj")
+    from warp_sg.primitives import plane
+
+    fine = plane(size=(6.0, 6.0), resolution=(64, 64))  # the same 6×6 quad as 64×64 cells, exported
+    trimesh.Trimesh(fine.vertices, fine.triangles, process=False).export(hand.parent / "floor.obj")
     ref = box_reference(ws.load_scene(plain), spp=256, seed=5)
     errs = {}
     for name, path in (("plain", plain), ("hand", hand)):

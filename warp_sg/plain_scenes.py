@@ -51,8 +51,10 @@ def _toml_value(v) -> str:
     return repr(float(v)) if isinstance(v, (float, np.floating)) else str(v)
 
 
-def _table(name: str, d: dict) -> str:
-    return f"[{name}]\n" + "".join(f"{k} = {_toml_value(v)}\n" for k, v in d.items()) + "\n"
+def _table(name: str, d: dict, array: bool = False) -> str:
+    """A TOML table ``[name]``, or an entry ``[[name]]`` of an array of tables."""
+    head = f"[[{name}]]" if array else f"[{name}]"
+    return head + "\n" + "".join(f"{k} = {_toml_value(v)}\n" for k, v in d.items()) + "\n"
 
 
 def write_floor_obj(path: Path, size: float = 6.0) -> Path:
@@ -111,20 +113,19 @@ def write_plain_scene(folder, obj: str = "sphere", light: str = "sky", material:
         raise ValueError(f"unknown object {obj!r}")
     parts = [_table("camera", {"origin": [0.0, 2.2, 3.6], "target": [0.0, 0.35, 0.0], "fov": 40.0,
                                "width": size, "height": size})]
-    parts.append("[[objects]]\n" + "".join(f"{k} = {_toml_value(v)}\n" for k, v in ob.items()) + "\n")
-    parts.append('[[objects]]\nmesh = "floor.obj"\nmaterial = "floor"\nname = "floor"\n\n')
+    parts.append(_table("objects", ob, array=True))
+    parts.append(_table("objects", {"mesh": "floor.obj", "material": "floor", "name": "floor"}, array=True))
     parts.append(_table("materials.object", MATERIALS[material]))
     parts.append(_table("materials.floor", MATERIALS[floor_material]))
     if "sky" in light:
         write_sky_exr(folder / "sky.exr")
-        parts.append('[[lights]]\ntype = "environment"\nfile = "sky.exr"\n\n')
+        parts.append(_table("lights", {"type": "environment", "file": "sky.exr"}, array=True))
     if "point" in light:
-        parts.append(_table("[lights]", {"type": "point", "position": [1.6, 3.0, 1.4], "radius": 0.15,
-                                         "intensity": [9.0, 9.0, 9.0]}).replace("[[[lights]]]", "[[lights]]"))
+        parts.append(_table("lights", {"type": "point", "position": [1.6, 3.0, 1.4], "radius": 0.15,
+                                       "intensity": [9.0, 9.0, 9.0]}, array=True))
     if light == "sun":
-        parts.append(_table("[lights]", {"type": "directional", "direction": sun_direction().tolist(),
-                                         "radius": 0.03, "intensity": [3.0, 2.9, 2.7]}).replace("[[[lights]]]",
-                                                                                                  "[[lights]]"))
+        parts.append(_table("lights", {"type": "directional", "direction": sun_direction().tolist(),
+                                       "radius": 0.03, "intensity": [3.0, 2.9, 2.7]}, array=True))
     if render:
         parts.append(_table("render", render))
     path = folder / "scene.toml"
