@@ -264,29 +264,49 @@ class SSDFData:
                 wp.array(self.weights, dtype=float, device=device))
 
 
-def ssdf_for_mesh(vertices, triangles, normals, *, resolution: int = DEFAULT_RESOLUTION,
-                  ray_resolution: int | None = None, pca_terms: int = DEFAULT_PCA_TERMS,
-                  device="cpu", progress: bool = True, use_cache: bool = True) -> SSDFData:
-    """Per-vertex SSDFs of a (merged) mesh, PCA-compressed (eq. 23–24), cached on disk.
-
-    ``ray_resolution`` defaults to ``2 × resolution`` (paper: 4×, 512 → 128). The cache key is a
-    content hash of vertices, triangles, normals and all parameters (not the device).
-    """
+def _ssdf_params(resolution, ray_resolution, pca_terms):
     if ray_resolution is None:
         ray_resolution = 2 * int(resolution)
     _check_resolutions(resolution, ray_resolution)
     if int(pca_terms) != pca_terms or pca_terms < 1:
         raise InputError(f"pca_terms must be a positive integer, got {pca_terms}", where="pca_terms")
+    return {"kind": "ssdf", "version": SSDF_VERSION, "resolution": int(resolution),
+            "ray_resolution": int(ray_resolution), "pca_terms": int(pca_terms), "offset": OFFSET_SCALE}
+
+
+def ssdf_key(vertices, triangles, normals, *, resolution: int = DEFAULT_RESOLUTION, ray_resolution: int | None = None,
+             pca_terms: int = DEFAULT_PCA_TERMS) -> str:
+    """The cache key of :func:`ssdf_for_mesh` for these arguments (a content hash; no SSDF is computed)."""
+    params = _ssdf_params(resolution, ray_resolution, pca_terms)
     v, f, n = validate_mesh(vertices, triangles, normals)
     if n is None:
         raise InputError("ssdf_for_mesh needs per-vertex normals")
-    params = {"kind": "ssdf", "version": SSDF_VERSION, "resolution": int(resolution),
-              "ray_resolution": int(ray_resolution), "pca_terms": int(pca_terms), "offset": OFFSET_SCALE}
+    return _cache.content_key(v.astype(np.float32), f.astype(np.int32), n.astype(np.float32), params)
+
+
+def ssdf_for_mesh(vertices, triangles, normals, *, resolution: int = DEFAULT_RESOLUTION,
+                  ray_resolution: int | None = None, pca_terms: int = DEFAULT_PCA_TERMS,
+                  device="cpu", progress: bool = True, use_cache: bool = True, compute=None) -> SSDFData:
+    """Per-vertex SSDFs of a (merged) mesh, PCA-compressed (eq. 23–24), cached on disk.
+
+    ``ray_resolution`` defaults to ``2 × resolution`` (paper: 4×, 512 → 128). The cache key is a
+    content hash of vertices, triangles, normals and all parameters (not the device, not
+    ``compute``). ``compute`` replaces :func:`compute_ssdf` (same keyword arguments: ``resolution``,
+    ``ray_resolution``, ``device``, ``progress``), e.g. the Dask version of
+    :mod:`warp_sg.distributed_precompute`; it must return the same per-vertex SSDFs, so a
+    distributed result and a local one are the same cache entry. PCA and the cache write run here.
+    """
+    params = _ssdf_params(resolution, ray_resolution, pca_terms)
+    ray_resolution = params["ray_resolution"]
+    v, f, n = validate_mesh(vertices, triangles, normals)
+    if n is None:
+        raise InputError("ssdf_for_mesh needs per-vertex normals")
     key = _cache.content_key(v.astype(np.float32), f.astype(np.int32), n.astype(np.float32), params)
+    compute = compute_ssdf if compute is None else compute
 
     def build():
-        X = compute_ssdf(v, f, n, resolution=resolution, ray_resolution=ray_resolution, device=device,
-                         progress=progress).reshape(len(v), -1)
+        X = compute(v, f, n, resolution=resolution, ray_resolution=ray_resolution, device=device,
+                    progress=progress).reshape(len(v), -1)
         p = pca(X, int(pca_terms))
         R = int(resolution)
         return {"mean": p.mean.reshape(R, R), "basis": p.basis.reshape(-1, R, R), "weights": p.weights,

@@ -165,10 +165,11 @@ def visibility_section(device="cpu", quick=False):
     return _rows_from(res, "visibility")
 
 
-def precompute_section(device="cpu", quick=False):
+def precompute_section(device="cpu", quick=False, cluster=None):
     """SSDF + PCA precompute time (``precompute.ssdf_for_mesh``, empty cache) by mesh size, on the
     plane-and-box meshes of ``precompute.bench`` (whose ``run_bench`` has the detailed study with
-    the product error: docs/precompute.md)."""
+    the product error: docs/precompute.md). With ``cluster`` (``--cluster``), one more row: the
+    largest mesh with its SSDFs computed on the Dask cluster (:mod:`warp_sg.distributed_precompute`)."""
     from .cache import fresh_cache
 
     try:
@@ -191,6 +192,23 @@ def precompute_section(device="cpu", quick=False):
         base = base or t
         rows.append({"case": f"{len(V)} vertices (SSDF {res}², {terms} PCA terms)", "total_s": t,
                      "ratio": t / base, "ms_per_vertex": 1e3 * t / len(V)})
+    if cluster is not None:
+        from .distributed import connect
+        from .distributed_precompute import DaskSSDF
+
+        with connect(cluster) as client:
+            n_workers = len(client.scheduler_info().get("workers", {}))
+            compute = DaskSSDF(client)
+            with fresh_cache():  # workers compile / load their kernels outside the timing
+                precompute.ssdf_for_mesh(*pb.bench_mesh(targets[0]), resolution=res, pca_terms=terms, device=device,
+                                         progress=False, compute=compute)
+            with fresh_cache():
+                t0 = time.perf_counter()
+                precompute.ssdf_for_mesh(V, F, N, resolution=res, pca_terms=terms, device=device, progress=False,
+                                         compute=compute)
+                t = time.perf_counter() - t0
+        rows.append({"case": f"{len(V)} vertices on Dask ({n_workers} workers)", "total_s": t, "ratio": t / base,
+                     "ms_per_vertex": 1e3 * t / len(V)})
     return rows
 
 
@@ -295,8 +313,9 @@ SECTIONS = {
 }
 
 
-def run_bench(device="cpu", quick=False, sections=None, print_fn=print) -> BenchResult:
-    """Run every section (or those named in ``sections``) and print the tables; returns them."""
+def run_bench(device="cpu", quick=False, sections=None, print_fn=print, cluster=None) -> BenchResult:
+    """Run every section (or those named in ``sections``) and print the tables; returns them.
+    ``cluster``: also time the SSDF precompute on this Dask cluster (precompute section)."""
     from .device import resolve_device
 
     device = resolve_device(device)
@@ -306,7 +325,8 @@ def run_bench(device="cpu", quick=False, sections=None, print_fn=print) -> Bench
         if sections is not None and not any(s in name for s in sections):
             continue
         try:
-            rows = fn(device=device, quick=quick)
+            rows = fn(device=device, quick=quick, **({"cluster": cluster} if cluster is not None and
+                                                     fn is precompute_section else {}))
         except InputError:
             raise
         except Exception as e:  # noqa: BLE001 - one broken section must not hide the others
@@ -327,6 +347,8 @@ def add_cli_arguments(p) -> None:
     p.add_argument("--section", action="append", default=None,
                    help="run only sections whose name contains this (repeatable)")
     p.add_argument("-o", "--output", default=None, help="also write the tables (markdown) to this file")
+    p.add_argument("--cluster", default=None, metavar="local:N|tcp://HOST:PORT",
+                   help="also time the SSDF precompute on a Dask cluster (docs/distributed.md)")
 
 
 def cli_main(args) -> int:
@@ -335,7 +357,8 @@ def cli_main(args) -> int:
         out = Path(args.output)
         if out.is_dir() or not out.parent.is_dir():
             raise InputError("cannot write the bench tables here", where=str(out))
-    res = run_bench(device=device_for(args.device), quick=args.quick, sections=args.section)
+    res = run_bench(device=device_for(args.device), quick=args.quick, sections=args.section,
+                    cluster=getattr(args, "cluster", None))
     print(f"bench finished in {res.seconds:.1f} s on {res.device}")
     if out is not None:
         from .atomic import atomic_output

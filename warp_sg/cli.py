@@ -7,6 +7,11 @@
     warp-sg reference SCENE -o OUT --spp N         (arguments from warp_sg.reference)
     warp-sg report SCENE -o DIR                    (arguments from warp_sg.report)
     warp-sg bench                                  (arguments from warp_sg.bench)
+    warp-sg precompute SCENE [--cluster local:N|tcp://HOST:PORT]   (warp_sg.distributed_precompute)
+    warp-sg batch JOB.toml [--cluster ...]         (warp_sg.batch)
+
+``render``, ``precompute``, ``report``, ``bench`` and ``batch`` take ``--cluster``: the SSDF precompute
+(and batch / reference work) then runs on Dask (docs/distributed.md); without it Dask is not imported.
 
 ``--device`` defaults to the scene's ``[render] device`` (``cpu`` unless the scene sets it) in
 every subcommand; ``bench``, which has no scene, defaults to ``cpu``.
@@ -34,6 +39,8 @@ EXTERNAL = {
     "reference": ("warp_sg.reference", "Monte-Carlo reference image (exact BRDF, ray-traced visibility)"),
     "report": ("warp_sg.report", "error-vs-run-time report against the Monte-Carlo reference"),
     "bench": ("warp_sg.bench", "performance benchmarks (rasterizer, shading, precompute)"),
+    "precompute": ("warp_sg.distributed_precompute", "fill the precompute cache of a scene (optionally on Dask)"),
+    "batch": ("warp_sg.batch", "render a batch of frames (animation / parameter grid) on Dask"),
 }
 
 
@@ -77,6 +84,8 @@ def add_render_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-shadows", action="store_true", help="render without SSDF visibility")
     p.add_argument("--no-progress", action="store_true", help="hide progress bars")
     p.add_argument("--timings", action="store_true", help="print precompute / raster / shade timings")
+    p.add_argument("--cluster", default=None, metavar="local:N|tcp://HOST:PORT",
+                   help="compute the SSDFs on Dask (docs/distributed.md); default: locally, without Dask")
 
 
 def render_main(args) -> int:
@@ -95,7 +104,12 @@ def render_main(args) -> int:
         from dataclasses import replace
 
         scene.camera = replace(cam, width=args.width or cam.width, height=args.height or cam.height)
-    r = Renderer(scene, device=args.device, progress=not args.no_progress)
+    if args.cluster:
+        from .distributed_precompute import renderer
+
+        r = renderer(scene, device=args.device, progress=not args.no_progress, cluster=args.cluster)
+    else:
+        r = Renderer(scene, device=args.device, progress=not args.no_progress)
     img = r.render()
     if args.exposure:
         img = img * (2.0 ** args.exposure)

@@ -52,6 +52,12 @@ def refined_geometry(g: Geometry, ref) -> Geometry:
                    vertex_object=ref.interpolate(g.vertex_object))
 
 
+def _refine_key(g: Geometry, budget: int) -> str:
+    from .cache import content_key
+
+    return content_key(np.asarray(g.vertices), np.asarray(g.triangles), np.asarray(g.normals), {"budget": int(budget)})
+
+
 def _timer(device):
     wp.synchronize_device(device)
     return time.perf_counter()
@@ -60,13 +66,21 @@ def _timer(device):
 class Renderer:
     """Stateful renderer: precompute once, then ``render()`` any number of frames.
 
-    ``progress``: show progress bars for the precompute steps.
+    ``progress``: show progress bars for the precompute steps. ``ssdf_compute``: replaces
+    ``precompute.compute_ssdf`` inside ``precompute.ssdf_for_mesh`` (same cache entry; e.g. the Dask
+    version, :mod:`warp_sg.distributed_precompute`). ``precomputed``: :meth:`precomputed` of a
+    renderer of a scene with the same geometry and visibility settings (refinement and SSDFs are
+    reused instead of recomputed; a mismatch is an :class:`InputError`): how batch workers share
+    one precompute.
     """
 
-    def __init__(self, scene: Scene, device: str | None = None, progress: bool = False):
+    def __init__(self, scene: Scene, device: str | None = None, progress: bool = False, *, ssdf_compute=None,
+                 precomputed: dict | None = None):
         if not isinstance(scene, Scene):
             raise InputError(f"expected a warp_sg.Scene, got {type(scene).__name__}", where="scene")
         self.scene = scene
+        self._ssdf_compute = ssdf_compute
+        self._precomputed = precomputed
         self.device = resolve_device(device if device is not None else scene.render.device)
         self.progress = progress
         self.timings: dict = {"precompute_parts": {}}
@@ -82,6 +96,15 @@ class Renderer:
         self.timings["precompute"] = time.perf_counter() - t0
         self._background_key = None
         self._background = None
+
+    def precomputed(self) -> dict:
+        """The mesh refinement and SSDFs of this renderer (plain numpy data, picklable), for
+        ``Renderer(scene', precomputed=...)`` of a scene with the same geometry and visibility
+        settings (camera, materials, lights and environment may differ)."""
+        g = self.input_geometry
+        budget = self.scene.render.visibility_budget
+        return {"refine_key": _refine_key(g, budget) if self._refined is not None else None,
+                "refinement": self._refined, "ssdf": self.ssdf}
 
     # ------------------------------------------------------------------ setup
     def _setup_geometry(self):
@@ -99,12 +122,21 @@ class Renderer:
             self.shadows = bool(precompute.needs_visibility(g.vertices, g.triangles, shadows=True))
         self.input_geometry = g
         self.refinement = None
+        self._refined = None
         if self.shadows and rs.visibility_budget > len(g.vertices):
             from precompute.refine import refine_cached
 
             t = time.perf_counter()
-            ref = refine_cached(g.vertices, g.triangles, g.normals, budget=rs.visibility_budget, device=d,
-                                progress=self.progress)
+            pre = self._precomputed
+            if pre is not None:
+                if pre.get("refinement") is None or pre.get("refine_key") != _refine_key(g, rs.visibility_budget):
+                    raise InputError("precomputed data is for a different mesh or visibility_budget",
+                                     where="precomputed")
+                ref = pre["refinement"]
+            else:
+                ref = refine_cached(g.vertices, g.triangles, g.normals, budget=rs.visibility_budget, device=d,
+                                    progress=self.progress)
+            self._refined = ref
             self.timings["precompute_parts"]["refine"] = time.perf_counter() - t
             if len(ref.vertices) > len(g.vertices):
                 self.refinement = ref
@@ -133,8 +165,20 @@ class Renderer:
             import precompute
 
             t = time.perf_counter()
-            self.ssdf = precompute.ssdf_for_mesh(g.vertices, g.triangles, g.normals, resolution=rs.ssdf_resolution,
-                                                 pca_terms=rs.pca_terms, device=d, progress=self.progress)
+            pre = self._precomputed
+            if pre is not None and pre.get("ssdf") is not None:
+                from precompute.ssdf import ssdf_key
+
+                self.ssdf = pre["ssdf"]
+                want = ssdf_key(g.vertices, g.triangles, g.normals, resolution=rs.ssdf_resolution,
+                                ray_resolution=self.ssdf.ray_resolution, pca_terms=rs.pca_terms)
+                if want != self.ssdf.key:
+                    raise InputError("precomputed SSDFs are for a different mesh or SSDF settings",
+                                     where="precomputed")
+            else:
+                self.ssdf = precompute.ssdf_for_mesh(g.vertices, g.triangles, g.normals,
+                                                     resolution=rs.ssdf_resolution, pca_terms=rs.pca_terms, device=d,
+                                                     progress=self.progress, compute=self._ssdf_compute)
             vis.mean, vis.basis, vis.weights = self.ssdf.device_arrays(d)
             self.timings["precompute_parts"]["ssdf"] = time.perf_counter() - t
         else:

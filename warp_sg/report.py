@@ -175,8 +175,11 @@ def with_resolution(scene, width=None, height=None):
 
 
 def run_report(scene, out_dir, device=None, quick=False, truth_spp=None, mc_max_spp=None, knobs=None,
-               progress=True, frames=None, width=None, height=None) -> Report:
+               progress=True, frames=None, width=None, height=None, cluster=None) -> Report:
     """Run the sweep for ``scene`` (a Scene or a path) and write the report into ``out_dir``.
+
+    ``cluster`` (a Dask cluster spec / Client, :mod:`warp_sg.distributed`): the ground truth's
+    samples are split across its workers (same image bit for bit); ``None``: all local, no Dask.
 
     ``width``/``height`` override the camera's resolution (the reference's cost grows with it);
     ``device=None`` is the scene's ``[render] device``."""
@@ -207,7 +210,13 @@ def run_report(scene, out_dir, device=None, quick=False, truth_spp=None, mc_max_
     truth_scene = scene if k_truth == _settings(scene).supersampling else with_setting(scene, "supersampling", k_truth)
 
     t0 = time.perf_counter()
-    truth = render_reference(truth_scene, spp=truth_spp, device=device, progress=progress, seed=1)
+    if cluster is not None:
+        from .distributed import render_reference_distributed
+
+        truth = render_reference_distributed(truth_scene, spp=truth_spp, cluster=cluster, device=device,
+                                             progress=progress, seed=1)
+    else:
+        truth = render_reference(truth_scene, spp=truth_spp, device=device, progress=progress, seed=1)
     truth_time = time.perf_counter() - t0
     floor = float(np.sum(truth.stderr.astype(np.float64) ** 2) / max(np.sum(truth.image.astype(np.float64) ** 2),
                                                                         1e-300))
@@ -421,6 +430,8 @@ def add_cli_arguments(p) -> None:
     p.add_argument("--width", type=int, default=None, help="override the camera width (keeps the aspect)")
     p.add_argument("--height", type=int, default=None, help="override the camera height")
     p.add_argument("--no-progress", action="store_true")
+    p.add_argument("--cluster", default=None, metavar="local:N|tcp://HOST:PORT",
+                   help="split the ground truth's samples across a Dask cluster (docs/distributed.md)")
 
 
 def cli_main(args) -> int:
@@ -431,7 +442,8 @@ def cli_main(args) -> int:
         if v is not None and v < 1:
             raise InputError(f"must be >= 1, got {v}", where=f"--{k}")
     rep = run_report(args.scene, args.output, device=args.device, quick=args.quick, truth_spp=args.truth_spp,
-                     progress=not args.no_progress, width=args.width, height=args.height)
+                     progress=not args.no_progress, width=args.width, height=args.height,
+                     cluster=getattr(args, "cluster", None))
     print(f"report written to {rep.files['markdown']}")
     return 0
 
