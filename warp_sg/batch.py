@@ -163,7 +163,7 @@ def run_job(job: Job, cluster=None, device=None, progress: bool = True, skip_exi
 
 def add_cli_arguments(p) -> None:
     from .device import add_device_argument
-    from .distributed import add_cluster_argument
+    from .cluster import add_cluster_argument
 
     p.add_argument("job", help="job file (TOML): scene, output pattern, [[frames]] / [grid] / [animate]")
     add_device_argument(p)

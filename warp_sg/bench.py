@@ -193,7 +193,7 @@ def precompute_section(device="cpu", quick=False, cluster=None):
         rows.append({"case": f"{len(V)} vertices (SSDF {res}², {terms} PCA terms)", "total_s": t,
                      "ratio": t / base, "ms_per_vertex": 1e3 * t / len(V)})
     if cluster is not None:
-        from .distributed import connect
+        from .cluster import connect
         from .distributed_precompute import DaskSSDF
 
         with connect(cluster) as client:

@@ -72,7 +72,7 @@ def ssdf_chunk(mesh, mesh_key: str, start: int, stop: int, resolution: int, ray_
     import warp as wp
 
     from .device import resolve_device
-    from .distributed import ensure_version
+    from .cluster import ensure_version
 
     ensure_version(version)
     device = resolve_device(device)
@@ -94,7 +94,7 @@ class DaskSSDF:
     bytes returned per chunk, seconds."""
 
     def __init__(self, client, chunk: int = DEFAULT_CHUNK, retries: int | None = None, resources: dict | None = None):
-        from .distributed import RETRIES
+        from .cluster import RETRIES
 
         if int(chunk) < 1:
             raise InputError(f"chunk must be >= 1, got {chunk}", where="chunk")
@@ -110,7 +110,7 @@ class DaskSSDF:
         from precompute.visibility import _tqdm, validate_mesh
 
         from .cache import content_key
-        from .distributed import gather_in_order, project_version
+        from .cluster import gather_in_order, project_version
 
         t0 = time.perf_counter()
         _check_resolutions(resolution, ray_resolution)
@@ -162,7 +162,7 @@ def renderer(scene, device=None, progress=False, cluster=None):
 
     if cluster is None:
         return Renderer(scene, device=device, progress=progress)
-    from .distributed import connect
+    from .cluster import connect
 
     with connect(cluster) as client:
         return Renderer(scene, device=device, progress=progress, ssdf_compute=DaskSSDF(client))
@@ -173,7 +173,7 @@ def renderer(scene, device=None, progress=False, cluster=None):
 # --------------------------------------------------------------------------------------------
 def add_cli_arguments(p) -> None:
     from .device import add_device_argument
-    from .distributed import add_cluster_argument
+    from .cluster import add_cluster_argument
 
     p.add_argument("scene", help="scene file (TOML)")
     add_device_argument(p)
@@ -193,7 +193,7 @@ def cli_main(args) -> int:
     t0 = time.perf_counter()
     compute = None
     if args.cluster:
-        from .distributed import connect
+        from .cluster import connect
 
         with connect(args.cluster) as client:
             compute = DaskSSDF(client, chunk=args.chunk)
