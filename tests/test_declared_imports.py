@@ -30,7 +30,7 @@ except ModuleNotFoundError:  # Python 3.10
 ROOT = Path(__file__).resolve().parents[1]
 SOURCE_DIRS = ("warp_sg", "raster", "precompute", "tests", "scripts", "examples")
 # distribution -> the declared distribution that brings it, by that distribution's own contract
-CONTRACT = {"ipython": "ipykernel", "vtk": "pyvista"}
+CONTRACT = {"ipython": "ipykernel", "vtk": "pyvista", "pydantic-core": "pydantic"}
 
 
 def _norm(name: str) -> str:

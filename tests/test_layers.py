@@ -39,7 +39,8 @@ LAYERS = (
     ("math", ("warp_sg.sg", "warp_sg.sg_wp", "warp_sg.frames", "warp_sg.clamped_cosine", "warp_sg.fh",
               "warp_sg.sg_irradiance", "warp_sg.ssdf_product", "warp_sg.anisotropy", "warp_sg.pca",
               "warp_sg.brdf", "warp_sg.brdf.*")),
-    ("scene", ("warp_sg.scene", "warp_sg.scene_model", "warp_sg.scene_toml", "warp_sg.geometry", "warp_sg.camera",
+    ("scene", ("warp_sg.scene", "warp_sg.scene_model", "warp_sg.scene_toml", "warp_sg.scene_schema",
+               "warp_sg.scene_values", "warp_sg.geometry", "warp_sg.camera",
                "warp_sg.envmap", "warp_sg.primitives", "warp_sg.textures", "warp_sg.lights",
                "warp_sg.plain_scenes")),
     # the public facade ``warp_sg`` (``ws.render``, ``ws.reference``: lazy) sits on top with the tools

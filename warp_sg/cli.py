@@ -9,6 +9,7 @@
     warp-sg bench                                  (arguments from warp_sg.bench)
     warp-sg precompute SCENE [--cluster local:N|tcp://HOST:PORT]   (warp_sg.distributed_precompute)
     warp-sg batch JOB.toml [--cluster ...]         (warp_sg.batch)
+    warp-sg schema [-o FILE]                       (JSON Schema of scene files, warp_sg.scene_schema)
 
 ``render``, ``precompute``, ``report``, ``bench`` and ``batch`` take ``--cluster``: the SSDF precompute
 (and batch / reference work) then runs on Dask (docs/distributed.md); without it Dask is not imported.
@@ -147,6 +148,24 @@ def preview_main(args) -> int:
 
 
 # --------------------------------------------------------------------------------------------
+# schema
+# --------------------------------------------------------------------------------------------
+def add_schema_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("-o", "--output", default=None,
+                   help="write the schema to this file (atomically; missing folders are created) instead of stdout")
+
+
+def schema_main(args) -> int:
+    from .scene_schema import schema_text, write_schema
+
+    if args.output:
+        write_schema(args.output)
+    else:
+        sys.stdout.write(schema_text())
+    return 0
+
+
+# --------------------------------------------------------------------------------------------
 # parser
 # --------------------------------------------------------------------------------------------
 def _missing_module(name, mod, err):
@@ -172,6 +191,11 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                                    "window; --screenshot PNG renders off-screen.")
     add_preview_arguments(p)
     p.set_defaults(func=preview_main)
+    p = sub.add_parser("schema", help="print the JSON Schema of scene files (for editors)",
+                       description="Print the JSON Schema (Draft 4) of the TOML scene format, for editors' TOML "
+                                   "language servers (Taplo / Even Better TOML): see docs/rendering.md, \"Editor completion and validation\".")
+    add_schema_arguments(p)
+    p.set_defaults(func=schema_main)
     for name, (mod, help_) in EXTERNAL.items():
         p = sub.add_parser(name, help=help_, description=help_)
         if name != command:

@@ -4,7 +4,7 @@ r"""Scenes: TOML files (``tomllib``) and the equivalent Python objects.
 :class:`Scene`; ``ws.Scene(camera=..., objects=[...], materials={...}, lights=[...])`` builds the
 same thing in Python. Every mistake is a :class:`~warp_sg.errors.SceneError` (or
 ``MeshError``/``ImageError`` for unusable files) whose message names the file, the table and the
-key or element, e.g. ``scene.toml: [materials.copper] key 'rougness' unknown — did you mean 'm'?``.
+key or element, e.g. ``scene.toml: [camera] key 'fvo' unknown — did you mean 'fov'?``.
 
 Records (what the renderer *and* the Monte-Carlo reference read)
 ------------------------------------------------------------------
@@ -52,7 +52,9 @@ Scene file schema (keys beyond DESIGN.md's are marked +)::
                 pca_terms, ssdf_resolution, gamma_levels, gamma_resolution, fh, background, device
 
 Files: this module is the public entry and re-exports every name; the data model is in
-:mod:`warp_sg.scene_model`, the TOML loader and its validation in :mod:`warp_sg.scene_toml`, mesh
+:mod:`warp_sg.scene_model`, the TOML loader in :mod:`warp_sg.scene_toml`, the typed models of the
+file format it validates with (and their JSON Schema, ``warp-sg schema``) in
+:mod:`warp_sg.scene_schema` and :mod:`warp_sg.scene_values`, mesh
 files, normals, tangents and the flattened :class:`Geometry` in :mod:`warp_sg.geometry`, the camera
 in :mod:`warp_sg.camera`.
 """
@@ -61,7 +63,7 @@ from .geometry import Geometry, build_geometry, object_mesh, uv_tangents, valida
 from .lights import DirectionalLight, EnvironmentLight, PointLight
 from .scene_model import (COLOUR_PARAMS, NON_TEXTURE_PARAMS, RENDER_KEYS, Light, Material, RenderSettings, Scene,
                           SceneObject, Transform, _suggest)
-from .scene_toml import CAMERA_KEYS, LIGHT_KEYS, OBJECT_KEYS, TEXTURE_TABLE_KEYS, TOP_KEYS, _Loader, load_scene
+from .scene_toml import load_scene
 from .textures import Texture
 
 __all__ = ["Scene", "SceneObject", "Material", "Transform", "RenderSettings", "Geometry", "Camera", "load_scene",

@@ -130,6 +130,13 @@ class Material:
 Light = PointLight | DirectionalLight | EnvironmentLight
 
 
+#: the integer settings of ``[render]`` and their ranges [lo, hi] (``RenderSettings.validate`` and the
+#: scene schema, :mod:`warp_sg.scene_schema`)
+RENDER_INT_RANGES = {"supersampling": (1, 16), "antialias": (1, 8), "lobes": (1, 16), "env_lobes": (1, 64),
+                     "env_peaks": (0, 16), "visibility_budget": (0, 10_000_000), "pca_terms": (1, 256),
+                     "ssdf_resolution": (4, 1024), "gamma_levels": (0, 64), "gamma_resolution": (4, 1024)}
+
+
 @dataclass
 class RenderSettings:
     """The ``[render]`` table: quality knobs of the SG renderer.
@@ -169,10 +176,7 @@ class RenderSettings:
     device: str = "cpu"
 
     def validate(self, where="[render]"):
-        ints = {"supersampling": (1, 16), "antialias": (1, 8), "lobes": (1, 16), "env_lobes": (1, 64), "env_peaks": (0, 16), "visibility_budget": (0, 10_000_000),
-                "pca_terms": (1, 256), "ssdf_resolution": (4, 1024), "gamma_levels": (0, 64),
-                "gamma_resolution": (4, 1024)}
-        for k, (lo, hi) in ints.items():
+        for k, (lo, hi) in RENDER_INT_RANGES.items():
             v = getattr(self, k)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
                 raise SceneError(f"{where} key '{k}' must be an integer, got {v!r}")
@@ -265,4 +269,4 @@ def _suggest(name, options) -> str:
 
 
 __all__ = ["Scene", "SceneObject", "Material", "Transform", "RenderSettings", "Light", "COLOUR_PARAMS",
-           "NON_TEXTURE_PARAMS", "RENDER_KEYS"]
+           "NON_TEXTURE_PARAMS", "RENDER_KEYS", "RENDER_INT_RANGES"]

@@ -1,0 +1,515 @@
+r"""Typed models of the TOML scene format (pydantic v2) and its JSON Schema.
+
+:class:`SceneFile` is the whole file: ``[camera]``, ``[[objects]]``, ``[materials.NAME]``,
+``[[lights]]`` and ``[render]`` (field meanings in :mod:`warp_sg.scene`). ``warp_sg.scene_toml``
+validates the parsed TOML with it and turns the validated tables into :class:`~warp_sg.scene.Scene`
+records; :func:`json_schema` is what ``warp-sg schema`` prints (``docs/scene.schema.json``), so
+editors with a TOML language server (Taplo / "Even Better TOML") complete keys and flag mistakes
+while a scene is typed.
+
+The schema follows the code, not a copy of it: material tables have one branch per entry of
+``warp_sg.brdf.MODELS`` with that model's ``PARAMS`` (a discriminated union on ``model``), objects
+one branch per primitive of ``warp_sg.primitives.PRIMITIVE_PARAMS`` (plus ``mesh``), lights one
+per ``type``; defaults come from the records' own dataclass defaults, ``[render]``'s ranges from
+``warp_sg.scene_model.RENDER_INT_RANGES``.
+
+Leaf values are the types of :mod:`warp_sg.scene_values` (each a check in the project's wording
+and the same rule as JSON Schema); :func:`error_message` turns pydantic's first error into the
+one-line ``[materials.gold] key 'rougness' unknown — did you mean ...`` form (never a pydantic
+dump).
+
+The JSON Schema is Draft 4 (the newest draft Taplo documents): ``const`` is written as a one-value
+``enum``, exclusive bounds as ``"exclusiveMinimum": true``, ``$defs`` as ``definitions``, and a
+``$ref`` with a description is wrapped in ``allOf`` (Draft 4 ignores a ``$ref``'s siblings).
+"""
+from __future__ import annotations
+
+import inspect
+import json
+import math
+from dataclasses import MISSING, fields
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import ConfigDict, Field, create_model, model_validator
+
+from .atomic import atomic_output, make_parents
+from .brdf import MODELS
+from .brdf.fresnel import PRESETS
+from .camera import Camera
+from .envmap import procedural_sky
+from .errors import InputError
+from .lights import ENV_PROCEDURAL, DirectionalLight, EnvironmentLight, PointLight
+from .primitives import PRIMITIVE_PARAMS, PRIMITIVES
+from .scene_model import RENDER_INT_RANGES, RenderSettings, _suggest
+from .scene_values import (Table, anything, boolean, choice, fail, int_or_ints, integer, number, number_or_vector,
+                           path, require_tag, rgb, string, tagged, vector)
+
+DRAFT = "http://json-schema.org/draft-04/schema#"
+
+
+def _defaults(cls) -> dict:
+    """The defaults of a record dataclass (arrays as lists), so the schema shows what the code uses."""
+    out = {}
+    for f in fields(cls):
+        v = f.default if f.default is not MISSING else (
+            f.default_factory() if f.default_factory is not MISSING else MISSING)
+        if v is not MISSING:
+            out[f.name] = v.tolist() if hasattr(v, "tolist") else v
+    return out
+
+
+def _texture_or(value_type, description):
+    """A material parameter that may be a texture: the value (unless ``value_type`` is None), a
+    texture path or a texture table."""
+    def tag(v):
+        return "<texture path>" if isinstance(v, str) else "<texture table>" if isinstance(v, dict) else "<value>"
+
+    branches = {"<texture path>": path("texture file (PNG: sRGB for colours; EXR: linear)"),
+                "<texture table>": TextureTable}
+    if value_type is not None:
+        branches = {"<value>": value_type, **branches}
+    return Annotated[tagged(branches, tag), Field(description=description)]
+
+
+class TextureTable(Table):
+    """A texture with a value mapping: value = offset + scale · texel."""
+
+    texture: path("texture file (PNG or EXR), relative to the scene file")
+    scale: number(description="value = offset + scale · texel") = 1.0
+    offset: number(description="value = offset + scale · texel") = 0.0
+    srgb: boolean("decode as sRGB (default: PNG colour parameters yes, everything else no)") = None
+
+
+class FresnelTable(Table):
+    """``{schlick = F0}``, ``{eta = η}`` (dielectric) or ``{eta = η, k = k}`` (conductor)."""
+
+    model_config = ConfigDict(json_schema_extra={"anyOf": [{"required": ["schlick"], "maxProperties": 1},
+                                                           {"required": ["eta"], "not": {"required": ["schlick"]}}]})
+    schlick: rgb(raw=True, description="Schlick F0 (number or RGB)") = None
+    eta: rgb(raw=True, description="index of refraction η (number or RGB)") = None
+    k: rgb(raw=True, description="extinction coefficient k of a conductor (number or RGB)") = None
+
+    @model_validator(mode="after")
+    def _combination(self):
+        given = {k for k in ("schlick", "eta", "k") if getattr(self, k) is not None}
+        if given not in ({"schlick"}, {"eta"}, {"eta", "k"}):
+            fail("use {schlick = f0}, {eta = η} or {eta = η, k = k}", sep=": ")
+        return self
+
+
+FRESNEL = tagged({"<preset>": choice(PRESETS, fold_case=True), "<fresnel table>": FresnelTable},
+                  lambda v: "<fresnel table>" if isinstance(v, dict) else "<preset>")
+
+
+class LafortuneLobe(Table):
+    """One generalised cosine lobe ``(cx ux vx + cy uy vy + cz uz vz)^n``."""
+
+    cx: number()
+    cy: number()
+    cz: number()
+    n: number(lo=0)
+
+
+# material parameters: (type, description, texturable); per-model entries override per-name ones
+_POS, _NONNEG = dict(lo=0, lo_open=True), dict(lo=0)
+PARAM_TYPES: dict = {
+    "kd": (rgb(raw=True), "diffuse albedo (number or RGB)", True),
+    "ks": (rgb(raw=True), "specular scale (number or RGB)", True),
+    "m": (number(**_POS), "roughness m (Beckmann slope RMS)", True),
+    "n": (number(**_NONNEG), "Phong exponent", True),
+    "sigma": (number(**_NONNEG), "Oren–Nayar roughness σ (radians)", True),
+    "alpha": (number(**_POS), "isotropic roughness α", True),
+    "alpha_x": (number(**_POS), "roughness along the tangent", True),
+    "alpha_y": (number(**_POS), "roughness along the bitangent", True),
+    "nu": (number(**_NONNEG), "exponent along the tangent", True),
+    "nv": (number(**_NONNEG), "exponent along the bitangent", True),
+    "fresnel": (FRESNEL, "Fresnel: a preset (" + ", ".join(PRESETS) + ") or {schlick}, {eta} or {eta, k}", False),
+    "lobes": (integer(lo=1), "number of SG lobes of the NDF fit", False),
+    "file": (path(), "MERL .binary file, relative to the scene file", False),
+    "eta": (number(**_POS), "index of refraction used for the microfacet fit", False),
+    "pca_terms": (integer(lo=0), "PCA terms of the shadowing fit", False),
+    ("ashikhmin_shirley", "lobes"): (integer(lo=1, odd=True), "number of SG lobes (odd) along the longer axis",
+                                     False),
+    ("lafortune", "lobes"): (Annotated[list[LafortuneLobe], Field(min_length=1)],
+                             "lobes: a list of {cx, cy, cz, n} tables", False),
+}
+#: parameters that may be a texture (the kernel's texture slots, ``warp_sg.surface``)
+TEXTURE_PARAMS = tuple(k for k, v in PARAM_TYPES.items() if isinstance(k, str) and v[2])
+
+
+def param_type(model: str, name: str):
+    """(type, description, texturable) of material parameter ``name`` of ``model``."""
+    spec = PARAM_TYPES.get((model, name)) or PARAM_TYPES.get(name)
+    if spec is None:  # a parameter the schema does not know yet: a number or a texture
+        spec = (number(), f"parameter {name} of {model}", True)
+    return spec
+
+
+def _jsonable(v):
+    if isinstance(v, (tuple, list)):
+        return [_jsonable(x) for x in v]
+    return v.tolist() if hasattr(v, "tolist") else v
+
+
+def _material_model(name: str, cls):
+    """The table of ``[materials.X] model = name``: the model's ``PARAMS`` (defaults shown from its
+    constructor) plus ``normal_map`` and ``tangent_map``."""
+    cls = cls._cls() if hasattr(type(cls), "_cls") else cls  # the lazy measured model
+    sig = inspect.signature(cls.__init__).parameters
+    fields_ = {"model": (Literal[name], Field(description=f"BRDF model {cls.__name__}"))}
+    for p in cls.PARAMS:
+        typ, desc, tex = param_type(name, p)
+        d = sig[p].default if p in sig else None
+        extra = {"default": _jsonable(d)} if d not in (None, inspect.Parameter.empty) else None
+        typ = _texture_or(typ, desc) if tex else Annotated[typ, Field(description=desc)]
+        fields_[p] = (typ, Field(None, json_schema_extra=extra))
+    for p, desc in (("normal_map", "tangent-space normal map (RGB)"),
+                    ("tangent_map", "tangent direction map (RG)")):
+        fields_[p] = (_texture_or(None, desc), None)
+    return create_model(f"Material_{name}", __base__=Table,
+                        __doc__=f"`model = \"{name}\"` ({cls.__name__}): {', '.join(cls.PARAMS)}", **fields_)
+
+
+def _material_tag(v):
+    require_tag(v, "model", tuple(MODELS), "model")
+    return v
+
+
+MATERIAL_MODELS = {name: _material_model(name, cls) for name, cls in MODELS.items()}
+Material = tagged({f"<model {k}>": m for k, m in MATERIAL_MODELS.items()},
+                   lambda v: f"<model {v.get('model')}>" if isinstance(v, dict) else None, _material_tag)
+
+
+class CameraTable(Table):
+    """Pinhole camera (Mitsuba ``look_at``): vertical field of view in degrees."""
+
+    origin: vector(description="eye position") = Camera.origin
+    target: vector(description="point looked at") = Camera.target
+    up: vector(description="up direction") = Camera.up
+    fov: number(lo=0, lo_open=True, hi=179.0, description="vertical field of view (degrees)") = Camera.fov
+    width: integer(lo=1, description="image width (pixels)") = Camera.width
+    height: integer(lo=1, description="image height (pixels)") = Camera.height
+    near: number(**_POS, description="near clipping distance") = Camera.near
+    far: number(**_POS, description="far clipping distance") = Camera.far
+
+    @model_validator(mode="after")
+    def _geometry(self):
+        o, t, u = self.origin, self.target, self.up
+        d = tuple(b - a for a, b in zip(o, t))
+        if all(abs(x) <= 1e-8 * (1 + abs(a)) for x, a in zip(d, o)):
+            fail("origin and target coincide")
+        c = (d[1] * u[2] - d[2] * u[1], d[2] * u[0] - d[0] * u[2], d[0] * u[1] - d[1] * u[0])
+        if math.hypot(*c) < 1e-9 * math.hypot(*d) * max(math.hypot(*u), 1e-30):
+            fail("up is parallel to the viewing direction (or zero)")
+        return self
+
+
+_OBJECT_FIELDS = {
+    "material": (string("name of a [materials.NAME] table"), ...),
+    "name": (string("label used in messages"), None),
+    "translate": (vector(description="translation (applied last)"), None),
+    "scale": (number_or_vector(3, description="scale: a number or 3 numbers, > 0"), None),
+    "rotate": (vector(description="Euler angles (degrees) about X, then Y, then Z"), None),
+}
+_PRIMITIVE_PARAM_TYPES = {
+    "center": vector(description="centre"),
+    "radius": number(**_POS, description="radius"),
+    "major_radius": number(**_POS, description="radius of the ring (axis +Y)"),
+    "minor_radius": number(**_POS, description="radius of the tube"),
+    "size": number_or_vector(2, description="[sx, sz] (normal +Y) or one number"),
+    "resolution": int_or_ints(2, description="tessellation: 2 integers (or one for both)"),
+}
+
+
+def _object_model(prim: str | None):
+    f = dict(_OBJECT_FIELDS)
+    if prim is None:
+        f["mesh"] = (path("mesh file (any format trimesh reads), relative to the scene file"), ...)
+        return create_model("MeshObject", __base__=Table, __doc__="An object read from a mesh file.", **f)
+    f["primitive"] = (Literal[prim], Field(description="built-in primitive"))
+    for k, default in PRIMITIVE_PARAMS[prim].items():
+        f[k] = (_PRIMITIVE_PARAM_TYPES[k], Field(default=list(default) if isinstance(default, tuple) else default))
+    return create_model(f"Primitive_{prim}", __base__=Table, __doc__=f"A {prim} primitive.", **f)
+
+
+def _object_tag(v):
+    if not isinstance(v, dict):
+        fail(f"must be a table, got {type(v).__name__}")
+    if ("mesh" in v) == ("primitive" in v):
+        fail("give exactly one of 'mesh' or 'primitive'")
+    if "primitive" in v:
+        require_tag(v, "primitive", PRIMITIVES, "primitive")
+    return v
+
+
+OBJECT_MODELS = {"<mesh>": _object_model(None), **{f"<primitive {p}>": _object_model(p) for p in PRIMITIVES}}
+SceneObjectTable = tagged(OBJECT_MODELS, lambda v: "<mesh>" if "mesh" in v else f"<primitive {v['primitive']}>",
+                           _object_tag)
+
+_PL, _DL, _EL = _defaults(PointLight), _defaults(DirectionalLight), _defaults(EnvironmentLight)
+
+
+class PointLightTable(Table):
+    """A spherical light: radiance s/(π r²), irradiance s/d² at distance d."""
+
+    type: Literal["point"]
+    position: vector(description="centre")
+    radius: number(lo=0, description="radius (0: a delta light)") = _PL["radius"]
+    intensity: rgb(description="intensity s (W/sr): number or RGB") = _PL["intensity"]
+
+
+class DirectionalLightTable(Table):
+    """A distant light (a sun)."""
+
+    type: Literal["directional"]
+    direction: vector(nonzero=True, description="direction towards the light")
+    radius: number(lo=0, hi=math.pi / 2, description="angular radius (radians)") = _DL["radius"]
+    intensity: rgb(description="irradiance E on a surface facing the light: number or RGB") = _DL["intensity"]
+
+
+SKY_OPTIONS = tuple(inspect.signature(procedural_sky).parameters)
+CONSTANT_OPTIONS = ("radiance", "width", "height")
+ENV_OPTIONS = {"sky": SKY_OPTIONS, "constant": CONSTANT_OPTIONS}
+
+
+class EnvironmentLightTable(Table):
+    """An equirectangular environment (Mitsuba convention): a file or a procedural map."""
+
+    model_config = ConfigDict(json_schema_extra={"oneOf": [{"required": ["file"]}, {"required": ["procedural"]}]})
+    type: Literal["environment"]
+    file: path("equirectangular map (EXR), relative to the scene file") = None
+    procedural: choice(ENV_PROCEDURAL, "built-in map") = None
+    options: anything({"type": "object", "additionalProperties": False, "properties": {
+        **{k: {"description": f"procedural_sky keyword {k}"} for k in SKY_OPTIONS},
+        "radiance": {"description": "constant: radiance (number or RGB)"}}},
+        "procedural map options (sky: warp_sg.envmap.procedural_sky keywords; constant: radiance, width, "
+        "height)") = {}
+    scale: number(lo=0, description="radiance scale") = _EL["scale"]
+    rotation: number(description="rotation about +Y (degrees)") = _EL["rotation"]
+
+    @model_validator(mode="after")
+    def _source(self):
+        if (self.file is None) == (self.procedural is None):
+            fail("give exactly one of 'file' or 'procedural'")
+        if not isinstance(self.options, dict):
+            fail(f"must be a table, got {self.options!r}", key="options")
+        allowed = ENV_OPTIONS.get(self.procedural, ())
+        for k in self.options:
+            if k not in allowed:
+                fail(f"unknown option{_suggest(k, allowed)} (options of {self.procedural or 'a file'}: "
+                      f"{', '.join(allowed) or 'none'})", key=f"options.{k}", sep=": ")
+        return self
+
+
+LIGHT_MODELS = {"<point>": PointLightTable, "<directional>": DirectionalLightTable,
+                "<environment>": EnvironmentLightTable}
+LIGHT_TYPES = ("point", "directional", "environment")
+
+
+def _light_tag(v):
+    require_tag(v, "type", LIGHT_TYPES, "light type")
+    return v
+
+
+LightTable = tagged(LIGHT_MODELS, lambda v: f"<{v['type']}>", _light_tag)
+
+_RS = _defaults(RenderSettings)
+_RENDER_DOC = {
+    "shadows": "SSDF soft shadows (off: visibility 1, no SSDF precompute)",
+    "supersampling": "k: raster and shade at k·H × k·W, box-resolved",
+    "antialias": "a: coverage at a×a sub-pixels, shading edge-adaptive (1 = off; used when supersampling = 1)",
+    "lobes": "SG lobes of the NDF of isotropic models",
+    "env_lobes": "SG lobes of the environment for the diffuse term (eq. 39)",
+    "env_peaks": "sharp environment peaks (a sun) shaded as directional lights (0 = off)",
+    "visibility_budget": "with shadows: refine the mesh where visibility changes, up to this many vertices",
+    "pca_terms": "SSDF PCA terms",
+    "ssdf_resolution": "SSDF map resolution",
+    "gamma_levels": "λ levels of the ΓL pyramid (0 = default ladder)",
+    "gamma_resolution": "largest cube face of the ΓL pyramid",
+    "fh": "Fh: 'table' (exact, tabulated) or 'sigmoid' (paper appendix)",
+    "background": "pixels that see no object show the environment",
+    "device": "default device: 'cpu', 'cuda', 'cuda:N' or 'auto'",
+}
+
+
+def _render_type(k):
+    if k in RENDER_INT_RANGES:
+        return integer(*RENDER_INT_RANGES[k], description=_RENDER_DOC[k])
+    if k in ("shadows", "background"):
+        return boolean(_RENDER_DOC[k])
+    if k == "fh":
+        return choice(("table", "sigmoid"), _RENDER_DOC[k])
+    return string(_RENDER_DOC[k])
+
+
+RenderTable = create_model("RenderTable", __base__=Table, __doc__="Quality settings of the SG renderer.",
+                           **{k: (_render_type(k), _RS[k]) for k in _RS})
+
+
+class SceneFile(Table):
+    """A warp-sg scene file (TOML): camera, objects, materials, lights and render settings."""
+
+    camera: Annotated[CameraTable, Field(description="the camera")]
+    objects: Annotated[list[SceneObjectTable], Field(description="[[objects]]: meshes and primitives")] = []
+    materials: Annotated[dict[str, Material], Field(description="[materials.NAME]: a BRDF model and its "
+                                                                 "parameters")] = {}
+    lights: Annotated[list[LightTable], Field(description="[[lights]]: point, directional, environment")] = []
+    render: Annotated[RenderTable, Field(description="renderer settings")] = RenderTable()
+
+
+# --------------------------------------------------------------------------------------------
+# errors -> one line
+# --------------------------------------------------------------------------------------------
+_TAGS = {*OBJECT_MODELS, *LIGHT_MODELS, *(f"<model {k}>" for k in MODELS), "<value>", "<texture path>",
+         "<texture table>", "<preset>", "<fresnel table>"}
+
+
+def _table_label(data, loc) -> tuple[str, Any, tuple]:
+    """(``[table]`` label, the raw table, the rest of ``loc``) of an error location."""
+    if not loc:
+        return "", data, ()
+    head = loc[0]
+    if head in ("objects", "lights") and len(loc) > 1 and isinstance(loc[1], int):
+        return f"[[{head}]] #{loc[1] + 1}", data[head][loc[1]], loc[2:]
+    if head == "materials" and len(loc) > 1:
+        return f"[materials.{loc[1]}]", data["materials"][loc[1]], loc[2:]
+    if head in SceneFile.model_fields:
+        return f"[{head}]", data.get(head), loc[1:]
+    return "", data, loc
+
+
+def _key_path(raw, rest) -> str:
+    """The TOML key path of ``rest`` (union tags dropped): ``kd``, ``lobes[0].cx``."""
+    out = ""
+    for el in rest:
+        if isinstance(el, str) and el in _TAGS and not (isinstance(raw, dict) and el in raw):
+            continue
+        out += f"[{el}]" if isinstance(el, int) else (f".{el}" if out else el)
+        raw = raw[el] if isinstance(raw, (dict, list)) and (el in raw if isinstance(raw, dict) else
+                                                            isinstance(el, int) and el < len(raw)) else None
+    return out
+
+
+def error_message(err: dict, data: dict) -> str:
+    """One line for one pydantic error dict (``ValidationError.errors()[i]``) on TOML ``data``."""
+    loc, typ = tuple(err["loc"]), err["type"]
+    label, raw, rest = _table_label(data, loc)
+    key = _key_path(raw, rest)
+    if typ == "scene":
+        ctx = err["ctx"]
+        key = ".".join(x for x in (key, ctx["key"]) if x)
+        text = f"key '{key}'{ctx['sep']}{ctx['msg']}" if key else ctx["msg"]
+    elif typ == "missing":
+        if label and not key:
+            return f"table {label} is missing"
+        text = f"key '{key}' is missing"
+    elif typ in ("model_type", "dict_type", "model_attributes_type"):
+        got = type(raw if not key else None).__name__
+        text = (f"key '{key}' must be a table" if key else f"must be a table, got {got}")
+    elif typ == "list_type":
+        text = f"key '{key}' must be a list" if key else f"must be an array of tables ([{label}])"
+    elif typ == "too_short":
+        text = f"key '{key}' must not be empty"
+    elif typ == "literal_error":
+        text = f"key '{key}' must be {err['ctx']['expected']}"
+    else:
+        text = f"key '{key}': {err['msg']}" if key else err["msg"]
+    return f"{label} {text}" if label else text
+
+
+# --------------------------------------------------------------------------------------------
+# JSON Schema
+# --------------------------------------------------------------------------------------------
+def _draft4(node):
+    """Pydantic's schema (2020-12 flavoured) rewritten in Draft 4 terms (see the module docstring)."""
+    if isinstance(node, list):
+        return [_draft4(x) for x in node]
+    if not isinstance(node, dict):
+        return node
+    out = {}
+    for k, v in node.items():
+        if k == "$defs":
+            out["definitions"] = {n: _draft4(s) for n, s in v.items()}
+        elif k == "$ref":
+            out[k] = v.replace("#/$defs/", "#/definitions/")
+        elif k == "const":
+            out["enum"] = [v]
+        elif k == "properties":  # property names are data, not keywords
+            out[k] = {n: _draft4(s) for n, s in v.items()}
+        else:
+            out[k] = _draft4(v)
+    if "$ref" in out and len(out) > 1:
+        ref = out.pop("$ref")
+        out = {"allOf": [{"$ref": ref}], **out}
+    if out.get("default", 0) is None:  # "unset" in the models: no default to show
+        out.pop("default")
+    if out.get("type") == "string" and "enum" in out and len(out["enum"]) == 1:
+        out.pop("type")
+    return out
+
+
+def _merged(branches: list, defs: dict) -> dict | None:
+    """For a ``oneOf`` of table definitions: every key any branch allows (its schema where the
+    branches agree, else only its description; a tag key's enums joined) and
+    ``additionalProperties: false``. Validators then name a misspelt key itself ("'rougness' was
+    unexpected") instead of only "not valid under any of the schemas listed in 'oneOf'", and
+    editors complete keys and tag values before the branch is known."""
+    tables = [defs[b["$ref"].split("/")[-1]] for b in branches if set(b) == {"$ref"}]
+    if len(tables) != len(branches) or not all(t.get("additionalProperties") is False for t in tables):
+        return None
+    props: dict = {}
+    for t in tables:
+        for k, v in t["properties"].items():
+            props.setdefault(k, []).append(v)
+    out = {}
+    for k, vs in props.items():
+        if all(set(v) <= {"enum", "description", "title"} for v in vs):
+            out[k] = {"enum": [e for v in vs for e in v["enum"]], "description": vs[0].get("description", k)}
+        elif all(v == vs[0] for v in vs):
+            out[k] = vs[0]
+        else:
+            out[k] = {"description": " | ".join(dict.fromkeys(v.get("description", k) for v in vs))}
+    required = set.intersection(*(set(t.get("required", ())) for t in tables))
+    return {"type": "object", "properties": out, "additionalProperties": False,
+            **({"required": sorted(required)} if required else {})}
+
+
+def _merge_unions(node, defs):
+    if isinstance(node, list):
+        return [_merge_unions(x, defs) for x in node]
+    if not isinstance(node, dict):
+        return node
+    node = {k: _merge_unions(v, defs) for k, v in node.items()}
+    if "oneOf" in node and (m := _merged(node["oneOf"], defs)) is not None:
+        node = {**m, **node}
+    return node
+
+
+def json_schema() -> dict:
+    """The JSON Schema (Draft 4) of scene files, from :class:`SceneFile`."""
+    s = _draft4(SceneFile.model_json_schema())
+    s = _merge_unions(s, s["definitions"])
+    s.pop("title", None)
+    return {"$schema": DRAFT, "title": "warp-sg scene file", **s}
+
+
+def schema_text() -> str:
+    """:func:`json_schema` as the text of ``docs/scene.schema.json`` (2-space indent, UTF-8)."""
+    return json.dumps(json_schema(), indent=2, ensure_ascii=False) + "\n"
+
+
+def write_schema(path) -> Path:
+    """Write :func:`schema_text` to ``path`` atomically (missing folders are created)."""
+    p = Path(path)
+    if p.is_dir():
+        raise InputError("is a folder, not a file", where=str(p))
+    make_parents(p)
+    with atomic_output(p) as tmp:
+        Path(tmp).write_text(schema_text(), encoding="utf-8")
+    return p
+
+
+__all__ = ["SceneFile", "CameraTable", "RenderTable", "TextureTable", "FresnelTable", "MATERIAL_MODELS",
+           "OBJECT_MODELS", "LIGHT_MODELS", "PARAM_TYPES", "TEXTURE_PARAMS", "param_type", "error_message",
+           "json_schema", "schema_text", "write_schema", "DRAFT"]
