@@ -125,6 +125,9 @@ def test_distributed_ssdfs_equal_local_ones_bitwise_and_are_the_same_cache_entry
     assert raw.dtype == np.float32 and raw.shape == local_raw.shape == (len(V), 8, 8)
     assert np.array_equal(raw, local_raw)
     assert dask.stats["tasks"] == -(-len(V) // 37) and dask.stats["bytes_per_chunk"] == 37 * 64 * 4
+    ids = np.array([5, len(V) - 1, 0, 17, 150])
+    assert np.array_equal(dask(V, F, N, resolution=8, ray_resolution=16, progress=False, vertex_ids=ids),
+                          local_raw[ids])
 
     _fresh_cache(workdir, "cache-local")
     loc = ssdf_for_mesh(V, F, N, resolution=8, pca_terms=4, progress=False)

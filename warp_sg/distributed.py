@@ -184,7 +184,9 @@ def render_many(scene, variants, cluster=None, *, device=None, progress: bool = 
     if not variants:
         return []
     with connect(cluster) as client:
-        base = Renderer(copy.deepcopy(scene), device, progress=progress,
+        # built on ``scene`` itself: the scene then carries its loaded meshes, textures and
+        # environment map when it is scattered, so workers need none of its files
+        base = Renderer(scene, device, progress=progress,
                         ssdf_compute=DaskSSDF(client, retries=retries, resources=resources))
         device = base.device
         scene_f = client.scatter([scene], broadcast=True)[0]

@@ -66,9 +66,10 @@ def _ssdf_rows(ctx, dirs, Rr, R, pts, nrm, s, e, device):
     return _ssdf_batch(ctx, dirs, Rr, R, pts, nrm, s, e, device)
 
 
-def ssdf_chunk(mesh, mesh_key: str, start: int, stop: int, resolution: int, ray_resolution: int, device: str,
+def ssdf_chunk(mesh, mesh_key: str, rows, resolution: int, ray_resolution: int, device: str,
                version: str, batch: int = 256) -> np.ndarray:
-    """Task: float32 SSDFs ``(stop − start, R²)`` of vertices ``start..stop`` of the scattered mesh."""
+    """Task: float32 SSDFs ``(m, R²)`` of the scattered mesh's vertices ``rows`` (a ``(start, stop)``
+    range or an array of m vertex ids)."""
     import warp as wp
 
     from .device import resolve_device
@@ -78,9 +79,10 @@ def ssdf_chunk(mesh, mesh_key: str, start: int, stop: int, resolution: int, ray_
     device = resolve_device(device)
     ctx, dirs = _mesh_context(mesh, mesh_key, ray_resolution, device)
     v, _, n = mesh
-    pts = wp.array(v[start:stop].astype(np.float32), dtype=wp.vec3, device=device)
-    nrm = wp.array(n[start:stop].astype(np.float32), dtype=wp.vec3, device=device)
-    m = stop - start
+    sel = slice(*rows) if isinstance(rows, tuple) else np.asarray(rows, np.int64)
+    pts = wp.array(v[sel].astype(np.float32), dtype=wp.vec3, device=device)
+    nrm = wp.array(n[sel].astype(np.float32), dtype=wp.vec3, device=device)
+    m = len(pts)
     parts = [_ssdf_rows(ctx, dirs, int(ray_resolution), int(resolution), pts, nrm, s, min(s + batch, m), device)
              for s in range(0, m, batch)]  # serially: Dask runs one task per worker thread
     return np.concatenate(parts) if parts else np.zeros((0, int(resolution) ** 2), np.float32)
@@ -121,21 +123,23 @@ class DaskSSDF:
             from .errors import MeshError
 
             raise MeshError("mesh has no triangles (nothing to cast rays against)")
-        if vertex_ids is not None:  # a subset: the same rows of the full mesh's SSDFs
-            ids = np.asarray(vertex_ids, np.int64)
-            return self(v, f, n, resolution=resolution, ray_resolution=ray_resolution, device=device,
-                        progress=progress)[ids]
+        ids = None if vertex_ids is None else np.asarray(vertex_ids, np.int64).reshape(-1)
+        if ids is not None and ids.size and (ids.min() < 0 or ids.max() >= len(v)):
+            raise InputError(f"vertex ids out of range (mesh has {len(v)} vertices)", where="vertex_ids")
+        count = len(v) if ids is None else len(ids)
         R, Rr = int(resolution), int(ray_resolution)
         mesh_key = content_key(v, f, n)
         mesh_f = self.client.scatter([(v, f, n)], broadcast=True, hash=False)[0]
         version = project_version()
-        ranges = [(s, min(s + self.chunk, len(v))) for s in range(0, len(v), self.chunk)]
+        ranges = [(s, min(s + self.chunk, count)) for s in range(0, count, self.chunk)]
         dev = str(device)
-        futs = [self.client.submit(ssdf_chunk, mesh_f, mesh_key, s, e, R, Rr, dev, version, retries=self.retries,
-                                   resources=self.resources, key=f"warp-sg-ssdf-{mesh_key[:16]}-{R}-{Rr}-{s}-{e}")
+        tag = "" if ids is None else content_key(ids)[:8] + "-"
+        futs = [self.client.submit(ssdf_chunk, mesh_f, mesh_key, (s, e) if ids is None else ids[s:e], R, Rr, dev,
+                                   version, retries=self.retries, resources=self.resources,
+                                   key=f"warp-sg-ssdf-{mesh_key[:16]}-{tag}{R}-{Rr}-{s}-{e}")
                 for s, e in ranges]
-        out = np.empty((len(v), R * R), np.float32)
-        bar = _tqdm(len(v), "SSDF (dask)", progress and len(v) * Rr * Rr > 1_000_000)
+        out = np.empty((count, R * R), np.float32)
+        bar = _tqdm(count, "SSDF (dask)", progress and count * Rr * Rr > 1_000_000)
 
         def place(i, block):
             s, e = ranges[i]
@@ -152,7 +156,7 @@ class DaskSSDF:
         self.stats = {"tasks": len(ranges), "chunk": self.chunk, "bytes_per_chunk": self.chunk * R * R * 4,
                       "mesh_bytes_per_worker": int(v.nbytes + f.nbytes + n.nbytes),
                       "seconds": time.perf_counter() - t0}
-        return out.reshape(len(v), R, R)
+        return out.reshape(count, R, R)
 
 
 def renderer(scene, device=None, progress=False, cluster=None):
