@@ -58,6 +58,25 @@ def _refine_key(g: Geometry, budget: int) -> str:
     return content_key(np.asarray(g.vertices), np.asarray(g.triangles), np.asarray(g.normals), {"budget": int(budget)})
 
 
+class _TermMask:
+    """A BRDF model seen with its kd and/or ks zeroed (:meth:`Renderer.set_terms`); everything
+    else (lobes, tables, parameters) is the model's own."""
+
+    def __init__(self, model, diffuse: bool, specular: bool):
+        self._model, self._diffuse, self._specular = model, diffuse, specular
+
+    def __getattr__(self, name):
+        return getattr(self._model, name)
+
+    def material_record(self):
+        rec = dict(self._model.material_record())
+        if not self._diffuse:
+            rec["kd"] = (0.0, 0.0, 0.0)
+        if not self._specular:
+            rec["ks"] = (0.0, 0.0, 0.0)
+        return rec
+
+
 def _timer(device):
     wp.synchronize_device(device)
     return time.perf_counter()
@@ -73,6 +92,11 @@ class Renderer:
     reused instead of recomputed; a mismatch is an :class:`InputError`): how batch workers share
     one precompute.
     """
+
+    #: terms of eq. 36 shown (:meth:`set_terms`; the viewer's check boxes)
+    show_diffuse = True
+    show_specular = True
+    show_shadows = True
 
     def __init__(self, scene: Scene, device: str | None = None, progress: bool = False, *, ssdf_compute=None,
                  precomputed: dict | None = None):
@@ -279,8 +303,11 @@ class Renderer:
         rs = scene.render
         names = self.geometry.material_names
         mats = [scene.materials[n] for n in names]
+        models = [m.brdf for m in mats]
+        if not (self.show_diffuse and self.show_specular):
+            models = [_TermMask(b, self.show_diffuse, self.show_specular) for b in models]
         try:
-            self.material_table = pack_materials([m.brdf for m in mats], rs.lobes, self.device)
+            self.material_table = pack_materials(models, rs.lobes, self.device)
         except InputError as e:
             raise SceneError(f"materials: {e}") from None
         self.has_specular = any(r["model"] >= 2 for r in self.material_table.records)
@@ -288,6 +315,9 @@ class Renderer:
         slots, images = material_texture_slots(mats, COLOUR_PARAMS)
         self.has_textures = bool(np.any(slots[:, :S.SLOT_NORMAL] >= 0))
         self.has_normal_maps = bool(np.any(slots[:, S.SLOT_NORMAL:] >= 0))
+        # hidden terms unbind their textures after the variant is chosen (set_terms: same kernel)
+        slots[:, S.SLOT_KD] = np.where(self.show_diffuse, slots[:, S.SLOT_KD], -1)
+        slots[:, S.SLOT_KS] = np.where(self.show_specular, slots[:, S.SLOT_KS], -1)
         mt = S.MaterialTextures()
         mt.slots = wp.array(slots, dtype=int, device=self.device)
         mt.atlas = build_atlas(images, self.device)
@@ -317,7 +347,7 @@ class Renderer:
             env_specular=self.env_specular_mode if self.has_specular else S.ENV_NONE,
             lights=len(self.shading_lights) > 0,
             specular=self.has_specular,
-            shadows=self.shadows,
+            shadows=self.shadows and self.show_shadows,
             textures=self.has_textures,
             normal_maps=self.has_normal_maps,
             fh_sigmoid=self.scene.render.fh == "sigmoid",
@@ -344,6 +374,18 @@ class Renderer:
             _ = m.brdf
         except InputError as e:
             raise SceneError(f"[materials.{name}] {e}") from None
+        with wp.ScopedDevice(self.device):
+            self._setup_materials()
+
+    def set_terms(self, diffuse: bool | None = None, specular: bool | None = None,
+                  shadows: bool | None = None) -> None:
+        """Show or hide terms of eq. 36 without precompute (None: unchanged). ``diffuse`` /
+        ``specular`` off zero every material's kd / ks (and unbind kd / ks textures): the same
+        kernel variant runs. A measured (tabulated) BRDF has no kd / ks split for local lights.
+        ``shadows`` off selects the kernel variant without SSDF visibility (V = 1)."""
+        for name, v in (("show_diffuse", diffuse), ("show_specular", specular), ("show_shadows", shadows)):
+            if v is not None:
+                setattr(self, name, bool(v))
         with wp.ScopedDevice(self.device):
             self._setup_materials()
 
