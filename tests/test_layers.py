@@ -44,7 +44,8 @@ LAYERS = (
                "warp_sg.envmap", "warp_sg.primitives", "warp_sg.textures", "warp_sg.lights",
                "warp_sg.plain_scenes")),
     # the public facade ``warp_sg`` (``ws.render``, ``ws.reference``: lazy) sits on top with the tools
-    ("tools", ("warp_sg", "warp_sg.cli", "warp_sg.report", "warp_sg.bench", "warp_sg.preview", "raster.bench",
+    ("tools", ("warp_sg", "warp_sg.cli", "warp_sg.report", "warp_sg.bench", "warp_sg.preview", "warp_sg.viewer",
+               "warp_sg.viewer_widgets", "raster.bench",
                "precompute.bench", "warp_sg.cluster", "warp_sg.distributed", "warp_sg.distributed_precompute", "warp_sg.batch")),
     # surface: the shading point's textured material and frame, @wp.funcs shared by the shading
     # kernels and the reference kernel (it reads the scene's textures, so it cannot sit lower)

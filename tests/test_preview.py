@@ -1,4 +1,4 @@
-"""pyvista preview: the headless screenshot shows the objects in the renderer's colours."""
+"""pyvista preview: the headless screenshot is the renderer's frame (objects in their rendered colours)."""
 from __future__ import annotations
 
 import os
@@ -71,6 +71,12 @@ def test_preview_screenshot_shows_the_objects_in_their_rendered_colours(tmp_path
     assert right[1] > 80 and right[1] > 2 * right[0]
     corner = img[:4, :4].mean((0, 1))
     assert corner.max() < 10  # no environment: black background
+    # the window shows the renderer's image per pixel (the same frame `warp-sg render` makes)
+    import warp_sg as ws
+    from warp_sg.image_io import tonemap_srgb
+
+    frame = (tonemap_srgb(ws.render(ws.load_scene(p))) * 255 + 0.5).astype(float)
+    assert np.abs(img - frame).max() <= 1
     assert not [f for f in tmp_path.iterdir() if f.name.startswith(".shot")]  # no temporary left behind
     umask = os.umask(0)
     os.umask(umask)

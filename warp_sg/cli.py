@@ -3,7 +3,7 @@
 ::
 
     warp-sg render SCENE -o OUT.(exr|png) [--device cpu|cuda|auto] [--supersampling K] [--exposure EV]
-    warp-sg preview SCENE [--screenshot PNG] [--device ...]
+    warp-sg preview SCENE [--screenshot PNG] [--window-size W H] [--exposure EV] [--device ...]
     warp-sg reference SCENE -o OUT --spp N         (arguments from warp_sg.reference)
     warp-sg report SCENE -o DIR                    (arguments from warp_sg.report)
     warp-sg bench                                  (arguments from warp_sg.bench)
@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import math
 import sys
 
 from .atomic import IMAGE_SUFFIXES, check_output_path, make_parents  # noqa: F401  (IMAGE_SUFFIXES: old home)
@@ -132,7 +133,9 @@ def add_preview_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--screenshot", default=None, help="render off-screen into this PNG instead of opening a window")
     add_device_argument(p)
     p.add_argument("--window-size", type=_positive_int("--window-size"), nargs=2, default=None,
-                   metavar=("W", "H"), help="window / screenshot size (default: the scene camera's)")
+                   metavar=("W", "H"), help="window / screenshot size = rendered resolution (default: the scene "
+                                            "camera's)")
+    p.add_argument("--exposure", type=float, default=0.0, help="display exposure in stops (default 0)")
 
 
 def preview_main(args) -> int:
@@ -142,8 +145,10 @@ def preview_main(args) -> int:
     if args.screenshot:
         make_parents(check_output_path(args.screenshot, (".png",), create_parents=True))
     scene = load_scene(args.scene)
+    if not math.isfinite(args.exposure):
+        raise InputError(f"must be a finite number, got {args.exposure}", where="--exposure")
     preview(scene, screenshot=args.screenshot, device=args.device,
-            window_size=tuple(args.window_size) if args.window_size else None)
+            window_size=tuple(args.window_size) if args.window_size else None, exposure=args.exposure)
     return 0
 
 
@@ -186,9 +191,12 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     p = sub.add_parser("render", help="render a scene to an image", description="Render SCENE to OUT (EXR or PNG).")
     add_render_arguments(p)
     p.set_defaults(func=render_main)
-    p = sub.add_parser("preview", help="interactive pyvista preview (or a headless screenshot)",
-                       description="Show SCENE's meshes with the renderer's shading and the lights in a pyvista "
-                                   "window; --screenshot PNG renders off-screen.")
+    p = sub.add_parser("preview", help="interactive per-pixel viewer and editor (or a headless screenshot)",
+                       description="Show SCENE rendered per pixel for the pyvista camera (orbit, pan, zoom), with "
+                                   "sliders for materials, lights, environment and exposure, handles for the "
+                                   "lights and toggles for shadows / diffuse / specular; click an object to edit "
+                                   "its material; keys: s screenshot (EXR + PNG), r reset view, t timings, "
+                                   "l next light, h hide widgets. --screenshot PNG renders off-screen.")
     add_preview_arguments(p)
     p.set_defaults(func=preview_main)
     p = sub.add_parser("schema", help="print the JSON Schema of scene files (for editors)",

@@ -1,15 +1,17 @@
-"""``warp-sg preview SCENE``: a pyvista window with the scene's meshes, coloured by our renderer.
+"""``warp-sg preview SCENE``: the interactive per-pixel viewer and editor (pyvista).
 
-Each mesh vertex gets the radiance the SG renderer computes there (``Renderer.shade_vertices``:
-the same shading kernel as ``ws.render``, all lights, SSDF shadows, textures at the vertex UVs),
-seen from the scene camera, tone-mapped to sRGB (``image_io.tonemap_srgb``) and drawn with
-Gouraud interpolation (so detail finer than the tessellation — textures, sharp highlights — is
-only as fine as the mesh; ``ws.render`` shades per pixel). Lights are drawn too: point lights as
-spheres of their radius, directional lights as arrows pointing at the scene along the light
-direction, the environment as the background colour (its mean radiance).
+The window shows ``Renderer.render()`` for the current pyvista camera — the image ``warp-sg
+render`` writes from that pose, environment background included — drawn behind the scene's
+(invisible, pickable) meshes (:mod:`warp_sg.viewer`), with widgets that edit materials, lights,
+the environment and the exposure live (:mod:`warp_sg.viewer_widgets`). Precompute runs once, at
+start-up, with progress bars; view changes and edits only call the ``Renderer`` setters.
 
-``--screenshot out.png`` renders off-screen (no X server needed: VTK's EGL/OSMesa fallback) with
-the scene camera, and writes the PNG atomically.
+* Desktop: ``preview(scene)`` opens a window.
+* Headless: ``preview(scene, screenshot="out.png")`` renders off-screen (no X server needed:
+  VTK's EGL/OSMesa fallback) from the scene camera and writes the PNG atomically.
+* Jupyter: :func:`open_viewer` then ``Viewer.show()``; with the optional ``notebook`` extra
+  (pyvista's trame backend) the widget is interactive, otherwise ``show`` returns the frame as
+  an image (see ``notebooks/05_viewer.ipynb``).
 """
 from __future__ import annotations
 
@@ -29,62 +31,110 @@ def _pyvista():
     return pv
 
 
-def build_plotter(scene, device=None, off_screen: bool = False, window_size=None, exposure: float = 0.0):
-    """A ``pyvista.Plotter`` showing ``scene`` (meshes with per-vertex renderer colours + lights)."""
+def has_notebook_backend() -> bool:
+    """Whether pyvista's interactive Jupyter backend (trame, the ``notebook`` extra) is installed."""
+    try:
+        import trame  # noqa: F401
+        import trame_vtk  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+class Viewer:
+    """A renderer, its plotter, the per-pixel :class:`~warp_sg.viewer.Viewport` and (unless
+    ``widgets=False``) the :class:`~warp_sg.viewer_widgets.Editor`."""
+
+    def __init__(self, renderer, plotter, viewport, editor=None):
+        self.renderer = renderer
+        self.plotter = plotter
+        self.viewport = viewport
+        self.editor = editor
+
+    @property
+    def image(self) -> np.ndarray:
+        """The last full-resolution frame (linear float32 (H, W, 3))."""
+        if self.viewport.image is None or self.viewport._dirty:
+            self.viewport.render_frame()
+        return self.viewport.image
+
+    def show(self, title: str | None = None, notebook: bool | None = None):
+        """Open the window (desktop), or in Jupyter the trame widget when the ``notebook`` extra
+        is installed, else the current frame as a static image."""
+        pl = self.plotter
+        self.viewport.update()
+        if notebook is None:
+            notebook = _in_notebook()
+        if notebook:
+            backend = "trame" if has_notebook_backend() else "static"
+            return pl.show(jupyter_backend=backend, return_viewer=backend == "trame")
+        pl.show(title=title or "warp-sg preview", interactive_update=False)
+        return None
+
+    def screenshot(self, path) -> Path:
+        """The window as a PNG, written atomically."""
+        out = Path(path)
+        self.viewport.draw()
+        with atomic_output(out, suffix=".png") as tmp:  # umask permissions, never a partial file
+            self.plotter.screenshot(tmp)
+        return out
+
+    def close(self) -> None:
+        self.plotter.close()
+
+
+def _in_notebook() -> bool:
+    try:
+        from IPython import get_ipython
+    except ImportError:
+        return False
+    ip = get_ipython()
+    return ip is not None and type(ip).__name__ == "ZMQInteractiveShell"
+
+
+def open_viewer(scene, device=None, off_screen: bool = False, window_size=None, exposure: float = 0.0,
+                widgets: bool = True, progress: bool = True, hud: bool = True, screenshot_dir=".") -> Viewer:
+    """Precompute ``scene`` once (progress bars) and build the viewer; nothing is shown yet.
+
+    ``window_size`` (W, H) defaults to the scene camera's resolution, so the first frame is the
+    scene's ``warp-sg render`` image. ``hud``: show the frame time."""
     pv = _pyvista()
-    from .image_io import tonemap_srgb
-    from .lights import DirectionalLight, PointLight
     from .render import Renderer
+    from .viewer import Viewport, quiet_vtk
 
-    if off_screen:  # VTK tries an X display first and logs a warning before falling back to EGL/OSMesa
-        try:
-            from vtkmodules.vtkCommonCore import vtkLogger
-
-            vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
-        except Exception:  # noqa: BLE001 - cosmetic only
-            pass
-    r = Renderer(scene, device=device)
-    g = r.geometry
-    rad = r.shade_vertices()
-    rgb = (tonemap_srgb(rad, exposure) * 255 + 0.5).astype(np.uint8)
+    if off_screen:
+        quiet_vtk()
+    r = Renderer(scene, device=device, progress=progress)
     cam = scene.camera
-    size = tuple(window_size) if window_size else (int(cam.width), int(cam.height))
+    size = tuple(int(v) for v in window_size) if window_size else (int(cam.width), int(cam.height))
     pl = pv.Plotter(off_screen=off_screen, window_size=list(size))
-    faces = np.hstack([np.full((len(g.triangles), 1), 3, np.int64), g.triangles.astype(np.int64)]).ravel()
-    mesh = pv.PolyData(g.vertices.astype(np.float64), faces)
-    mesh.point_data["rgb"] = rgb
-    pl.add_mesh(mesh, scalars="rgb", rgb=True, lighting=False, smooth_shading=True, name="scene")
-    # lights
-    lo, hi = g.vertices.min(0), g.vertices.max(0)
-    centre = 0.5 * (lo + hi)
-    extent = float(np.linalg.norm(hi - lo)) or 1.0
-    for j, li in enumerate(scene.local_lights):
-        if isinstance(li, PointLight):
-            rr = max(li.radius, 0.01 * extent)
-            pl.add_mesh(pv.Sphere(radius=rr, center=li.position), color=(1.0, 0.9, 0.3), lighting=False,
-                        name=f"light{j}")
-        elif isinstance(li, DirectionalLight):
-            start = centre + li.direction * 0.6 * extent
-            pl.add_mesh(pv.Arrow(start=start, direction=-li.direction, scale=0.3 * extent), color=(1.0, 0.8, 0.2),
-                        lighting=False, name=f"light{j}")
-    env = scene.environment
-    if env is not None:
-        mean = env.radiance().reshape(-1, 3).mean(0)
-        pl.set_background(tuple(float(c) for c in tonemap_srgb(mean, exposure)))
-    else:
-        pl.set_background((0.0, 0.0, 0.0))
-    pl.camera_position = [tuple(float(x) for x in cam.origin), tuple(float(x) for x in cam.target),
-                          tuple(float(x) for x in cam.up)]
-    pl.camera.view_angle = float(cam.fov)
-    pl.camera.clipping_range = (max(float(getattr(cam, "near", 1e-2)), 1e-3), float(getattr(cam, "far", 1e4)))
-    return pl
+    pl.set_background((0.0, 0.0, 0.0))
+    vp = Viewport(r, pl, exposure=exposure)
+    if not hud:
+        vp._set_text("")
+        vp._set_text = lambda msg: None
+    editor = None
+    if widgets:
+        from .viewer_widgets import Editor
+
+        stem = Path(getattr(scene, "path", None) or "scene").stem + "_view"
+        editor = Editor(vp, screenshot_dir=screenshot_dir, screenshot_stem=stem)
+    vp.install_observers()
+    vp.update()
+    return Viewer(r, pl, vp, editor)
+
+
+def build_plotter(scene, device=None, off_screen: bool = False, window_size=None, exposure: float = 0.0):
+    """A ``pyvista.Plotter`` showing ``scene`` per pixel (no widgets)."""
+    return open_viewer(scene, device=device, off_screen=off_screen, window_size=window_size, exposure=exposure,
+                       widgets=False, progress=False, hud=False).plotter
 
 
 def preview(scene, screenshot=None, device=None, window_size=None, exposure: float = 0.0):
-    """Open the preview window, or write ``screenshot`` (PNG) off-screen and return its path."""
+    """Open the viewer window, or write ``screenshot`` (PNG) off-screen and return its path."""
     if screenshot is None:
-        pl = build_plotter(scene, device=device, off_screen=False, window_size=window_size, exposure=exposure)
-        pl.show(title=f"warp-sg preview: {getattr(scene, 'path', None) or 'scene'}")
+        v = open_viewer(scene, device=device, window_size=window_size, exposure=exposure)
+        v.show(title=f"warp-sg preview: {getattr(scene, 'path', None) or 'scene'}", notebook=False)
         return None
     out = Path(screenshot)
     if out.suffix.lower() != ".png":
@@ -92,13 +142,13 @@ def preview(scene, screenshot=None, device=None, window_size=None, exposure: flo
     folder = out.parent if str(out.parent) else Path(".")
     if not folder.is_dir():
         raise InputError(f"folder '{folder}' does not exist", where=str(out))
-    pl = build_plotter(scene, device=device, off_screen=True, window_size=window_size, exposure=exposure)
+    v = open_viewer(scene, device=device, off_screen=True, window_size=window_size, exposure=exposure,
+                    widgets=False, hud=False)
     try:
-        with atomic_output(out, suffix=".png") as tmp:  # umask permissions, never a partial file
-            pl.screenshot(tmp)
+        v.screenshot(out)
     finally:
-        pl.close()
+        v.close()
     return out
 
 
-__all__ = ["preview", "build_plotter"]
+__all__ = ["preview", "open_viewer", "build_plotter", "Viewer", "has_notebook_backend"]
