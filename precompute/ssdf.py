@@ -257,10 +257,12 @@ class SSDFData:
         return (self.mean.reshape(1, -1) + w @ self.basis.reshape(self.pca_terms, -1)).reshape(-1, R, R)
 
     def device_arrays(self, device="cpu"):
-        """``(mean wp.array2d, basis wp.array3d, weights wp.array2d)`` for :mod:`precompute.ssdf_wp`."""
+        """``(mean wp.array2d (R, R), basis wp.array3d (R, R, NV), weights wp.array2d (V, NV))`` for
+        :mod:`precompute.ssdf_wp`; the basis is texel-major on the device (a bilinear tap reads NV
+        contiguous floats)."""
         device = resolve_device(device)
         return (wp.array(self.mean, dtype=float, device=device),
-                wp.array(self.basis, dtype=float, device=device),
+                wp.array(np.ascontiguousarray(np.moveaxis(self.basis, 0, -1)), dtype=float, device=device),
                 wp.array(self.weights, dtype=float, device=device))
 
 

@@ -17,9 +17,7 @@ Renderer usage (``SSDFData`` from :func:`precompute.ssdf_for_mesh`, ``d`` a unit
 local frame of the shading normal, built with :mod:`warp_sg.frames` — the frame used at
 precompute time)::
 
-    mean  = wp.array(data.mean,  dtype=float, device=dev)     # (R, R)
-    basis = wp.array(data.basis, dtype=float, device=dev)     # (NV, R, R)
-    w     = wp.array(data.weights, dtype=float, device=dev)   # (V, NV)
+    mean, basis, w = data.device_arrays(dev)   # (R, R), (R, R, NV) texel-major, (V, NV)
     # per pixel, triangle (i0, i1, i2), barycentrics (b0, b1, b2):
     theta_d = ssdf_eval_bary(mean, basis, w, i0, i1, i2, b0, b1, b2, d)
     # or at one vertex:  ssdf_eval_vertex(mean, basis, w, v, d)
@@ -36,6 +34,17 @@ pixel frame share the one-lookup blended-weight path (see its docstring)::
 
     normals = wp.array(unit per-vertex normals used by ssdf_for_mesh, dtype=wp.vec3)   # (V,)
     theta_d = ssdf_eval_world(mean, basis, w, normals, i0, i1, i2, b0, b1, b2, p_world, ng)
+
+**Per-pixel reuse.** A shading point evaluates its SSDF at many directions (one per light and
+lobe). Everything that depends only on the point — the pixel frame, the three vertex frames, the
+blend coefficients — is computed once by :func:`ssdf_point` into an :class:`SSDFPoint`;
+:func:`ssdf_at` then costs one or a few bilinear footprints per direction
+(``ssdf_eval_world(...) == ssdf_at(..., ssdf_point(...), p)``).
+
+**Device layout.** ``basis`` is stored texel-major on the device, ``(R, R, NV)``
+(:meth:`precompute.ssdf.SSDFData.device_arrays`): the NV basis values of one bilinear tap are
+contiguous, so a lookup reads 4 runs of NV floats instead of 4·NV values ``R²`` floats apart
+(measured 1.4× on the whole shading kernel on the CPU, docs/benchmarks.md "Frame profile").
 """
 from __future__ import annotations
 
@@ -272,7 +281,7 @@ def _ssdf_combo(mean: wp.array2d(dtype=float), basis: wp.array3d(dtype=float),
                 c0: float, c1: float, c2: float, d: wp.vec3) -> float:
     """Σ_k c_k V^d_k(d) for local direction d (one bilinear footprint; below-horizon rule applied to
     the combination as ``min(U, 0) − (Σc_k)·asin(−z)``: a direction below a vertex's horizon is at
-    least its angle below it from the visible set)."""
+    least its angle below it from the visible set). ``basis`` texel-major (R, R, NV)."""
     R = mean.shape[0]
     t = _texel_coords(d, R)
     x0 = int(t[0])
@@ -285,10 +294,10 @@ def _ssdf_combo(mean: wp.array2d(dtype=float), basis: wp.array3d(dtype=float),
     w11 = fx * fy
     csum = c0 + c1 + c2
     v = csum * (mean[y0, x0] * w00 + mean[y0, x0 + 1] * w01 + mean[y0 + 1, x0] * w10 + mean[y0 + 1, x0 + 1] * w11)
-    for j in range(basis.shape[0]):
+    for j in range(basis.shape[2]):
         wj = c0 * weights[i0, j] + c1 * weights[i1, j] + c2 * weights[i2, j]
-        v += wj * (basis[j, y0, x0] * w00 + basis[j, y0, x0 + 1] * w01
-                   + basis[j, y0 + 1, x0] * w10 + basis[j, y0 + 1, x0 + 1] * w11)
+        v += wj * (basis[y0, x0, j] * w00 + basis[y0, x0 + 1, j] * w01
+                   + basis[y0 + 1, x0, j] * w10 + basis[y0 + 1, x0 + 1, j] * w11)
     if d[2] < 0.0:
         return wp.min(v, 0.0) - csum * wp.asin(wp.min(-d[2], 1.0))
     return v
@@ -328,6 +337,89 @@ def _own_frame_term(mean: wp.array2d(dtype=float), basis: wp.array3d(dtype=float
     return c * ssdf_eval_vertex(mean, basis, weights, vertex, world_to_local(p, tk, bk, nk))
 
 
+@wp.struct
+class SSDFPoint:
+    """What :func:`ssdf_eval_world` needs of a shading point, independent of the direction
+    (:func:`ssdf_point`): the triangle's vertices, the pixel frame (t, b, ng), the shared-lookup
+    coefficients ``c_k = α_k b_k`` and the own-frame coefficients ``e_k = (1 − α_k) b_k`` with the
+    vertex frames (n_k, t_k, s_k)."""
+
+    i0: int
+    i1: int
+    i2: int
+    t: wp.vec3
+    b: wp.vec3
+    ng: wp.vec3
+    c0: float
+    c1: float
+    c2: float
+    e0: float
+    e1: float
+    e2: float
+    n0: wp.vec3
+    t0: wp.vec3
+    s0: wp.vec3
+    n1: wp.vec3
+    t1: wp.vec3
+    s1: wp.vec3
+    n2: wp.vec3
+    t2: wp.vec3
+    s2: wp.vec3
+
+
+@wp.func
+def ssdf_point(normals: wp.array(dtype=wp.vec3), i0: int, i1: int, i2: int, b0: float, b1: float, b2: float,
+               ng: wp.vec3) -> SSDFPoint:
+    """The direction-independent part of :func:`ssdf_eval_world` for the point with barycentrics
+    (b0, b1, b2) in triangle (i0, i1, i2) and unit interpolated normal ``ng`` (computed once per
+    pixel, used for every light and lobe by :func:`ssdf_at`)."""
+    q = SSDFPoint()
+    q.i0 = i0
+    q.i1 = i1
+    q.i2 = i2
+    q.ng = ng
+    q.t = frame_tangent(ng)
+    q.b = frame_bitangent(ng)
+    q.n0 = wp.normalize(normals[i0])
+    q.n1 = wp.normalize(normals[i1])
+    q.n2 = wp.normalize(normals[i2])
+    q.t0 = frame_tangent(q.n0)
+    q.s0 = frame_bitangent(q.n0)
+    q.t1 = frame_tangent(q.n1)
+    q.s1 = frame_bitangent(q.n1)
+    q.t2 = frame_tangent(q.n2)
+    q.s2 = frame_bitangent(q.n2)
+    # cos of the rotation angle between F_k and F: (trace(F_k^T F) − 1) / 2
+    a0 = wp.smoothstep(FRAME_COS_EXACT, FRAME_COS_FAST,
+                       0.5 * (wp.dot(q.t0, q.t) + wp.dot(q.s0, q.b) + wp.dot(q.n0, ng) - 1.0))
+    a1 = wp.smoothstep(FRAME_COS_EXACT, FRAME_COS_FAST,
+                       0.5 * (wp.dot(q.t1, q.t) + wp.dot(q.s1, q.b) + wp.dot(q.n1, ng) - 1.0))
+    a2 = wp.smoothstep(FRAME_COS_EXACT, FRAME_COS_FAST,
+                       0.5 * (wp.dot(q.t2, q.t) + wp.dot(q.s2, q.b) + wp.dot(q.n2, ng) - 1.0))
+    q.c0 = a0 * b0
+    q.c1 = a1 * b1
+    q.c2 = a2 * b2
+    q.e0 = (1.0 - a0) * b0
+    q.e1 = (1.0 - a1) * b1
+    q.e2 = (1.0 - a2) * b2
+    return q
+
+
+@wp.func
+def ssdf_at(mean: wp.array2d(dtype=float), basis: wp.array3d(dtype=float), weights: wp.array2d(dtype=float),
+            q: SSDFPoint, p_world: wp.vec3) -> float:
+    """SSDF θd (eq. 24, radians) of the point ``q`` (:func:`ssdf_point`) at unit world direction
+    ``p_world``; see :func:`ssdf_eval_world` for the formula."""
+    v = float(0.0)
+    if q.c0 != 0.0 or q.c1 != 0.0 or q.c2 != 0.0:
+        v = _ssdf_combo(mean, basis, weights, q.i0, q.i1, q.i2, q.c0, q.c1, q.c2,
+                        world_to_local(p_world, q.t, q.b, q.ng))
+    v += _own_frame_term(mean, basis, weights, q.i0, q.e0, q.n0, q.t0, q.s0, p_world)
+    v += _own_frame_term(mean, basis, weights, q.i1, q.e1, q.n1, q.t1, q.s1, p_world)
+    v += _own_frame_term(mean, basis, weights, q.i2, q.e2, q.n2, q.t2, q.s2, p_world)
+    return v
+
+
 @wp.func
 def ssdf_eval_world(mean: wp.array2d(dtype=float), basis: wp.array3d(dtype=float),
                     weights: wp.array2d(dtype=float), normals: wp.array(dtype=wp.vec3),
@@ -360,22 +452,4 @@ def ssdf_eval_world(mean: wp.array2d(dtype=float), basis: wp.array3d(dtype=float
     frames and dot products per call on top of the lookups (≈ +10 % over :func:`ssdf_eval_bary` on
     a finely tessellated scene, ≈ +40 % on a coarse one where more vertices need their own lookup).
     """
-    t = frame_tangent(ng)
-    b = frame_bitangent(ng)
-    n0 = wp.normalize(normals[i0])
-    n1 = wp.normalize(normals[i1])
-    n2 = wp.normalize(normals[i2])
-    t0, s0 = frame_basis(n0)
-    t1, s1 = frame_basis(n1)
-    t2, s2 = frame_basis(n2)
-    # cos of the rotation angle between F_k and F: (trace(F_k^T F) − 1) / 2
-    a0 = wp.smoothstep(FRAME_COS_EXACT, FRAME_COS_FAST, 0.5 * (wp.dot(t0, t) + wp.dot(s0, b) + wp.dot(n0, ng) - 1.0))
-    a1 = wp.smoothstep(FRAME_COS_EXACT, FRAME_COS_FAST, 0.5 * (wp.dot(t1, t) + wp.dot(s1, b) + wp.dot(n1, ng) - 1.0))
-    a2 = wp.smoothstep(FRAME_COS_EXACT, FRAME_COS_FAST, 0.5 * (wp.dot(t2, t) + wp.dot(s2, b) + wp.dot(n2, ng) - 1.0))
-    v = float(0.0)
-    if a0 * b0 != 0.0 or a1 * b1 != 0.0 or a2 * b2 != 0.0:
-        v = _ssdf_combo(mean, basis, weights, i0, i1, i2, a0 * b0, a1 * b1, a2 * b2, world_to_local(p_world, t, b, ng))
-    v += _own_frame_term(mean, basis, weights, i0, (1.0 - a0) * b0, n0, t0, s0, p_world)
-    v += _own_frame_term(mean, basis, weights, i1, (1.0 - a1) * b1, n1, t1, s1, p_world)
-    v += _own_frame_term(mean, basis, weights, i2, (1.0 - a2) * b2, n2, t2, s2, p_world)
-    return v
+    return ssdf_at(mean, basis, weights, ssdf_point(normals, i0, i1, i2, b0, b1, b2, ng), p_world)

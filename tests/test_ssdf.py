@@ -95,7 +95,8 @@ def test_kernel_lookup_matches_numpy_reconstruction(device):
     out = wp.zeros(m, dtype=float, device=device)
     out_b = wp.zeros(m, dtype=float, device=device)
     wp.launch(_lookup_kernel, dim=m, device=device,
-              inputs=[wp.array(mean, dtype=float, device=device), wp.array(basis, dtype=float, device=device),
+              inputs=[wp.array(mean, dtype=float, device=device),
+                      wp.array(np.ascontiguousarray(np.moveaxis(basis, 0, -1)), dtype=float, device=device),  # texel-major
                       wp.array(w, dtype=float, device=device), wp.array(verts.astype(np.int32), device=device),
                       wp.array(dirs.astype(np.float32), dtype=wp.vec3, device=device), out, out_b])
     ref = np.array([ssdf_wp.ssdf_eval_np(mean, basis, w[v], d) for v, d in zip(verts, dirs)])

@@ -208,7 +208,7 @@ class Renderer:
         else:
             self.ssdf = None
             vis.mean = wp.zeros((2, 2), dtype=float, device=d)
-            vis.basis = wp.zeros((0, 2, 2), dtype=float, device=d)
+            vis.basis = wp.zeros((2, 2, 0), dtype=float, device=d)
             vis.weights = wp.zeros((1, 1), dtype=float, device=d)
         self.vis = vis
 

@@ -62,7 +62,7 @@ from .surface import (  # noqa: F401  (re-exported: slot constants, MaterialText
 from .ssdf_product import sg_visibility_scale, sg_visibility_scale_sigmoid
 
 
-from precompute.ssdf_wp import ssdf_eval_world  # noqa: E402
+from precompute.ssdf_wp import SSDFPoint, ssdf_at, ssdf_point  # noqa: E402
 
 ENV_NONE, ENV_SG, ENV_PREFILTERED = 0, 1, 2
 #: sharpness of the eq. 40 clamped-cosine lobe: only used to place and size the product lobe
@@ -128,19 +128,19 @@ def above(v: wp.vec3) -> wp.vec3:
 
 
 @wp.func
-def vis_ratio(shadows: int, fh_mode: int, vis: Visibility, p: wp.vec3, lam: float, ng: wp.vec3,
-              i0: int, i1: int, i2: int, b0: float, b1: float, b2: float) -> float:
+def vis_ratio(shadows: int, fh_mode: int, vis: Visibility, q: SSDFPoint, p: wp.vec3, lam: float) -> float:
     """The visible fraction of a lobe (p, λ) relative to the unoccluded point:
     ``fh(θd(p), λ) / fh(θh(p), λ)`` with θd the SSDF of the shading point at world direction p
     (eq. 24, 30; each vertex's SSDF read in that vertex's own frame where the frames disagree,
     ``precompute.ssdf_wp.ssdf_eval_world``: no seam where the frame turns) and ``θh = asin(p·Ng)``
     the SSDF of an unoccluded point (its horizon). The unshadowed response (exact BRDF and cosine,
     or the exact SG irradiance) already accounts for the horizon, so the SSDF supplies only what
-    the occluders take away. 1 without shadows."""
+    the occluders take away. ``q``: the shading point (``ssdf_point``, once per pixel). 1 without
+    shadows."""
     if shadows == 0:
         return 1.0
-    th = ssdf_eval_world(vis.mean, vis.basis, vis.weights, vis.normals, i0, i1, i2, b0, b1, b2, p, ng)
-    th_h = wp.asin(wp.clamp(wp.dot(p, ng), -1.0, 1.0))
+    th = ssdf_at(vis.mean, vis.basis, vis.weights, q, p)
+    th_h = wp.asin(wp.clamp(wp.dot(p, q.ng), -1.0, 1.0))
     a = vis_scale(fh_mode, vis, th, lam)
     b = vis_scale(fh_mode, vis, th_h, lam)
     return wp.clamp(a / wp.max(b, 1.0e-8), 0.0, 1.0)
@@ -253,6 +253,10 @@ def shade_kernel(f: Features):
             ns, ts = apply_shading_maps(tex, mi, uv, ng, ts)
         bs = wp.cross(ns, ts)
         o_l = above(world_to_local(o, ts, bs, ns))
+        if wp.static(SHADOWS == 1):  # the point's SSDF frames, once for every light and lobe
+            q = ssdf_point(vis.normals, i0, i1, i2, b0, b1, b2, ng)
+        else:
+            q = SSDFPoint()
 
         col = wp.vec3(0.0, 0.0, 0.0)
         has_kd = wp.length_sq(mat.kd) > 0.0
@@ -269,7 +273,7 @@ def shade_kernel(f: Features):
                 e = sg_irradiance_norm(irr, li[2], ll)
                 if e > 0.0:
                     f = brdf_eval(mat, o_l, above(li))
-                    vr = vis_ratio(SHADOWS, FH, vis, la, ll, ng, i0, i1, i2, b0, b1, b2)
+                    vr = vis_ratio(SHADOWS, FH, vis, q, la, ll)
                     col += wp.cw_mul(f, E) * (e * vr)
 
         # ---------------- environment, diffuse (eq. 39) ----------------
@@ -282,7 +286,7 @@ def shade_kernel(f: Features):
                     E = sg_irradiance(irr, ns, env.axis[j], env.lam[j], env.mu[j])
                     if wp.length_sq(E) > 0.0:
                         pe, le, se = sg_product(ns, CC_LAM, env.axis[j], env.lam[j])
-                        vr = vis_ratio(SHADOWS, FH, vis, pe, le, ng, i0, i1, i2, b0, b1, b2)
+                        vr = vis_ratio(SHADOWS, FH, vis, q, pe, le)
                         col += wp.cw_mul(E, diffuse_at(mat, o_l, world_to_local(pe, ts, bs, ns))) * vr
 
         # ---------------- environment, specular (eq. 41) ----------------
@@ -301,7 +305,7 @@ def shade_kernel(f: Features):
                         pw = local_to_world(pw_l, ts, bs, ns)
                         pa, lam, sc = sg_product(ns, CC_LAM, pw, lw)
                         g = gamma_lookup(gamma, pa, lam) / sg_integral(lam)
-                        vr = vis_ratio(SHADOWS, FH, vis, pa, lam, ng, i0, i1, i2, b0, b1, b2)
+                        vr = vis_ratio(SHADOWS, FH, vis, q, pa, lam)
                         col += wp.cw_mul(mw, g) * (e * vr)
         out[y, x] = wp.vec3(wp.max(col[0], 0.0), wp.max(col[1], 0.0), wp.max(col[2], 0.0))
 
