@@ -137,7 +137,7 @@ def _as_numpy_mesh(vertices, triangles):
 
 def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: int = 1,
               cull_backfaces: bool = False, coverage_count: bool = False, max_pairs: int | None = None,
-              schedule: str = "auto", profile: bool = False) -> VisibilityBuffer:
+              schedule: str = "auto", profile: bool = False, validate: bool = True) -> VisibilityBuffer:
     """Rasterize a triangle mesh into a :class:`VisibilityBuffer` of (k·H, k·W) pixels.
 
     ``vertices`` (N, 3) float, ``triangles`` (M, 3) int (numpy or ``wp.array``); ``camera`` a
@@ -146,7 +146,10 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
     returns per-pixel coverage counts (depth test off); ``max_pairs`` bounds the tile-queue
     memory (64-byte (triangle, tile) entries per pass; more passes when exceeded); ``schedule`` =
     "tile" | "pixel" | "auto" picks the fine raster kernel (auto: tiles on CPU, pixels on CUDA); ``profile`` records per-stage wall
-    times (device-synchronised) in ``vb.stats["times"]``.
+    times (device-synchronised) in ``vb.stats["times"]``. ``validate=False`` with ``wp.array``
+    inputs already on ``device`` (``vec3`` vertices, ``vec3i`` triangles, checked once by the
+    caller, e.g. the ``Renderer``'s static geometry) uses them as they are: no per-frame
+    validation and no host↔device copies.
     """
     device = resolve_device(device)
     if not isinstance(camera, Camera):
@@ -166,8 +169,14 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
     if schedule not in ("tile", "pixel"):
         raise InputError(f"schedule must be 'tile', 'pixel' or 'auto', got {schedule!r}", where="schedule")
     clock = _Clock(device, profile)
-    v_np, t_np = _as_numpy_mesh(vertices, triangles)
-    n_v, n_t = v_np.shape[0], t_np.shape[0]
+    trusted = (not validate and isinstance(vertices, wp.array) and isinstance(triangles, wp.array)
+               and vertices.dtype == wp.vec3 and triangles.dtype == wp.vec3i
+               and str(vertices.device) == device and str(triangles.device) == device)
+    if trusted:
+        n_v, n_t = vertices.shape[0], triangles.shape[0]
+    else:
+        v_np, t_np = _as_numpy_mesh(vertices, triangles)
+        n_v, n_t = v_np.shape[0], t_np.shape[0]
     stats = {"triangles": n_t, "sub_triangles": 0, "pairs": 0, "passes": 0, "times": clock.times}
     clock.lap("validate")
 
@@ -184,9 +193,12 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
     cov_arg = coverage if coverage is not None else wp.zeros((1, 1), dtype=wp.int32, device=device)
 
     if n_t > 0:
-        host = device.startswith("cpu")  # CPU: reference the numpy memory, no copy
-        verts = wp.array(v_np, dtype=wp.vec3, device=device, copy=not host)
-        tris = wp.array(t_np, dtype=wp.vec3i, device=device, copy=not host)
+        if trusted:
+            verts, tris = vertices, triangles
+        else:
+            host = device.startswith("cpu")  # CPU: reference the numpy memory, no copy
+            verts = wp.array(v_np, dtype=wp.vec3, device=device, copy=not host)
+            tris = wp.array(t_np, dtype=wp.vec3i, device=device, copy=not host)
         gx, gy = guard_factors(W, H)
         near, far = float(camera.near), float(camera.far)
         clip = ws.get("clip", n_v, wp.vec4d)

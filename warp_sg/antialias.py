@@ -13,8 +13,8 @@ Coverage is rasterised at a×a sub-pixels; shading is adaptive, in two passes, a
    by more than ``CONTRAST`` of the larger one (shadow edges, glints, texture edges); they are
    shaded again at all a² sub-pixels.
 
-Kernels launched through ``raster.parallel.launch`` take a leading ``base`` pixel offset (CPU
-launches are split over a thread pool). Each pass: per-pixel sample counts → exclusive scan (``wp.utils.array_scan``) → a gather of the
+Every kernel is 1-D over row-major pixels with a leading ``base`` offset and is launched through
+``raster.parallel.launch`` (CPU launches are split over a thread pool). Each pass: per-pixel sample counts → exclusive scan (``wp.utils.array_scan``) → a gather of the
 samples' (triangle, barycentrics, background) into a 1 × N list that the ordinary shading kernel
 shades → :func:`resolve_kernel` box-filters each pixel's samples back into the image.
 """
@@ -28,12 +28,14 @@ CONTRAST = 0.2
 
 
 @wp.kernel(enable_backward=False)
-def classify_kernel(tri_id: wp.array2d(dtype=int), depth: wp.array2d(dtype=float),
+def classify_kernel(base: int, tri_id: wp.array2d(dtype=int), depth: wp.array2d(dtype=float),
                     tri_object: wp.array(dtype=int), a: int, resid_tol: float,
                     edge: wp.array2d(dtype=int), count: wp.array(dtype=int)):
     """edge[y, x] (0/1) and the pixel's sample count (1 or a²) for pass 1."""
-    y, x = wp.tid()
     W = edge.shape[1]
+    k = base + wp.tid()
+    y = k / W
+    x = k - y * W
     t0 = tri_id[y * a, x * a]
     o0 = int(-1)
     if t0 >= 0:
@@ -82,13 +84,14 @@ def classify_kernel(tri_id: wp.array2d(dtype=int), depth: wp.array2d(dtype=float
 
 
 @wp.kernel(enable_backward=False)
-def contrast_kernel(img: wp.array2d(dtype=wp.vec3), edge: wp.array2d(dtype=int), a: int, contrast: float,
-                    count: wp.array(dtype=int)):
+def contrast_kernel(base: int, img: wp.array2d(dtype=wp.vec3), edge: wp.array2d(dtype=int), a: int,
+                    contrast: float, count: wp.array(dtype=int)):
     """Sample count of pass 2: a² for an interior pixel that contrasts with a 4-neighbour, else 0."""
-    y, x = wp.tid()
     H = img.shape[0]
     W = img.shape[1]
-    k = y * W + x
+    k = base + wp.tid()
+    y = k / W
+    x = k - y * W
     count[k] = 0
     if edge[y, x] == 1:
         return
@@ -175,12 +178,12 @@ def render_adaptive(vb, tri_object: wp.array, background: wp.array, a: int, H: i
     edge = wp.empty((H, W), dtype=int, device=device)
     count = wp.empty(H * W, dtype=int, device=device)
     img = wp.empty((H, W), dtype=wp.vec3, device=device)
-    wp.launch(classify_kernel, dim=(H, W), device=device,
-              inputs=[vb.tri_id, vb.depth, tri_object, a, EDGE_DEPTH_RESIDUAL], outputs=[edge, count])
+    parallel.launch(classify_kernel, H * W, [vb.tri_id, vb.depth, tri_object, a, EDGE_DEPTH_RESIDUAL, edge, count],
+                    device)
     stats = {}
     for p in (1, 2):
         if p == 2:
-            wp.launch(contrast_kernel, dim=(H, W), device=device, inputs=[img, edge, a, CONTRAST], outputs=[count])
+            parallel.launch(contrast_kernel, H * W, [img, edge, a, CONTRAST, count], device)
         offset, n = _plan(count)
         stats[f"pass{p}_samples"] = n
         if n == 0:

@@ -209,6 +209,30 @@ def fh_ratio_table(table: wp.array2d(dtype=float), theta: float, lam: float) -> 
 
 
 @wp.func
+def fh_ratio_table_pair(table: wp.array2d(dtype=float), theta_a: float, theta_b: float, lam: float):
+    """(f̂h(θa, λ), f̂h(θb, λ)): two lookups of :func:`fh_ratio_table` at one λ, sharing its row
+    (one log and one square root instead of two)."""
+    nr = table.shape[0]
+    nc = table.shape[1]
+    l = wp.max(lam, 1.0e-30)
+    r = wp.clamp((wp.log(l) * _INV_LN10 - _LOG10_LAM_MIN) * _ROWS_PER_DECADE, 0.0, float(nr - 1))
+    inv_tmax = 1.0 / wp.min(_HALF_PI, _K / wp.sqrt(l))
+    r0 = wp.min(int(wp.floor(r)), nr - 2)
+    fr = r - float(r0)
+    xa = (wp.clamp(theta_a * inv_tmax, -1.0, 1.0) + 1.0) * 0.5 * float(nc - 1)
+    xb = (wp.clamp(theta_b * inv_tmax, -1.0, 1.0) + 1.0) * 0.5 * float(nc - 1)
+    a0 = wp.min(int(wp.floor(xa)), nc - 2)
+    b0 = wp.min(int(wp.floor(xb)), nc - 2)
+    fa = xa - float(a0)
+    fb = xb - float(b0)
+    va = ((table[r0, a0] * (1.0 - fa) + table[r0, a0 + 1] * fa) * (1.0 - fr)
+          + (table[r0 + 1, a0] * (1.0 - fa) + table[r0 + 1, a0 + 1] * fa) * fr)
+    vb = ((table[r0, b0] * (1.0 - fb) + table[r0, b0 + 1] * fb) * (1.0 - fr)
+          + (table[r0 + 1, b0] * (1.0 - fb) + table[r0 + 1, b0 + 1] * fb) * fr)
+    return va, vb
+
+
+@wp.func
 def fh_ratio_sigmoid(theta: float, lam: float) -> float:
     """Paper appendix eq. 47–48: a/(1 + exp(−kλ θd)) + (1 − a)/2, a = 1.05, clamped to [0, 1]."""
     k = ((0.204 * lam - 0.892) * lam + 2.995) * lam + 0.067

@@ -120,6 +120,8 @@ class Renderer:
         self.timings["precompute"] = time.perf_counter() - t0
         self._background_key = None
         self._background = None
+        self._vb_key = None
+        self._vb = None
 
     def precomputed(self) -> dict:
         """The mesh refinement and SSDFs of this renderer (plain numpy data, picklable), for
@@ -278,11 +280,16 @@ class Renderer:
                 np.asarray(mu, np.float64).reshape(-1, 3))
 
     def _env_arrays(self):
-        """EnvSG (world axes: rotation applied; amplitudes scaled) and the world→map matrix."""
+        """EnvSG (world axes: rotation applied; amplitudes scaled) on the device, rebuilt only when
+        the rotation or scale changes. Lobes that carry no energy (``|μ| ∫G`` below 1e-6 of the
+        mixture's, e.g. amplitudes the non-negative fit set to 0) are left out."""
+        env = self.env_light
+        key = None if env is None or self._env_sg_base is None else (id(self._env_sg_base), float(env.rotation), float(env.scale))
+        if getattr(self, "_env_arrays_key", ()) == key:
+            return self._env_sg_arrays
         d = self.device
         es = S.EnvSG()
-        env = self.env_light
-        if env is None or self._env_sg_base is None:
+        if key is None:
             es.count = 0
             es.axis = wp.zeros(1, dtype=wp.vec3, device=d)
             es.lam = wp.ones(1, dtype=float, device=d)
@@ -290,10 +297,16 @@ class Renderer:
         else:
             R = env.rotation_matrix()
             ax, lam, mu = self._env_sg_base
+            energy = np.abs(mu).max(axis=1) * 2.0 * np.pi * -np.expm1(-2.0 * lam) / np.maximum(lam, 1e-12)
+            keep = energy > 1e-6 * max(float(energy.sum()), 1e-300)
+            if not keep.any():
+                keep[:1] = True
+            ax, lam, mu = ax[keep], lam[keep], mu[keep]
             es.count = len(lam)
             es.axis = wp.array((ax @ R.T).astype(np.float32), dtype=wp.vec3, device=d)
             es.lam = wp.array(lam.astype(np.float32), dtype=float, device=d)
             es.mu = wp.array((mu * env.scale).astype(np.float32), dtype=wp.vec3, device=d)
+        self._env_arrays_key, self._env_sg_arrays = key, es
         return es
 
     def _setup_materials(self):
@@ -451,11 +464,23 @@ class Renderer:
         return self._background
 
     def rasterize(self, k: int | None = None):
+        """The visibility buffer of the current camera at k×k sub-pixels. The geometry is static
+        and was validated once (``_setup_geometry``): it is rasterised from its device arrays, and
+        the buffer is reused while the camera and k stay the same (material, light and environment
+        edits re-shade only)."""
         import raster
 
         k = self.scene.render.supersampling if k is None else k
-        return raster.rasterize(self.geometry.vertices, self.geometry.triangles, self.scene.camera,
-                                device=self.device, supersample=k)
+        key = (repr(self.scene.camera), int(k))
+        if self._vb_key != key:
+            self._vb = None  # free the old buffer first
+            self._vb = raster.rasterize(self.geo_arrays.positions, self.geo_arrays.tris, self.scene.camera,
+                                        device=self.device, supersample=k, validate=False)
+            self._vb_key = key
+            self.timings["raster_reused"] = False
+        else:
+            self.timings["raster_reused"] = True
+        return self._vb
 
     def render(self) -> np.ndarray:
         """One frame: (H, W, 3) float32 linear radiance.

@@ -50,6 +50,8 @@ import warp as wp
 
 from .brdf.material_wp import (Material, brdf_diffuse, brdf_eval, brdf_mo, ndf_lobe, slice_lobe, slice_lobe_count,
                                 warp_axis)
+from .fastmath import fast_asin
+from .fh import fh_ratio_table_pair
 from .frames import local_to_world, world_to_local
 from .lights import LightArrays, light_irradiance
 from .sg import CLAMPED_COSINE_SHARPNESS
@@ -59,7 +61,7 @@ from .surface import (  # noqa: F401  (re-exported: slot constants, MaterialText
     N_SLOTS, SLOT_KD, SLOT_KS, SLOT_NORMAL, SLOT_P0, SLOT_P1, SLOT_TANGENT, MaterialTextures,
     apply_shading_maps, tangent_in_plane, textured_material,
 )
-from .ssdf_product import sg_visibility_scale, sg_visibility_scale_sigmoid
+from .ssdf_product import sg_visibility_scale_sigmoid
 
 
 from precompute.ssdf_wp import SSDFPoint, ssdf_at, ssdf_point  # noqa: E402
@@ -110,14 +112,6 @@ class EnvSG:
 # building blocks (@wp.func)
 # --------------------------------------------------------------------------------------------
 @wp.func
-def vis_scale(fh_mode: int, vis: Visibility, theta: float, lam: float) -> float:
-    """fh(θd, λ)/fh(π/2, λ) (eq. 31): amplitude factor of G ⊗ V."""
-    if fh_mode == 1:
-        return sg_visibility_scale_sigmoid(theta, lam)
-    return sg_visibility_scale(vis.fh_table, theta, lam)
-
-
-@wp.func
 def above(v: wp.vec3) -> wp.vec3:
     """v with its z clamped to ≥ COS_MIN (renormalised): keeps grazing directions shadeable."""
     if v[2] >= COS_MIN:
@@ -140,9 +134,14 @@ def vis_ratio(shadows: int, fh_mode: int, vis: Visibility, q: SSDFPoint, p: wp.v
     if shadows == 0:
         return 1.0
     th = ssdf_at(vis.mean, vis.basis, vis.weights, q, p)
-    th_h = wp.asin(wp.clamp(wp.dot(p, q.ng), -1.0, 1.0))
-    a = vis_scale(fh_mode, vis, th, lam)
-    b = vis_scale(fh_mode, vis, th_h, lam)
+    th_h = fast_asin(wp.dot(p, q.ng))
+    a = float(0.0)
+    b = float(0.0)
+    if fh_mode == 1:
+        a = sg_visibility_scale_sigmoid(th, lam)
+        b = sg_visibility_scale_sigmoid(th_h, lam)
+    else:
+        a, b = fh_ratio_table_pair(vis.fh_table, th, th_h, lam)
     return wp.clamp(a / wp.max(b, 1.0e-8), 0.0, 1.0)
 
 

@@ -1,0 +1,73 @@
+"""What a frame does not redo (issue 13): the visibility buffer is reused while the camera stays,
+the static geometry is rasterised from its device arrays without revalidation, and environment
+lobes that carry no energy are left out — each checked against a renderer built from scratch."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import raster
+from warp_sg.lights import DirectionalLight
+from warp_sg.render import Renderer
+from warp_sg.scene import Camera, EnvironmentLight, Material, RenderSettings, Scene, SceneObject
+
+
+def _scene(kd=(0.6, 0.5, 0.4), origin=(0.0, 1.2, 3.0)):
+    cam = Camera(origin=origin, target=(0.0, 0.3, 0.0), fov=40.0, width=40, height=32)
+    objects = [SceneObject(material="ball", primitive="sphere", params={"radius": 0.4, "resolution": (12, 24),
+                                                                         "center": (0.0, 0.45, 0.0)}),
+               SceneObject(material="floor", primitive="plane", params={"size": (3.0, 3.0), "resolution": (6, 6)})]
+    mats = {"ball": Material("blinn_phong", {"kd": list(kd), "ks": [0.3, 0.3, 0.3], "n": 30.0}),
+            "floor": Material("lambert", {"kd": [0.5, 0.5, 0.5]})}
+    env = EnvironmentLight(procedural="constant", options={"radiance": [0.3, 0.35, 0.4], "width": 32, "height": 16})
+    lights = [env, DirectionalLight(direction=(-0.4, -1.0, -0.3), intensity=(2.0, 2.0, 2.0))]
+    rs = RenderSettings(shadows=True, ssdf_resolution=16, pca_terms=8, visibility_budget=0, env_lobes=2,
+                        antialias=2)
+    return Scene(camera=cam, objects=objects, materials=mats, lights=lights, render=rs)
+
+
+@pytest.fixture(scope="module")
+def renderer():
+    r = Renderer(_scene(), device="cpu")
+    r.render()
+    return r
+
+
+def test_material_edit_reshades_the_same_visibility_buffer_and_equals_a_fresh_render(renderer):
+    renderer.set_material("ball", kd=[0.1, 0.7, 0.2])
+    img = renderer.render()
+    assert renderer.timings["raster_reused"] is True
+    fresh = Renderer(_scene(kd=(0.1, 0.7, 0.2)), device="cpu").render()
+    np.testing.assert_array_equal(img, fresh)
+
+
+def test_camera_change_rasterises_again_and_equals_a_fresh_render(renderer):
+    renderer.set_material("ball", kd=[0.6, 0.5, 0.4])
+    renderer.set_camera(origin=(0.8, 1.0, 2.8))
+    img = renderer.render()
+    assert renderer.timings["raster_reused"] is False
+    fresh = Renderer(_scene(origin=(0.8, 1.0, 2.8)), device="cpu").render()
+    np.testing.assert_array_equal(img, fresh)
+    renderer.render()
+    assert renderer.timings["raster_reused"] is True
+
+
+def test_trusted_device_geometry_rasterises_like_the_validated_numpy_path(renderer):
+    g, ga, cam = renderer.geometry, renderer.geo_arrays, renderer.scene.camera
+    a = raster.rasterize(g.vertices, g.triangles, cam, device="cpu", supersample=2)
+    b = raster.rasterize(ga.positions, ga.tris, cam, device="cpu", supersample=2, validate=False)
+    np.testing.assert_array_equal(a.tri_id.numpy(), b.tri_id.numpy())
+    np.testing.assert_array_equal(a.bary.numpy(), b.bary.numpy())
+    assert (a.tri_id.numpy() >= 0).mean() > 0.3
+
+
+def test_environment_lobes_without_energy_are_left_out_and_change_nothing(renderer):
+    before = renderer.render()
+    n = renderer._env_arrays().count
+    ax, lam, mu = renderer._env_sg_base
+    renderer._env_sg_base = (np.vstack([ax, [[1.0, 0.0, 0.0]]]), np.append(lam, 5.0), np.vstack([mu, [[0.0, 0.0, 0.0]]]))
+    try:
+        assert renderer._env_arrays().count == n
+        np.testing.assert_array_equal(renderer.render(), before)
+    finally:
+        renderer._env_sg_base = (ax, lam, mu)
