@@ -71,3 +71,18 @@ def test_environment_lobes_without_energy_are_left_out_and_change_nothing(render
         np.testing.assert_array_equal(renderer.render(), before)
     finally:
         renderer._env_sg_base = (ax, lam, mu)
+
+
+def test_background_kernel_matches_the_camera_rays_and_the_numpy_environment_lookup():
+    from warp_sg.background import background_image
+    from warp_sg.envmap import env_lookup_numpy, rotation_y
+
+    rng = np.random.default_rng(5)
+    env = rng.uniform(0.0, 2.0, (16, 32, 3)).astype(np.float32)
+    cam = Camera(origin=(0.3, 1.0, 2.5), target=(0.0, 0.2, 0.0), fov=55.0, width=23, height=17)
+    R = rotation_y(40.0)
+    import warp as wp
+
+    got = background_image(cam, 3, wp.array(env, dtype=wp.vec3, device="cpu"), R, 1.5, "cpu").numpy()
+    want = env_lookup_numpy(env, cam.ray_directions(supersample=3), rotation=R) * 1.5
+    np.testing.assert_allclose(got, want, rtol=2e-4, atol=2e-5)

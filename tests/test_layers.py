@@ -36,7 +36,7 @@ LAYER_ORDER = ("base", "math", "scene", "engines", "render", "tools")
 LAYERS = (
     ("base", ("warp_sg.errors", "warp_sg.device", "warp_sg.atomic", "warp_sg.workers", "warp_sg.meshcheck",
               "warp_sg.lazy", "warp_sg.image_io", "warp_sg.cache")),
-    ("math", ("warp_sg.sg", "warp_sg.sg_wp", "warp_sg.frames", "warp_sg.clamped_cosine", "warp_sg.fh",
+    ("math", ("warp_sg.fastmath", "warp_sg.sg", "warp_sg.sg_wp", "warp_sg.frames", "warp_sg.clamped_cosine", "warp_sg.fh",
               "warp_sg.sg_irradiance", "warp_sg.ssdf_product", "warp_sg.anisotropy", "warp_sg.pca",
               "warp_sg.brdf", "warp_sg.brdf.*")),
     ("scene", ("warp_sg.scene", "warp_sg.scene_model", "warp_sg.scene_toml", "warp_sg.scene_schema",
@@ -44,13 +44,23 @@ LAYERS = (
                "warp_sg.envmap", "warp_sg.primitives", "warp_sg.textures", "warp_sg.lights",
                "warp_sg.plain_scenes")),
     # the public facade ``warp_sg`` (``ws.render``, ``ws.reference``: lazy) sits on top with the tools
-    ("tools", ("warp_sg", "warp_sg.cli", "warp_sg.report", "warp_sg.bench", "warp_sg.preview", "warp_sg.viewer",
-               "warp_sg.viewer_widgets", "raster.bench",
-               "precompute.bench", "warp_sg.cluster", "warp_sg.distributed", "warp_sg.distributed_precompute", "warp_sg.batch")),
+    ("tools", ("warp_sg", "warp_sg.cli", "warp_sg.report",
+               "warp_sg.bench",
+               "warp_sg.bench_scaling",
+               "warp_sg.preview",
+               "warp_sg.viewer",
+               "warp_sg.viewer_widgets",
+               "raster.bench",
+               "precompute.bench",
+               "warp_sg.cluster",
+               "warp_sg.distributed",
+               "warp_sg.distributed_precompute",
+               "warp_sg.batch",
+               )),
     # surface: the shading point's textured material and frame, @wp.funcs shared by the shading
     # kernels and the reference kernel (it reads the scene's textures, so it cannot sit lower)
     ("engines", ("raster", "raster.*", "precompute", "precompute.*", "warp_sg.surface", "warp_sg.shading")),
-    ("render", ("warp_sg.render", "warp_sg.antialias", "warp_sg.reference", "warp_sg.reference_wp",
+    ("render", ("warp_sg.render", "warp_sg.background", "warp_sg.antialias", "warp_sg.reference", "warp_sg.reference_wp",
                 "warp_sg.sampling", "warp_sg.regions")),
 )
 

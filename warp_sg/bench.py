@@ -15,6 +15,8 @@ ratios are meant to carry over between machines):
    MSE against a high-sample reference, the samples per pixel the reference needs to reach the
    same error (log-log interpolation between powers of two) and the time ratio; on the bench
    scene and on a plain-input scene (2-triangle floor, sun-sky EXR).
+5. **frame scaling** — warm frame time by pixel count and by triangle count, full shading
+   (:mod:`warp_sg.bench_scaling`).
 
 The bench scene (:func:`bench_scene`) is a Torrance-Sparrow sphere, a Ward torus and a Lambert
 floor under the procedural sky with one point light and one directional light.
@@ -310,7 +312,14 @@ SECTIONS = {
     "shading cost by scene feature": shading_section,
     "precompute cost": precompute_section,
     "equal error: SG renderer vs Monte-Carlo reference": equal_error_section,
+    "frame scaling: pixels and triangles": lambda **kw: _scaling(**kw),
 }
+
+
+def _scaling(**kw):
+    from .bench_scaling import scaling_section
+
+    return scaling_section(**kw)
 
 
 def run_bench(device="cpu", quick=False, sections=None, print_fn=print, cluster=None) -> BenchResult:

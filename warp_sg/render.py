@@ -446,20 +446,22 @@ class Renderer:
 
     # ------------------------------------------------------------------ frame
     def _background_image(self, k: int):
-        """(k·H, k·W) vec3 on the device: what each (sub)pixel that sees no object shows (cached)."""
+        """(k·H, k·W) vec3 on the device: what each (sub)pixel that sees no object shows (cached;
+        a Warp kernel per camera change, :mod:`warp_sg.background`)."""
         cam = self.scene.camera
         env = self.env_light
         key = (repr(cam), k, None if env is None else (env.rotation, env.scale), self.scene.render.background)
         if key != self._background_key:
-            h, w = cam.height * k, cam.width * k
             if env is None or not self.scene.render.background:
-                img = np.zeros((h, w, 3), np.float32)
+                self._background = wp.zeros((cam.height * k, cam.width * k), dtype=wp.vec3, device=self.device)
             else:
-                from .envmap import env_lookup_numpy
+                from .background import background_image
 
-                dirs = np.asarray(cam.ray_directions(supersample=k), np.float64)
-                img = (env_lookup_numpy(self.env_base, dirs, rotation=env.rotation_matrix()) * env.scale)
-            self._background = wp.array(np.ascontiguousarray(img, np.float32), dtype=wp.vec3, device=self.device)
+                if getattr(self, "_env_base_wp", None) is None:
+                    self._env_base_wp = wp.array(np.ascontiguousarray(self.env_base, np.float32), dtype=wp.vec3,
+                                                 device=self.device)
+                self._background = background_image(cam, k, self._env_base_wp, env.rotation_matrix(), env.scale,
+                                                    self.device)
             self._background_key = key
         return self._background
 
