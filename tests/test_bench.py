@@ -36,5 +36,8 @@ def test_quick_bench_prints_every_section_with_its_columns(cache_dir):
     assert all(math.isfinite(r["rel_mse"]) for r in eq)
     pre = res.sections["precompute cost"]
     assert all(r["total_s"] > 0 for r in pre)
+    sc = res.sections["frame scaling: pixels and triangles"]
+    assert [r["grows with"] for r in sc] == ["pixels", "pixels", "triangles", "triangles"]
+    assert sc[2]["triangles"] < sc[3]["triangles"] and all(r["new view s"] > 0 and r["re-shade s"] > 0 for r in sc)
     md = res.to_markdown()
     assert md.count("### ") == len(SECTIONS)

@@ -83,7 +83,8 @@ def scaling_section(device="cpu", quick=False, frames=None, pixels=None, triangl
             new_view = _median_frames(r, n, move=True)
             reshade = _median_frames(r, n, move=False)
             base = base or new_view
-            rows.append({"grows with": label, "triangles": len(r.geometry.triangles), "pixels": f"{px}²",
+            nt = len(r.geometry.triangles)
+            rows.append({"case": f"{nt} triangles, {px}²", "grows with": label, "triangles": nt, "pixels": f"{px}²",
                          "new view s": new_view, "re-shade s": reshade, "fps (new view)": 1.0 / new_view,
                          "ratio": new_view / base, "raster s": r.timings.get("raster", float("nan"))})
     return rows
