@@ -16,8 +16,6 @@ from .camera import Camera
 from .errors import ImageError, InputError, SceneError
 from .lights import DirectionalLight, EnvironmentLight, PointLight
 from .scene_model import COLOUR_PARAMS, Material, RenderSettings, Scene, SceneObject, Transform
-from .scene_schema import (CameraTable, EnvironmentLightTable, PointLightTable, SceneFile, TextureTable,
-                           error_message, param_type)
 from .textures import Texture
 
 
@@ -39,7 +37,7 @@ class _Builder:
             raise self.err(table, f"key '{key}': file not found: {v}")
         return p
 
-    def camera(self, c: CameraTable) -> Camera:
+    def camera(self, c) -> Camera:
         try:
             return Camera(**c.model_dump())
         except InputError as e:
@@ -70,9 +68,8 @@ class _Builder:
         if isinstance(v, str):
             tex = Texture(path=self.file(table, key, v))
         else:
-            t = TextureTable.model_validate(v)
-            tex = Texture(path=self.file(table, f"{key}.texture", t.texture), srgb=t.srgb, scale=t.scale,
-                          offset=t.offset)
+            tex = Texture(path=self.file(table, f"{key}.texture", v["texture"]), srgb=v.get("srgb"),
+                          scale=float(v.get("scale", 1.0)), offset=float(v.get("offset", 0.0)))
         try:
             tex.rgba(colour=colour)  # read it now: a bad file is an error at load time
         except ImageError as e:
@@ -80,6 +77,8 @@ class _Builder:
         return tex
 
     def materials(self, raw: dict) -> dict:
+        from .scene_schema import param_type
+
         out = {}
         for name, md in raw.items():
             tab = f"[materials.{name}]"
@@ -114,9 +113,9 @@ class _Builder:
         for j, li in enumerate(lights):
             tab = f"[[lights]] #{j + 1}"
             try:
-                if isinstance(li, PointLightTable):
+                if li.type == "point":
                     out.append(PointLight(position=li.position, radius=li.radius, intensity=li.intensity))
-                elif isinstance(li, EnvironmentLightTable):
+                elif li.type == "environment":
                     out.append(EnvironmentLight(
                         file=self.file(tab, "file", li.file) if li.file is not None else None,
                         procedural=li.procedural, options=dict(li.options), scale=li.scale, rotation=li.rotation))
@@ -141,6 +140,8 @@ def load_scene(path) -> Scene:
         raise SceneError(f"not valid TOML: {e}", where=path.name) from None
     except (OSError, UnicodeDecodeError) as e:
         raise SceneError(f"cannot read scene file ({e})", where=str(path)) from None
+    from .scene_schema import SceneFile, error_message  # pydantic models: built on first use
+
     try:
         doc = SceneFile.model_validate(data)
     except ValidationError as e:
