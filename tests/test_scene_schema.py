@@ -136,6 +136,19 @@ def test_schema_lists_every_model_with_exactly_its_parameters(schema):
         assert d["additionalProperties"] is False
 
 
+def test_every_key_has_a_description_and_every_render_setting_is_in_the_schema(schema):
+    from dataclasses import fields
+
+    from warp_sg.scene import RenderSettings
+
+    render = schema["definitions"]["RenderTable"]["properties"]
+    assert set(render) == {f.name for f in fields(RenderSettings)}
+    for name, d in schema["definitions"].items():
+        for key, prop in d.get("properties", {}).items():
+            text = prop.get("description", "")
+            assert text and text != key, f"{name}.{key} has no description"
+
+
 def test_texture_parameters_are_the_kernel_texture_slots(schema):
     from warp_sg.scene_schema import TEXTURE_PARAMS
     from warp_sg.surface import _PARAM_SLOTS

@@ -105,10 +105,10 @@ FRESNEL = tagged({"<preset>": choice(PRESETS, fold_case=True), "<fresnel table>"
 class LafortuneLobe(Table):
     """One generalised cosine lobe ``(cx ux vx + cy uy vy + cz uz vz)^n``."""
 
-    cx: number()
-    cy: number()
-    cz: number()
-    n: number(lo=0)
+    cx: number(description="weight of ux vx (−1 with cy = −1, cz = 1: a mirror-like lobe)")
+    cy: number(description="weight of uy vy")
+    cz: number(description="weight of uz vz")
+    n: number(lo=0, description="exponent (sharpness)")
 
 
 # material parameters: (type, description, texturable); per-model entries override per-name ones
@@ -177,7 +177,7 @@ def _material_tag(v):
 
 
 MATERIAL_MODELS = {name: _material_model(name, cls) for name, cls in MODELS.items()}
-Material = tagged({f"<model {k}>": m for k, m in MATERIAL_MODELS.items()},
+MaterialTable = tagged({f"<model {k}>": m for k, m in MATERIAL_MODELS.items()},
                    lambda v: f"<model {v.get('model')}>" if isinstance(v, dict) else None, _material_tag)
 
 
@@ -214,7 +214,7 @@ _OBJECT_FIELDS = {
 }
 _PRIMITIVE_PARAM_TYPES = {
     "center": vector(description="centre"),
-    "radius": number(**_POS, description="radius"),
+    "radius": number(**_POS, description="sphere radius"),
     "major_radius": number(**_POS, description="radius of the ring (axis +Y)"),
     "minor_radius": number(**_POS, description="radius of the tube"),
     "size": number_or_vector(2, description="[sx, sz] (normal +Y) or one number"),
@@ -236,6 +236,10 @@ def _object_model(prim: str | None):
 def _object_tag(v):
     if not isinstance(v, dict):
         fail(f"must be a table, got {type(v).__name__}")
+    if "mesh" not in v and "primitive" not in v:
+        typo = next((k for k in v if _suggest(k, ("mesh", "primitive"))), None)
+        if typo is not None:
+            fail(f"unknown{_suggest(typo, ('mesh', 'primitive'))}", key=typo)
     if ("mesh" in v) == ("primitive" in v):
         fail("give exactly one of 'mesh' or 'primitive'")
     if "primitive" in v:
@@ -253,7 +257,7 @@ _PL, _DL, _EL = _defaults(PointLight), _defaults(DirectionalLight), _defaults(En
 class PointLightTable(Table):
     """A spherical light: radiance s/(π r²), irradiance s/d² at distance d."""
 
-    type: Literal["point"]
+    type: Annotated[Literal["point"], Field(description="light type")]
     position: vector(description="centre")
     radius: number(lo=0, description="radius (0: a delta light)") = _PL["radius"]
     intensity: rgb(description="intensity s (W/sr): number or RGB") = _PL["intensity"]
@@ -262,7 +266,7 @@ class PointLightTable(Table):
 class DirectionalLightTable(Table):
     """A distant light (a sun)."""
 
-    type: Literal["directional"]
+    type: Annotated[Literal["directional"], Field(description="light type")]
     direction: vector(nonzero=True, description="direction towards the light")
     radius: number(lo=0, hi=math.pi / 2, description="angular radius (radians)") = _DL["radius"]
     intensity: rgb(description="irradiance E on a surface facing the light: number or RGB") = _DL["intensity"]
@@ -277,7 +281,7 @@ class EnvironmentLightTable(Table):
     """An equirectangular environment (Mitsuba convention): a file or a procedural map."""
 
     model_config = ConfigDict(json_schema_extra={"oneOf": [{"required": ["file"]}, {"required": ["procedural"]}]})
-    type: Literal["environment"]
+    type: Annotated[Literal["environment"], Field(description="light type")]
     file: path("equirectangular map (EXR), relative to the scene file") = None
     procedural: choice(ENV_PROCEDURAL, "built-in map") = None
     options: anything({"type": "object", "additionalProperties": False, "properties": {
@@ -334,13 +338,19 @@ _RENDER_DOC = {
 
 
 def _render_type(k):
+    """The type of ``[render]`` key ``k``: its range, its choices, else the type of its default."""
+    doc, default = _RENDER_DOC.get(k, k), _RS[k]
     if k in RENDER_INT_RANGES:
-        return integer(*RENDER_INT_RANGES[k], description=_RENDER_DOC[k])
-    if k in ("shadows", "background"):
-        return boolean(_RENDER_DOC[k])
+        return integer(*RENDER_INT_RANGES[k], description=doc)
     if k == "fh":
-        return choice(("table", "sigmoid"), _RENDER_DOC[k])
-    return string(_RENDER_DOC[k])
+        return choice(("table", "sigmoid"), doc)
+    if isinstance(default, bool):
+        return boolean(doc)
+    if isinstance(default, int):
+        return integer(description=doc)
+    if isinstance(default, float):
+        return number(description=doc)
+    return string(doc)
 
 
 RenderTable = create_model("RenderTable", __base__=Table, __doc__="Quality settings of the SG renderer.",
@@ -352,8 +362,8 @@ class SceneFile(Table):
 
     camera: Annotated[CameraTable, Field(description="the camera")]
     objects: Annotated[list[SceneObjectTable], Field(description="[[objects]]: meshes and primitives")] = []
-    materials: Annotated[dict[str, Material], Field(description="[materials.NAME]: a BRDF model and its "
-                                                                 "parameters")] = {}
+    materials: Annotated[dict[str, MaterialTable],
+                         Field(description="[materials.NAME]: a BRDF model and its parameters")] = {}
     lights: Annotated[list[LightTable], Field(description="[[lights]]: point, directional, environment")] = []
     render: Annotated[RenderTable, Field(description="renderer settings")] = RenderTable()
 
