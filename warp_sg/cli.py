@@ -3,6 +3,7 @@
 ::
 
     warp-sg render SCENE -o OUT.(exr|png) [--device cpu|cuda|auto] [--supersampling K] [--exposure EV]
+    warp-sg render ASSET.(glb|gltf|obj|ply|...) [--env SKY.(hdr|exr)] [--view AZ EL] [--print-scene] -o OUT
     warp-sg preview SCENE [--screenshot PNG] [--window-size W H] [--exposure EV] [--device ...]
     warp-sg reference SCENE -o OUT --spp N         (arguments from warp_sg.reference)
     warp-sg report SCENE -o DIR                    (arguments from warp_sg.report)
@@ -74,9 +75,16 @@ def _float(s):
 # render
 # --------------------------------------------------------------------------------------------
 def add_render_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("scene", help="scene file (TOML)")
-    p.add_argument("-o", "--output", required=True,
+    p.add_argument("scene", help="scene file (TOML), or an asset (.glb, .gltf, .obj, .ply, ...) to render on a "
+                                 "ground plane under a sky with a framing camera")
+    p.add_argument("-o", "--output", default=None,
                    help="output image: .exr (linear HDR) or .png (sRGB); missing folders are created")
+    p.add_argument("--env", default=None, metavar="MAP",
+                   help="asset renders: environment map (.hdr or .exr; default: the procedural sky)")
+    p.add_argument("--view", type=_float, nargs=2, default=None, metavar=("AZ", "EL"),
+                   help="asset renders: camera azimuth and elevation in degrees (default 30 20)")
+    p.add_argument("--print-scene", action="store_true",
+                   help="print the scene as TOML (with an asset: the scene made for it; -o optional)")
     add_device_argument(p)
     p.add_argument("--spp", "--supersampling", dest="supersampling", type=_positive_int("--supersampling"),
                    default=None, help="supersampling factor k (k×k samples per pixel, box filter)")
@@ -90,13 +98,48 @@ def add_render_arguments(p: argparse.ArgumentParser) -> None:
                    help="compute the SSDFs on Dask (docs/distributed.md); default: locally, without Dask")
 
 
+def _render_scene(args):
+    """(scene, TOML text) of ``render``'s SCENE: a TOML file, or an asset (:mod:`warp_sg.asset_scene`).
+    Features of an asset that are not rendered are reported as one ``warp-sg: warning:`` line each."""
+    import warnings
+    from pathlib import Path
+
+    from .asset_scene import DEFAULT_SIZE, DEFAULT_VIEW, asset_scene
+    from .gltf import AssetWarning
+    from .scene import load_scene
+
+    path = Path(args.scene)
+    asset = path.suffix.lower() != ".toml"
+    if not asset and (args.env is not None or args.view is not None):
+        raise _Fail("--env and --view apply to asset renders (a mesh or glTF file), not to a TOML scene")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", AssetWarning)
+        if asset:
+            scene, text = asset_scene(path, env=args.env, view=args.view or DEFAULT_VIEW,
+                                      width=args.width or DEFAULT_SIZE[0], height=args.height or DEFAULT_SIZE[1])
+        else:
+            scene = load_scene(path)
+            text = path.read_text(encoding="utf-8") if args.print_scene else ""
+    for w in caught:
+        if issubclass(w.category, AssetWarning):
+            print(f"warp-sg: warning: {w.message}", file=sys.stderr)
+        else:
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+    return scene, text
+
+
 def render_main(args) -> int:
     from .image_io import save_image
     from .render import Renderer
-    from .scene import load_scene
 
-    out = check_output_path(args.output, create_parents=True)
-    scene = load_scene(args.scene)
+    if args.output is None and not args.print_scene:
+        raise _Fail("the following argument is required: -o/--output")
+    out = None if args.output is None else check_output_path(args.output, create_parents=True)
+    scene, text = _render_scene(args)
+    if args.print_scene:
+        print(text, end="" if text.endswith("\n") else "\n")
+    if out is None:
+        return 0
     if args.supersampling is not None:
         scene.render.supersampling = args.supersampling
     if args.no_shadows:

@@ -285,13 +285,14 @@ def validate_envmap(env, where: str = "environment map") -> np.ndarray:
 
 
 def load_envmap(path, scale: float = 1.0) -> np.ndarray:
-    """Read an equirectangular OpenEXR environment map as ``(H, W, 3)`` float32 radiance × ``scale``.
+    """Read an equirectangular environment map as ``(H, W, 3)`` float32 radiance × ``scale``:
+    OpenEXR (``R``, ``G``, ``B`` channels; extras such as ``A`` ignored) or Radiance RGBE ``.hdr``
+    (:func:`warp_sg.image_io.read_hdr`, OpenCV).
 
-    The file must hold ``R``, ``G``, ``B`` channels (extra channels such as ``A`` are ignored);
-    NaN/inf or negative texels, a grey-only file, a non-EXR file or an unreadable file raise
-    :class:`ImageError` naming the file.
+    NaN/inf or negative texels, a grey-only EXR, a file of another format or an unreadable file
+    raise :class:`ImageError` naming the file.
     """
-    from warp_sg.image_io import exr_channel_names, read_exr
+    from warp_sg.image_io import exr_channel_names, is_hdr_file, read_exr, read_hdr
 
     path = Path(path)
     where = str(path)
@@ -302,15 +303,19 @@ def load_envmap(path, scale: float = 1.0) -> np.ndarray:
             magic = f.read(4)
     except OSError as e:
         raise ImageError(f"cannot open environment map ({e.strerror or e})", where=where) from None
-    if magic != b"\x76\x2f\x31\x01":
-        raise ImageError("environment maps must be OpenEXR files (.exr, linear radiance)", where=where)
-    names = {n.rsplit(".", 1)[-1] for n in exr_channel_names(path)}
-    if not {"R", "G", "B"} <= names:
-        raise ImageError(
-            f"environment map has channels [{', '.join(sorted(exr_channel_names(path)))}]; need R, G, B",
-            where=where,
-        )
-    img = read_exr(path)[..., :3]
+    if magic == b"\x76\x2f\x31\x01":
+        names = {n.rsplit(".", 1)[-1] for n in exr_channel_names(path)}
+        if not {"R", "G", "B"} <= names:
+            raise ImageError(
+                f"environment map has channels [{', '.join(sorted(exr_channel_names(path)))}]; need R, G, B",
+                where=where,
+            )
+        img = read_exr(path)[..., :3]
+    elif is_hdr_file(path):
+        img = read_hdr(path)
+    else:
+        raise ImageError("environment maps must be OpenEXR (.exr) or Radiance HDR (.hdr) files (linear radiance)",
+                         where=where)
     s = float(scale)
     if not np.isfinite(s) or s < 0:
         raise ImageError(f"scale must be a finite non-negative number, got {scale}", where=where)

@@ -1,4 +1,4 @@
-r"""Image files: OpenEXR (linear float) and PNG/JPEG (8-bit sRGB), DESIGN.md "Conventions".
+r"""Image files: OpenEXR and Radiance HDR (linear float) and PNG/JPEG (8-bit sRGB), DESIGN.md "Conventions".
 
 Images are ``(H, W, C)`` float32 numpy arrays of *linear* values, row 0 at the top, ``C`` in
 {1, 3, 4} (a 2-D array is one channel).
@@ -7,6 +7,9 @@ Images are ``(H, W, C)`` float32 numpy arrays of *linear* values, row 0 at the t
 
   - ``.exr``: the values as they are (RGB, Y or RGBA channels), float32 or, with ``half=True``,
     float16, ZIP compression (OpenEXR package).
+  - ``.hdr``: Radiance RGBE (OpenCV ``imwrite``): three channels with a shared 8-bit exponent,
+    so each channel is stored to within ``max(R, G, B)·2⁻⁸``; negative values and NaN are written
+    as 0, grey is broadcast to RGB and alpha dropped.
   - ``.png`` / ``.jpg`` / ``.jpeg``: tone-mapped 8-bit sRGB (:func:`tonemap_srgb`):
     ``x · 2^exposure``, clamped to [0, 1], then the sRGB OETF (IEC 61966-2-1)
     ``c = 12.92 x`` for ``x ≤ 0.0031308``, else ``1.055 x^{1/2.4} − 0.055``; NaN becomes 0.
@@ -21,6 +24,8 @@ Images are ``(H, W, C)`` float32 numpy arrays of *linear* values, row 0 at the t
 
   - EXR: the stored values (half or float) as float32; channels ``R,G,B[,A]`` or ``Y[,A]``
     (layered names such as ``diffuse.R`` are accepted when the file has one layer).
+  - Radiance HDR (``.hdr``, or any file starting with ``#?``): RGB float32 decoded by OpenCV
+    (``cv2.imread(path, IMREAD_ANYDEPTH | IMREAD_COLOR)``, BGR reordered to RGB).
   - PNG / JPEG / other Pillow formats: 8-bit or 16-bit integers scaled to [0, 1]. ``linear=None``
     (default) or ``False`` decodes the sRGB EOTF for the colour channels (colour textures such as
     ``kd``); ``linear=True`` keeps the code values (data textures: roughness, normal maps,
@@ -43,6 +48,7 @@ from .atomic import atomic_output
 from .errors import ImageError
 
 EXR_EXTS = (".exr",)
+HDR_EXTS = (".hdr",)
 LDR_EXTS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG"}
 #: Rec. 709 luminance weights (linear RGB).
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
@@ -105,6 +111,43 @@ def _write_exr(tmp: str, a: np.ndarray, half: bool) -> None:
         f.write(tmp)
 
 
+def _cv2():
+    import cv2
+
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)  # errors are ours, one line
+    return cv2
+
+
+def _write_hdr(tmp: str, a: np.ndarray) -> None:
+    rgb = np.repeat(a[..., :1], 3, axis=2) if a.shape[2] == 1 else a[..., :3]
+    rgb = np.clip(np.nan_to_num(rgb, nan=0.0, posinf=0.0, neginf=0.0), 0.0, None)
+    if not _cv2().imwrite(tmp, np.ascontiguousarray(rgb[..., ::-1], np.float32)):
+        raise ImageError("OpenCV could not write the Radiance HDR file", where=tmp)
+
+
+def read_hdr(path) -> np.ndarray:
+    """A Radiance RGBE (``.hdr``) file as ``(H, W, 3)`` float32 RGB (OpenCV). Unreadable or
+    truncated files raise :class:`ImageError` naming the file."""
+    path = Path(path)
+    cv2 = _cv2()
+    a = cv2.imread(str(path), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
+    if a is None or a.ndim != 3 or a.shape[2] != 3:
+        raise ImageError("cannot read Radiance HDR file (corrupt, truncated or not RGBE)", where=str(path))
+    return np.ascontiguousarray(a[..., ::-1], np.float32)
+
+
+def is_hdr_file(path) -> bool:
+    """``.hdr`` suffix or the Radiance signature ``#?`` (``#?RADIANCE``, ``#?RGBE``)."""
+    path = Path(path)
+    if path.suffix.lower() in HDR_EXTS:
+        return True
+    try:
+        with open(path, "rb") as f:
+            return f.read(2) == b"#?"
+    except OSError:
+        return False
+
+
 def _write_ldr(tmp: str, a: np.ndarray, fmt: str, exposure: float) -> None:
     from PIL import Image
 
@@ -130,13 +173,14 @@ def _write_ldr(tmp: str, a: np.ndarray, fmt: str, exposure: float) -> None:
 def save_image(path, img, exposure: float = 0.0, half: bool = False) -> Path:
     """Write ``img`` ((H,W) or (H,W,1|3|4) linear float) to ``path`` atomically; returns the path.
 
-    ``.exr``: values as-is (float32, or float16 with ``half=True``). ``.png``/``.jpg``: 8-bit
+    ``.exr``: values as-is (float32, or float16 with ``half=True``). ``.hdr``: Radiance RGBE.
+    ``.png``/``.jpg``: 8-bit
     sRGB after :func:`tonemap_srgb` with ``exposure`` stops. Errors: :class:`ImageError`.
     """
     path = Path(path)
     ext = path.suffix.lower()
-    if ext not in EXR_EXTS and ext not in LDR_EXTS:
-        raise ImageError(f"unknown image extension '{path.suffix}' (use .exr, .png or .jpg)", where=str(path))
+    if ext not in EXR_EXTS and ext not in LDR_EXTS and ext not in HDR_EXTS:
+        raise ImageError(f"unknown image extension '{path.suffix}' (use .exr, .hdr, .png or .jpg)", where=str(path))
     a = _as_hwc(img, path)
     folder = path.parent if str(path.parent) else Path(".")
     if path.is_dir():
@@ -147,6 +191,8 @@ def save_image(path, img, exposure: float = 0.0, half: bool = False) -> Path:
         with atomic_output(path, suffix=f".tmp{ext}") as tmp:
             if ext in EXR_EXTS:
                 _write_exr(tmp, a, half)
+            elif ext in HDR_EXTS:
+                _write_hdr(tmp, a)
             else:
                 _write_ldr(tmp, a, LDR_EXTS[ext], exposure)
     except ImageError:
@@ -293,7 +339,12 @@ def load_image(path, *, linear: bool | None = None, channels: int | None = None)
                 is_exr = f.read(4) == b"\x76\x2f\x31\x01"
         except OSError as e:
             raise ImageError(f"cannot open image ({e.strerror or e})", where=str(path)) from None
-    a = read_exr(path) if is_exr else _read_ldr(path, bool(linear))
+    if is_exr:
+        a = read_exr(path)
+    elif is_hdr_file(path):
+        a = read_hdr(path)
+    else:
+        a = _read_ldr(path, bool(linear))
     if channels is not None and channels not in (1, 3, 4):
         raise ValueError(f"channels must be 1, 3, 4 or None, got {channels}")
     return np.ascontiguousarray(_convert_channels(a, channels, path), dtype=np.float32)
@@ -307,4 +358,6 @@ __all__ = [
     "srgb_to_linear",
     "exr_channel_names",
     "read_exr",
+    "read_hdr",
+    "is_hdr_file",
 ]

@@ -67,9 +67,10 @@ class Transform:
 
 @dataclass
 class SceneObject:
-    """One object: ``mesh`` (file), ``primitive`` (+ ``params``) or inline arrays; a material name."""
+    """One object: ``mesh`` (file), ``primitive`` (+ ``params``) or inline arrays; a material name
+    (``None`` for a glTF ``mesh``: the file's materials)."""
 
-    material: str
+    material: str | None
     mesh: str | Path | None = None
     primitive: str | None = None
     params: dict = field(default_factory=dict)
@@ -221,6 +222,7 @@ class Scene:
             m.name = m.name or name
             mats[name] = m
         self.materials = mats
+        self.objects, self.materials = _expand_assets(list(self.objects), self.materials, where)
         if not self.objects:
             raise SceneError("the scene has no objects (add an [[objects]] table)", where=where)
         for i, ob in enumerate(self.objects):
@@ -261,6 +263,29 @@ class Scene:
 
     def invalidate_geometry(self) -> None:
         self._geometry = None
+
+
+def _expand_assets(objects: list, materials: dict, where: str) -> tuple[list, dict]:
+    """Every glTF object (``mesh = "*.glb" | "*.gltf"``) becomes one object per mesh primitive, in
+    the file's world frame with the object's transform; without a ``material`` of its own, the
+    file's materials join the scene as ``"<label>/<name>"`` (:mod:`warp_sg.gltf`)."""
+    from .gltf import gltf_object_parts, is_gltf
+
+    out, mats = [], dict(materials)
+    for i, ob in enumerate(objects):
+        if ob.mesh is None or not is_gltf(ob.mesh):
+            out.append(ob)
+            continue
+        parts, specs = gltf_object_parts(ob.mesh, ob.label(i), materials=ob.material is None)
+        for key, spec in specs.items():
+            if key in mats:
+                raise SceneError(f"[[objects]] #{i + 1} material '{key}' of {Path(ob.mesh).name} is also defined "
+                                 f"by the scene (give the object another name)", where=where)
+            mats[key] = Material(name=key, **spec)
+        out.extend(SceneObject(material=ob.material or p.material, transform=ob.transform, name=p.name,
+                               vertices=p.vertices, triangles=p.triangles, normals=p.normals, uvs=p.uvs,
+                               tangents=p.tangents) for p in parts)
+    return out, mats
 
 
 def _suggest(name, options) -> str:

@@ -226,6 +226,8 @@ def _object_model(prim: str | None):
     f = dict(_OBJECT_FIELDS)
     if prim is None:
         f["mesh"] = (path("mesh file (any format trimesh reads), relative to the scene file"), ...)
+        # a glTF (.glb/.gltf) brings its own materials (warp_sg.gltf); other meshes need one (scene_toml)
+        f["material"] = (string("name of a [materials.NAME] table (optional for .glb/.gltf: the file's)"), None)
         return create_model("MeshObject", __base__=Table, __doc__="An object read from a mesh file.", **f)
     f["primitive"] = (Literal[prim], Field(description="built-in primitive"))
     for k, default in PRIMITIVE_PARAMS[prim].items():
