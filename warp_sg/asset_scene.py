@@ -118,11 +118,13 @@ def scene_from_dict(doc: dict) -> Scene:
     for d in doc["objects"]:
         params = {k: (tuple(v) if isinstance(v, list) else v) for k, v in d.items()
                   if k in ("center", "size", "resolution")}
-        objects.append(SceneObject(material=d.get("material"), mesh=d.get("mesh"), primitive=d.get("primitive"),
+        mesh = Path(d["mesh"]) if "mesh" in d else None
+        objects.append(SceneObject(material=d.get("material"), mesh=mesh, primitive=d.get("primitive"),
                                    params=params, name=d.get("name"), transform=Transform()))
     mats = {k: Material(model=v["model"], params={p: x for p, x in v.items() if p != "model"}, name=k)
             for k, v in doc["materials"].items()}
-    lights = [EnvironmentLight(**{k: v for k, v in li.items() if k != "type"}) for li in doc["lights"]]
+    lights = [EnvironmentLight(**{k: (Path(v) if k == "file" else v) for k, v in li.items() if k != "type"})
+              for li in doc["lights"]]
     for li in lights:
         li.base_radiance()  # read the map now: a bad file fails before any work (cached for the render)
     return Scene(camera=Camera(**doc["camera"]), objects=objects, materials=mats, lights=lights,
