@@ -5,8 +5,13 @@
 * ``normal.png``    tangent-space normal map of rounded tile bumps (``2·rgb − 1``, z up)
 * ``tangent.png``   tangent map: a swirl of tangent directions (``(2r − 1, 2g − 1)`` in the tangent plane)
 * ``blob.obj``      a lumpy sphere (icosphere with a smooth radial displacement), to show mesh loading
+* ``still_life.glb`` a glTF 2.0 asset (README "Render your own asset"): a tiled pedestal (base
+  colour, metallic-roughness and normal textures; some tiles metal), a gold ball, a copper ring and a
+  red plastic capsule, placed by a node hierarchy (root scale, a tilted group)
+* ``sky.hdr``       an equirectangular Radiance HDR sky with a low warm sun (``warp_sg.envmap.procedural_sky``)
 
-Usage: ``python examples/make_assets.py``. Pure numpy + Pillow + trimesh, deterministic.
+Usage: ``python examples/make_assets.py``. Pure numpy + Pillow + trimesh (+ OpenCV for ``.hdr``),
+deterministic.
 """
 from __future__ import annotations
 
@@ -84,6 +89,74 @@ def blob():
     return m
 
 
+def metallic_roughness():
+    """glTF metallicRoughness texture: G = roughness, B = metallic (the gold-palette tiles are metal)."""
+    _, _, _, _, iu, iv, edge = _tiles()
+    rough = roughness()
+    metal = (((iu * 3 + iv * 5) % 6 == 1) & (edge >= 0.04)).astype(np.uint8) * 255
+    return np.stack([np.zeros_like(rough), rough, metal], -1)
+
+
+def _box_uv(m):
+    """Unshared box vertices with planar UVs per face (projection on the two axes across its normal)."""
+    m = m.copy()
+    m.unmerge_vertices()
+    n = np.abs(m.face_normals)
+    axis = np.argmax(n, 1)
+    v = m.vertices[m.faces]  # (F, 3, 3)
+    keep = np.array([[1, 2], [0, 2], [0, 1]])[axis]  # the two axes spanning each face
+    uv = np.take_along_axis(v, keep[:, None, :].repeat(3, 1), 2)
+    uv = (uv - uv.min(axis=(0, 1))) / np.ptp(uv.reshape(-1, 2), 0)
+    out = np.zeros((len(m.vertices), 2))
+    out[m.faces.reshape(-1)] = uv.reshape(-1, 2)
+    return m, out
+
+
+def still_life():
+    """The glTF 2.0 example asset (module docstring), as a trimesh scene."""
+    import trimesh
+    from trimesh.visual import TextureVisuals
+    from trimesh.visual.material import PBRMaterial
+
+    tf = trimesh.transformations
+    tiles = PBRMaterial(name="tiles", baseColorTexture=Image.fromarray(albedo(), "RGB"),
+                        metallicRoughnessTexture=Image.fromarray(metallic_roughness(), "RGB"),
+                        normalTexture=Image.fromarray(normal(), "RGB"), metallicFactor=1.0, roughnessFactor=1.0)
+    box, uv = _box_uv(trimesh.creation.box(extents=[1.6, 0.3, 1.6]))
+    box.visual = TextureVisuals(uv=uv, material=tiles)
+
+    def solid(mesh, name, colour, metallic, rough):
+        mesh.visual = TextureVisuals(material=PBRMaterial(name=name, baseColorFactor=colour, metallicFactor=metallic,
+                                                          roughnessFactor=rough))
+        return mesh
+
+    ball = solid(trimesh.creation.icosphere(subdivisions=3, radius=0.32), "gold", [1.0, 0.77, 0.34, 1.0], 1.0, 0.35)
+    ring = solid(trimesh.creation.torus(0.28, 0.07, major_sections=48, minor_sections=16), "copper",
+                 [0.95, 0.64, 0.54, 1.0], 1.0, 0.25)
+    capsule = solid(trimesh.creation.capsule(height=0.4, radius=0.12, count=[24, 24]), "red_plastic",
+                    [0.75, 0.06, 0.04, 1.0], 0.0, 0.4)
+    s = trimesh.Scene()
+    s.graph.update(frame_from=s.graph.base_frame, frame_to="still_life", matrix=np.diag([1.2, 1.2, 1.2, 1.0]))
+    s.add_geometry(box, node_name="pedestal", geom_name="pedestal", parent_node_name="still_life",
+                   transform=tf.translation_matrix([0, 0.15, 0]))
+    s.add_geometry(ball, node_name="ball", geom_name="ball", parent_node_name="still_life",
+                   transform=tf.translation_matrix([-0.3, 0.62, -0.15]))
+    s.graph.update(frame_from="still_life", frame_to="group",
+                   matrix=tf.translation_matrix([0.4, 0.3, 0.3]) @ tf.rotation_matrix(0.5, [0, 1, 0]))
+    s.add_geometry(ring, node_name="ring", geom_name="ring", parent_node_name="group",
+                   transform=tf.translation_matrix([0, 0.07, 0]))
+    s.add_geometry(capsule, node_name="capsule", geom_name="capsule", parent_node_name="group",
+                   transform=tf.translation_matrix([0.05, 0.32, -0.35]) @ tf.rotation_matrix(1.2, [1, 0, 0]))
+    return s
+
+
+def sky():
+    from warp_sg.envmap import procedural_sky
+
+    return procedural_sky(256, 128, sun_direction=(0.55, 0.35, 0.75), sun_angular_radius=0.04, sun_intensity=300.0,
+                          sun_color=(1.0, 0.8, 0.6), sky_intensity=0.9)
+
+
 def main():
     OUT.mkdir(parents=True, exist_ok=True)
     Image.fromarray(albedo(), "RGB").save(OUT / "albedo.png", optimize=True)
@@ -91,6 +164,10 @@ def main():
     Image.fromarray(normal(), "RGB").save(OUT / "normal.png", optimize=True)
     Image.fromarray(tangent(), "RGB").save(OUT / "tangent.png", optimize=True)
     blob().export(OUT / "blob.obj", include_normals=True)
+    (OUT / "still_life.glb").write_bytes(still_life().export(file_type="glb"))
+    from warp_sg.image_io import save_image
+
+    save_image(OUT / "sky.hdr", sky())
     for f in sorted(OUT.iterdir()):
         print(f"{f.relative_to(OUT.parent.parent)}  {f.stat().st_size / 1024:.1f} KiB")
 
