@@ -153,7 +153,7 @@ def still_life():
 def sky():
     from warp_sg.envmap import procedural_sky
 
-    return procedural_sky(256, 128, sun_direction=(0.55, 0.35, 0.75), sun_angular_radius=0.04, sun_intensity=300.0,
+    return procedural_sky(256, 128, sun_direction=(-0.81, 0.5, 0.3), sun_angular_radius=0.04, sun_intensity=800.0,
                           sun_color=(1.0, 0.8, 0.6), sky_intensity=0.9)
 
 

@@ -7,7 +7,7 @@ Records (what a scene holds; the Monte-Carlo reference reads the same records):
 * :class:`DirectionalLight` — ``direction`` (unit, pointing **towards** the light, i.e. the
   direction light comes *from*), angular radius ``radius`` (radians), ``intensity`` = irradiance E
   on a surface facing it.
-* :class:`EnvironmentLight` — equirectangular radiance (Mitsuba's convention) from ``file`` (EXR)
+* :class:`EnvironmentLight` — equirectangular radiance (Mitsuba's convention) from ``file`` (EXR or Radiance .hdr)
   or ``procedural`` ("sky" → :func:`warp_sg.envmap.procedural_sky` with ``options``;
   "constant" → uniform radiance ``options.radiance``), times ``scale``, rotated by ``rotation``
   degrees about +Y: ``L_world(d) = L_map(R_y(rotation)ᵀ d)``.
@@ -112,7 +112,7 @@ ENV_PROCEDURAL = ("sky", "constant")
 
 @dataclass
 class EnvironmentLight:
-    """Distant environment: ``file`` (equirectangular EXR) or ``procedural`` ("sky" | "constant")
+    """Distant environment: ``file`` (equirectangular EXR or Radiance .hdr) or ``procedural`` ("sky" | "constant")
     with ``options`` (passed to ``procedural_sky``; "constant": ``radiance`` RGB, ``width``,
     ``height``), times ``scale``, rotated ``rotation`` degrees about +Y."""
 
