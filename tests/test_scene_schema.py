@@ -236,6 +236,8 @@ BAD = [  # (old, new, words of the loader's one-line message)
      ["key 'lobes[0].m' unknown", "valid keys: cx, cy, cz, n"]),
     ("size = [4.0, 4.0]", "size = [4.0, 0.0]", ["key 'size' must be > 0"]),
     ('material = "floor"', "material = 3", ["key 'material' must be a string"]),
+    ('primitive = "plane"\nsize = [4.0, 4.0]\nmaterial = "floor"', 'mesh = "floor.obj"',
+     ["[[objects]] #2 key 'material' is missing"]),
 ]
 
 
@@ -264,6 +266,7 @@ GOOD = [
     ("radius = 0.5\n", "radius = 0.5\nscale = [1, 2, 1]\nrotate = [0, 90, 0]\ntranslate = [1, 0, 0]\n"),
     ("size = [4.0, 4.0]", "size = 4"),
     ("resolution = [8, 16]", "resolution = 12"),
+    ('primitive = "plane"\nsize = [4.0, 4.0]\nmaterial = "floor"', 'mesh = "assets/still_life.GLB"'),
     ('procedural = "sky"\noptions = { sun_intensity = 300.0 }', 'procedural = "constant"\noptions = { radiance = [1, 2, 3] }'),
 ]
 
@@ -276,7 +279,7 @@ def test_valid_variants_pass_the_json_schema(validator, old, new):
     assert not errors, errors
 
 
-@pytest.mark.parametrize("old,new", [g for g in GOOD if "texture" not in g[1] and ".png" not in g[1]])
+@pytest.mark.parametrize("old,new", [g for g in GOOD if not any(f in g[1] for f in ("texture", ".png", ".GLB"))])
 def test_valid_variants_load(tmp_path, old, new):
     sc = load_scene(_write(tmp_path, _sub(old, new)))
     assert sc.material_names == ["gold", "floor"]

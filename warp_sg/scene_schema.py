@@ -39,6 +39,7 @@ from .brdf.fresnel import PRESETS
 from .camera import Camera
 from .envmap import procedural_sky
 from .errors import InputError
+from .gltf import GLTF_SUFFIXES, is_gltf
 from .lights import ENV_PROCEDURAL, DirectionalLight, EnvironmentLight, PointLight
 from .primitives import PRIMITIVE_PARAMS, PRIMITIVES
 from .scene_model import RENDER_INT_RANGES, RenderSettings, _suggest
@@ -222,13 +223,33 @@ _PRIMITIVE_PARAM_TYPES = {
 }
 
 
+def _suffix_pattern(suffixes) -> str:
+    """A case-insensitive ECMA-262 pattern for file names ending in one of ``suffixes``."""
+    alt = "|".join("".join(f"[{c.lower()}{c.upper()}]" if c.isalpha() else c for c in s.lstrip(".")) for s in suffixes)
+    return rf"\.({alt})$"
+
+
+class _MeshObjectBase(Table):
+    """A mesh file; a glTF (.glb/.gltf) brings its own materials (:mod:`warp_sg.gltf`), any other
+    mesh needs ``material``."""
+
+    model_config = ConfigDict(json_schema_extra={"anyOf": [
+        {"required": ["material"]}, {"properties": {"mesh": {"pattern": _suffix_pattern(GLTF_SUFFIXES)}}}]})
+
+    @model_validator(mode="after")
+    def _material_unless_gltf(self):
+        if self.material is None and not is_gltf(self.mesh):
+            fail("is missing (only a .glb/.gltf brings its own materials)", key="material")
+        return self
+
+
 def _object_model(prim: str | None):
     f = dict(_OBJECT_FIELDS)
     if prim is None:
-        f["mesh"] = (path("mesh file (any format trimesh reads), relative to the scene file"), ...)
-        # a glTF (.glb/.gltf) brings its own materials (warp_sg.gltf); other meshes need one (scene_toml)
+        f["mesh"] = (path("mesh file (any format trimesh reads; .glb/.gltf with their materials), relative to "
+                          "the scene file"), ...)
         f["material"] = (string("name of a [materials.NAME] table (optional for .glb/.gltf: the file's)"), None)
-        return create_model("MeshObject", __base__=Table, __doc__="An object read from a mesh file.", **f)
+        return create_model("MeshObject", __base__=_MeshObjectBase, __doc__=_MeshObjectBase.__doc__, **f)
     f["primitive"] = (Literal[prim], Field(description="built-in primitive"))
     for k, default in PRIMITIVE_PARAMS[prim].items():
         f[k] = (_PRIMITIVE_PARAM_TYPES[k], Field(default=list(default) if isinstance(default, tuple) else default))
@@ -476,12 +497,14 @@ def _merged(branches: list, defs: dict) -> dict | None:
             props.setdefault(k, []).append(v)
     out = {}
     for k, vs in props.items():
-        if all(set(v) <= {"enum", "description", "title"} for v in vs):
-            out[k] = {"enum": [e for v in vs for e in v["enum"]], "description": vs[0].get("description", k)}
-        elif all(v == vs[0] for v in vs):
-            out[k] = vs[0]
+        desc = " | ".join(dict.fromkeys(v.get("description", k) for v in vs))
+        bare = [{a: b for a, b in v.items() if a not in ("description", "title")} for v in vs]
+        if all(set(v) <= {"enum"} for v in bare):
+            out[k] = {"enum": [e for v in bare for e in v["enum"]], "description": desc}
+        elif all(v == bare[0] for v in bare):
+            out[k] = {**bare[0], "description": desc}
         else:
-            out[k] = {"description": " | ".join(dict.fromkeys(v.get("description", k) for v in vs))}
+            out[k] = {"description": desc}
     required = set.intersection(*(set(t.get("required", ())) for t in tables))
     return {"type": "object", "properties": out, "additionalProperties": False,
             **({"required": sorted(required)} if required else {})}

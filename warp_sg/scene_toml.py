@@ -14,7 +14,6 @@ from pydantic import ValidationError
 
 from .camera import Camera
 from .errors import ImageError, InputError, SceneError
-from .gltf import is_gltf
 from .lights import DirectionalLight, EnvironmentLight, PointLight
 from .scene_model import COLOUR_PARAMS, Material, RenderSettings, Scene, SceneObject, Transform
 from .textures import Texture
@@ -61,8 +60,6 @@ class _Builder:
             if "rotate" in given:
                 tr.rotate = given["rotate"]
             mesh = self.file(tab, "mesh", given["mesh"]) if "mesh" in given else None
-            if ob.material is None and not is_gltf(mesh):  # only a glTF brings its own materials
-                raise self.err(tab, "key 'material' is missing")
             out.append(SceneObject(material=ob.material, mesh=mesh, primitive=prim, params=params, transform=tr,
                                    name=given.get("name")))
         return out
