@@ -1,10 +1,16 @@
-"""Per-stage profile of a warm frame (docs/benchmarks.md "Frame profile").
+"""Per-stage and per-lobe profile of a warm frame (docs/benchmarks.md "Frame profile").
 
     python scripts/profile_frame.py [SCENE.toml ...] [--size 512] [--repeat 5]
 
-For each scene: precompute once, then ``repeat`` warm frames; prints the median of each stage
-(raster sub-stages from ``raster.rasterize(profile=True)``, shading, resolve) for antialias 1 and
-the scene's setting, and the shading cost with parts of the model switched off.
+For each scene: precompute once, then
+
+* **stages** (wall, median of ``repeat`` frames, camera nudged every frame so that it rasterises):
+  raster sub-stages (``raster.rasterize(profile=True)``), background, shading, resolve;
+* **shading parts** (process CPU time of a re-shade, visibility buffer reused): the full kernel
+  and the kernel variants without shadows, environment diffuse, environment specular and local
+  lights; the difference divided by the number of lobes (or lights) is the cost of one lobe.
+
+CPU time, not wall time, because these machines are shared: other processes inflate wall times.
 """
 from __future__ import annotations
 
@@ -16,14 +22,28 @@ from dataclasses import replace
 import numpy as np
 
 
-def _median_frame(r, repeat):
+def _cpu_reshade(r, repeat):
+    r.render()
     ts = []
-    for _ in range(repeat):
+    for i in range(repeat):
+        r.set_environment_scale(1.0 + 1e-6 * (i % 2)) if r.env_light is not None else None
+        c = time.process_time()
+        r.render()
+        ts.append(time.process_time() - c)
+    return min(ts)
+
+
+def _wall_new_view(r, repeat):
+    o = np.asarray(r.scene.camera.origin, np.float64)
+    r.render()
+    rows = []
+    for i in range(repeat):
+        r.set_camera(origin=tuple(o + (0.0, 0.0, 1e-3 * (i % 2 * 2 - 1))))
         t = time.perf_counter()
         r.render()
-        ts.append((time.perf_counter() - t, dict(r.timings)))
-    ts.sort(key=lambda x: x[0])
-    return ts[len(ts) // 2]
+        rows.append((time.perf_counter() - t, dict(r.timings)))
+    rows.sort(key=lambda x: x[0])
+    return rows[len(rows) // 2]
 
 
 def profile(path, size, repeat):
@@ -35,18 +55,38 @@ def profile(path, size, repeat):
     scene.camera = replace(scene.camera, width=size, height=size)
     r = Renderer(scene, device="cpu")
     g = r.geometry
-    print(f"\n{path}: {len(g.triangles)} triangles, {len(g.vertices)} vertices, {size}², "
-          f"features {r.features()}")
+    f = r.features()
+    n_env = r._env_arrays().count if f.env_diffuse else 0
+    n_lights = len(r.shading_lights)
+    print(f"\n### {path} at {size}²: {len(g.triangles)} triangles, {len(g.vertices)} vertices; "
+          f"{n_env} environment lobes, {n_lights} lights (incl. sun peaks), "
+          f"{r.ssdf.pca_terms if r.ssdf else 0} PCA terms\n")
+    print("| antialias | frame ms | raster ms | shade ms | resolve ms | shaded samples | raster stages (ms) |")
+    print("|---|---|---|---|---|---|---|")
     for aa in (1, scene.render.antialias):
         scene.render.antialias = aa
-        r.render()
-        wall, t = _median_frame(r, repeat)
-        keys = ("raster", "shade", "resolve", "frame", "shaded_samples", "edge_pixels")
-        print(f"  antialias {aa}: wall {wall*1e3:.1f} ms  " + "  ".join(
-            f"{k} {t[k]*1e3:.1f} ms" if isinstance(t.get(k), float) else f"{k} {t.get(k)}" for k in keys if k in t))
-        vb = raster.rasterize(g.vertices, g.triangles, scene.camera, device="cpu", supersample=aa, profile=True)
-        st = {k: 1e3 * v for k, v in vb.stats["times"].items()}
-        print("    raster stages (ms): " + ", ".join(f"{k} {v:.1f}" for k, v in st.items()))
+        wall, t = _wall_new_view(r, repeat)
+        vb = raster.rasterize(r.geo_arrays.positions, r.geo_arrays.tris, scene.camera, device="cpu", supersample=aa,
+                              profile=True, validate=False)
+        st = ", ".join(f"{k} {1e3 * v:.1f}" for k, v in vb.stats["times"].items())
+        print(f"| {aa} | {1e3 * wall:.1f} | {1e3 * t['raster']:.1f} | {1e3 * t['shade']:.1f} | "
+              f"{1e3 * t['resolve']:.1f} | {t.get('shaded_samples')} | {st} |")
+    scene.render.antialias = 1
+    full = _cpu_reshade(r, repeat)
+    parts = [("shadows (SSDF lookups)", replace(f, shadows=False), None),
+             ("environment diffuse", replace(f, env_diffuse=0), n_env),
+             ("environment specular", replace(f, env_specular=0), None),
+             ("local lights", replace(f, lights=False), n_lights)]
+    print(f"\nshading CPU time, antialias 1, re-shade: full kernel {1e3 * full:.1f} ms\n")
+    print("| without | CPU ms | saved ms | per lobe / light ms |")
+    print("|---|---|---|---|")
+    orig = r.features
+    for name, ff, n in parts:
+        r.features = lambda ff=ff: ff
+        c = _cpu_reshade(r, repeat)
+        per = f"{1e3 * (full - c) / n:.1f}" if n else ""
+        print(f"| {name} | {1e3 * c:.1f} | {1e3 * (full - c):.1f} | {per} |")
+    r.features = orig
 
 
 def main(argv=None):

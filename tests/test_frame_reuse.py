@@ -74,7 +74,7 @@ def test_environment_lobes_without_energy_are_left_out_and_change_nothing(render
 
 
 def test_background_kernel_matches_the_camera_rays_and_the_numpy_environment_lookup():
-    from warp_sg.background import background_image
+    from warp_sg.background import background_image, background_params
     from warp_sg.envmap import env_lookup_numpy, rotation_y
 
     rng = np.random.default_rng(5)
@@ -83,6 +83,7 @@ def test_background_kernel_matches_the_camera_rays_and_the_numpy_environment_loo
     R = rotation_y(40.0)
     import warp as wp
 
-    got = background_image(cam, 3, wp.array(env, dtype=wp.vec3, device="cpu"), R, 1.5, "cpu").numpy()
+    bg = background_params(cam, 3, wp.array(env, dtype=wp.vec3, device="cpu"), R, 1.5, "cpu")
+    got = background_image(bg, "cpu").numpy()
     want = env_lookup_numpy(env, cam.ray_directions(supersample=3), rotation=R) * 1.5
     np.testing.assert_allclose(got, want, rtol=2e-4, atol=2e-5)

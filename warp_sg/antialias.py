@@ -21,6 +21,8 @@ shades → :func:`resolve_kernel` box-filters each pixel's samples back into the
 # NOTE: no ``from __future__ import annotations`` — Warp reads the kernel annotations.
 import warp as wp
 
+from .background import Background, background_at
+
 #: relative residual of a block's 1/depth off its fitted plane that makes it an edge
 EDGE_DEPTH_RESIDUAL = 0.01
 #: relative luminance difference to a neighbour that makes an interior pixel supersampled
@@ -119,10 +121,12 @@ def contrast_kernel(base: int, img: wp.array2d(dtype=wp.vec3), edge: wp.array2d(
 
 @wp.kernel(enable_backward=False)
 def gather_kernel(base: int, tri_id: wp.array2d(dtype=int), bary: wp.array2d(dtype=wp.vec2),
-                  background: wp.array2d(dtype=wp.vec3), count: wp.array(dtype=int), offset: wp.array(dtype=int),
+                  background: Background, count: wp.array(dtype=int), offset: wp.array(dtype=int),
                   a: int, W: int, tri_s: wp.array2d(dtype=int), bary_s: wp.array2d(dtype=wp.vec2),
                   bg_s: wp.array2d(dtype=wp.vec3)):
-    """Write pixel k's samples at ``offset[k]``: its central sub-pixel (count 1) or all a² (count a²)."""
+    """Write pixel k's samples at ``offset[k]``: its central sub-pixel (count 1) or all a² (count a²);
+    a sample that sees no object gets the environment along its ray (computed here, for the
+    gathered samples only)."""
     k = base + wp.tid()
     n = count[k]
     if n == 0:
@@ -132,16 +136,20 @@ def gather_kernel(base: int, tri_id: wp.array2d(dtype=int), bary: wp.array2d(dty
     o0 = offset[k]
     if n == 1:
         c = a / 2
-        tri_s[0, o0] = tri_id[y * a + c, x * a + c]
+        t = tri_id[y * a + c, x * a + c]
+        tri_s[0, o0] = t
         bary_s[0, o0] = bary[y * a + c, x * a + c]
-        bg_s[0, o0] = background[y * a + c, x * a + c]
+        if t < 0:
+            bg_s[0, o0] = background_at(background, y * a + c, x * a + c)
         return
     for j in range(a):
         for i in range(a):
             q = o0 + j * a + i
-            tri_s[0, q] = tri_id[y * a + j, x * a + i]
+            t = tri_id[y * a + j, x * a + i]
+            tri_s[0, q] = t
             bary_s[0, q] = bary[y * a + j, x * a + i]
-            bg_s[0, q] = background[y * a + j, x * a + i]
+            if t < 0:
+                bg_s[0, q] = background_at(background, y * a + j, x * a + i)
 
 
 @wp.kernel(enable_backward=False)
@@ -169,9 +177,10 @@ def _plan(count: wp.array) -> tuple[wp.array, int]:
     return offset, total
 
 
-def render_adaptive(vb, tri_object: wp.array, background: wp.array, a: int, H: int, W: int, shade, device):
+def render_adaptive(vb, tri_object: wp.array, background: Background, a: int, H: int, W: int, shade, device):
     """The antialiased (H, W) ``wp.array(dtype=vec3)`` image of a visibility buffer ``vb`` rasterised
-    at a×a (``shade(tri_s, bary_s, bg_s, out)`` shades a 1 × N sample list). Returns
+    at a×a (``shade(tri_s, bary_s, bg_s, out)`` shades a 1 × N sample list; ``background``: the
+    camera rays and environment of the a×a grid, :func:`warp_sg.background.background_params`). Returns
     ``(image, stats)`` with the sample and pixel counts of each pass."""
     from raster import parallel
 

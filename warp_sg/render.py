@@ -445,23 +445,32 @@ class Renderer:
                **fields})
 
     # ------------------------------------------------------------------ frame
+    def _background_params(self, k: int):
+        """The camera rays and environment behind the objects at k×k sub-pixels
+        (:class:`warp_sg.background.Background`; the environment map is uploaded once)."""
+        from .background import background_params
+
+        env = self.env_light
+        radiance = None
+        if env is not None and self.scene.render.background:
+            if getattr(self, "_env_base_wp", None) is None:
+                self._env_base_wp = wp.array(np.ascontiguousarray(self.env_base, np.float32), dtype=wp.vec3,
+                                             device=self.device)
+            radiance = self._env_base_wp
+        return background_params(self.scene.camera, k, radiance, None if env is None else env.rotation_matrix(),
+                                 1.0 if env is None else env.scale, self.device)
+
     def _background_image(self, k: int):
         """(k·H, k·W) vec3 on the device: what each (sub)pixel that sees no object shows (cached;
-        a Warp kernel per camera change, :mod:`warp_sg.background`)."""
+        the supersampling path; :mod:`warp_sg.background`)."""
         cam = self.scene.camera
         env = self.env_light
         key = (repr(cam), k, None if env is None else (env.rotation, env.scale), self.scene.render.background)
         if key != self._background_key:
-            if env is None or not self.scene.render.background:
-                self._background = wp.zeros((cam.height * k, cam.width * k), dtype=wp.vec3, device=self.device)
-            else:
-                from .background import background_image
+            from .background import background_image
 
-                if getattr(self, "_env_base_wp", None) is None:
-                    self._env_base_wp = wp.array(np.ascontiguousarray(self.env_base, np.float32), dtype=wp.vec3,
-                                                 device=self.device)
-                self._background = background_image(cam, k, self._env_base_wp, env.rotation_matrix(), env.scale,
-                                                    self.device)
+            self._background = None
+            self._background = background_image(self._background_params(k), self.device)
             self._background_key = key
         return self._background
 
@@ -525,7 +534,7 @@ class Renderer:
         t0 = _timer(d)
         vb = self.rasterize(a)
         t1 = _timer(d)
-        img, st = render_adaptive(vb, self._tri_object, self._background_image(a), a, cam.height, cam.width,
+        img, st = render_adaptive(vb, self._tri_object, self._background_params(a), a, cam.height, cam.width,
                                   lambda tri, bary, bg, out: self._launch_shade(tri, bary, bg, cam.origin, out), d)
         t2 = _timer(d)
         out = img.numpy().astype(np.float32)
