@@ -305,7 +305,7 @@ class EnvironmentLightTable(Table):
 
     model_config = ConfigDict(json_schema_extra={"oneOf": [{"required": ["file"]}, {"required": ["procedural"]}]})
     type: Annotated[Literal["environment"], Field(description="light type")]
-    file: path("equirectangular map (EXR), relative to the scene file") = None
+    file: path("equirectangular map (EXR or Radiance .hdr), relative to the scene file") = None
     procedural: choice(ENV_PROCEDURAL, "built-in map") = None
     options: anything({"type": "object", "additionalProperties": False, "properties": {
         **{k: {"description": f"procedural_sky keyword {k}"} for k in SKY_OPTIONS},

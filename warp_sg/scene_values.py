@@ -22,13 +22,15 @@ from pydantic_core import PydanticCustomError
 
 from .scene_model import _suggest
 
+
 def fail(msg: str, key: str = "", sep: str = " "):
     """A validation failure with the project's wording; ``key`` names a key inside the table (the
     line reads ``key '<key>'<sep><msg>``)."""
     raise PydanticCustomError("scene", "{msg}", {"msg": msg, "key": key, "sep": sep})
 
+
 def _leaf(check, schema: dict, description: str | None = None):
-    """A value type: ``check(v)`` returns the (normalised) value or calls :func:`_fail`."""
+    """A value type: ``check(v)`` returns the (normalised) value or calls :func:`fail`."""
     schema = dict(schema, **({"description": description} if description else {}))
     return Annotated[Any, PlainValidator(check), WithJsonSchema(schema)]
 
@@ -197,6 +199,7 @@ def choice(options, description=None, *, fold_case=False):
 
 
 def anything(schema: dict, description=None):
+    """Any value (a model validator checks it); ``schema`` is what the JSON Schema says."""
     return _leaf(lambda v: v, schema, description)
 
 
