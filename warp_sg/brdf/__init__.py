@@ -13,6 +13,7 @@ import importlib
 from ..errors import InputError
 from .ashikhmin_shirley import AshikhminShirley
 from .base import BRDF, SpecularBRDF, suggest
+from .ggx import GGX
 from .fresnel import Conductor, Dielectric, NoFresnel, Schlick, parse_fresnel
 from .lafortune import Lafortune
 from .lambert import Lambert, OrenNayar
@@ -51,6 +52,7 @@ MODELS = {
     "ward": Ward,
     "ashikhmin_shirley": AshikhminShirley,
     "lafortune": Lafortune,
+    "ggx": GGX,
     "measured": _LazyMeasured(),
 }
 
@@ -79,7 +81,7 @@ def __getattr__(name):
 
 __all__ = [
     "BRDF", "SpecularBRDF", "Lambert", "OrenNayar", "Phong", "BlinnPhong", "CookTorrance",
-    "TorranceSparrow", "Ward", "AshikhminShirley", "Lafortune", "Measured", "NoFresnel", "Schlick",
+    "TorranceSparrow", "Ward", "AshikhminShirley", "Lafortune", "GGX", "Measured", "NoFresnel", "Schlick",
     "Dielectric", "Conductor", "parse_fresnel", "MODELS", "make_model", "spherical_warp",
     "slice_lobes_numpy",
 ]

@@ -60,11 +60,13 @@ def aniso_setup(model):
         amin, amax = min(model.alpha_x, model.alpha_y), max(model.alpha_x, model.alpha_y)
         theta_v = np.arctan(amax * np.sqrt(-np.log(EPSILON)))
         return 2.0 / amin**2, theta_v, model.alpha_x > model.alpha_y
+    if name == "ggx":
+        return model.ndf_analytic_lambda(), model.aniso_extent(), model.alpha_x > model.alpha_y
     raise InputError(f"model '{name}' has no anisotropic construction", where="model")
 
 
 def is_anisotropic(model):
-    return model.NAME in ("ashikhmin_shirley", "ward") and not model.isotropic
+    return model.NAME in ("ashikhmin_shirley", "ward", "ggx") and not model.isotropic
 
 
 def lobe_count(model, n_lobes):
@@ -82,9 +84,11 @@ def lobe_count(model, n_lobes):
 # --------------------------------------------------------------------------------------------
 # nonlinear fits
 # --------------------------------------------------------------------------------------------
-def _iso_grid(lam0, n=600):
-    """θ grid on [0, θmax] refined near 0 (t² spacing), with sin θ dθ weights."""
-    theta_max = min(np.pi / 2, 10.0 / np.sqrt(max(lam0, 1e-9)))
+def _iso_grid(lam0, n=600, theta_max=None):
+    """θ grid on [0, θmax] refined near 0 (t² spacing), with sin θ dθ weights; θmax defaults to
+    ``min(π/2, 10/√λ0)`` (a long-tailed NDF such as GGX passes its own)."""
+    if theta_max is None:
+        theta_max = min(np.pi / 2, 10.0 / np.sqrt(max(lam0, 1e-9)))
     t = (np.arange(n) + 0.5) / n
     theta = theta_max * t * t
     w = np.sin(theta) * theta_max * 2.0 * t / n * 2.0 * np.pi
@@ -121,22 +125,22 @@ def _free_single(sw, D, omc, lam0):
     return np.exp(sol.x[:1]), sol.x[1:]
 
 
-def _signs(K):
-    """Alternating amplitude signs, broadest lobe positive: ``(+, −, +, …)``."""
-    return (-1.0) ** np.arange(K)
+def _signs(K, positive=False):
+    """Alternating amplitude signs, broadest lobe positive: ``(+, −, +, …)``; all ``+`` if ``positive``."""
+    return np.ones(K) if positive else (-1.0) ** np.arange(K)
 
 
-def _fit_signed(w, D, omc, u_pos, starts, K, ref):
+def _fit_signed(w, D, omc, u_pos, starts, K, ref, positive=False):
     """SLSQP fit of ``Σk μk e^{−λk u}`` to ``D`` minimising ``Σ w (mixture − D)² / ref``.
 
     Variables ``y = (ln λ1, ln λ2/λ1, …, ln λK/λ_{K−1}, p1 … pK)``, ``μk = (−1)^{k−1} pk`` with
     ``0 ≤ pk ≤ B``, ``Σ pk ≤ S`` (so ``Σ|μk| ≤ S``), ``MULTI_MIN_RATIO ≤ λ_{k+1}/λ_k ≤
-    MULTI_MAX_RATIO`` and the mixture ``≥ 0`` at ``u_pos``. Returns the best feasible
+    MULTI_MAX_RATIO`` and the mixture ``≥ 0`` at ``u_pos`` (``positive``: every ``μk = pk ≥ 0``). Returns the best feasible
     ``(λ, μ, objective)`` over ``starts`` (a list of ``(λ, μ)``; each start is itself a candidate)."""
     from scipy.optimize import minimize
 
     B, S = MULTI_AMP_BOUND, MULTI_TOTAL_BOUND
-    sg = _signs(K)
+    sg = _signs(K, positive)
 
     def unpack(y):
         return np.exp(np.cumsum(y[:K])), sg * y[K:]
@@ -187,11 +191,11 @@ def _fit_signed(w, D, omc, u_pos, starts, K, ref):
     return best
 
 
-def _fit_nonneg(w, D, omc, u_pos, u_dense, starts, K, ref):
+def _fit_nonneg(w, D, omc, u_pos, u_dense, starts, K, ref, positive=False):
     """:func:`_fit_signed`, then cutting planes: while the mixture dips below zero between the
     constraint points (checked on ``u_dense``), add its negative local minima to them and refit
     from the result. ``starts[0]`` must be non-negative on ``u_dense`` (the fallback)."""
-    best = _fit_signed(w, D, omc, u_pos, starts, K, ref)
+    best = _fit_signed(w, D, omc, u_pos, starts, K, ref, positive)
     for _ in range(8):
         v = _lobe_matrix(u_dense, best[0] - best[0][0]) @ best[1]  # mixture / e^{−λ1 u}
         if np.min(v) >= -NONNEG_TOL:
@@ -199,22 +203,22 @@ def _fit_nonneg(w, D, omc, u_pos, u_dense, starts, K, ref):
         vm = np.concatenate([[np.inf], v, [np.inf]])
         dips = np.flatnonzero((v < -NONNEG_TOL) & (v <= vm[:-2]) & (v <= vm[2:]))
         u_pos = np.union1d(u_pos, u_dense[dips])
-        best = _fit_signed(w, D, omc, u_pos, [(best[0], best[1]), starts[0]], K, ref)
+        best = _fit_signed(w, D, omc, u_pos, [(best[0], best[1]), starts[0]], K, ref, positive)
     return starts[0]
 
 
-def _bounded_amplitudes(sw, D, omc, lam):
+def _bounded_amplitudes(sw, D, omc, lam, positive=False):
     """Least-squares amplitudes with the signs and bounds of :func:`_fit_signed` (Σ|μ| scaled
     down to the bound if needed)."""
     from scipy.optimize import lsq_linear
 
-    sg = _signs(len(lam))
+    sg = _signs(len(lam), positive)
     A = _lobe_matrix(omc, lam) * (sw[:, None] * sg)
     p = lsq_linear(A, sw * D, bounds=(0.0, MULTI_AMP_BOUND)).x
     return sg * p * min(1.0, MULTI_TOTAL_BOUND / max(np.sum(p), 1e-300))
 
 
-def fit_isotropic(ndf_theta, lam0, n_lobes, prev=None):
+def fit_isotropic(ndf_theta, lam0, n_lobes, prev=None, theta_max=None, positive=False):
     """Least-squares SG mixture about z+ of an isotropic NDF given as a function of θ.
 
     One lobe: λ fitted with μ = 1 (supplement Fig. 2). K > 1 lobes: all λk and μk, the lobes
@@ -248,10 +252,14 @@ def fit_isotropic(ndf_theta, lam0, n_lobes, prev=None):
     count (cached by :func:`ndf_sg_for`).
 
     ``prev``: the ``(λ, μ)`` of this NDF's (K−1)-lobe fit, if already known (K > 2; saves
-    refitting the chain; the result is the same)."""
+    refitting the chain; the result is the same). ``theta_max``: the θ range of the fit (default
+    ``min(π/2, 10/√λ0)``; GGX covers its long tail, :meth:`warp_sg.brdf.ggx.GGX.ndf_fit_extent`).
+    ``positive``: all amplitudes ``≥ 0`` instead of alternating signs — for NDFs that are log-convex
+    in u, where a sum of non-negative exponentials is the natural fit: GGX,
+    ``D̂ = 1/(1 − u(2 − u)(1 − 1/α²))²`` with its heavy ``(α/θ)⁴`` tail."""
     from scipy.optimize import least_squares
 
-    theta, w = _iso_grid(lam0)
+    theta, w = _iso_grid(lam0, theta_max=theta_max)
     D = ndf_theta(theta)
     sw = np.sqrt(w)
     omc = _one_minus_cos(theta)
@@ -284,8 +292,8 @@ def fit_isotropic(ndf_theta, lam0, n_lobes, prev=None):
             for c in (1.0, 1.25):
                 for s in (1.2, 1.6, 2.5):
                     ls = c * lam_dom * np.geomspace(1 / s, s, k)
-                    starts.append((ls, _bounded_amplitudes(sw, D, omc, ls)))
-            lam, mu = _fit_nonneg(w, D, omc, u_pos, u_dense, starts, k, scale)
+                    starts.append((ls, _bounded_amplitudes(sw, D, omc, ls, positive)))
+            lam, mu = _fit_nonneg(w, D, omc, u_pos, u_dense, starts, k, scale, positive)
     axes = np.tile([0.0, 0.0, 1.0], (K, 1))
     return axes, lam, mu
 
@@ -388,7 +396,9 @@ def _compute(model, n_lobes, method):
     if K > 2 and lobe_count(model, K - 1) == K - 1:  # (a model's own count would recurse)
         _, lam_p, mu_p = _cached(_key(model, K - 1, "fit"), _Ref(model))
         prev = (lam_p, mu_p)
-    return fit_isotropic(_iso_ndf_theta(model), lam0, K, prev)
+    extent = model.ndf_fit_extent() if hasattr(model, "ndf_fit_extent") else None
+    return fit_isotropic(_iso_ndf_theta(model), lam0, K, prev, theta_max=extent,
+                         positive=bool(getattr(model, "ndf_log_convex", False)))
 
 
 def ndf_sg_for(model, n_lobes=1, method="analytic"):
@@ -411,8 +421,9 @@ def ndf_sg_for(model, n_lobes=1, method="analytic"):
 # --------------------------------------------------------------------------------------------
 # supplement eq. 11 error
 # --------------------------------------------------------------------------------------------
-def _quad_setup(lam, n_o=24, n_phi_o=1, n_th=96, n_ph=64):
-    """Directions o (Gauss–Legendre in cos θo × φo) and h (θh refined near z × φh) with weights."""
+def _quad_setup(lam, n_o=24, n_phi_o=1, n_th=96, n_ph=64, theta_max=None):
+    """Directions o (Gauss–Legendre in cos θo × φo) and h (θh refined near z × φh, up to
+    ``theta_max``, default ``min(π/2, 12/√λ)``) with weights."""
     x, wx = np.polynomial.legendre.leggauss(n_o)
     co = 0.5 * (x + 1.0)
     wco = 0.5 * wx
@@ -423,7 +434,8 @@ def _quad_setup(lam, n_o=24, n_phi_o=1, n_th=96, n_ph=64):
     o = np.stack([SO * np.cos(PO), SO * np.sin(PO), CO], -1).reshape(-1, 3)
     wo = np.repeat(wco, n_phi_o) * (2 * np.pi / n_phi_o)
     del so
-    theta_max = min(np.pi / 2, 12.0 / np.sqrt(max(lam, 1e-9)))
+    if theta_max is None:
+        theta_max = min(np.pi / 2, 12.0 / np.sqrt(max(lam, 1e-9)))
     t = (np.arange(n_th) + 0.5) / n_th
     th = theta_max * t * t
     ph = (np.arange(n_ph) + 0.5) / n_ph * 2 * np.pi
@@ -433,15 +445,16 @@ def _quad_setup(lam, n_o=24, n_phi_o=1, n_th=96, n_ph=64):
     return o, wo, h, wh
 
 
-def eq11_error(model, approx, n_o=24, n_phi_o=None, n_th=96, n_ph=64):
+def eq11_error(model, approx, n_o=24, n_phi_o=None, n_th=96, n_ph=64, theta_max=None):
     """Supplement eq. 11 weighted error of ``approx(o, i) -> (..., 3)`` against ``ρs`` (ks = 1):
 
     ``Σ (ρs − ρs^R)² ((i·n)(o·n))² / Σ (ρs (i·n)(o·n))²`` as integrals over (o, i), computed in
-    (o, h) with ``dω_i = 4 (o·h) dω_h`` on a grid refined around the NDF peak (green channel)."""
+    (o, h) with ``dω_i = 4 (o·h) dω_h`` on a grid refined around the NDF peak (green channel);
+    ``theta_max``: the θh range (default ``min(π/2, 12/√λ)``; long-tailed NDFs need π/2)."""
     lam = float(np.max(model.ndf_sg(1, "analytic")[1])) if model.is_specular else 1.0
     if n_phi_o is None:
         n_phi_o = 8 if is_anisotropic(model) else 1
-    o, wo, h, wh = _quad_setup(lam, n_o, n_phi_o, n_th, n_ph)
+    o, wo, h, wh = _quad_setup(lam, n_o, n_phi_o, n_th, n_ph, theta_max)
     O = o[:, None, :]
     H = h[None, :, :]
     oh = np.sum(O * H, -1)

@@ -129,6 +129,60 @@ def as_exponent_log(h: wp.vec3, nu: float, nv: float) -> float:
     return (nu * hx2 + nv * hy2) * L
 
 
+@wp.func
+def ggx_lambda_cos(v: wp.vec3, ax: float, ay: float) -> float:
+    """GGX ``L(v) = vz Λ(v) = a²/(2(√(vz² + a²) + vz))``, ``a² = αx² vx² + αy² vy²`` (ggx.py)."""
+    vz = wp.max(v[2], 0.0)
+    a2 = ax * ax * v[0] * v[0] + ay * ay * v[1] * v[1]
+    den = 2.0 * (wp.sqrt(vz * vz + a2) + vz)
+    if den <= 0.0:
+        return 0.0
+    return a2 / den
+
+
+@wp.func
+def ggx_g1(v: wp.vec3, ax: float, ay: float) -> float:
+    """GGX Smith ``G1(v) = vz/(vz + L(v))`` (0 at and below the horizon)."""
+    vz = v[2]
+    if vz <= 0.0:
+        return 0.0
+    return vz / (vz + ggx_lambda_cos(v, ax, ay))
+
+
+@wp.func
+def ggx_g2_over_cos(o: wp.vec3, i: wp.vec3, ax: float, ay: float) -> float:
+    """Height-correlated ``G2/((n·i)(n·o)) = 1/((n·i)(n·o) + (n·i)L(o) + (n·o)L(i))`` (ggx.py)."""
+    co = wp.max(o[2], 1.0e-12)
+    ci = wp.max(i[2], 1.0e-12)
+    return 1.0 / (co * ci + ci * ggx_lambda_cos(o, ax, ay) + co * ggx_lambda_cos(i, ax, ay))
+
+
+@wp.func
+def ggx_ndf_peak1(h: wp.vec3, ax: float, ay: float) -> float:
+    """GGX ``D̂(h) = 1/q²``, ``q = hx²/αx² + hy²/αy² + hz²`` (peak 1; 0 below the horizon)."""
+    if h[2] <= 0.0:
+        return 0.0
+    q = h[0] * h[0] / (ax * ax) + h[1] * h[1] / (ay * ay) + h[2] * h[2]
+    return 1.0 / (q * q)
+
+
+@wp.func
+def ggx_lobe_lambda(a: float) -> float:
+    """Single-lobe GGX sharpness ``4/α² − 4`` (Taylor at the normal; ggx.py)."""
+    return wp.max(4.0 / (a * a) - 4.0, 1.0e-3)
+
+
+@wp.func
+def ggx_extent(a: float) -> float:
+    """``θv`` of anisotropic GGX: ``tan²θv = (E − 1)/(1/α² − E)``, ``E = ε^{−1/2}``, capped at 80°."""
+    E = wp.exp(-0.5 * LN_EPS)
+    den = 1.0 / (a * a) - E
+    cap = 1.3962634015954636
+    if den <= 0.0:
+        return cap
+    return wp.min(wp.atan(wp.sqrt((E - 1.0) / den)), cap)
+
+
 # ------------------------------------------------------------------------------------------------
 # NDF and Mo
 # ------------------------------------------------------------------------------------------------
@@ -151,6 +205,8 @@ def brdf_ndf(mat: Material, h: wp.vec3) -> float:
         return wp.exp(-e)
     if m == 7:
         return wp.exp(as_exponent_log(h, p[0], p[1]))
+    if m == 10:
+        return ggx_ndf_peak1(h, p[0], p[1])
     if m == 9:
         d = float(0.0)
         for k in range(mat.lobe_count):
@@ -189,6 +245,10 @@ def mo_raw(mat: Material, o: wp.vec3, i: wp.vec3) -> wp.vec3:
         cmax = wp.max(wp.max(i[2], o[2]), 1.0e-12)
         val = wp.sqrt((p[0] + 1.0) * (p[1] + 1.0)) / (8.0 * PI * ih * cmax)
         return fresnel_eval(mat, ih) * val
+    if m == 10:
+        h = half_vec(o, i)
+        val = ggx_g2_over_cos(o, i, p[0], p[1]) / (4.0 * PI * p[0] * p[1])
+        return fresnel_eval(mat, wp.dot(i, h)) * val
     if m == 8:
         return one
     if m == 9:
@@ -311,8 +371,20 @@ def ndf_lobe(mat: Material, k: int):
             if p[0] < p[1]:
                 wide_x = 1
             return _aniso_lobe(mat, k, nmax, theta_v, wide_x)
+        if m == 10:
+            if p[0] == p[1]:
+                return z, ggx_lobe_lambda(p[0]), 1.0
+            wide_x = int(0)
+            if p[0] > p[1]:
+                wide_x = 1
+            return _aniso_lobe(mat, k, ggx_lobe_lambda(wp.min(p[0], p[1])), ggx_extent(wp.max(p[0], p[1])), wide_x)
     j = mat.lobe_start + k
-    return mat.lobe_axis[j], mat.lobe_sharpness[j], mat.lobe_amplitude[j]
+    lam = mat.lobe_sharpness[j]
+    if m == 10:
+        # GGX fits are (nearly) functions of tan θ/α: fitted for (αx, αy) = (p[2], p[3]), a
+        # textured α rescales the sharpness by p[2]p[3]/(αx αy) (1 when untextured)
+        lam = lam * (p[2] * p[3]) / (p[0] * p[1])
+    return mat.lobe_axis[j], lam, mat.lobe_amplitude[j]
 
 
 @wp.func

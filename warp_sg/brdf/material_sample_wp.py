@@ -6,7 +6,8 @@ mixture directions with their densities).
 # NOTE: no ``from __future__ import annotations`` — Warp reads the @wp.func / struct annotations.
 import warp as wp
 
-from .material_eval_wp import as_exponent_log, expm1_neg_f, from_axis, log1p_f, log_cos_theta, reflect_z
+from .material_eval_wp import (as_exponent_log, expm1_neg_f, from_axis, ggx_g1, ggx_ndf_peak1, log1p_f, log_cos_theta,
+                               reflect_z)
 from .material_struct import INV_PI, PI, TWO_PI, Material
 
 
@@ -98,6 +99,31 @@ def as_pdf_h(nu: float, nv: float, h: wp.vec3) -> float:
 
 
 @wp.func
+def ggx_vndf_h(o: wp.vec3, ax: float, ay: float, u: wp.vec2) -> wp.vec3:
+    """GGX visible normal for view o (oz > 0), Heitz 2018 listing 1 (ggx.py ``vndf_sample_h``)."""
+    vh = wp.normalize(wp.vec3(ax * o[0], ay * o[1], o[2]))
+    lensq = vh[0] * vh[0] + vh[1] * vh[1]
+    t1 = wp.vec3(1.0, 0.0, 0.0)
+    if lensq > 0.0:
+        t1 = wp.vec3(-vh[1], vh[0], 0.0) / wp.sqrt(lensq)
+    t2 = wp.cross(vh, t1)
+    r = wp.sqrt(u[0])
+    phi = TWO_PI * u[1]
+    p1 = r * wp.cos(phi)
+    p2 = r * wp.sin(phi)
+    s = 0.5 * (1.0 + vh[2])
+    p2 = (1.0 - s) * wp.sqrt(wp.max(1.0 - p1 * p1, 0.0)) + s * p2
+    nh = p1 * t1 + p2 * t2 + wp.sqrt(wp.max(1.0 - p1 * p1 - p2 * p2, 0.0)) * vh
+    return wp.normalize(wp.vec3(ax * nh[0], ay * nh[1], wp.max(nh[2], 1.0e-7)))
+
+
+@wp.func
+def ggx_pdf_i(o: wp.vec3, h: wp.vec3, ax: float, ay: float) -> float:
+    """Density of the reflected visible-normal sample: ``G1(o) D(h)/(4 (n·o))``, D = D̂/(π αx αy)."""
+    return ggx_g1(o, ax, ay) * ggx_ndf_peak1(h, ax, ay) / (4.0 * PI * ax * ay * o[2])
+
+
+@wp.func
 def sg_lobe_weight(mat: Material, j: int) -> float:
     lam = mat.lobe_sharpness[j]
     return mat.lobe_amplitude[j] * TWO_PI * expm1_neg_f(2.0 * lam) / lam
@@ -145,6 +171,10 @@ def brdf_sample(mat: Material, o: wp.vec3, u_in: wp.vec2) -> wp.vec3:
         if wp.length(v) <= 0.0:
             return cosine_dir(uu)
         return cos_power_dir(wp.normalize(v), mat.lobe_sharpness[j], uu)
+    if m == 10:
+        if o[2] <= 0.0:
+            return cosine_dir(u)
+        return reflect_about(o, ggx_vndf_h(o, mat.params[0], mat.params[1], u))
     h = wp.vec3(0.0, 0.0, 1.0)
     if m == 3:
         ct = wp.pow(wp.max(u[0], 1.0e-30), 1.0 / (mat.params[0] + 2.0))
@@ -201,6 +231,10 @@ def brdf_pdf(mat: Material, o: wp.vec3, i: wp.vec3) -> float:
             else:
                 s += cos_power_pdf(wp.normalize(v), mat.lobe_sharpness[j], i)
         return s / float(nl)
+    if m == 10 and o[2] <= 0.0:
+        if i[2] <= 0.0:
+            return 0.0
+        return i[2] * INV_PI
     hh = o + i
     l = wp.length(hh)
     if l <= 0.0:
@@ -220,4 +254,6 @@ def brdf_pdf(mat: Material, o: wp.vec3, i: wp.vec3) -> float:
         ph = as_pdf_h(mat.params[0], mat.params[1], h)
     elif m == 9:
         ph = sg_mixture_pdf(mat, h)
+    elif m == 10:
+        return ggx_pdf_i(o, h, mat.params[0], mat.params[1])
     return ph / (4.0 * wp.max(oh, 1.0e-6))

@@ -21,6 +21,7 @@ MODEL_WARD = wp.constant(6)
 MODEL_ASHIKHMIN_SHIRLEY = wp.constant(7)
 MODEL_LAFORTUNE = wp.constant(8)
 MODEL_MEASURED = wp.constant(9)
+MODEL_GGX = wp.constant(10)
 
 FRESNEL_NONE = wp.constant(0)
 FRESNEL_SCHLICK = wp.constant(1)
@@ -36,7 +37,7 @@ LN_EPS = wp.constant(-2.302585092994046)
 WARP_COS_EPS = wp.constant(1.0e-4)
 
 #: analytic in-kernel lobes are supported for these models
-_ANALYTIC = {2, 3, 4, 5, 6, 7}
+_ANALYTIC = {2, 3, 4, 5, 6, 7, 10}
 
 
 @wp.struct

@@ -15,7 +15,8 @@ model's docstring for its equation and source):
   Ward (iso/aniso): Beckmann slope sampling (Walter et al. 2007; Ward 1992) with
   ``p(h) = exp(−(sx²/αx² + sy²/αy²))/(π αx αy cos³θh)``; Ashikhmin–Shirley: their quadrant
   sampling with ``p(h) = √((nu+1)(nv+1))/(2π) (n·h)^{nu cos²φ + nv sin²φ}``; Lafortune: one lobe
-  chosen uniformly, cosine power about ``C∘o``; measured: the NDF SG mixture
+  chosen uniformly, cosine power about ``C∘o``; GGX: visible normals (Heitz 2018) with
+  ``p(i) = G1(o) D(h)/(4 (n·o))`` (cosine samples for ``n·o ≤ 0``); measured: the NDF SG mixture
   (``1 − cos θ = −log1p(−u (1 − e^{−2λ}))/λ``). ``p(i) = p(h)/(4 |o·h|)`` for half-vector models;
   diffuse-only models return cosine samples. ``brdf_pdf`` returns the density of exactly what
   ``brdf_sample`` draws (directions below the horizon included).
@@ -27,8 +28,9 @@ model's docstring for its equation and source):
 * ``ndf_lobe(mat, k)``: NDF lobe k (local frame). With ``mat.analytic == 1`` it is computed from
   ``mat.params`` (so textured roughness works per pixel): single lobe ``λ = 2/m²`` (Cook–Torrance,
   Torrance–Sparrow), ``2/α²`` (Ward), ``n`` (Phong, Blinn–Phong, isotropic Ashikhmin–Shirley),
-  or the anisotropic construction of supplement eq. 14 with ``mat.lobe_count`` lobes; otherwise it
-  is read from the lobe table.
+  ``4/α² − 4`` (GGX), or the anisotropic construction of supplement eq. 14 with ``mat.lobe_count``
+  lobes; otherwise it is read from the lobe table (GGX: sharpness rescaled by ``p[2]p[3]/(p[0]p[1])``,
+  the fitted over the per-texel α², so textured roughness moves the fitted lobes).
 
 The ``Material`` struct carries the (shared) lobe tables and measured-data arrays as array
 fields, so every function takes just ``mat``. Ashikhmin–Shirley and anisotropic Ward lobe axes are
@@ -43,17 +45,18 @@ use either.
 from .material_struct import (  # noqa: F401
     _ANALYTIC, FRESNEL_CONDUCTOR, FRESNEL_DIELECTRIC, FRESNEL_NONE, FRESNEL_SCHLICK, INV_PI, LN_EPS, Material,
     material_lobes, MaterialTable, MODEL_ASHIKHMIN_SHIRLEY, MODEL_BLINN_PHONG, MODEL_COOK_TORRANCE,
-    MODEL_LAFORTUNE, MODEL_LAMBERT, MODEL_MEASURED, MODEL_OREN_NAYAR, MODEL_PHONG, MODEL_TORRANCE_SPARROW,
+    MODEL_GGX, MODEL_LAFORTUNE, MODEL_LAMBERT, MODEL_MEASURED, MODEL_OREN_NAYAR, MODEL_PHONG, MODEL_TORRANCE_SPARROW,
     MODEL_WARD, pack_materials, PI, TWO_PI, WARP_COS_EPS,
 )
 from .material_eval_wp import (  # noqa: F401
     _aniso_lobe, as_exponent_log, brdf_diffuse, brdf_eval, brdf_mo, brdf_ndf, brdf_specular, cos_pow,
-    expm1_neg_f, fresnel_eval, from_axis, g_over_cos, half_vec, lafortune_lobe, log1p_f, log_cos_theta, lum,
+    expm1_neg_f, fresnel_eval, from_axis, g_over_cos, ggx_extent, ggx_g1, ggx_g2_over_cos, ggx_lambda_cos,
+    ggx_lobe_lambda, ggx_ndf_peak1, half_vec, lafortune_lobe, log1p_f, log_cos_theta, lum,
     mo_raw, ndf_lobe, oren_nayar_params, reflect_z, sin2_theta, slice_lobe, slice_lobe_count, warp_axis,
     warp_lobe,
 )
 from .material_sample_wp import (  # noqa: F401
     as_h, as_pdf_h, beckmann_alphas, beckmann_h, beckmann_pdf_h, brdf_pdf, brdf_sample, cos_power_dir,
-    cos_power_pdf, cosine_dir, reflect_about, sg_lobe_weight, sg_mixture_pdf, sg_sample_dir,
+    cos_power_pdf, cosine_dir, ggx_pdf_i, ggx_vndf_h, reflect_about, sg_lobe_weight, sg_mixture_pdf, sg_sample_dir,
 )
 from .measured_wp import fresnel_dielectric, measured_mo, merl_eval  # noqa: F401

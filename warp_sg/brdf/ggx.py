@@ -1,0 +1,221 @@
+r"""GGX (Trowbridge–Reitz) microfacet model, isotropic and anisotropic, with height-correlated Smith
+masking-shadowing and visible-normal sampling.
+
+Sources: Walter et al. 2007 ("Microfacet models for refraction through rough surfaces", eq. 33–34),
+Heitz 2014 ("Understanding the masking-shadowing function in microfacet-based BRDFs", eq. 43, 72,
+86 and §5.3), Heitz 2018 ("Sampling the GGX distribution of visible normals", listing 1).
+Local frame: z+ = normal, x = tangent (``alpha_x`` along the tangent, as Ashikhmin–Shirley's ``nu``).
+
+* NDF: ``D(h) = 1/(π αx αy q²)``, ``q = hx²/αx² + hy²/αy² + hz²`` (hz > 0);
+  ``∫ D(h) (n·h) dω_h = 1``.
+* Smith: ``Λ(v) = (−1 + √(1 + (αx² vx² + αy² vy²)/vz²))/2``, ``G1(v) = 1/(1 + Λ(v))``,
+  height-correlated ``G2(o, i) = 1/(1 + Λ(o) + Λ(i))`` (Heitz 2014 eq. 99).
+* BRDF: ``ρs = F(i·h) D(h) G2(o, i) / (4 (n·i)(n·o))``.
+
+Factorisation ``ρs = Mo(o, i) · D̂(h)`` (paper eq. 9): the NDF with peak 1,
+``D̂(h) = π αx αy D(h) = 1/q²``, and ``Mo = F(i·h) G2 / (4π αx αy (n·i)(n·o))``. ``G2/((n·i)(n·o))``
+is evaluated as ``1/((n·i)(n·o) + (n·i) L(o) + (n·o) L(i))`` with
+``L(v) = vz Λ(v) = a²/(2(√(vz² + a²) + vz))``, ``a² = αx² vx² + αy² vy²`` (no cancellation, finite
+at grazing unless both directions are grazing).
+
+SG fits of ``D̂`` (:mod:`warp_sg.brdf.fit`): isotropic single lobe ``λ = 4/α² − 4``, ``μ = 1``
+(``D̂ = 1/(cos²θ + sin²θ/α²)² = 1 − 2(1/α² − 1)θ² + …``); K > 1 lobes by the signed multi-lobe
+least-squares fit on a θ grid that covers the long tail (``D̂ ≈ (α/θ)⁴`` for ``θ ≫ α``) out to
+``25α``; anisotropic: the Ashikhmin–Shirley N-lobe layout (supplement eq. 14) with sharpness
+``4/min(α)² − 4`` and extent ``θv`` where ``D̂`` along the wide axis falls to ε = 0.1.
+``lobes``: NDF lobes (default :data:`DEFAULT_LOBES` isotropic, :data:`DEFAULT_ANISO_LOBES`
+anisotropic; odd when anisotropic).
+
+Sampling (Heitz 2018): the visible-normal density ``D_o(h) = G1(o) max(0, o·h) D(h)/(n·o)``,
+``i = 2(o·h)h − o``, so ``pdf(i) = G1(o) D(h)/(4 (n·o))``.
+``fresnel``: anything :func:`parse_fresnel` accepts (default: none, F = 1).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from .base import SpecularBRDF, as_rgb, as_scalar, dirs, half_vector
+from .fresnel import parse_fresnel
+
+#: default number of NDF lobes (isotropic; see docs/ggx.md for the error against lobe count)
+DEFAULT_LOBES = 3
+#: default number of NDF lobes for anisotropic GGX (the Ashikhmin–Shirley layout needs odd N)
+DEFAULT_ANISO_LOBES = 7
+#: ε of the anisotropic extent θv (supplement eq. 14)
+EPSILON = 0.1
+#: the isotropic multi-lobe fit covers θ ∈ [0, min(π/2, FIT_EXTENT α)]
+FIT_EXTENT = 25.0
+
+
+def smith_lambda_cos(v, ax, ay):
+    """``L(v) = vz Λ(v) = a²/(2(√(vz² + a²) + vz))``, ``a² = αx² vx² + αy² vy²`` (vz ≥ 0)."""
+    vz = np.maximum(v[..., 2], 0.0)
+    a2 = (ax * v[..., 0]) ** 2 + (ay * v[..., 1]) ** 2
+    den = 2.0 * (np.sqrt(vz * vz + a2) + vz)
+    return np.where(den > 0, a2 / np.where(den > 0, den, 1.0), 0.0)
+
+
+def smith_g1(v, ax, ay):
+    """``G1(v) = 1/(1 + Λ(v)) = vz/(vz + L(v))`` (0 at and below the horizon)."""
+    vz = np.maximum(v[..., 2], 0.0)
+    den = vz + smith_lambda_cos(v, ax, ay)
+    return np.where(vz > 0, vz / np.where(den > 0, den, 1.0), 0.0)
+
+
+def smith_g2(o, i, ax, ay):
+    """Height-correlated ``G2(o, i) = 1/(1 + Λ(o) + Λ(i))`` (Heitz 2014 eq. 99)."""
+    co = np.maximum(o[..., 2], 0.0)
+    ci = np.maximum(i[..., 2], 0.0)
+    den = co * ci + ci * smith_lambda_cos(o, ax, ay) + co * smith_lambda_cos(i, ax, ay)
+    return np.where((co > 0) & (ci > 0), co * ci / np.where(den > 0, den, 1.0), 0.0)
+
+
+def g2_over_cos(o, i, ax, ay):
+    """``G2(o, i)/((n·i)(n·o)) = 1/((n·i)(n·o) + (n·i)L(o) + (n·o)L(i))``, clamped like ``g_over_cos``."""
+    co = np.maximum(o[..., 2], 1e-12)
+    ci = np.maximum(i[..., 2], 1e-12)
+    den = co * ci + ci * smith_lambda_cos(o, ax, ay) + co * smith_lambda_cos(i, ax, ay)
+    return 1.0 / den
+
+
+def vndf_sample_h(o, u, ax, ay):
+    """Heitz 2018 listing 1: a microfacet normal drawn from ``D_o(h)`` for view o (oz > 0), u in [0,1)²."""
+    o = np.asarray(o, dtype=np.float64)
+    u = np.asarray(u, dtype=np.float64)
+    vh = np.stack(np.broadcast_arrays(ax * o[..., 0], ay * o[..., 1], o[..., 2]), -1)
+    vh = vh / np.linalg.norm(vh, axis=-1, keepdims=True)
+    lensq = vh[..., 0] ** 2 + vh[..., 1] ** 2
+    inv = np.where(lensq > 0, 1.0 / np.sqrt(np.where(lensq > 0, lensq, 1.0)), 0.0)
+    t1 = np.stack([np.where(lensq > 0, -vh[..., 1] * inv, 1.0), np.where(lensq > 0, vh[..., 0] * inv, 0.0),
+                   np.zeros_like(lensq)], -1)
+    t2 = np.cross(vh, t1)
+    r = np.sqrt(u[..., 0])
+    phi = 2.0 * np.pi * u[..., 1]
+    p1 = r * np.cos(phi)
+    p2 = r * np.sin(phi)
+    s = 0.5 * (1.0 + vh[..., 2])
+    p2 = (1.0 - s) * np.sqrt(np.maximum(1.0 - p1 * p1, 0.0)) + s * p2
+    nh = (p1[..., None] * t1 + p2[..., None] * t2
+          + np.sqrt(np.maximum(1.0 - p1 * p1 - p2 * p2, 0.0))[..., None] * vh)
+    ne = np.stack([ax * nh[..., 0], ay * nh[..., 1], np.maximum(nh[..., 2], 0.0)], -1)
+    return ne / np.linalg.norm(ne, axis=-1, keepdims=True)
+
+
+def _lobe_count(lobes, anisotropic):
+    if lobes is None:
+        return DEFAULT_ANISO_LOBES if anisotropic else DEFAULT_LOBES
+    try:
+        n = int(lobes)
+    except (TypeError, ValueError):
+        raise InputError(f"expected an integer, got {lobes!r}", where="lobes") from None
+    if n != lobes or n < 1:
+        raise InputError(f"must be an integer >= 1, got {lobes!r}", where="lobes")
+    if anisotropic and n % 2 == 0:
+        raise InputError(f"anisotropic GGX needs an odd lobe count, got {lobes!r}", where="lobes")
+    return n
+
+
+class GGX(SpecularBRDF):
+    NAME = "ggx"
+    MODEL_ID = 10
+    PARAMS = ("kd", "ks", "alpha", "alpha_x", "alpha_y", "fresnel", "lobes")
+
+    def __init__(self, kd=(0.0, 0.0, 0.0), ks=(1.0, 1.0, 1.0), alpha=None, alpha_x=None, alpha_y=None,
+                 fresnel=None, lobes=None):
+        self.kd = as_rgb(kd, "kd")
+        self.ks = as_rgb(ks, "ks")
+        if alpha is not None and (alpha_x is not None or alpha_y is not None):
+            raise InputError("give either alpha or alpha_x and alpha_y, not both", where="alpha")
+        if alpha is None and (alpha_x is None) != (alpha_y is None):
+            raise InputError("anisotropic GGX needs both alpha_x and alpha_y",
+                             where="alpha_x" if alpha_x is None else "alpha_y")
+        if alpha is None and alpha_x is None:
+            alpha = 0.3
+        if alpha is not None:
+            self.alpha_x = self.alpha_y = as_scalar(alpha, "alpha", lo=0.0, lo_open=True)
+        else:
+            self.alpha_x = as_scalar(alpha_x, "alpha_x", lo=0.0, lo_open=True)
+            self.alpha_y = as_scalar(alpha_y, "alpha_y", lo=0.0, lo_open=True)
+        self.alpha = self.alpha_x if self.isotropic else None
+        self.fresnel = parse_fresnel(fresnel)
+        self.lobes = _lobe_count(lobes, not self.isotropic)
+        self.own_lobes = self.lobes
+
+    #: D̂ is log-convex in u = 1 − cos θ: its multi-lobe fits use non-negative amplitudes
+    ndf_log_convex = True
+
+    @property
+    def isotropic(self):
+        return self.alpha_x == self.alpha_y
+
+    # -- the distribution and its masking ---------------------------------------------------
+    def ndf(self, h):
+        """``D̂(h) = 1/q²`` (peak 1), ``q = hx²/αx² + hy²/αy² + hz²``; 0 below the horizon."""
+        h = np.asarray(h, dtype=np.float64)
+        q = h[..., 0] ** 2 / self.alpha_x**2 + h[..., 1] ** 2 / self.alpha_y**2 + h[..., 2] ** 2
+        return np.where(h[..., 2] > 0, 1.0 / np.maximum(q, 1e-300) ** 2, 0.0)
+
+    def D(self, h):
+        """The normalised GGX NDF ``D(h) = D̂(h)/(π αx αy)`` (``∫ D (n·h) dω = 1``)."""
+        return self.ndf(h) / (np.pi * self.alpha_x * self.alpha_y)
+
+    def g1(self, v):
+        return smith_g1(np.asarray(v, dtype=np.float64), self.alpha_x, self.alpha_y)
+
+    def g2(self, o, i):
+        o, i = dirs(o, i)
+        return smith_g2(o, i, self.alpha_x, self.alpha_y)
+
+    def mo(self, o, i):
+        o, i = dirs(o, i)
+        h = half_vector(o, i)
+        ih = np.sum(i * h, axis=-1)
+        val = g2_over_cos(o, i, self.alpha_x, self.alpha_y) / (4.0 * np.pi * self.alpha_x * self.alpha_y)
+        return self.fresnel(ih) * val[..., None]
+
+    # -- importance sampling -------------------------------------------------------------------
+    def sample(self, o, u):
+        """Directions i from the visible-normal density (Heitz 2018); (..., 3). May lie below the
+        horizon (the BRDF is zero there); ``pdf`` is their solid-angle density."""
+        o = np.asarray(o, dtype=np.float64)
+        h = vndf_sample_h(o, u, self.alpha_x, self.alpha_y)
+        return 2.0 * np.sum(o * h, axis=-1, keepdims=True) * h - o
+
+    def pdf(self, o, i):
+        """Solid-angle density of :meth:`sample`: ``G1(o) D(h) / (4 (n·o))`` where ``o·h > 0``."""
+        o, i = dirs(o, i)
+        h = half_vector(o, i)
+        oh = np.sum(o * h, axis=-1)
+        co = o[..., 2]
+        val = self.g1(o) * self.D(h) / (4.0 * np.where(co > 0, co, 1.0))
+        return np.where((co > 0) & (oh > 0) & (h[..., 2] > 0), val, 0.0)
+
+    # -- SG fits -------------------------------------------------------------------------------
+    def ndf_analytic_lambda(self):
+        a = min(self.alpha_x, self.alpha_y)
+        return max(4.0 / (a * a) - 4.0, 1e-3)
+
+    def ndf_fit_extent(self):
+        """θ range of the isotropic multi-lobe fit (the long tail)."""
+        return min(np.pi / 2, FIT_EXTENT * self.alpha_x)
+
+    def aniso_extent(self):
+        """``θv`` where ``D̂`` along the wide axis falls to ε: ``(1 + t²/α²)/(1 + t²) = ε^{−1/2}``,
+        ``t² = (E − 1)/(1/α² − E)``, ``E = ε^{−1/2}`` (capped at 80° where D̂ stays above ε)."""
+        a = max(self.alpha_x, self.alpha_y)
+        E = EPSILON ** -0.5
+        den = 1.0 / (a * a) - E
+        cap = np.radians(80.0)
+        if den <= 0:
+            return cap
+        return float(min(np.arctan(np.sqrt((E - 1.0) / den)), cap))
+
+    def kernel_params(self):
+        # params[2:4]: the (αx, αy) the table lobes were fitted for; a textured α (params[0:2]
+        # per texel) rescales their sharpness (material_eval_wp.ndf_lobe)
+        return (self.alpha_x, self.alpha_y, self.alpha_x, self.alpha_y)
+
+
+__all__ = ["GGX", "DEFAULT_LOBES", "DEFAULT_ANISO_LOBES", "smith_g1", "smith_g2", "smith_lambda_cos",
+           "g2_over_cos", "vndf_sample_h"]
