@@ -146,7 +146,7 @@ def test_make_model_validates_names_and_values():
     with pytest.raises(InputError, match="sigma"):
         B.make_model("oren_nayar", sigma=-0.1)
     assert set(B.MODELS) == {"lambert", "phong", "blinn_phong", "cook_torrance", "torrance_sparrow", "ward",
-                             "ashikhmin_shirley", "oren_nayar", "lafortune", "measured"}
+                             "ashikhmin_shirley", "oren_nayar", "lafortune", "measured", "ggx"}
 
 
 @pytest.mark.parametrize("model", [
