@@ -95,7 +95,8 @@ def write_plain_scene(folder, obj: str = "sphere", light: str = "sky", material:
     """Write a plain-input scene into ``folder`` and return the path of its ``scene.toml``.
 
     ``obj``: "sphere" | "blob"; ``light``: "sky" (EXR with a sun) | "point" | "sun" (a
-    directional light) | "sky+point"; ``material``: a key of :data:`MATERIALS` for the object;
+    directional light) | "sky+point"; ``material``: a key of :data:`MATERIALS` for the object, or a
+    material table (dict of TOML values, e.g. ``{"model": "ggx", "alpha": 0.3}``);
     ``render``: extra ``[render]`` keys.
     """
     folder = Path(folder)
@@ -115,7 +116,7 @@ def write_plain_scene(folder, obj: str = "sphere", light: str = "sky", material:
                                "width": size, "height": size})]
     parts.append(_table("objects", ob, array=True))
     parts.append(_table("objects", {"mesh": "floor.obj", "material": "floor", "name": "floor"}, array=True))
-    parts.append(_table("materials.object", MATERIALS[material]))
+    parts.append(_table("materials.object", material if isinstance(material, dict) else MATERIALS[material]))
     parts.append(_table("materials.floor", MATERIALS[floor_material]))
     if "sky" in light:
         write_sky_exr(folder / "sky.exr")

@@ -61,7 +61,7 @@ def aniso_setup(model):
         theta_v = np.arctan(amax * np.sqrt(-np.log(EPSILON)))
         return 2.0 / amin**2, theta_v, model.alpha_x > model.alpha_y
     if name == "ggx":
-        return model.ndf_analytic_lambda(), model.aniso_extent(), model.alpha_x > model.alpha_y
+        return model.aniso_lambda(), model.aniso_extent(), model.alpha_x > model.alpha_y
     raise InputError(f"model '{name}' has no anisotropic construction", where="model")
 
 

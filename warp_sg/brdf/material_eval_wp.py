@@ -377,7 +377,8 @@ def ndf_lobe(mat: Material, k: int):
             wide_x = int(0)
             if p[0] > p[1]:
                 wide_x = 1
-            return _aniso_lobe(mat, k, ggx_lobe_lambda(wp.min(p[0], p[1])), ggx_extent(wp.max(p[0], p[1])), wide_x)
+            amin = wp.min(p[0], p[1])
+            return _aniso_lobe(mat, k, 2.0 / (amin * amin), ggx_extent(wp.max(p[0], p[1])), wide_x)
     j = mat.lobe_start + k
     lam = mat.lobe_sharpness[j]
     if m == 10:
