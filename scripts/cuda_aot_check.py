@@ -44,7 +44,10 @@ def shading_variants():
 def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--arch", type=int, default=90)
+    ap.add_argument("--only", default="", help="comma-separated substrings: compile only the modules whose name "
+                                                "contains one (e.g. reference_wp,shading); default all")
     a = ap.parse_args()
+    only = [x for x in a.only.split(",") if x]
     wp.config.quiet = True
     wp.init()
     mods = []
@@ -54,6 +57,8 @@ def main() -> int:
         if m.kernels or m.functions:
             mods.append(m)
     mods += [k.module for k in shading_variants()]
+    if only:
+        mods = [m for m in mods if any(x in m.name for x in only)]
     failed = []
     with tempfile.TemporaryDirectory() as out:
         for m in mods:

@@ -168,6 +168,34 @@ def test_multi_lobe_fits_are_non_negative_and_improve_with_lobe_count():
     assert errs[1] < 0.2 * errs[0] and errs[2] < 0.5 * errs[1], errs
 
 
+def ndf_l2(alpha, lam, mu):
+    """Relative L2 error over the hemisphere of the isotropic SG mixture (λ, μ) about z against D̂."""
+    t = (np.arange(4000) + 0.5) / 4000
+    th = np.pi / 2 * t * t
+    w = np.sin(th) * t
+    d = GGX(alpha=alpha).ndf(np.stack([np.sin(th), 0 * th, np.cos(th)], -1))
+    mix = (mu * np.exp(-lam * (1 - np.cos(th))[:, None])).sum(-1)
+    return np.sum(w * (mix - d) ** 2) / np.sum(w * d * d)
+
+
+@pytest.mark.parametrize("node, k", [(3, 3), (26, 2)])
+def test_shipped_node_table_matches_a_fresh_fit(node, k):
+    # the stored fits (scripts/ggx_lobe_table.py) are as good as refitting the node now
+    alpha = B.ggx.TABLE_A0 + B.ggx.TABLE_STEP * node
+    lam_s, mu_s = B.ggx.table_lobes(alpha, k)
+    ln, mu = B.ggx.node_fit(alpha, k)
+    lam_f = ln * (1 / alpha**2 - 1)
+    assert ndf_l2(alpha, lam_s, mu_s) <= 1.05 * ndf_l2(alpha, lam_f, mu) + 1e-9
+    np.testing.assert_allclose(lam_s, lam_f, rtol=0.02)
+
+
+def test_interpolated_table_lobes_fit_between_the_nodes():
+    # midway between nodes, the interpolated lobes stay close to a fit made at that α
+    for alpha in (0.0125, 0.2125, 0.5125, 0.8875):
+        lam, mu = B.ggx.table_lobes(alpha, 3)
+        assert ndf_l2(alpha, lam, mu) < 5e-4, alpha
+
+
 # ------------------------------------------------------------------------------------------------
 # kernel side
 # ------------------------------------------------------------------------------------------------
@@ -175,9 +203,18 @@ def test_multi_lobe_fits_are_non_negative_and_improve_with_lobe_count():
 def _ggx_kernel(mats: wp.array(dtype=M.Material), mid: wp.array(dtype=int), o: wp.array(dtype=wp.vec3),
                 i: wp.array(dtype=wp.vec3), u: wp.array(dtype=wp.vec2), f: wp.array(dtype=wp.vec3),
                 mo: wp.array(dtype=wp.vec3), pdf: wp.array(dtype=float), smp: wp.array(dtype=wp.vec3),
-                axis: wp.array2d(dtype=wp.vec3), lam: wp.array2d(dtype=float), amp: wp.array2d(dtype=wp.vec3)):
+                axis: wp.array2d(dtype=wp.vec3), lam: wp.array2d(dtype=float), amp: wp.array2d(dtype=wp.vec3),
+                tex_alpha: wp.array(dtype=float), tex_lam: wp.array2d(dtype=float), tex_mu: wp.array2d(dtype=float)):
     t = wp.tid()
     mat = mats[mid[t]]
+    # a textured α replaces params[0:2] per texel (surface.textured_material); NDF lobes follow it
+    tm = mat
+    p = tm.params
+    tm.params = wp.vec4(tex_alpha[t], tex_alpha[t], p[2], p[3])
+    for k in range(M.slice_lobe_count(tm)):
+        ta, tl, tu = M.ndf_lobe(tm, k)
+        tex_lam[t, k] = tl
+        tex_mu[t, k] = tu
     f[t] = M.brdf_eval(mat, o[t], i[t])
     mo[t] = M.brdf_mo(mat, o[t], i[t])
     pdf[t] = M.brdf_pdf(mat, o[t], i[t])
@@ -192,13 +229,13 @@ def _ggx_kernel(mats: wp.array(dtype=M.Material), mid: wp.array(dtype=int), o: w
 KERNEL_MODELS = [GGX(kd=0.1, ks=0.9, alpha=0.3, fresnel="gold"),
                  GGX(ks=[0.9, 0.8, 0.7], alpha=0.08, fresnel={"schlick": [0.95, 0.64, 0.54]}, lobes=4),
                  GGX(ks=1.0, alpha_x=0.1, alpha_y=0.4, fresnel={"eta": 1.5}, lobes=5),
-                 GGX(ks=1.0, alpha=0.5, lobes=1)]
+                 GGX(ks=1.0, alpha=0.5, lobes=1), GGX(ks=0.5, alpha=0.2, lobes=5)]
 
 
 def test_kernel_matches_numpy_eval_pdf_sample_and_slice_lobes(device):
     models = KERNEL_MODELS
     table = M.pack_materials(models, 1, device)
-    assert [r["analytic"] for r in table.records] == [0, 0, 1, 1]
+    assert [r["analytic"] for r in table.records] == [1, 1, 1, 1, 0]
     rng = np.random.default_rng(5)
     n = 256
     o = rng.normal(size=(n, 3))
@@ -217,7 +254,9 @@ def test_kernel_matches_numpy_eval_pdf_sample_and_slice_lobes(device):
     arrs = dict(f=wp.zeros(n, dtype=wp.vec3, device=device), mo=wp.zeros(n, dtype=wp.vec3, device=device),
                 pdf=wp.zeros(n, dtype=float, device=device), smp=wp.zeros(n, dtype=wp.vec3, device=device),
                 axis=wp.zeros((n, K), dtype=wp.vec3, device=device), lam=wp.zeros((n, K), dtype=float, device=device),
-                amp=wp.zeros((n, K), dtype=wp.vec3, device=device))
+                amp=wp.zeros((n, K), dtype=wp.vec3, device=device),
+                tex_alpha=wp.array(np.full(n, 0.45, np.float32), dtype=float, device=device),
+                tex_lam=wp.zeros((n, K), dtype=float, device=device), tex_mu=wp.zeros((n, K), dtype=float, device=device))
     wp.launch(_ggx_kernel, dim=n, device=device,
               inputs=[table.materials, wp.array(mid.astype(np.int32), dtype=int, device=device),
                       wp.array(o.astype(np.float32), dtype=wp.vec3, device=device),
@@ -239,6 +278,17 @@ def test_kernel_matches_numpy_eval_pdf_sample_and_slice_lobes(device):
         np.testing.assert_allclose(out["axis"][s][:, :nk], ax, atol=2e-4)
         np.testing.assert_allclose(out["lam"][s][:, :nk], lam, rtol=2e-3)
         np.testing.assert_allclose(out["amp"][s][:, :nk], amp, rtol=3e-3, atol=1e-6 * np.abs(amp).max())
+        # textured α = 0.45 (params[0:2] per texel): the kernel's NDF lobes follow it
+        lam_t, mu_t = out["tex_lam"][s][0, :nk].astype(np.float64), out["tex_mu"][s][0, :nk].astype(np.float64)
+        if m.isotropic and nk <= 4:  # the node table interpolated at the texel's α
+            lam_n, mu_n = B.ggx.table_lobes(0.45, nk)
+            np.testing.assert_allclose(lam_t, lam_n, rtol=1e-4)
+            np.testing.assert_allclose(mu_t, mu_n, rtol=1e-4, atol=1e-6)
+            if nk > 1:  # a good fit of the texel's NDF (a single fitted lobe: 6e-2)
+                assert ndf_l2(0.45, lam_t, mu_t) < 5e-4
+        elif m.isotropic:  # fitted lobes of the mean α, sharpness × curvature ratio
+            c = (1 / 0.45**2 - 1) / (1 / m.alpha**2 - 1)
+            np.testing.assert_allclose(lam_t, m.ndf_sg(nk, "fit")[1] * c, rtol=1e-4)
 
 
 def test_reference_white_furnace_matches_the_cycles_albedo(device):

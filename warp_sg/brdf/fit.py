@@ -37,16 +37,23 @@ METHODS = ("analytic", "fit")
 # --------------------------------------------------------------------------------------------
 # analytic constructions
 # --------------------------------------------------------------------------------------------
-def aniso_lobes(n_lobes, lam, theta_v, wide_x, ndf):
-    """Supplement eq. 14: ``n_lobes`` (odd) lobes along the wide axis (x if ``wide_x`` else y)."""
+def aniso_lobes(n_lobes, lam, theta_v, wide_x, ndf, normalise=False):
+    """Supplement eq. 14: ``n_lobes`` (odd) lobes along the wide axis (x if ``wide_x`` else y).
+
+    ``normalise`` (GGX): amplitude k is ``D(pk)`` divided by the overlap of the lobes at pk,
+    ``Σ_j e^{−λ(1 − cos((k − j)θi))}``, so the mixture at the lobe axes is ≈ D instead of summing
+    up to several times it when the lobes are wide against their spacing."""
     N = int(n_lobes)
     theta_i = 2.0 * theta_v / (N + 1)
     a = (np.arange(N) - (N - 1) / 2.0) * theta_i
     axes = np.zeros((N, 3))
     axes[:, 0 if wide_x else 1] = np.sin(a)
     axes[:, 2] = np.cos(a)
-    amp = ndf(axes)
-    return axes, np.full(N, float(lam)), np.asarray(amp, dtype=np.float64)
+    amp = np.asarray(ndf(axes), dtype=np.float64)
+    if normalise:
+        k = np.arange(N)
+        amp = amp / np.exp(-lam * _one_minus_cos((k[:, None] - k[None, :]) * theta_i)).sum(1)
+    return axes, np.full(N, float(lam)), amp
 
 
 def aniso_setup(model):
@@ -384,7 +391,8 @@ def _compute(model, n_lobes, method):
     K = lobe_count(model, n_lobes)
     if is_anisotropic(model):
         lam, theta_v, wide_x = aniso_setup(model)
-        axes, lams, amps = aniso_lobes(K, lam, theta_v, wide_x, model.ndf)
+        axes, lams, amps = aniso_lobes(K, lam, theta_v, wide_x, model.ndf,
+                                       normalise=bool(getattr(model, "aniso_normalised", False)))
         if method == "fit":
             theta_max = min(np.pi / 2, 2.5 * theta_v + 6.0 / np.sqrt(lam))
             axes, lams, amps = fit_anisotropic(model.ndf, axes, lams, amps, theta_max)

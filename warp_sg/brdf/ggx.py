@@ -18,14 +18,18 @@ is evaluated as ``1/((n·i)(n·o) + (n·i) L(o) + (n·o) L(i))`` with
 ``L(v) = vz Λ(v) = a²/(2(√(vz² + a²) + vz))``, ``a² = αx² vx² + αy² vy²`` (no cancellation, finite
 at grazing unless both directions are grazing).
 
-SG fits of ``D̂`` (:mod:`warp_sg.brdf.fit`): isotropic single lobe ``λ = 4/α² − 4``, ``μ = 1``
-(``D̂ = 1/(cos²θ + sin²θ/α²)² = 1 − 2(1/α² − 1)θ² + …``); K > 1 lobes by the signed multi-lobe
-least-squares fit on a θ grid that covers the long tail (``D̂ ≈ (α/θ)⁴`` for ``θ ≫ α``) out to
-``25α``; anisotropic: the Ashikhmin–Shirley N-lobe layout (supplement eq. 14) with extent ``θv``
-where ``D̂`` along the wide axis falls to ε = 0.1 and the common sharpness ``2/min(α)²`` — half the
-Taylor value: the wider lobes follow GGX's heavy tails and overlap enough along the wide axis
-(supplement eq. 11 error of (αx, αy) = (0.3, 0.06), N = 7: 0.045, against 0.28 with ``4/α² − 4``;
-docs/ggx.md).
+SG fits of ``D̂`` (:mod:`warp_sg.brdf.fit`): ``D̂ = 1/(cos²θ + sin²θ/α²)² = 1 − 2(1/α² − 1)θ² + …``
+(Taylor single lobe ``λ = 4/α² − 4``, ``μ = 1``: :meth:`GGX.ndf_analytic_lambda`). Isotropic
+K-lobe fits (K = 1..4; non-negative amplitudes, a θ grid that covers the long tail ``D̂ ≈ (α/θ)⁴``
+out to ``25α``) are shipped at 39 roughness nodes (``ggx_lobe_table.py``, made by
+``scripts/ggx_lobe_table.py``) and interpolated in α (:func:`table_lobes`) — in the kernel too, so
+a textured α gets fitted lobes per texel. Other counts (or ``method="fit"``) fit the constant α
+directly. Anisotropic: the Ashikhmin–Shirley N-lobe layout (supplement eq. 14) with extent ``θv``
+where ``D̂`` along the wide axis falls to ε = 0.1, the common sharpness ``2/min(α)²`` — half the
+Taylor value, so the wider lobes follow GGX's heavy tails — and amplitudes ``D̂(pk)`` divided by
+the lobes' overlap at pk (:func:`warp_sg.brdf.fit.aniso_lobes`), so that more lobes do not
+overshoot (supplement eq. 11 error of (αx, αy) = (0.3, 0.06) for N = 5, 7, 9, 15: 0.18, 0.048,
+0.027, 0.029; with ``4/α² − 4`` and plain ``D̂(pk)``: 0.45, 0.28, 0.15, 0.077; docs/ggx.md).
 ``lobes``: NDF lobes (default :data:`DEFAULT_LOBES` isotropic, :data:`DEFAULT_ANISO_LOBES`
 anisotropic; odd when anisotropic).
 
@@ -44,11 +48,51 @@ from .fresnel import parse_fresnel
 #: default number of NDF lobes (isotropic; see docs/ggx.md for the error against lobe count)
 DEFAULT_LOBES = 3
 #: default number of NDF lobes for anisotropic GGX (the Ashikhmin–Shirley layout needs odd N)
-DEFAULT_ANISO_LOBES = 7
+DEFAULT_ANISO_LOBES = 9
 #: ε of the anisotropic extent θv (supplement eq. 14)
 EPSILON = 0.1
 #: the isotropic multi-lobe fit covers θ ∈ [0, min(π/2, FIT_EXTENT α)]
 FIT_EXTENT = 25.0
+#: roughness nodes of the shipped isotropic fits (ggx_lobe_table.py): α = TABLE_A0 + TABLE_STEP·n
+TABLE_A0 = 0.025
+TABLE_STEP = 0.025
+TABLE_N = 39
+#: lobe counts the table holds
+TABLE_LOBES = (1, 2, 3, 4)
+#: smallest sharpness of a table lobe (D̂ is flat at α = 1)
+MIN_LAMBDA = 1e-3
+
+
+def _curvature(alpha):
+    """``1/α² − 1``: ``D̂ = 1 − 2(1/α² − 1)θ² + …`` — the sharpness scale of the fits."""
+    return 1.0 / (alpha * alpha) - 1.0
+
+
+def node_fit(alpha, k):
+    """The K-lobe least-squares fit at one table node: ``(λ/(1/α² − 1), μ)`` (``fit`` method)."""
+    from .fit import ndf_sg_for
+
+    _, lam, mu = ndf_sg_for(GGX(alpha=alpha, lobes=k), k, "fit")
+    return lam / _curvature(alpha), mu
+
+
+def table_lobes(alpha, k):
+    """Isotropic K-lobe SG fit of ``D̂`` at any α from the node table: normalised sharpness and
+    amplitudes interpolated linearly in α between the two nearest nodes (α clamped to the node
+    range), ``λ = max(λ_norm · (1/α'² − 1), MIN_LAMBDA)`` with ``α' = min(α, last node)``. Below
+    the first node the normalised fit is that of the first node (the NDF is a function of
+    tan θ/α there). Interpolated fits stay within ~2× of a fresh fit's error (docs/ggx.md).
+    Returns ``(λ (K,), μ (K,))``; the kernel does the same (``material_eval_wp.ggx_table_lobe``)."""
+    from .ggx_lobe_table import LAMBDA_NORM, MU
+
+    ln_t, mu_t = np.asarray(LAMBDA_NORM[k]), np.asarray(MU[k])
+    a1 = TABLE_A0 + TABLE_STEP * (TABLE_N - 1)
+    t = (min(max(alpha, TABLE_A0), a1) - TABLE_A0) / TABLE_STEP
+    j = min(int(t), TABLE_N - 2)
+    f = t - j
+    ln = (1.0 - f) * ln_t[j] + f * ln_t[j + 1]
+    mu = (1.0 - f) * mu_t[j] + f * mu_t[j + 1]
+    return np.maximum(ln * _curvature(min(alpha, a1)), MIN_LAMBDA), mu
 
 
 def smith_lambda_cos(v, ax, ay):
@@ -147,6 +191,8 @@ class GGX(SpecularBRDF):
 
     #: D̂ is log-convex in u = 1 − cos θ: its multi-lobe fits use non-negative amplitudes
     ndf_log_convex = True
+    #: anisotropic layout: amplitudes divided by the lobes' overlap (fit.aniso_lobes)
+    aniso_normalised = True
 
     @property
     def isotropic(self):
@@ -195,6 +241,24 @@ class GGX(SpecularBRDF):
         return np.where((co > 0) & (oh > 0) & (h[..., 2] > 0), val, 0.0)
 
     # -- SG fits -------------------------------------------------------------------------------
+    def ndf_sg(self, n_lobes=1, method="analytic"):
+        """NDF SG lobes. Isotropic with ``method="analytic"`` and ``lobes`` in :data:`TABLE_LOBES`:
+        :func:`table_lobes` (the kernel computes the same from the per-texel α); otherwise the
+        fits and constructions of :mod:`warp_sg.brdf.fit` (``self.lobes`` lobes)."""
+        if self.isotropic and method == "analytic" and self.lobes in TABLE_LOBES:
+            lam, mu = table_lobes(self.alpha_x, self.lobes)
+            return np.tile([0.0, 0.0, 1.0], (self.lobes, 1)), lam, mu
+        return super().ndf_sg(n_lobes, method)
+
+    def kernel_lobe_table(self, method):
+        """``(normalised λ (TABLE_N·K,), μ (TABLE_N·K,))`` node-major, when the kernel builds the
+        lobes from the table (isotropic, ``analytic``, K in :data:`TABLE_LOBES`), else None."""
+        if not (self.isotropic and method == "analytic" and self.lobes in TABLE_LOBES):
+            return None
+        from .ggx_lobe_table import LAMBDA_NORM, MU
+
+        return np.asarray(LAMBDA_NORM[self.lobes]).reshape(-1), np.asarray(MU[self.lobes]).reshape(-1)
+
     def ndf_analytic_lambda(self):
         a = min(self.alpha_x, self.alpha_y)
         return max(4.0 / (a * a) - 4.0, 1e-3)
@@ -219,10 +283,10 @@ class GGX(SpecularBRDF):
         return float(min(np.arctan(np.sqrt((E - 1.0) / den)), cap))
 
     def kernel_params(self):
-        # params[2:4]: the (αx, αy) the table lobes were fitted for; a textured α (params[0:2]
-        # per texel) rescales their sharpness (material_eval_wp.ndf_lobe)
+        # params[2:4]: the (αx, αy) stored fitted lobes are for; a textured α (params[0:2] per
+        # texel) rescales their sharpness by (1/α² − 1) (material_eval_wp.ndf_lobe)
         return (self.alpha_x, self.alpha_y, self.alpha_x, self.alpha_y)
 
 
-__all__ = ["GGX", "DEFAULT_LOBES", "DEFAULT_ANISO_LOBES", "smith_g1", "smith_g2", "smith_lambda_cos",
+__all__ = ["GGX", "DEFAULT_LOBES", "DEFAULT_ANISO_LOBES", "table_lobes", "node_fit", "smith_g1", "smith_g2", "smith_lambda_cos",
            "g2_over_cos", "vndf_sample_h"]

@@ -167,12 +167,6 @@ def ggx_ndf_peak1(h: wp.vec3, ax: float, ay: float) -> float:
 
 
 @wp.func
-def ggx_lobe_lambda(a: float) -> float:
-    """Single-lobe GGX sharpness ``4/α² − 4`` (Taylor at the normal; ggx.py)."""
-    return wp.max(4.0 / (a * a) - 4.0, 1.0e-3)
-
-
-@wp.func
 def ggx_extent(a: float) -> float:
     """``θv`` of anisotropic GGX: ``tan²θv = (E − 1)/(1/α² − E)``, ``E = ε^{−1/2}``, capped at 80°."""
     E = wp.exp(-0.5 * LN_EPS)
@@ -339,6 +333,45 @@ def _aniso_lobe(mat: Material, k: int, lam: float, theta_v: float, wide_x: int):
     return axis, lam, brdf_ndf(mat, axis)
 
 
+#: GGX roughness nodes of the shipped fits (ggx.py TABLE_A0, TABLE_STEP, TABLE_N; MIN_LAMBDA)
+GGX_TABLE_A0 = wp.constant(0.025)
+GGX_TABLE_STEP = wp.constant(0.025)
+GGX_TABLE_N = wp.constant(39)
+GGX_MIN_LAMBDA = wp.constant(1.0e-3)
+
+
+@wp.func
+def ggx_table_lobe(mat: Material, k: int, alpha: float):
+    """Isotropic GGX lobe k at roughness α from the node table stored at ``lobe_start``
+    (node-major, ``lobe_count`` lobes a node): normalised sharpness and amplitude interpolated
+    linearly in α, ``λ = max(λ_norm (1/α'² − 1), MIN_LAMBDA)``, ``α' = min(α, last node)``
+    (ggx.py ``table_lobes``). Returns (sharpness, amplitude)."""
+    a1 = GGX_TABLE_A0 + GGX_TABLE_STEP * float(GGX_TABLE_N - 1)
+    t = (wp.clamp(alpha, GGX_TABLE_A0, a1) - GGX_TABLE_A0) / GGX_TABLE_STEP
+    j = wp.min(int(t), GGX_TABLE_N - 2)
+    f = t - float(j)
+    n = mat.lobe_count
+    i0 = mat.lobe_start + j * n + k
+    i1 = i0 + n
+    ln = (1.0 - f) * mat.lobe_sharpness[i0] + f * mat.lobe_sharpness[i1]
+    mu = (1.0 - f) * mat.lobe_amplitude[i0] + f * mat.lobe_amplitude[i1]
+    am = wp.min(alpha, a1)
+    return wp.max(ln * (1.0 / (am * am) - 1.0), GGX_MIN_LAMBDA), mu
+
+
+@wp.func
+def _aniso_overlap(n: int, k: int, lam: float, theta_v: float) -> float:
+    """Σ_j e^{−λ(1 − cos((k − j)θi))}, θi = 2θv/(n + 1): the overlap of the layout's lobes at lobe k
+    (GGX divides its amplitudes by it; fit.aniso_lobes)."""
+    theta_i = 2.0 * theta_v / float(n + 1)
+    s = float(0.0)
+    for j in range(n):
+        d = float(k - j) * theta_i
+        sd = wp.sin(0.5 * d)
+        s += wp.exp(-lam * 2.0 * sd * sd)
+    return s
+
+
 @wp.func
 def ndf_lobe(mat: Material, k: int):
     """NDF SG lobe k (0 ≤ k < lobe_count): (axis, sharpness, amplitude) in the local frame."""
@@ -372,19 +405,25 @@ def ndf_lobe(mat: Material, k: int):
                 wide_x = 1
             return _aniso_lobe(mat, k, nmax, theta_v, wide_x)
         if m == 10:
-            if p[0] == p[1]:
-                return z, ggx_lobe_lambda(p[0]), 1.0
+            if p[2] == p[3]:  # isotropic material: the node table (any per-texel α)
+                lam_t, mu_t = ggx_table_lobe(mat, k, wp.sqrt(p[0] * p[1]))
+                return z, lam_t, mu_t
             wide_x = int(0)
             if p[0] > p[1]:
                 wide_x = 1
             amin = wp.min(p[0], p[1])
-            return _aniso_lobe(mat, k, 2.0 / (amin * amin), ggx_extent(wp.max(p[0], p[1])), wide_x)
+            lam_g = 2.0 / (amin * amin)
+            theta_g = ggx_extent(wp.max(p[0], p[1]))
+            ax_g, l_g, mu_g = _aniso_lobe(mat, k, lam_g, theta_g, wide_x)
+            return ax_g, l_g, mu_g / _aniso_overlap(mat.lobe_count, k, lam_g, theta_g)
     j = mat.lobe_start + k
     lam = mat.lobe_sharpness[j]
     if m == 10:
-        # GGX fits are (nearly) functions of tan θ/α: fitted for (αx, αy) = (p[2], p[3]), a
-        # textured α rescales the sharpness by p[2]p[3]/(αx αy) (1 when untextured)
-        lam = lam * (p[2] * p[3]) / (p[0] * p[1])
+        # GGX fits scale with the NDF's curvature 1/α² − 1 (D̂ = 1 − 2(1/α² − 1)θ² + …): fitted for
+        # (αx, αy) = (p[2], p[3]); a textured α rescales the sharpness (factor 1 when untextured)
+        c_fit = wp.max(1.0 / (p[2] * p[3]) - 1.0, 1.0e-6)
+        c_tex = wp.max(1.0 / (p[0] * p[1]) - 1.0, 1.0e-6)
+        lam = lam * c_tex / c_fit
     return mat.lobe_axis[j], lam, mat.lobe_amplitude[j]
 
 

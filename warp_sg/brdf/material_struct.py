@@ -130,6 +130,11 @@ def pack_materials(models, n_lobes=1, device="cpu", method="analytic"):
         aniso = _is_anisotropic(model)
         rec["analytic"] = 1 if (method == "analytic" and rec["model"] in _ANALYTIC
                                 and (aniso or len(lam) == 1)) else 0
+        table = model.kernel_lobe_table(method) if hasattr(model, "kernel_lobe_table") else None
+        if table is not None:  # GGX: the node table itself; the kernel interpolates it at the texel's α
+            lam, amp = table
+            ax = np.tile([0.0, 0.0, 1.0], (len(lam), 1))
+            rec["analytic"] = 1
         start += len(lam)
         axes_all.append(ax)
         lam_all.append(np.asarray(lam, np.float64).reshape(-1))

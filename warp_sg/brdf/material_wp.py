@@ -28,9 +28,10 @@ model's docstring for its equation and source):
 * ``ndf_lobe(mat, k)``: NDF lobe k (local frame). With ``mat.analytic == 1`` it is computed from
   ``mat.params`` (so textured roughness works per pixel): single lobe ``λ = 2/m²`` (Cook–Torrance,
   Torrance–Sparrow), ``2/α²`` (Ward), ``n`` (Phong, Blinn–Phong, isotropic Ashikhmin–Shirley),
-  ``4/α² − 4`` (GGX), or the anisotropic construction of supplement eq. 14 with ``mat.lobe_count``
-  lobes; otherwise it is read from the lobe table (GGX: sharpness rescaled by ``p[2]p[3]/(p[0]p[1])``,
-  the fitted over the per-texel α², so textured roughness moves the fitted lobes).
+  or the anisotropic construction of supplement eq. 14 with ``mat.lobe_count`` lobes (GGX too), or
+  for isotropic GGX the fits at roughness nodes stored in the lobe table, interpolated at the
+  texel's α (``ggx_table_lobe``); otherwise it is read from the lobe table (GGX: sharpness rescaled
+  by the curvature ratio ``(1/α² − 1)/(1/ᾱ² − 1)`` of the texel's α to the fitted ᾱ = ``p[2:4]``).
 
 The ``Material`` struct carries the (shared) lobe tables and measured-data arrays as array
 fields, so every function takes just ``mat``. Ashikhmin–Shirley and anisotropic Ward lobe axes are
@@ -51,7 +52,7 @@ from .material_struct import (  # noqa: F401
 from .material_eval_wp import (  # noqa: F401
     _aniso_lobe, as_exponent_log, brdf_diffuse, brdf_eval, brdf_mo, brdf_ndf, brdf_specular, cos_pow,
     expm1_neg_f, fresnel_eval, from_axis, g_over_cos, ggx_extent, ggx_g1, ggx_g2_over_cos, ggx_lambda_cos,
-    ggx_lobe_lambda, ggx_ndf_peak1, half_vec, lafortune_lobe, log1p_f, log_cos_theta, lum,
+    ggx_ndf_peak1, ggx_table_lobe, half_vec, lafortune_lobe, log1p_f, log_cos_theta, lum,
     mo_raw, ndf_lobe, oren_nayar_params, reflect_z, sin2_theta, slice_lobe, slice_lobe_count, warp_axis,
     warp_lobe,
 )
