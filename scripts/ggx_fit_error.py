@@ -33,7 +33,7 @@ ROOT = Path(__file__).resolve().parents[1]
 QUAD = dict(n_o=24, n_th=256, n_ph=48, theta_max=np.pi / 2)
 
 
-def lobes(model, k, method):
+def sg_lobes(model, k, method):
     if method == "taylor":
         return np.array([[0.0, 0.0, 1.0]]), np.array([model.ndf_analytic_lambda()]), np.ones(1)
     return model.ndf_sg(k, "analytic" if method == "table" else method)
@@ -62,7 +62,7 @@ def study(alphas, lobes=(1, 2, 3, 4), aniso_lobes=(1, 3, 5, 7, 9)):
     jobs = [(a, k, m) for a in alphas for k in lobes for m in (("taylor", "fit", "table") if k == 1 else ("fit", "table"))]
     for a, k, method in tqdm(jobs, desc="GGX fits"):
         model = GGX(ks=1.0, alpha=float(a), lobes=k)
-        lb = lobes(model, k, method)
+        lb = sg_lobes(model, k, method)
         rows.append(dict(kind="isotropic", alpha_x=float(a), alpha_y=float(a), lobes=k, method=method,
                          ndf_l2=ndf_l2(model, *lb), eq11=eq11(model, *lb, **QUAD)))
     for n in tqdm(aniso_lobes, desc="anisotropic GGX"):
@@ -114,6 +114,7 @@ def write(rows, out: Path):
     axs[0].set_title("supplement eq. 11 error", fontsize=9)
     axs[1].set_title("NDF relative L2 error", fontsize=9)
     for ax in axs:
+        ax.set_ylim(1e-8, 1.0)  # (α = 1: D̂ is constant, every fit is exact to rounding)
         ax.set_xlabel("α")
         ax.grid(True, which="both", alpha=0.3)
     axs[0].legend(fontsize=7)

@@ -79,9 +79,9 @@ def node_fit(alpha, k):
 def table_lobes(alpha, k):
     """Isotropic K-lobe SG fit of ``D̂`` at any α from the node table: normalised sharpness and
     amplitudes interpolated linearly in α between the two nearest nodes (α clamped to the node
-    range), ``λ = max(λ_norm · (1/α'² − 1), MIN_LAMBDA)`` with ``α' = min(α, last node)``. Below
-    the first node the normalised fit is that of the first node (the NDF is a function of
-    tan θ/α there). Interpolated fits stay within ~2× of a fresh fit's error (docs/ggx.md).
+    range), ``λ = max(λ_norm · (1/α'² − 1), MIN_LAMBDA)`` with ``α' = min(α, 1)``. Below the
+    first node the normalised fit is that of the first node (the NDF is a function of tan θ/α
+    there); above the last the lobes flatten with the curvature, to constant ones at α = 1. Interpolated fits stay within ~2× of a fresh fit's error (docs/ggx.md).
     Returns ``(λ (K,), μ (K,))``; the kernel does the same (``material_eval_wp.ggx_table_lobe``)."""
     from .ggx_lobe_table import LAMBDA_NORM, MU
 
@@ -92,7 +92,7 @@ def table_lobes(alpha, k):
     f = t - j
     ln = (1.0 - f) * ln_t[j] + f * ln_t[j + 1]
     mu = (1.0 - f) * mu_t[j] + f * mu_t[j + 1]
-    return np.maximum(ln * _curvature(min(alpha, a1)), MIN_LAMBDA), mu
+    return np.maximum(ln * _curvature(min(alpha, 1.0)), MIN_LAMBDA), mu
 
 
 def smith_lambda_cos(v, ax, ay):

@@ -344,7 +344,7 @@ GGX_MIN_LAMBDA = wp.constant(1.0e-3)
 def ggx_table_lobe(mat: Material, k: int, alpha: float):
     """Isotropic GGX lobe k at roughness α from the node table stored at ``lobe_start``
     (node-major, ``lobe_count`` lobes a node): normalised sharpness and amplitude interpolated
-    linearly in α, ``λ = max(λ_norm (1/α'² − 1), MIN_LAMBDA)``, ``α' = min(α, last node)``
+    linearly in α, ``λ = max(λ_norm (1/α'² − 1), MIN_LAMBDA)``, ``α' = min(α, 1)``
     (ggx.py ``table_lobes``). Returns (sharpness, amplitude)."""
     a1 = GGX_TABLE_A0 + GGX_TABLE_STEP * float(GGX_TABLE_N - 1)
     t = (wp.clamp(alpha, GGX_TABLE_A0, a1) - GGX_TABLE_A0) / GGX_TABLE_STEP
@@ -355,7 +355,7 @@ def ggx_table_lobe(mat: Material, k: int, alpha: float):
     i1 = i0 + n
     ln = (1.0 - f) * mat.lobe_sharpness[i0] + f * mat.lobe_sharpness[i1]
     mu = (1.0 - f) * mat.lobe_amplitude[i0] + f * mat.lobe_amplitude[i1]
-    am = wp.min(alpha, a1)
+    am = wp.min(alpha, 1.0)
     return wp.max(ln * (1.0 / (am * am) - 1.0), GGX_MIN_LAMBDA), mu
 
 
