@@ -132,6 +132,9 @@ PARAM_TYPES: dict = {
     "pca_terms": (integer(lo=0), "PCA terms of the shadowing fit", False),
     ("ashikhmin_shirley", "lobes"): (integer(lo=1, odd=True), "number of SG lobes (odd) along the longer axis",
                                      False),
+    ("ggx", "lobes"): (integer(lo=1), "number of NDF SG lobes (default 3 isotropic, 9 anisotropic; odd when "
+                       "anisotropic)", False),
+    ("ggx", "alpha"): (number(**_POS), "isotropic roughness α (glTF: roughness²; default 0.3)", True),
     ("lafortune", "lobes"): (Annotated[list[LafortuneLobe], Field(min_length=1)],
                              "lobes: a list of {cx, cy, cz, n} tables", False),
 }
