@@ -213,6 +213,9 @@ BAD = [  # (old, new, words of the loader's one-line message)
     ("rotation = 90.0", "rotaton = 90.0", ["[[lights]] #2", "did you mean 'rotation'"]),
     ("sun_intensity = 300.0", "sun_intensty = 300.0", ["[[lights]] #2", "options.sun_intensty",
                                                         "did you mean 'sun_intensity'"]),
+    ("sun_intensity = 300.0", "sun_intensity = 300.0, width = 1", ["[[lights]] #2", "key 'options.width' must be >= 2"]),
+    ("sun_intensity = 300.0", "sun_intensity = 300.0, sun_direction = [0, 0, 0]",
+     ["key 'options.sun_direction' must be a non-zero vector"]),
     ("resolution = [8, 16]", "resolutoin = [8, 16]", ["[[objects]] #1", "did you mean 'resolution'"]),
     ('model = "lambert"', 'modle = "lambert"', ["[materials.floor]", "key 'modle' unknown"]),
     ('fresnel = "gold"', 'fresnel = { eta = 1.5, k = 2.0, schlick = 0.1 }', ["key 'fresnel'"]),
@@ -235,6 +238,8 @@ BAD = [  # (old, new, words of the loader's one-line message)
     ('model = "lambert"', 'model = "lafortune"\nlobes = [{ cx = 1, cy = 1, cz = 1, m = 2 }]',
      ["key 'lobes[0].m' unknown", "valid keys: cx, cy, cz, n"]),
     ("size = [4.0, 4.0]", "size = [4.0, 0.0]", ["key 'size' must be > 0"]),
+    ('type = "point"\nposition = [2.0, 3.0, 2.0]', 'type = "directional"\ndirection = [0.0, 0, 0.0]',
+     ["[[lights]] #1 key 'direction' must be a non-zero vector"]),
     ('material = "floor"', "material = 3", ["key 'material' must be a string"]),
     ('primitive = "plane"\nsize = [4.0, 4.0]\nmaterial = "floor"', 'mesh = "floor.obj"',
      ["[[objects]] #2 key 'material' is missing"]),
@@ -268,6 +273,7 @@ GOOD = [
     ("resolution = [8, 16]", "resolution = 12"),
     ('primitive = "plane"\nsize = [4.0, 4.0]\nmaterial = "floor"', 'mesh = "assets/still_life.GLB"'),
     ('procedural = "sky"\noptions = { sun_intensity = 300.0 }', 'procedural = "constant"\noptions = { radiance = [1, 2, 3] }'),
+    ("sun_intensity = 300.0", "sun_intensity = 300.0, sun_direction = [0, 1, 1], sun_color = 0.9, width = 64"),
 ]
 
 

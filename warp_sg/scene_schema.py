@@ -298,51 +298,86 @@ class DirectionalLightTable(Table):
     intensity: rgb(description="irradiance E on a surface facing the light: number or RGB") = _DL["intensity"]
 
 
-SKY_OPTIONS = tuple(inspect.signature(procedural_sky).parameters)
-CONSTANT_OPTIONS = ("radiance", "width", "height")
-ENV_OPTIONS = {"sky": SKY_OPTIONS, "constant": CONSTANT_OPTIONS}
+_SKY_TYPES = {  # procedural_sky's keywords (envmap.procedural_sky needs width, height >= 2)
+    "width": integer(lo=2, description="map width (texels)"),
+    "height": integer(lo=2, description="map height (texels)"),
+    "sun_direction": vector(nonzero=True, description="direction towards the sun"),
+    "sun_angular_radius": number(lo=0, description="sun disk radius (radians)"),
+    "sun_intensity": number(lo=0, description="sun radiance"),
+    "sun_color": rgb(raw=True, description="sun colour (number or RGB)"),
+    "zenith_color": rgb(raw=True, description="sky colour at the zenith"),
+    "horizon_color": rgb(raw=True, description="sky colour at the horizon"),
+    "ground_color": rgb(raw=True, description="colour below the horizon"),
+    "sky_intensity": number(lo=0, description="sky radiance scale"),
+    "halo": number(lo=0, description="strength of the glow around the sun"),
+    "horizon_blur": number(lo=0, description="width of the horizon transition"),
+    "supersample": integer(lo=1, description="sub-cells per texel side (box filter)"),
+}
+SkyOptions = create_model(
+    "SkyOptions", __base__=Table, __doc__="Keywords of warp_sg.envmap.procedural_sky.",
+    **{k: (_SKY_TYPES.get(k) or anything({}, f"procedural_sky keyword {k}"),
+           Field(None, json_schema_extra={"default": _jsonable(p.default)}))
+       for k, p in inspect.signature(procedural_sky).parameters.items()})
 
 
-class EnvironmentLightTable(Table):
-    """An equirectangular environment (Mitsuba convention): a file or a procedural map."""
+class ConstantOptions(Table):
+    """A uniform environment."""
 
-    model_config = ConfigDict(json_schema_extra={"oneOf": [{"required": ["file"]}, {"required": ["procedural"]}]})
+    radiance: rgb(raw=True, description="radiance (number or RGB)") = None
+    width: integer(lo=1, description="map width (texels)") = None
+    height: integer(lo=1, description="map height (texels)") = None
+
+
+class _Environment(Table):
     type: Annotated[Literal["environment"], Field(description="light type")]
-    file: path("equirectangular map (EXR or Radiance .hdr), relative to the scene file") = None
-    procedural: choice(ENV_PROCEDURAL, "built-in map") = None
-    options: anything({"type": "object", "additionalProperties": False, "properties": {
-        **{k: {"description": f"procedural_sky keyword {k}"} for k in SKY_OPTIONS},
-        "radiance": {"description": "constant: radiance (number or RGB)"}}},
-        "procedural map options (sky: warp_sg.envmap.procedural_sky keywords; constant: radiance, width, "
-        "height)") = {}
     scale: number(lo=0, description="radiance scale") = _EL["scale"]
     rotation: number(description="rotation about +Y (degrees)") = _EL["rotation"]
 
-    @model_validator(mode="after")
-    def _source(self):
-        if (self.file is None) == (self.procedural is None):
-            fail("give exactly one of 'file' or 'procedural'")
-        if not isinstance(self.options, dict):
-            fail(f"must be a table, got {self.options!r}", key="options")
-        allowed = ENV_OPTIONS.get(self.procedural, ())
-        for k in self.options:
-            if k not in allowed:
-                fail(f"unknown option{_suggest(k, allowed)} (options of {self.procedural or 'a file'}: "
-                      f"{', '.join(allowed) or 'none'})", key=f"options.{k}", sep=": ")
-        return self
+
+class EnvironmentFile(_Environment):
+    """An equirectangular environment map (Mitsuba convention) from a file."""
+
+    file: path("equirectangular map (EXR or Radiance .hdr), relative to the scene file")
+
+
+class EnvironmentSky(_Environment):
+    """The procedural all-frequency sky: gradient, ground, halo and a small bright sun."""
+
+    procedural: Annotated[Literal["sky"], Field(description="built-in map")]
+    options: Annotated[SkyOptions, Field(description="warp_sg.envmap.procedural_sky keywords")] = None
+
+
+class EnvironmentConstant(_Environment):
+    """A uniform environment."""
+
+    procedural: Annotated[Literal["constant"], Field(description="built-in map")]
+    options: Annotated[ConstantOptions, Field(description="radiance, width, height")] = None
 
 
 LIGHT_MODELS = {"<point>": PointLightTable, "<directional>": DirectionalLightTable,
-                "<environment>": EnvironmentLightTable}
+                "<environment file>": EnvironmentFile, "<environment sky>": EnvironmentSky,
+                "<environment constant>": EnvironmentConstant}
 LIGHT_TYPES = ("point", "directional", "environment")
 
 
 def _light_tag(v):
     require_tag(v, "type", LIGHT_TYPES, "light type")
+    if v["type"] == "environment":
+        if ("file" in v) == ("procedural" in v):
+            fail("give exactly one of 'file' or 'procedural'")
+        if "procedural" in v and v["procedural"] not in ENV_PROCEDURAL:
+            fail(f"must be {' or '.join(repr(p) for p in ENV_PROCEDURAL)}, got {v['procedural']!r}",
+                 key="procedural")
     return v
 
 
-LightTable = tagged(LIGHT_MODELS, lambda v: f"<{v['type']}>", _light_tag)
+def _light_branch(v) -> str:
+    if v["type"] != "environment":
+        return f"<{v['type']}>"
+    return "<environment file>" if "file" in v else f"<environment {v['procedural']}>"
+
+
+LightTable = tagged(LIGHT_MODELS, _light_branch, _light_tag)
 
 _RS = _defaults(RenderSettings)
 _RENDER_DOC = {
@@ -503,7 +538,7 @@ def _merged(branches: list, defs: dict) -> dict | None:
         desc = " | ".join(dict.fromkeys(v.get("description", k) for v in vs))
         bare = [{a: b for a, b in v.items() if a not in ("description", "title")} for v in vs]
         if all(set(v) <= {"enum"} for v in bare):
-            out[k] = {"enum": [e for v in bare for e in v["enum"]], "description": desc}
+            out[k] = {"enum": list(dict.fromkeys(e for v in bare for e in v["enum"])), "description": desc}
         elif all(v == bare[0] for v in bare):
             out[k] = {**bare[0], "description": desc}
         else:

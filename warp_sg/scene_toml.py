@@ -116,9 +116,11 @@ class _Builder:
                 if li.type == "point":
                     out.append(PointLight(position=li.position, radius=li.radius, intensity=li.intensity))
                 elif li.type == "environment":
+                    file, opts = getattr(li, "file", None), getattr(li, "options", None)
                     out.append(EnvironmentLight(
-                        file=self.file(tab, "file", li.file) if li.file is not None else None,
-                        procedural=li.procedural, options=dict(li.options), scale=li.scale, rotation=li.rotation))
+                        file=self.file(tab, "file", file) if file is not None else None,
+                        procedural=getattr(li, "procedural", None), scale=li.scale, rotation=li.rotation,
+                        options=opts.model_dump(exclude_unset=True) if opts is not None else {}))
                 else:
                     out.append(DirectionalLight(direction=li.direction, radius=li.radius, intensity=li.intensity))
             except SceneError:

@@ -118,7 +118,10 @@ def vector(n=3, nonzero=False, description=None):
             fail("must be a non-zero vector")
         return t
 
-    return _leaf(check, _vec_schema(n), description)
+    schema = _vec_schema(n)
+    if nonzero:
+        schema["not"] = {"items": {"enum": [0]}}  # not every component 0
+    return _leaf(check, schema, description)
 
 
 def number_or_vector(n, lo=0, lo_open=True, description=None):
