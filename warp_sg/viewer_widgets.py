@@ -44,7 +44,7 @@ MODEL_SLIDERS = {
 #: Ward with separate roughness along the tangent / bitangent
 WARD_ANISO = (("alpha_x", 0.02, 0.8), ("alpha_y", 0.02, 0.8))
 
-_ROW0, _ROW_STEP = 0.86, 0.085
+_ROW0, _ROW_STEP = 0.86, 0.105
 _COLS = ((0.02, 0.30), (0.70, 0.98))
 
 
@@ -109,7 +109,7 @@ class Editor:
         vp = self.viewport
         w = self.plotter.add_slider_widget(lambda v: self._edit(key, apply, float(v)), [float(rng[0]), float(rng[1])],
                                            value=float(value), title=title, pointa=(x0, y), pointb=(x1, y),
-                                           interaction_event="always", style="modern", title_height=0.02,
+                                           interaction_event="always", style="modern", title_height=0.018,
                                            fmt="%.3g")
         w.AddObserver("StartInteractionEvent", lambda *_: vp.begin_interaction())
         w.AddObserver("EndInteractionEvent", lambda *_: vp.end_interaction())
@@ -243,7 +243,7 @@ class Editor:
                 lambda state, name=name: self._edit(f"toggle.{name}", lambda s: self.renderer.set_terms(**{name: s}),
                                                     bool(state)),
                 value=True, position=(10, y), size=22, border_size=2, color_on="white", color_off="grey")
-            self.plotter.add_text(name, position=(38, y + 3), font_size=8, name=f"warp_sg_toggle_{name}")
+            self.plotter.add_text(name, position=(38, y + 4), font_size=6, name=f"warp_sg_toggle_{name}")
             self.checkboxes[name] = w
 
     # ------------------------------------------------------------------ keys
