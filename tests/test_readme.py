@@ -235,3 +235,40 @@ def test_bench_help():
     res = _run(["bench", "--help"], timeout=120)
     _ok(res)
     assert "--quick" in res.stdout
+
+
+# --------------------------------------------------------------------------------------------
+# "Render your own asset"
+# --------------------------------------------------------------------------------------------
+def _asset_commands() -> list[list[str]]:
+    """The ``warp-sg`` commands of the block under '## Render your own asset' (a ``>`` redirection
+    and what follows it dropped)."""
+    blocks = [b for b in _blocks(README.read_text(encoding="utf-8"))
+              if b[0] == "Render your own asset" and b[1] == "bash"]
+    assert len(blocks) == 1, "the README has one shell block under '## Render your own asset'"
+    cmds = [c for line in _lines(blocks[0][2]) for c in _commands(line)]
+    return [c[1:c.index(">")] if ">" in c else c[1:] for c in cmds if c and c[0] == "warp-sg"]
+
+
+@pytest.mark.slow
+def test_render_your_own_asset_renders_and_prints_a_scene_that_loads(tmp_path):
+    """The one-command glTF render under the ``.hdr`` sky, at 64×48 without shadows (the SSDF of the
+    asset's ground takes minutes on a fresh cache; tests/test_asset_scene.py covers the scene), and
+    ``--print-scene``, whose TOML loads back as a scene."""
+    from warp_sg.cli import build_parser
+    from warp_sg.scene import load_scene
+
+    render, printed = _asset_commands()
+    for argv in (render, printed):
+        args = build_parser(argv[0]).parse_args(argv)
+        assert (ROOT / args.scene).is_file() and (args.env is None or (ROOT / args.env).is_file())
+    assert "--env" in render and render[render.index("--env") + 1].endswith(".hdr")
+    out = tmp_path / "out" / "still_life.png"
+    argv = _redirect(render, tmp_path)
+    assert str(out) in argv
+    _ok(_run(argv + ["--width", "64", "--height", "48", "--no-shadows", "--no-progress"], timeout=600), out)
+    res = _run(printed)
+    _ok(res)
+    (tmp_path / "scene.toml").write_text(res.stdout)
+    scene = load_scene(tmp_path / "scene.toml")
+    assert {"asset/tiles", "asset/gold", "asset/copper", "asset/red_plastic"} <= set(scene.material_names)
