@@ -226,19 +226,26 @@ class GGX(SpecularBRDF):
     # -- importance sampling -------------------------------------------------------------------
     def sample(self, o, u):
         """Directions i from the visible-normal density (Heitz 2018); (..., 3). May lie below the
-        horizon (the BRDF is zero there); ``pdf`` is their solid-angle density."""
-        o = np.asarray(o, dtype=np.float64)
-        h = vndf_sample_h(o, u, self.alpha_x, self.alpha_y)
-        return 2.0 * np.sum(o * h, axis=-1, keepdims=True) * h - o
+        horizon (the BRDF is zero there); ``pdf`` is their solid-angle density. A view below the
+        horizon gets cosine-distributed directions (as the kernel's ``brdf_sample``)."""
+        o, u = np.asarray(o, dtype=np.float64), np.asarray(u, dtype=np.float64)
+        o, _ = np.broadcast_arrays(o, np.empty(u.shape[:-1] + (3,)))
+        h = vndf_sample_h(np.where(o[..., 2:] > 0, o, [0.0, 0.0, 1.0]), u, self.alpha_x, self.alpha_y)
+        i = 2.0 * np.sum(o * h, axis=-1, keepdims=True) * h - o
+        r, phi = np.sqrt(u[..., 0]), 2.0 * np.pi * u[..., 1]
+        cosine = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(np.maximum(1.0 - u[..., 0], 0.0))], -1)
+        return np.where(o[..., 2:] > 0, i, cosine)
 
     def pdf(self, o, i):
-        """Solid-angle density of :meth:`sample`: ``G1(o) D(h) / (4 (n·o))`` where ``o·h > 0``."""
+        """Solid-angle density of :meth:`sample`: ``G1(o) D(h) / (4 (n·o))`` where ``o·h > 0``
+        (``max(n·i, 0)/π`` for a view below the horizon)."""
         o, i = dirs(o, i)
         h = half_vector(o, i)
         oh = np.sum(o * h, axis=-1)
         co = o[..., 2]
         val = self.g1(o) * self.D(h) / (4.0 * np.where(co > 0, co, 1.0))
-        return np.where((co > 0) & (oh > 0) & (h[..., 2] > 0), val, 0.0)
+        val = np.where((oh > 0) & (h[..., 2] > 0), val, 0.0)
+        return np.where(co > 0, val, np.maximum(i[..., 2], 0.0) / np.pi)
 
     # -- SG fits -------------------------------------------------------------------------------
     def ndf_sg(self, n_lobes=1, method="analytic"):
