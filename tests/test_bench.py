@@ -34,6 +34,16 @@ def test_quick_bench_prints_every_section_with_its_columns(cache_dir):
     assert eq[0]["case"].startswith("bench scene: SG renderer") and "spp" in eq[2]["case"]
     assert eq[4]["case"].startswith("plain inputs: SG renderer") and "spp" in eq[6]["case"]
     assert all(math.isfinite(r["rel_mse"]) for r in eq)
+    mit = res.sections["equal error: SG renderer vs Mitsuba 3"]
+    from warp_sg.peer_mitsuba import mitsuba_status
+
+    if mitsuba_status("cpu")[0]:  # the optional [compare] extra is installed
+        assert [r["case"] for r in mit] == ["bench scene, Lambert materials", "plain inputs", "setup"]
+        assert all(r["mitsuba_s"] > 0 and r["mc_s"] > 0 and r["frame_s"] > 0 for r in mit[:2])
+        # the same truth, frame and MC curve as the Monte-Carlo section (one measurement per run)
+        assert mit[1]["rel_mse"] == eq[4]["rel_mse"] and mit[1]["frame_s"] == eq[4]["seconds"]
+    else:
+        assert len(mit) == 1 and mit[0]["note"].startswith("skipped: ") and "[compare]" in mit[0]["note"]
     pre = res.sections["precompute cost"]
     assert all(r["total_s"] > 0 for r in pre)
     sc = res.sections["frame scaling: pixels and triangles"]

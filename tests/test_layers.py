@@ -46,6 +46,7 @@ LAYERS = (
     # the public facade ``warp_sg`` (``ws.render``, ``ws.reference``: lazy) sits on top with the tools
     ("tools", ("warp_sg", "warp_sg.cli", "warp_sg.report",
                "warp_sg.bench",
+               "warp_sg.peer_mitsuba",
                "warp_sg.bench_scaling",
                "warp_sg.preview",
                "warp_sg.viewer",

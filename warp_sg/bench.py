@@ -242,8 +242,13 @@ def spp_for_error(curve, target):
     return spp, t * spp / s
 
 
-def _equal_error_rows(scene, label, device, quick, truth_spp, progress, seed):
-    """Rows of one scene. The renderer's image is antialiased (``antialias`` a×a coverage): the
+#: measured equal-error cases, shared by the equal-error and Mitsuba sections of one run
+_CASES: dict = {}
+
+
+def _equal_error_case(scene, label, device, quick, truth_spp, progress, seed) -> dict:
+    """Truth, the SG renderer's error and frame time, and our MC error curve of one scene (cached
+    per run under ``label``). The renderer's image is antialiased (``antialias`` a×a coverage): the
     truth and the MC curve are then box-filtered the same way (a×a sub-pixels, ``spp`` counted per
     pixel), as a path tracer's jittered pixels would be."""
     import copy
@@ -254,6 +259,9 @@ def _equal_error_rows(scene, label, device, quick, truth_spp, progress, seed):
     from .render import Renderer
     from .regions import image_errors
 
+    key = (label, device, quick, truth_spp)
+    if key in _CASES:
+        return _CASES[key]
     rs = scene.render
     k = rs.supersampling if rs.supersampling > 1 else max(1, rs.antialias)
     ref_scene = copy.deepcopy(scene)
@@ -274,9 +282,17 @@ def _equal_error_rows(scene, label, device, quick, truth_spp, progress, seed):
 
     render_reference(ref_scene, spp=max(1, truth_spp // (8 * per)), device=device, progress=progress, seed=seed + 1,
                      callback=cb)
-    spp, t_mc = spp_for_error(curve, err["rel_mse"])
     floor = float(np.sum(truth.stderr.astype(np.float64) ** 2) / max(np.sum(truth.image.astype(np.float64) ** 2),
                                                                         1e-300))
+    _CASES[key] = dict(scene=scene, truth=truth, err=err, pre=pre, frame=frame, curve=curve, floor=floor)
+    return _CASES[key]
+
+
+def _equal_error_rows(scene, label, device, quick, truth_spp, progress, seed):
+    """Rows of one scene (:func:`_equal_error_case`)."""
+    c = _equal_error_case(scene, label, device, quick, truth_spp, progress, seed)
+    err, frame, pre, truth = c["err"], c["frame"], c["pre"], c["truth"]
+    spp, t_mc = spp_for_error(c["curve"], err["rel_mse"])
     return [
         {"case": f"{label}: SG renderer (frame)", "rel_mse": err["rel_mse"], "psnr_db": err["psnr_db"],
          "seconds": frame, "ratio": 1.0},
@@ -284,27 +300,68 @@ def _equal_error_rows(scene, label, device, quick, truth_spp, progress, seed):
          "ratio": (pre + frame) / frame},
         {"case": f"{label}: MC reference at equal error ({spp:.3g} spp)", "rel_mse": err["rel_mse"],
          "seconds": t_mc, "ratio": t_mc / frame},
-        {"case": f"{label}: ground truth ({truth_spp} spp) noise floor", "rel_mse": floor, "seconds": truth.seconds,
-         "ratio": truth.seconds / frame},
+        {"case": f"{label}: ground truth ({truth_spp} spp) noise floor", "rel_mse": c["floor"],
+         "seconds": truth.seconds, "ratio": truth.seconds / frame},
     ]
 
 
-def equal_error_section(device="cpu", quick=False, truth_spp=None, progress=False):
-    """Equal error against our MC reference on the bench scene and on a plain-input scene (a
-    sphere on a floor of two triangles under a sky EXR whose sun holds half the irradiance:
-    ``warp_sg.plain_scenes``); ratios are MC time at the renderer's error over its frame time."""
+def _equal_error_scenes(quick, mitsuba=False):
+    """(label, scene, seed) of the equal-error cases: the bench scene (with Lambert materials
+    for Mitsuba, which has none of its glossy models: ``warp_sg.peer_mitsuba``) and a plain-input
+    scene (a sphere on a floor of two triangles under a sky EXR whose sun holds half the
+    irradiance: ``warp_sg.plain_scenes``; its files are read at load)."""
     from .plain_scenes import write_plain_scene
     from .scene import load_scene
 
     w, h = (24, 18) if quick else (96, 72)
-    truth_spp = truth_spp or (32 if quick else 1024)
-    rows = _equal_error_rows(bench_scene(w, h, quick=quick), "bench scene", device, quick, truth_spp, progress, 11)
+    out = [("bench scene, Lambert materials", bench_scene(w, h, quick=quick, diffuse_only=True), 31) if mitsuba else
+           ("bench scene", bench_scene(w, h, quick=quick), 11)]
     with tempfile.TemporaryDirectory() as d:
         plain = load_scene(write_plain_scene(d, obj="sphere", light="sky", material="lambert", size=h))
-        if quick:
-            plain.render.visibility_budget, plain.render.ssdf_resolution, plain.render.pca_terms = 1500, 16, 8
-        rows += _equal_error_rows(plain, "plain inputs", device, quick, truth_spp, progress, 21)
+        plain.environment.base_radiance()  # read the EXR before the folder goes
+        plain.geometry()
+    if quick:
+        plain.render.visibility_budget, plain.render.ssdf_resolution, plain.render.pca_terms = 1500, 16, 8
+    return out + [("plain inputs", plain, 21)]
+
+
+def equal_error_section(device="cpu", quick=False, truth_spp=None, progress=False):
+    """Equal error against our MC reference on the bench scene and on a plain-input scene
+    (:func:`_equal_error_scenes`); ratios are MC time at the renderer's error over its frame time."""
+    truth_spp = truth_spp or (32 if quick else 1024)
+    rows = []
+    for label, scene, seed in _equal_error_scenes(quick):
+        rows += _equal_error_rows(scene, label, device, quick, truth_spp, progress, seed)
     return rows
+
+
+def mitsuba_section(device="cpu", quick=False, truth_spp=None, progress=False):
+    """Equal error against Mitsuba 3 (``warp_sg.peer_mitsuba``; optional ``[compare]`` extra):
+    the same truth images and metric as :func:`equal_error_section`, on the scenes Mitsuba renders
+    identically; Mitsuba's time at our error is log-log interpolated on its curve at 1–64 spp."""
+    from . import peer_mitsuba as pm
+
+    ok, status = pm.mitsuba_status(device)
+    if not ok:
+        return [{"case": "Mitsuba 3", "note": f"skipped: {status}"}]
+    truth_spp = truth_spp or (32 if quick else 1024)
+    spps = pm.CURVE_SPP[:3] if quick else pm.CURVE_SPP
+    rows = []
+    for label, scene, seed in _equal_error_scenes(quick, mitsuba=True):
+        c = _equal_error_case(scene, label, device, quick, truth_spp, progress, seed)
+        target, frame = c["err"]["rel_mse"], c["frame"]
+        curve = pm.mitsuba_curve(scene, c["truth"].image, spps, device, seed=seed, repeats=1 if quick else 3,
+                                 progress=progress)
+        m_spp, m_t = spp_for_error(curve, target)
+        mc_spp, mc_t = spp_for_error(c["curve"], target)
+        note = (f"Mitsuba at {curve[0][0]} spp is already below our error ({curve[0][1]:.3g})"
+                if curve[0][1] <= target else
+                f"extrapolated past {curve[-1][0]} spp" if curve[-1][1] > target else "")
+        rows.append({"case": label, "rel_mse": target, "frame_s": frame, "mitsuba_spp": m_spp, "mitsuba_s": m_t,
+                     "mitsuba_ratio": m_t / frame, "mc_spp": mc_spp, "mc_s": mc_t, "mc_ratio": mc_t / frame,
+                     f"mitsuba_rel_mse_{curve[-1][0]}spp": curve[-1][1], "note": note})
+    return rows + [{"case": "setup", "note": f"{status}; path tracer max_depth=2 (direct lighting), box filter, "
+                                             f"{spps[0]}–{spps[-1]} spp, scene load excluded"}]
 
 
 SECTIONS = {
@@ -313,6 +370,7 @@ SECTIONS = {
     "precompute cost": precompute_section,
     "equal error: SG renderer vs Monte-Carlo reference": equal_error_section,
     "frame scaling: pixels and triangles": lambda **kw: _scaling(**kw),
+    "equal error: SG renderer vs Mitsuba 3": mitsuba_section,
 }
 
 
@@ -330,6 +388,7 @@ def run_bench(device="cpu", quick=False, sections=None, print_fn=print, cluster=
     device = resolve_device(device)
     t0 = time.perf_counter()
     res = BenchResult(device=device, quick=quick)
+    _CASES.clear()
     for name, fn in SECTIONS.items():
         if sections is not None and not any(s in name for s in sections):
             continue

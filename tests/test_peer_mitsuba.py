@@ -1,0 +1,104 @@
+"""warp_sg.peer_mitsuba: Mitsuba 3 renders of our scenes agree with our Monte-Carlo reference.
+
+Two independent renderers of the same light transport (direct lighting, exact visibility, Lambert
+BRDF): Mitsuba 3's path tracer (``max_depth=2``) on the converted scene, and our reference
+(``warp_sg.regions.box_reference``). Agreement within their combined noise checks our reference
+*and* the converter (camera convention, image orientation, envmap axes and rotation, light
+units). Pixels whose footprint straddles a silhouette are left out of the noise test: Mitsuba
+box-filters the pixel area, our reference averages a k×k grid of points, and the two differ there
+by design.
+
+Mitsuba is the optional ``[compare]`` extra: without it (CI) the module skips with that reason.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from warp_sg import peer_mitsuba as P
+
+OK, WHY = P.mitsuba_status("cpu")
+if not OK:
+    pytest.skip(f"Mitsuba 3 is the optional [compare] extra and is not usable here: {WHY}", allow_module_level=True)
+
+SIZE = 48  # pixels (square)
+REF_SPP = 1024  # our reference: samples per pixel (4×4 sub-pixels × 64)
+MI_SPP, MI_BATCHES = 256, 4  # Mitsuba: independent batches give its per-pixel standard error
+
+
+@pytest.fixture(scope="module")
+def plain_folder(tmp_path_factory):
+    return tmp_path_factory.mktemp("plain")
+
+
+def _scene(folder, light):
+    from warp_sg.plain_scenes import write_plain_scene
+    from warp_sg.scene import load_scene
+
+    return load_scene(write_plain_scene(folder / light, obj="sphere", light=light, material="lambert", size=SIZE))
+
+
+def _compare(scene):
+    """(chi² per degree of freedom off the silhouettes, {region: relative bias, its 1σ})."""
+    from warp_sg.regions import box_reference, scene_regions
+
+    ref, ref_se = box_reference(scene, spp=REF_SPP, supersample=4, seed=5, return_stderr=True)
+    mi_img, mi_se = P.mitsuba_mean(P.mitsuba_scene(scene), MI_SPP, MI_BATCHES, seed=17)
+    regions = scene_regions(scene, supersample=8)
+    keep = ~regions["silhouette"]
+    d2 = ((mi_img.astype(np.float64) - ref) ** 2)[keep]
+    var = (mi_se.astype(np.float64) ** 2 + ref_se.astype(np.float64) ** 2)[keep]
+    chi2 = float(d2.sum() / var.sum())
+    bias = {}
+    for name, mask in regions.items():
+        if name == "silhouette" or mask.sum() < 20:
+            continue
+        r, m = ref[mask].sum(), mi_img[mask].astype(np.float64).sum()
+        sigma = float(np.sqrt((ref_se[mask].astype(np.float64) ** 2).sum() + (mi_se[mask].astype(np.float64) ** 2).sum())) / r
+        bias[name] = (m / r - 1.0, sigma)
+    return chi2, bias
+
+
+def _assert_agree(chi2, bias):
+    assert 0.6 < chi2 < 1.5, f"Mitsuba and our reference differ beyond their noise: chi²/dof = {chi2:.3f}"
+    for name, (b, sigma) in bias.items():
+        assert abs(b) < max(0.003, 4 * sigma), f"{name}: Mitsuba/reference − 1 = {b:+.4f} (1σ = {sigma:.4f})"
+
+
+def test_sun_sky_lambert_sphere_and_floor_agree_with_reference_within_noise(plain_folder):
+    # environment only; rotated so that the envmap axes *and* the rotation convention are tested
+    scene = _scene(plain_folder, "sky")
+    scene.environment.rotation = 40.0
+    _assert_agree(*_compare(scene))
+
+
+def test_point_light_lambert_sphere_and_floor_agree_with_reference_within_noise(plain_folder):
+    _assert_agree(*_compare(_scene(plain_folder, "point")))
+
+
+def test_envmap_resampling_keeps_texel_means_and_puts_boundaries_between_rows():
+    rng = np.random.default_rng(0)
+    env = rng.random((8, 16, 3)).astype(np.float32)
+    s = 4
+    g = P.mitsuba_envmap(env, s)
+    assert g.shape == (8 * s + 1, 16 * s, 3)
+    # row j of Mitsuba's grid sits at θ = π j/(sH): inside texel row r for s r < j < s(r+1) ...
+    np.testing.assert_array_equal(g[s * 2 + 1, s * 5], env[2, 5])
+    # ... on the boundary between rows r−1 and r it holds their mean; the poles keep the end rows
+    np.testing.assert_allclose(g[s * 3, s * 5 + 2], 0.5 * (env[2, 5] + env[3, 5]), rtol=1e-6)
+    np.testing.assert_array_equal(g[0], np.repeat(env[0], s, axis=0))
+    np.testing.assert_array_equal(g[-1], np.repeat(env[-1], s, axis=0))
+    # the piecewise-linear reconstruction along θ integrates each column like the steps do
+    theta_steps = env.mean(0)
+    trapezoid = (0.5 * (g[:-1] + g[1:])).mean(0)[::s]
+    np.testing.assert_allclose(trapezoid, theta_steps, rtol=1e-5)
+
+
+def test_glossy_and_textured_materials_are_refused_with_the_material_named(plain_folder):
+    from warp_sg.plain_scenes import write_plain_scene
+    from warp_sg.scene import load_scene
+
+    scene = load_scene(write_plain_scene(plain_folder / "ct", obj="sphere", light="sky", material="cook_torrance",
+                                         size=8))
+    with pytest.raises(P.NotExpressible, match="object.*CookTorrance"):
+        P.mitsuba_scene_dict(scene)
