@@ -39,9 +39,10 @@ def test_quick_bench_prints_every_section_with_its_columns(cache_dir):
 
     if mitsuba_status("cpu")[0]:  # the optional [compare] extra is installed
         assert [r["case"] for r in mit] == ["bench scene, Lambert materials", "plain inputs", "setup"]
-        assert all(r["mitsuba_s"] > 0 and r["mc_s"] > 0 and r["frame_s"] > 0 for r in mit[:2])
-        # the same truth, frame and MC curve as the Monte-Carlo section (one measurement per run)
-        assert mit[1]["rel_mse"] == eq[4]["rel_mse"] and mit[1]["frame_s"] == eq[4]["seconds"]
+        assert all(r["frame_s"] > 0 and r["truth_floor"] > 0 for r in mit[:2])
+        assert all(r["mitsuba_s"] > 0 and r["mc_s"] > 0 for r in mit[:2] if "mitsuba_s" in r)
+        # the same SG frame as the Monte-Carlo section (one measurement per run), a less noisy truth
+        assert mit[1]["frame_s"] == eq[4]["seconds"] and mit[1]["truth_floor"] < eq[7]["rel_mse"]
     else:
         assert len(mit) == 1 and mit[0]["note"].startswith("skipped: ") and "[compare]" in mit[0]["note"]
     pre = res.sections["precompute cost"]

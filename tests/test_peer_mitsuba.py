@@ -76,22 +76,24 @@ def test_point_light_lambert_sphere_and_floor_agree_with_reference_within_noise(
     _assert_agree(*_compare(_scene(plain_folder, "point")))
 
 
-def test_envmap_resampling_keeps_texel_means_and_puts_boundaries_between_rows():
+def test_mitsuba_envmap_lookup_equals_our_bilinear_lookup_with_rotation():
+    # Mitsuba's own emitter evaluated at random directions vs warp_sg.envmap.env_lookup_numpy
+    import mitsuba as mi
+
+    from warp_sg.envmap import env_lookup_numpy
+    from warp_sg.lights import EnvironmentLight
+
     rng = np.random.default_rng(0)
-    env = rng.random((8, 16, 3)).astype(np.float32)
-    s = 4
-    g = P.mitsuba_envmap(env, s)
-    assert g.shape == (8 * s + 1, 16 * s, 3)
-    # row j of Mitsuba's grid sits at θ = π j/(sH): inside texel row r for s r < j < s(r+1) ...
-    np.testing.assert_array_equal(g[s * 2 + 1, s * 5], env[2, 5])
-    # ... on the boundary between rows r−1 and r it holds their mean; the poles keep the end rows
-    np.testing.assert_allclose(g[s * 3, s * 5 + 2], 0.5 * (env[2, 5] + env[3, 5]), rtol=1e-6)
-    np.testing.assert_array_equal(g[0], np.repeat(env[0], s, axis=0))
-    np.testing.assert_array_equal(g[-1], np.repeat(env[-1], s, axis=0))
-    # the piecewise-linear reconstruction along θ integrates each column like the steps do
-    theta_steps = env.mean(0)
-    trapezoid = (0.5 * (g[:-1] + g[1:])).mean(0)[::s]
-    np.testing.assert_allclose(trapezoid, theta_steps, rtol=1e-5)
+    env = rng.random((12, 24, 3)).astype(np.float32) + 0.1
+    light = EnvironmentLight(data=env, rotation=40.0, scale=1.5)
+    emitter = mi.load_dict(P.envmap_dict(light))
+    d = rng.normal(size=(4000, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    si = mi.SurfaceInteraction3f()
+    si.wi = mi.Vector3f(*(-d.T).astype(np.float32))  # Mitsuba looks up the direction −wi
+    got = np.array(emitter.eval(si)).T
+    want = 1.5 * env_lookup_numpy(env, d, rotation=light.rotation_matrix())
+    np.testing.assert_allclose(got, want, rtol=2e-4, atol=2e-5)
 
 
 def test_glossy_and_textured_materials_are_refused_with_the_material_named(plain_folder):

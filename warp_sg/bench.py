@@ -242,15 +242,23 @@ def spp_for_error(curve, target):
     return spp, t * spp / s
 
 
-#: measured equal-error cases, shared by the equal-error and Mitsuba sections of one run
+#: per run: the SG renderer's measurements and the truths, shared by the equal-error sections
 _CASES: dict = {}
 
 
+def _cached(key, make):
+    if key not in _CASES:
+        _CASES[key] = make()
+    return _CASES[key]
+
+
 def _equal_error_case(scene, label, device, quick, truth_spp, progress, seed) -> dict:
-    """Truth, the SG renderer's error and frame time, and our MC error curve of one scene (cached
-    per run under ``label``). The renderer's image is antialiased (``antialias`` a×a coverage): the
-    truth and the MC curve are then box-filtered the same way (a×a sub-pixels, ``spp`` counted per
-    pixel), as a path tracer's jittered pixels would be."""
+    """Truth, the SG renderer's error and frame time, and our MC error curve of one scene (the
+    renderer's measurement cached per run under ``label``, the truth and curve per ``truth_spp``).
+    The renderer's image is antialiased (``antialias`` a×a coverage): the truth and the MC curve
+    are then box-filtered the same way (a×a sub-pixels, ``spp`` counted per pixel), as a path
+    tracer's jittered pixels would be. ``floor``: the truth's own noise, Σσ²/Σr², which every
+    error measured against it contains in expectation."""
     import copy
 
     from .cache import fresh_cache
@@ -259,33 +267,38 @@ def _equal_error_case(scene, label, device, quick, truth_spp, progress, seed) ->
     from .render import Renderer
     from .regions import image_errors
 
-    key = (label, device, quick, truth_spp)
-    if key in _CASES:
-        return _CASES[key]
-    rs = scene.render
-    k = rs.supersampling if rs.supersampling > 1 else max(1, rs.antialias)
-    ref_scene = copy.deepcopy(scene)
-    ref_scene.render.supersampling = k
-    per = k * k  # samples per pixel for one sample per sub-pixel
-    truth = render_reference(ref_scene, spp=max(1, truth_spp // per), device=device, progress=progress, seed=seed)
-    with fresh_cache():
-        r = Renderer(scene, device=device)
-        pre = r.timings.get("precompute", float("nan"))
-        img = r.render()
-        _, frame = _frames(r, 1 if quick else 3)
-    err = image_errors(img, truth.image)
-    curve = []
+    def measure():
+        with fresh_cache():
+            r = Renderer(scene, device=device)
+            pre = r.timings.get("precompute", float("nan"))
+            img = r.render()
+            _, frame = _frames(r, 1 if quick else 3)
+        return img, pre, frame
 
-    def cb(spp, seconds, im, se):
-        if spp & (spp - 1) == 0:
-            curve.append((spp * per, image_errors(im, truth.image)["rel_mse"], seconds))
+    def truth_and_curve():
+        rs = scene.render
+        k = rs.supersampling if rs.supersampling > 1 else max(1, rs.antialias)
+        ref_scene = copy.deepcopy(scene)
+        ref_scene.render.supersampling = k
+        per = k * k  # samples per pixel for one sample per sub-pixel
+        truth = render_reference(ref_scene, spp=max(1, truth_spp // per), device=device, progress=progress,
+                                 seed=seed)
+        curve = []
 
-    render_reference(ref_scene, spp=max(1, truth_spp // (8 * per)), device=device, progress=progress, seed=seed + 1,
-                     callback=cb)
-    floor = float(np.sum(truth.stderr.astype(np.float64) ** 2) / max(np.sum(truth.image.astype(np.float64) ** 2),
-                                                                        1e-300))
-    _CASES[key] = dict(scene=scene, truth=truth, err=err, pre=pre, frame=frame, curve=curve, floor=floor)
-    return _CASES[key]
+        def cb(spp, seconds, im, se):
+            if spp & (spp - 1) == 0:
+                curve.append((spp * per, image_errors(im, truth.image)["rel_mse"], seconds))
+
+        render_reference(ref_scene, spp=max(1, truth_spp // (8 * per)), device=device, progress=progress,
+                         seed=seed + 1, callback=cb)
+        floor = float(np.sum(truth.stderr.astype(np.float64) ** 2) /
+                      max(np.sum(truth.image.astype(np.float64) ** 2), 1e-300))
+        return truth, curve, floor
+
+    img, pre, frame = _cached(("sg", label, device, quick), measure)
+    truth, curve, floor = _cached(("truth", label, device, quick, truth_spp), truth_and_curve)
+    return dict(scene=scene, truth=truth, err=image_errors(img, truth.image), pre=pre, frame=frame, curve=curve,
+                floor=floor)
 
 
 def _equal_error_rows(scene, label, device, quick, truth_spp, progress, seed):
@@ -335,33 +348,43 @@ def equal_error_section(device="cpu", quick=False, truth_spp=None, progress=Fals
     return rows
 
 
+def _net_of_floor(curve, floor):
+    """An error curve [(spp, rel_mse, s)] against a noisy truth, less the truth's noise floor."""
+    return [(spp, max(e - floor, 1e-30), t) for spp, e, t in curve]
+
+
 def mitsuba_section(device="cpu", quick=False, truth_spp=None, progress=False):
-    """Equal error against Mitsuba 3 (``warp_sg.peer_mitsuba``; optional ``[compare]`` extra):
-    the same truth images and metric as :func:`equal_error_section`, on the scenes Mitsuba renders
-    identically; Mitsuba's time at our error is log-log interpolated on its curve at 1–64 spp."""
+    """Equal error against Mitsuba 3 (``warp_sg.peer_mitsuba``; optional ``[compare]`` extra) on
+    the scenes of :func:`equal_error_section` that Mitsuba renders identically, with the same
+    metric, one truth per scene for all three renderers, and the same SG frames. The truth has 8×
+    the samples of the MC section's (our error is now close to a 1024-spp truth's own noise), and
+    every error is taken net of the truth's noise floor before the log-log interpolation; Mitsuba
+    renders 1, 2, 4, … spp until its error is below ours (at most 4096)."""
     from . import peer_mitsuba as pm
 
     ok, status = pm.mitsuba_status(device)
     if not ok:
         return [{"case": "Mitsuba 3", "note": f"skipped: {status}"}]
-    truth_spp = truth_spp or (32 if quick else 1024)
-    spps = pm.CURVE_SPP[:3] if quick else pm.CURVE_SPP
-    rows = []
+    truth_spp = truth_spp or (256 if quick else 8192)
+    rows, top = [], 1
     for label, scene, seed in _equal_error_scenes(quick, mitsuba=True):
         c = _equal_error_case(scene, label, device, quick, truth_spp, progress, seed)
-        target, frame = c["err"]["rel_mse"], c["frame"]
-        curve = pm.mitsuba_curve(scene, c["truth"].image, spps, device, seed=seed, repeats=1 if quick else 3,
-                                 progress=progress)
-        m_spp, m_t = spp_for_error(curve, target)
-        mc_spp, mc_t = spp_for_error(c["curve"], target)
-        note = (f"Mitsuba at {curve[0][0]} spp is already below our error ({curve[0][1]:.3g})"
-                if curve[0][1] <= target else
-                f"extrapolated past {curve[-1][0]} spp" if curve[-1][1] > target else "")
-        rows.append({"case": label, "rel_mse": target, "frame_s": frame, "mitsuba_spp": m_spp, "mitsuba_s": m_t,
-                     "mitsuba_ratio": m_t / frame, "mc_spp": mc_spp, "mc_s": mc_t, "mc_ratio": mc_t / frame,
-                     f"mitsuba_rel_mse_{curve[-1][0]}spp": curve[-1][1], "note": note})
+        err, floor, frame = c["err"]["rel_mse"], c["floor"], c["frame"]
+        curve = pm.mitsuba_curve(scene, c["truth"].image, device=device, seed=seed, repeats=1 if quick else 3,
+                                 stop_below=err, max_spp=16 if quick else 4096, progress=progress)
+        top = max(top, curve[-1][0])
+        row = {"case": label, "rel_mse": err, "truth_floor": floor, "frame_s": frame}
+        if err - floor < 0.25 * floor:
+            rows.append({**row, "note": f"our error is within the {truth_spp}-spp truth's noise: raise truth_spp"})
+            continue
+        m_spp, m_t = spp_for_error(_net_of_floor(curve, floor), err - floor)
+        mc_spp, mc_t = spp_for_error(_net_of_floor(c["curve"], floor), err - floor)
+        note = (f"Mitsuba at {curve[0][0]} spp is already below our error" if curve[0][1] <= err else
+                f"extrapolated past {curve[-1][0]} spp" if curve[-1][1] > err else "")
+        rows.append({**row, "mitsuba_spp": m_spp, "mitsuba_s": m_t, "mitsuba_ratio": m_t / frame, "mc_spp": mc_spp,
+                     "mc_s": mc_t, "mc_ratio": mc_t / frame, "note": note})
     return rows + [{"case": "setup", "note": f"{status}; path tracer max_depth=2 (direct lighting), box filter, "
-                                             f"{spps[0]}–{spps[-1]} spp, scene load excluded"}]
+                                             f"1–{top} spp, scene load excluded; truth {truth_spp} spp"}]
 
 
 SECTIONS = {

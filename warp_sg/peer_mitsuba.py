@@ -31,14 +31,14 @@ camera rays through a box-filtered pixel, environment visible in the background.
   ``D = 1000 ×`` the scene's bounding radius with radius ``D sin r`` (the same cone seen from the
   scene's centre; elsewhere its direction and solid angle are off by ≲ 1/1000).
 * **Environment** → ``envmap`` from an in-memory bitmap, ``to_world`` = the light's rotation about
-  +Y. Mitsuba interpolates the map bilinearly with rows at ``θ = π j/(H − 1)`` (poles on the first
-  and last rows) and columns at ``φ = 2π (c + ½)/W``; our reference reads the map as
-  piecewise-constant texels ``θ ∈ [π r/H, π (r+1)/H]``. :func:`mitsuba_envmap` therefore
-  resamples ours ``ENV_UPSAMPLE`` = s times finer: W' = sW columns (each inside one of our
-  texels, the boundary between two falls halfway between Mitsuba columns) and H' = sH + 1 rows
-  (row j at θ = π j/(sH); rows on one of our texel boundaries hold the mean of the two texels).
-  Mitsuba's ramps across each boundary are then symmetric about it and integrate to the step's
-  value, so irradiance agrees to second order in the band width π/(sH).
+  +Y. Mitsuba interpolates its map bilinearly with columns at ``φ = 2π (c + ½)/W`` (as ours) but
+  rows at ``θ = π j/(H − 1)`` (poles on the first and last rows); ours are at ``θ = π (r + ½)/H``.
+  :func:`mitsuba_envmap` writes a grid of 2H + 1 rows at ``θ = π j/(2H)``: odd rows are our rows,
+  even rows the mean of their two neighbours (the end rows at the poles): Mitsuba's bilinear
+  lookup of it is exactly our bilinear lookup (``envmap.env_lookup_numpy``), which is what our
+  renderer and reference show in the background. Our reference *lights* with the
+  piecewise-constant texels; the bilinear function has the same integral up to the second-order
+  effect of the sin θ weight and blurs the sun by one texel (tests: agreement within noise).
 
 Differences that remain (documented, all small): Mitsuba's light spheres block the environment
 behind them and each other (ours add without occluding; 2π(1 − cos r) sr each), a light sphere in
@@ -64,8 +64,6 @@ from .workers import cpu_workers
 
 #: the Mitsuba variant used on the CPU (LLVM JIT, RGB) and on a CUDA device
 VARIANTS = {"cpu": "llvm_ad_rgb", "cuda": "cuda_ad_rgb"}
-#: environment resampling factor (module docstring)
-ENV_UPSAMPLE = 4
 #: distance of a directional light's emitter sphere, in scene bounding radii
 DIRECTIONAL_DISTANCE = 1000.0
 #: sample counts of the error-vs-time curve
@@ -128,23 +126,17 @@ def _mi(device="cpu"):
 # --------------------------------------------------------------------------------------------
 # conversion
 # --------------------------------------------------------------------------------------------
-def mitsuba_envmap(radiance: np.ndarray, upsample: int = ENV_UPSAMPLE) -> np.ndarray:
-    """Our piecewise-constant (H, W, 3) map as Mitsuba's (sH + 1, sW, 3) bilinear grid (module
-    docstring): column c' ← our column ⌊c'/s⌋; row j ← our row ⌊j/s⌋ when j is not a multiple of
-    s, else the mean of our rows j/s − 1 and j/s (clamped at the poles)."""
+def mitsuba_envmap(radiance: np.ndarray) -> np.ndarray:
+    """Our (H, W, 3) map as Mitsuba's (2H + 1, W, 3) bilinear grid (module docstring): row 2r + 1
+    is our row r, row 2r the mean of our rows r − 1 and r (clamped at the poles)."""
     a = np.asarray(radiance, np.float32)
-    if a.ndim != 3 or a.shape[2] != 3:
-        raise InputError(f"environment must be (H, W, 3), got {a.shape}", where="environment light")
-    s = int(upsample)
-    h, w = a.shape[:2]
-    cols = np.repeat(a, s, axis=1)  # (H, sW)
-    j = np.arange(s * h + 1)
-    lo = np.clip((j - 1) // s, 0, h - 1)  # texel just above row j
-    hi = np.clip(j // s, 0, h - 1)  # texel at / below row j
-    on_edge = (j % s) == 0
-    below = np.where(on_edge, hi, j // s)
-    above = np.where(on_edge, lo, j // s)
-    return (0.5 * (cols[above] + cols[below])).astype(np.float32)
+    if a.ndim != 3 or a.shape[2] != 3 or a.shape[0] < 1 or a.shape[1] < 2:
+        raise InputError(f"environment must be (H, W, 3) with W >= 2, got {a.shape}", where="environment light")
+    h = a.shape[0]
+    j = np.arange(2 * h + 1)
+    above = np.clip((j - 1) // 2, 0, h - 1)  # our row at or above θ_j
+    below = np.clip(j // 2, 0, h - 1)  # our row at or below θ_j
+    return (0.5 * (a[above] + a[below])).astype(np.float32)
 
 
 def _check_material(name, brdf):
@@ -233,14 +225,19 @@ def _lights(mi, scene) -> dict:
                 raise NotExpressible(f"directional light #{j + 1} is in view: Mitsuba would show its disc, ours does "
                                      "not", where=f"[[lights]] #{j + 1}")
             out[key] = _sphere_light(mi, pos, rad, li.intensity / (math.pi * math.sin(li.radius) ** 2))
-        else:  # environment
-            R = li.rotation_matrix()
-            m = np.eye(4)
-            m[:3, :3] = R
-            grid = mitsuba_envmap(li.base_radiance())
-            out[key] = {"type": "envmap", "bitmap": mi.Bitmap(grid), "scale": float(li.scale),
-                        "to_world": mi.ScalarTransform4f(m.tolist())}
+        else:
+            out[key] = envmap_dict(li)
     return out
+
+
+def envmap_dict(light, device: str = "cpu") -> dict:
+    """The ``envmap`` emitter dict of an :class:`~warp_sg.lights.EnvironmentLight` (its map as
+    :func:`mitsuba_envmap`, ``scale``, ``to_world`` = its rotation)."""
+    mi = _mi(device)
+    m = np.eye(4)
+    m[:3, :3] = light.rotation_matrix()
+    return {"type": "envmap", "bitmap": mi.Bitmap(mitsuba_envmap(light.base_radiance())), "scale": float(light.scale),
+            "to_world": mi.ScalarTransform4f(m.tolist())}
 
 
 def mitsuba_scene_dict(scene, spp: int = 1, device: str = "cpu") -> dict:
@@ -285,31 +282,43 @@ def mitsuba_mean(mscene, spp: int, batches: int = 4, seed: int = 0, device: str 
 
 
 def mitsuba_curve(scene, truth: np.ndarray, spps=CURVE_SPP, device: str = "cpu", seed: int = 1, repeats: int = 3,
+                  stop_below: float | None = None, max_spp: int = 4096,
                   progress: bool = False) -> list[tuple[int, float, float]]:
     """Mitsuba's error-vs-time curve ``[(spp, rel_mse against truth, seconds)]``: each sample
     count rendered once untimed (warm-up), then ``repeats`` times with other seeds; the error is
-    the mean of their relative MSEs, the time their median."""
+    the mean of their relative MSEs, the time their median. With ``stop_below``: powers of two
+    from 1 until the error is at most ``stop_below`` (or ``max_spp``) instead of ``spps``."""
     from .regions import image_errors
 
     mscene = mitsuba_scene(scene, device)
+    if stop_below is not None:
+        spps = [2 ** i for i in range(int(math.log2(max(1, max_spp))) + 1)]
     spps = [int(s) for s in spps]
-    it = spps
+    bar = None
     if progress:
         from tqdm.auto import tqdm
 
-        it = tqdm(spps, desc="mitsuba", unit="level", leave=False)
+        bar = tqdm(total=len(spps), desc="mitsuba", unit="level", leave=False)
     curve = []
-    for spp in it:
-        mitsuba_render(mscene, spp, seed + 100_003 * spp, device)  # warm-up: kernel compile / cache load
-        errs, secs = [], []
-        for r in range(max(1, int(repeats))):
-            img, sec = mitsuba_render(mscene, spp, seed + 100_003 * spp + 1 + r, device)
-            errs.append(image_errors(img, truth)["rel_mse"])
-            secs.append(sec)
-        curve.append((spp, float(np.mean(errs)), float(np.median(secs))))
+    try:
+        for spp in spps:
+            mitsuba_render(mscene, spp, seed + 100_003 * spp, device)  # warm-up: kernel compile / cache load
+            errs, secs = [], []
+            for r in range(max(1, int(repeats))):
+                img, sec = mitsuba_render(mscene, spp, seed + 100_003 * spp + 1 + r, device)
+                errs.append(image_errors(img, truth)["rel_mse"])
+                secs.append(sec)
+            curve.append((spp, float(np.mean(errs)), float(np.median(secs))))
+            if bar is not None:
+                bar.update(1)
+            if stop_below is not None and curve[-1][1] <= stop_below:
+                break
+    finally:
+        if bar is not None:
+            bar.close()
     return curve
 
 
-__all__ = ["NotExpressible", "mitsuba_status", "mitsuba_envmap", "mitsuba_scene_dict", "mitsuba_scene",
-           "mitsuba_render", "mitsuba_mean", "mitsuba_curve", "VARIANTS", "ENV_UPSAMPLE", "CURVE_SPP",
+__all__ = ["NotExpressible", "mitsuba_status", "mitsuba_envmap", "envmap_dict", "mitsuba_scene_dict", "mitsuba_scene",
+           "mitsuba_render", "mitsuba_mean", "mitsuba_curve", "VARIANTS", "CURVE_SPP",
            "INSTALL_HINT"]
