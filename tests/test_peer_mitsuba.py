@@ -17,6 +17,11 @@ import pytest
 
 from warp_sg import peer_mitsuba as P
 
+try:
+    import mitsuba as mi
+except ImportError:  # the optional [compare] extra: mitsuba_status says so and the module skips
+    mi = None
+
 OK, WHY = P.mitsuba_status("cpu")
 if not OK:
     pytest.skip(f"Mitsuba 3 is the optional [compare] extra and is not usable here: {WHY}", allow_module_level=True)
@@ -78,8 +83,6 @@ def test_point_light_lambert_sphere_and_floor_agree_with_reference_within_noise(
 
 def test_mitsuba_envmap_lookup_equals_our_bilinear_lookup_with_rotation():
     # Mitsuba's own emitter evaluated at random directions vs warp_sg.envmap.env_lookup_numpy
-    import mitsuba as mi
-
     from warp_sg.envmap import env_lookup_numpy
     from warp_sg.lights import EnvironmentLight
 
