@@ -19,8 +19,11 @@ camera rays through a box-filtered pixel, environment visible in the background.
   ``kd/π`` in both). Not expressible, so refused (:class:`NotExpressible`): our microfacet models
   use the V-cavity shadowing term ``min(1, 2(n·h)(n·o)/(o·h), 2(n·h)(n·i)/(i·h))``
   (:mod:`warp_sg.brdf.microfacet`) where Mitsuba's ``roughconductor``/``roughplastic`` use Smith
-  masking (and ``roughplastic`` adds a Fresnel-weighted internal-scattering diffuse); Mitsuba 3
-  has no Phong/Blinn–Phong or Ward plugin; Oren–Nayar, Ashikhmin–Shirley, Lafortune, measured
+  masking (and ``roughplastic`` adds a Fresnel-weighted internal-scattering diffuse); our
+  :class:`~warp_sg.brdf.GGX` has the height-correlated Smith term ``G2 = 1/(1 + Λ(o) + Λ(i))``
+  where Mitsuba's GGX ``roughconductor`` uses the separable ``G1(o) G1(i)`` (its
+  ``MicrofacetDistribution::G``), so it is not converted either; Mitsuba 3 has no Phong/Blinn–Phong
+  or Ward plugin; Oren–Nayar, Ashikhmin–Shirley, Lafortune, measured
   BRDFs and textures are not converted either.
 * **Point light** (sphere of radius r, intensity s) → a ``sphere`` shape with an ``area`` emitter
   of radiance ``s/(π r²)`` and a black BSDF; Mitsuba samples the subtended cone, as we do. A
