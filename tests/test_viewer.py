@@ -189,8 +189,16 @@ def test_frame_is_the_renderers_image_of_the_pyvista_camera_pose_and_orbiting_re
     _mouse(v, "LeftButtonPressEvent", 48, 48)
     _mouse(v, "MouseMoveEvent", 60, 50)  # the style orbits and renders: StartEvent -> a coarse frame
     assert vp.interacting and vp.last["coarse"] == 8 and vp.last["width"] == SIZE // 8
+    # the button held still: the rest timer (delivered by the interactor to its style) brings the
+    # full frame of the same pose — the style must not repeat the last mouse delta on it
+    vp.rest_ms = 0
+    pose_before, frames = vp.pose(), vp.frames
+    v.plotter.iren.interactor.InvokeEvent("TimerEvent")
+    assert vp.pose() == pose_before and vp.interacting
+    assert vp.frames == frames + 1 and vp.last["coarse"] == 1 and vp.last["width"] == SIZE
     _mouse(v, "LeftButtonReleaseEvent", 60, 50)
-    assert not vp.interacting and vp.last["coarse"] == 1 and vp.last["width"] == SIZE
+    assert not vp.interacting and vp.last["coarse"] == 1 and vp.frames == frames + 1  # already full
+    vp.rest_ms = 200
     vp.budget_s = 0.05
     o, t, u, f, _, _ = vp.pose()
     assert not np.allclose(o, pose[0])  # the drag orbited the camera

@@ -176,7 +176,8 @@ class Viewport:
         self._rest = False
 
     def install_observers(self) -> None:
-        """Camera interaction (the interactor style's Start/EndInteractionEvent) and the rest timer."""
+        """Camera interaction (the interactor style's Start/EndInteractionEvent) and the rest
+        timer (a one-shot interactor timer after each coarse frame, delivered to the style)."""
         iren = self.plotter.iren
         if iren is None:
             return
@@ -184,7 +185,10 @@ class Viewport:
         if style is not None:
             style.AddObserver("StartInteractionEvent", lambda *_: self.begin_interaction())
             style.AddObserver("EndInteractionEvent", lambda *_: self.end_interaction())
-        iren.interactor.AddObserver("TimerEvent", lambda *_: self._on_timer())
+            # The interactor hands timer events to its style; a style with a TimerEvent observer
+            # calls it instead of its own OnTimer, which in the rotate / pan state would repeat the
+            # last mouse delta (the camera would keep spinning while the button is held still).
+            style.AddObserver("TimerEvent", lambda *_: self._on_timer())
 
     def _on_timer(self) -> None:
         if self.interacting and self._shown and self._shown[1] > 1 \
