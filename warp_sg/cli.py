@@ -187,9 +187,9 @@ def preview_main(args) -> int:
 
     if args.screenshot:
         make_parents(check_output_path(args.screenshot, (".png",), create_parents=True))
-    scene = load_scene(args.scene)
     if not math.isfinite(args.exposure):
         raise InputError(f"must be a finite number, got {args.exposure}", where="--exposure")
+    scene = load_scene(args.scene)
     preview(scene, screenshot=args.screenshot, device=args.device,
             window_size=tuple(args.window_size) if args.window_size else None, exposure=args.exposure)
     return 0
