@@ -438,7 +438,9 @@ def _small_scene(scale):
     lights = [EnvironmentLight(procedural="constant", options={"radiance": [0.3, 0.3, 0.3], "width": 16, "height": 8}),
               DirectionalLight(direction=(0.3, 1.0, 0.2), radius=0.05, intensity=(1.0, 0.8, 0.6)),
               PointLight(position=(1.0 * k, 1.5 * k, 1.0 * k), radius=0.1 * k, intensity=(3.0 * k * k,) * 3)]
-    return Scene(camera=cam, objects=objs, materials=mats, lights=lights, render=RenderSettings(shadows=True))
+    # a 12×9 image: a small refinement budget and small SSDFs (the refinement still runs, at every scale)
+    return Scene(camera=cam, objects=objs, materials=mats, lights=lights,
+                 render=RenderSettings(shadows=True, visibility_budget=3000, ssdf_resolution=16, pca_terms=8))
 
 
 def test_reference_is_the_same_image_for_a_scene_scaled_by_1e_minus4_and_1e4(device):
