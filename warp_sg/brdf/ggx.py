@@ -42,7 +42,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from .base import SpecularBRDF, as_rgb, as_scalar, dirs, half_vector
+from .base import SpecularBRDF, as_rgb, as_roughness, dirs, half_vector
 from .fresnel import parse_fresnel
 
 #: default number of NDF lobes (isotropic; see docs/ggx.md for the error against lobe count)
@@ -172,18 +172,7 @@ class GGX(SpecularBRDF):
                  fresnel=None, lobes=None):
         self.kd = as_rgb(kd, "kd")
         self.ks = as_rgb(ks, "ks")
-        if alpha is not None and (alpha_x is not None or alpha_y is not None):
-            raise InputError("give either alpha or alpha_x and alpha_y, not both", where="alpha")
-        if alpha is None and (alpha_x is None) != (alpha_y is None):
-            raise InputError("anisotropic GGX needs both alpha_x and alpha_y",
-                             where="alpha_x" if alpha_x is None else "alpha_y")
-        if alpha is None and alpha_x is None:
-            alpha = 0.3
-        if alpha is not None:
-            self.alpha_x = self.alpha_y = as_scalar(alpha, "alpha", lo=0.0, lo_open=True)
-        else:
-            self.alpha_x = as_scalar(alpha_x, "alpha_x", lo=0.0, lo_open=True)
-            self.alpha_y = as_scalar(alpha_y, "alpha_y", lo=0.0, lo_open=True)
+        self.alpha_x, self.alpha_y = as_roughness(alpha, alpha_x, alpha_y, 0.3, "GGX")
         self.alpha = self.alpha_x if self.isotropic else None
         self.fresnel = parse_fresnel(fresnel)
         self.lobes = _lobe_count(lobes, not self.isotropic)

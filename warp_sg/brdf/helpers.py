@@ -58,6 +58,23 @@ def as_scalar(value, name, *, lo=None, lo_open=False, hi=None):
     return v
 
 
+def as_roughness(alpha, alpha_x, alpha_y, default: float, model: str) -> tuple[float, float]:
+    """(αx, αy) from either ``alpha`` (isotropic) or both ``alpha_x`` and ``alpha_y``
+    (anisotropic), ``default`` when none is given; each > 0. Raises InputError naming the key."""
+    if alpha is not None and (alpha_x is not None or alpha_y is not None):
+        raise InputError("give either alpha or alpha_x and alpha_y, not both", where="alpha")
+    if alpha is None and (alpha_x is None) != (alpha_y is None):
+        raise InputError(f"anisotropic {model} needs both alpha_x and alpha_y",
+                         where="alpha_x" if alpha_x is None else "alpha_y")
+    if alpha is None and alpha_x is None:
+        alpha = default
+    if alpha is not None:
+        a = as_scalar(alpha, "alpha", lo=0.0, lo_open=True)
+        return a, a
+    return (as_scalar(alpha_x, "alpha_x", lo=0.0, lo_open=True),
+            as_scalar(alpha_y, "alpha_y", lo=0.0, lo_open=True))
+
+
 def dirs(*vs):
     """Broadcast direction arrays to float64 (..., 3)."""
     out = [np.asarray(v, dtype=np.float64) for v in vs]

@@ -13,8 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import SpecularBRDF, as_rgb, as_scalar, dirs
-from ..errors import InputError
+from .base import SpecularBRDF, as_rgb, as_roughness, dirs
 
 
 class Ward(SpecularBRDF):
@@ -25,18 +24,7 @@ class Ward(SpecularBRDF):
     def __init__(self, kd=(0.0, 0.0, 0.0), ks=(1.0, 1.0, 1.0), alpha=None, alpha_x=None, alpha_y=None):
         self.kd = as_rgb(kd, "kd")
         self.ks = as_rgb(ks, "ks")
-        if alpha is not None and (alpha_x is not None or alpha_y is not None):
-            raise InputError("give either alpha or alpha_x and alpha_y, not both", where="alpha")
-        if alpha is None and (alpha_x is None) != (alpha_y is None):
-            raise InputError("anisotropic Ward needs both alpha_x and alpha_y",
-                             where="alpha_x" if alpha_x is None else "alpha_y")
-        if alpha is None and alpha_x is None:
-            alpha = 0.15
-        if alpha is not None:
-            self.alpha_x = self.alpha_y = as_scalar(alpha, "alpha", lo=0.0, lo_open=True)
-        else:
-            self.alpha_x = as_scalar(alpha_x, "alpha_x", lo=0.0, lo_open=True)
-            self.alpha_y = as_scalar(alpha_y, "alpha_y", lo=0.0, lo_open=True)
+        self.alpha_x, self.alpha_y = as_roughness(alpha, alpha_x, alpha_y, 0.15, "Ward")
         self.alpha = self.alpha_x if self.isotropic else None
 
     @property
