@@ -6,7 +6,8 @@ bunny.obj``) standing on a floor grid (``--floor K``: K×K vertices), so the sce
 and real shadows. Any mesh trimesh reads works (``--mesh``).
 
 Per worker count: a LocalCluster of single-threaded worker processes (``warp_sg.cluster``), one
-warm-up run on a small mesh (each worker loads its kernels), then ``--repeats`` timed runs of
+warm-up run on a few vertices (each worker loads its kernels and builds the BVH), then ``--repeats``
+timed runs (interleaved between the worker counts) of
 :class:`warp_sg.distributed_precompute.DaskSSDF` on the whole mesh (the distributed part) and the
 client's own part, PCA + atomic cache write (``ssdf_for_mesh`` with the SSDFs already computed).
 The load average of the machine (``os.getloadavg``) is printed with every timing: other jobs on
@@ -17,6 +18,7 @@ a shared machine slow the runs down.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import statistics
 import time
@@ -55,6 +57,7 @@ def main(argv=None) -> int:
     ap.add_argument("--resolution", type=int, default=32)
     ap.add_argument("--pca-terms", type=int, default=32)
     ap.add_argument("--chunk", type=int, default=256)
+    ap.add_argument("--local", action="store_true", help="also time the local thread-pool path (no Dask)")
     ap.add_argument("-o", "--output", default=None, help="also write the markdown table here")
     args = ap.parse_args(argv)
 
@@ -67,22 +70,38 @@ def main(argv=None) -> int:
     R, Rr = args.resolution, 2 * args.resolution
     print(f"mesh: {len(V)} vertices, {len(F)} triangles; SSDF {R}² from {Rr}² rays, chunk {args.chunk}")
     rows, X = [], None
-    for w in args.workers:
-        with connect(f"local:{w}", timeout=60) as client:
-            dask = DaskSSDF(client, chunk=args.chunk)
+    with contextlib.ExitStack() as stack:
+        clients = {w: stack.enter_context(connect(f"local:{w}", timeout=60)) for w in args.workers}
+        for w, client in clients.items():
             # warm-up: every worker loads its kernels and builds the mesh's BVH (kept for the timed runs)
             DaskSSDF(client, chunk=4)(V, F, N, resolution=R, ray_resolution=Rr, progress=False,
                                       vertex_ids=np.arange(0, len(V), max(1, len(V) // (8 * w)))[: 8 * w])
-            ts, loads = [], []
-            for _ in range(args.repeats):
+        times = {w: [] for w in args.workers}
+        loads = {w: [] for w in args.workers}
+        stats = {}
+        for _ in range(args.repeats):  # interleaved, so a change of the machine's load hits every count
+            for w, client in clients.items():
+                dask = DaskSSDF(client, chunk=args.chunk)
                 l0 = os.getloadavg()[0]
                 t0 = time.perf_counter()
                 X = dask(V, F, N, resolution=R, ray_resolution=Rr, progress=False)
-                ts.append(time.perf_counter() - t0)
-                loads.append(max(l0, os.getloadavg()[0]))
-                print(f"{w} worker(s): {ts[-1]:.2f} s (load average {loads[-1]:.2f})", flush=True)
-            rows.append({"workers": w, "best_s": min(ts), "median_s": statistics.median(ts), "load": max(loads),
-                         "ms_per_vertex": 1e3 * min(ts) / len(V), "stats": dict(dask.stats)})
+                times[w].append(time.perf_counter() - t0)
+                loads[w].append(max(l0, os.getloadavg()[0]))
+                stats[w] = dict(dask.stats)
+                print(f"{w} worker(s): {times[w][-1]:.2f} s (load average {loads[w][-1]:.2f})", flush=True)
+            if args.local:  # today's local path: one process, Warp launches from a thread pool over the cores
+                from precompute.ssdf import compute_ssdf
+
+                l0 = os.getloadavg()[0]
+                t0 = time.perf_counter()
+                compute_ssdf(V, F, N, resolution=R, ray_resolution=Rr, progress=False)
+                times.setdefault("local", []).append(time.perf_counter() - t0)
+                loads.setdefault("local", []).append(max(l0, os.getloadavg()[0]))
+                print(f"local threads: {times['local'][-1]:.2f} s (load average {loads['local'][-1]:.2f})", flush=True)
+        for w in args.workers + (["local"] if args.local else []):
+            ts = times[w]
+            rows.append({"workers": w, "best_s": min(ts), "median_s": statistics.median(ts), "load": max(loads[w]),
+                         "ms_per_vertex": 1e3 * min(ts) / len(V), "stats": stats.get(w)})
     # the client's own part: PCA + the atomic cache write, on the SSDFs just computed
     with fresh_cache():
         t0 = time.perf_counter()
@@ -90,12 +109,13 @@ def main(argv=None) -> int:
                       compute=lambda *a, **k: X)
         t_client = time.perf_counter() - t0
     base = rows[0]["best_s"]
-    st = rows[-1]["stats"]
+    st = rows[len(args.workers) - 1]["stats"]
     lines = [f"SSDF precompute of {len(V)} vertices ({len(F)} triangles), SSDF {R}² from {Rr}² rays, "
              f"{args.chunk} vertices per task ({st['tasks']} tasks); best of {args.repeats}.", "",
              "| workers | best s | median s | speed-up | ms/vertex | max load avg |", "|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r['workers']} | {r['best_s']:.2f} | {r['median_s']:.2f} | {base / r['best_s']:.2f}× | "
+        name = "local (threads, no Dask)" if r["workers"] == "local" else r["workers"]
+        lines.append(f"| {name} | {r['best_s']:.2f} | {r['median_s']:.2f} | {base / r['best_s']:.2f}× | "
                      f"{r['ms_per_vertex']:.3f} | {r['load']:.2f} |")
     lines += ["", f"Client part (PCA to {args.pca_terms} terms + atomic cache write): {t_client:.2f} s "
               f"({1e3 * t_client / len(V):.3f} ms/vertex).",
