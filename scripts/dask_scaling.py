@@ -10,8 +10,9 @@ warm-up run on a few vertices (each worker loads its kernels and builds the BVH)
 timed runs (interleaved between the worker counts) of
 :class:`warp_sg.distributed_precompute.DaskSSDF` on the whole mesh (the distributed part) and the
 client's own part, PCA + atomic cache write (``ssdf_for_mesh`` with the SSDFs already computed).
-The load average of the machine (``os.getloadavg``) is printed with every timing: other jobs on
-a shared machine slow the runs down.
+The workers' CPU seconds (``getrusage`` in each worker) and their share of the wall time show how
+much of a core each worker really got; the load average of the machine (``os.getloadavg``) is
+printed with every timing: other jobs on a shared machine slow the runs down.
 
     python scripts/dask_scaling.py --mesh bunny.obj --workers 1 2 --repeats 2 -o scaling.md
 """
@@ -48,6 +49,22 @@ def scene_mesh(path, floor: int):
     return v, f, n
 
 
+def _cpu_seconds() -> float:
+    """User + system CPU seconds of this (worker) process so far."""
+    import resource
+
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+
+
+def _na(v, fmt):
+    return "–" if v != v else format(v, fmt)
+
+
+def _worker_cpu(client) -> float:
+    return float(sum(client.run(_cpu_seconds).values()))
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--mesh", required=True, help="mesh file (e.g. bunny.obj from pymeshlab's wheel)")
@@ -78,17 +95,20 @@ def main(argv=None) -> int:
                                       vertex_ids=np.arange(0, len(V), max(1, len(V) // (8 * w)))[: 8 * w])
         times = {w: [] for w in args.workers}
         loads = {w: [] for w in args.workers}
-        stats = {}
+        stats, cpu = {}, {}
         for _ in range(args.repeats):  # interleaved, so a change of the machine's load hits every count
             for w, client in clients.items():
                 dask = DaskSSDF(client, chunk=args.chunk)
                 l0 = os.getloadavg()[0]
+                c0 = _worker_cpu(client)
                 t0 = time.perf_counter()
                 X = dask(V, F, N, resolution=R, ray_resolution=Rr, progress=False)
                 times[w].append(time.perf_counter() - t0)
+                cpu.setdefault(w, []).append(_worker_cpu(client) - c0)
                 loads[w].append(max(l0, os.getloadavg()[0]))
                 stats[w] = dict(dask.stats)
-                print(f"{w} worker(s): {times[w][-1]:.2f} s (load average {loads[w][-1]:.2f})", flush=True)
+                print(f"{w} worker(s): {times[w][-1]:.2f} s, workers' CPU {cpu[w][-1]:.1f} s "
+                      f"(load average {loads[w][-1]:.2f})", flush=True)
             if args.local:  # today's local path: one process, Warp launches from a thread pool over the cores
                 from precompute.ssdf import compute_ssdf
 
@@ -101,7 +121,9 @@ def main(argv=None) -> int:
         for w in args.workers + (["local"] if args.local else []):
             ts = times[w]
             rows.append({"workers": w, "best_s": min(ts), "median_s": statistics.median(ts), "load": max(loads[w]),
-                         "ms_per_vertex": 1e3 * min(ts) / len(V), "stats": stats.get(w)})
+                         "ms_per_vertex": 1e3 * min(ts) / len(V), "stats": stats.get(w),
+                         "cpu_s": min(cpu[w]) if w in cpu else float("nan"),
+                         "cpu_share": (cpu[w][ts.index(min(ts))] / (min(ts) * w)) if w in cpu else float("nan")})
     # the client's own part: PCA + the atomic cache write, on the SSDFs just computed
     with fresh_cache():
         t0 = time.perf_counter()
@@ -112,11 +134,12 @@ def main(argv=None) -> int:
     st = rows[len(args.workers) - 1]["stats"]
     lines = [f"SSDF precompute of {len(V)} vertices ({len(F)} triangles), SSDF {R}² from {Rr}² rays, "
              f"{args.chunk} vertices per task ({st['tasks']} tasks); best of {args.repeats}.", "",
-             "| workers | best s | median s | speed-up | ms/vertex | max load avg |", "|---|---|---|---|---|---|"]
+             "| workers | best s | median s | speed-up | ms/vertex | workers' CPU s | CPU share per worker | max load avg |",
+             "|---|---|---|---|---|---|---|---|"]
     for r in rows:
         name = "local (threads, no Dask)" if r["workers"] == "local" else r["workers"]
         lines.append(f"| {name} | {r['best_s']:.2f} | {r['median_s']:.2f} | {base / r['best_s']:.2f}× | "
-                     f"{r['ms_per_vertex']:.3f} | {r['load']:.2f} |")
+                     f"{r['ms_per_vertex']:.3f} | {_na(r['cpu_s'], '.1f')} | {_na(r['cpu_share'], '.0%')} | {r['load']:.2f} |")
     lines += ["", f"Client part (PCA to {args.pca_terms} terms + atomic cache write): {t_client:.2f} s "
               f"({1e3 * t_client / len(V):.3f} ms/vertex).",
               f"Data per task: {st['bytes_per_chunk'] / 1024:.0f} KiB back (float32 SSDFs), < 1 KiB of arguments; "

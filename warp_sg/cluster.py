@@ -106,7 +106,8 @@ def _local_cluster(n_workers: int):
 
     # one single-threaded process per worker; Warp's own CPU thread pool is off (WARP_SG_THREADS=1):
     # Dask provides the parallelism, one task per core
-    return LocalCluster(n_workers=int(n_workers), threads_per_worker=1, processes=True, dashboard_address=None,
+    # dashboard_address=":0": a free port (None still binds 8787 and warns when another cluster has it)
+    return LocalCluster(n_workers=int(n_workers), threads_per_worker=1, processes=True, dashboard_address=":0",
                         silence_logs=logging.ERROR, env={"WARP_SG_THREADS": "1"})
 
 
