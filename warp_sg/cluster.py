@@ -95,7 +95,12 @@ def check_versions(client) -> None:
 
 
 def ensure_version(expected: str) -> None:
-    """Inside a task: raise :class:`ClusterError` if this worker's version is not ``expected``."""
+    """Inside a task, first thing: raise :class:`ClusterError` if this worker's version is not
+    ``expected``; and keep Warp's banner and module-load lines off the worker's terminal, as the
+    CLI does (:func:`warp_sg.device.quiet_warp`)."""
+    from .device import quiet_warp
+
+    quiet_warp()
     v = _worker_version()
     if v != expected:
         raise ClusterError(f"this worker runs warp-sg {v}, the client runs warp-sg {expected}", where="worker")
