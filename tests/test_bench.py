@@ -33,14 +33,16 @@ def test_quick_bench_prints_every_section_with_its_columns(cache_dir):
     eq = res.sections["equal error: SG renderer vs Monte-Carlo reference"]
     assert eq[0]["case"].startswith("bench scene: SG renderer") and "spp" in eq[2]["case"]
     assert eq[4]["case"].startswith("plain inputs: SG renderer") and "spp" in eq[6]["case"]
+    assert eq[8]["case"].startswith("plain inputs, point light: SG renderer") and "spp" in eq[10]["case"]
     assert all(math.isfinite(r["rel_mse"]) for r in eq)
     mit = res.sections["equal error: SG renderer vs Mitsuba 3"]
     from warp_sg.peer_mitsuba import mitsuba_status
 
     if mitsuba_status("cpu")[0]:  # the optional [compare] extra is installed
-        assert [r["case"] for r in mit] == ["bench scene, Lambert materials", "plain inputs", "setup"]
-        assert all(r["frame_s"] > 0 and r["truth_floor"] > 0 for r in mit[:2])
-        assert all(r["mitsuba_s"] > 0 and r["mc_s"] > 0 for r in mit[:2] if "mitsuba_s" in r)
+        assert [r["case"] for r in mit] == ["bench scene, Lambert materials", "plain inputs",
+                                            "plain inputs, point light", "setup"]
+        assert all(r["frame_s"] > 0 and r["truth_floor"] > 0 for r in mit[:3])
+        assert all(r["mitsuba_s"] > 0 and r["mc_s"] > 0 for r in mit[:3] if "mitsuba_s" in r)
         # the same SG frame as the Monte-Carlo section (one measurement per run), a less noisy truth
         assert mit[1]["frame_s"] == eq[4]["seconds"] and mit[1]["truth_floor"] < eq[7]["rel_mse"]
     else:

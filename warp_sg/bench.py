@@ -326,7 +326,9 @@ def _equal_error_scenes(quick, mitsuba=False):
     """(label, scene, seed) of the equal-error cases: the bench scene (with Lambert materials
     for Mitsuba, which has none of its glossy models: ``warp_sg.peer_mitsuba``) and a plain-input
     scene (a sphere on a floor of two triangles under a sky EXR whose sun holds half the
-    irradiance: ``warp_sg.plain_scenes``; its files are read at load)."""
+    irradiance: ``warp_sg.plain_scenes``; its files are read at load), and the same sphere and
+    floor lit by one spherical point light only (the exact-light path; issue 13's
+    "1 spp-equivalent" case)."""
     from .plain_scenes import write_plain_scene
     from .scene import load_scene
 
@@ -337,9 +339,12 @@ def _equal_error_scenes(quick, mitsuba=False):
         plain = load_scene(write_plain_scene(d, obj="sphere", light="sky", material="lambert", size=h))
         plain.environment.base_radiance()  # read the EXR before the folder goes
         plain.geometry()
+        point = load_scene(write_plain_scene(d, obj="sphere", light="point", material="lambert", size=h))
+        point.geometry()
     if quick:
-        plain.render.visibility_budget, plain.render.ssdf_resolution, plain.render.pca_terms = 1500, 16, 8
-    return out + [("plain inputs", plain, 21)]
+        for sc in (plain, point):
+            sc.render.visibility_budget, sc.render.ssdf_resolution, sc.render.pca_terms = 1500, 16, 8
+    return out + [("plain inputs", plain, 21), ("plain inputs, point light", point, 41)]
 
 
 def equal_error_section(device="cpu", quick=False, truth_spp=None, progress=False):
