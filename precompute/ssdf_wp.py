@@ -52,7 +52,7 @@ import numpy as np
 import warp as wp
 
 from warp_sg.fastmath import fast_asin, fast_atan2
-from warp_sg.frames import frame_basis, frame_bitangent, frame_tangent, world_to_local
+from warp_sg.frames import frame_bitangent, frame_tangent, world_to_local
 
 _PI_4 = np.pi / 4.0
 _PI_2 = np.pi / 2.0

@@ -119,6 +119,18 @@ def contrast_kernel(base: int, img: wp.array2d(dtype=wp.vec3), edge: wp.array2d(
         count[k] = a * a
 
 
+@wp.func
+def _gather_one(tri_id: wp.array2d(dtype=int), bary: wp.array2d(dtype=wp.vec2), background: Background,
+                sy: int, sx: int, q: int, tri_s: wp.array2d(dtype=int), bary_s: wp.array2d(dtype=wp.vec2),
+                bg_s: wp.array2d(dtype=wp.vec3)):
+    """Sample list entry q ← sub-pixel (sy, sx); the environment along its ray if it sees no object."""
+    t = tri_id[sy, sx]
+    tri_s[0, q] = t
+    bary_s[0, q] = bary[sy, sx]
+    if t < 0:
+        bg_s[0, q] = background_at(background, sy, sx)
+
+
 @wp.kernel(enable_backward=False)
 def gather_kernel(base: int, tri_id: wp.array2d(dtype=int), bary: wp.array2d(dtype=wp.vec2),
                   background: Background, count: wp.array(dtype=int), offset: wp.array(dtype=int),
@@ -136,20 +148,11 @@ def gather_kernel(base: int, tri_id: wp.array2d(dtype=int), bary: wp.array2d(dty
     o0 = offset[k]
     if n == 1:
         c = a / 2
-        t = tri_id[y * a + c, x * a + c]
-        tri_s[0, o0] = t
-        bary_s[0, o0] = bary[y * a + c, x * a + c]
-        if t < 0:
-            bg_s[0, o0] = background_at(background, y * a + c, x * a + c)
+        _gather_one(tri_id, bary, background, y * a + c, x * a + c, o0, tri_s, bary_s, bg_s)
         return
     for j in range(a):
         for i in range(a):
-            q = o0 + j * a + i
-            t = tri_id[y * a + j, x * a + i]
-            tri_s[0, q] = t
-            bary_s[0, q] = bary[y * a + j, x * a + i]
-            if t < 0:
-                bg_s[0, q] = background_at(background, y * a + j, x * a + i)
+            _gather_one(tri_id, bary, background, y * a + j, x * a + i, o0 + j * a + i, tri_s, bary_s, bg_s)
 
 
 @wp.kernel(enable_backward=False)

@@ -189,19 +189,24 @@ def fh_hemisphere_wp(lam: float) -> float:
 
 
 @wp.func
-def fh_ratio_table(table: wp.array2d(dtype=float), theta: float, lam: float) -> float:
-    """f̂h(θd, λ) = fh(θd, λ)/fh(π/2, λ) by bilinear lookup in :func:`fh_table_array` (the default)."""
+def _fh_row(table: wp.array2d(dtype=float), lam: float):
+    """Row of λ in :func:`fh_table_array`: (r0, fr, θmax(λ)), the lower row, its weight and the
+    column scale (one log and one square root)."""
     nr = table.shape[0]
-    nc = table.shape[1]
     l = wp.max(lam, 1.0e-30)
     r = (wp.log(l) * _INV_LN10 - _LOG10_LAM_MIN) * _ROWS_PER_DECADE
     r = wp.clamp(r, 0.0, float(nr - 1))
-    tmax = wp.min(_HALF_PI, _K / wp.sqrt(l))
+    r0 = wp.min(int(wp.floor(r)), nr - 2)
+    return r0, r - float(r0), wp.min(_HALF_PI, _K / wp.sqrt(l))
+
+
+@wp.func
+def _fh_at(table: wp.array2d(dtype=float), r0: int, fr: float, tmax: float, theta: float) -> float:
+    """Bilinear value at θd = ``theta`` between rows r0 and r0 + 1 (weight fr) of the table."""
+    nc = table.shape[1]
     c = wp.clamp(theta / tmax, -1.0, 1.0)
     x = (c + 1.0) * 0.5 * float(nc - 1)
-    r0 = wp.min(int(wp.floor(r)), nr - 2)
     x0 = wp.min(int(wp.floor(x)), nc - 2)
-    fr = r - float(r0)
     fx = x - float(x0)
     v0 = table[r0, x0] * (1.0 - fx) + table[r0, x0 + 1] * fx
     v1 = table[r0 + 1, x0] * (1.0 - fx) + table[r0 + 1, x0 + 1] * fx
@@ -209,27 +214,18 @@ def fh_ratio_table(table: wp.array2d(dtype=float), theta: float, lam: float) -> 
 
 
 @wp.func
+def fh_ratio_table(table: wp.array2d(dtype=float), theta: float, lam: float) -> float:
+    """f̂h(θd, λ) = fh(θd, λ)/fh(π/2, λ) by bilinear lookup in :func:`fh_table_array` (the default)."""
+    r0, fr, tmax = _fh_row(table, lam)
+    return _fh_at(table, r0, fr, tmax, theta)
+
+
+@wp.func
 def fh_ratio_table_pair(table: wp.array2d(dtype=float), theta_a: float, theta_b: float, lam: float):
     """(f̂h(θa, λ), f̂h(θb, λ)): two lookups of :func:`fh_ratio_table` at one λ, sharing its row
     (one log and one square root instead of two)."""
-    nr = table.shape[0]
-    nc = table.shape[1]
-    l = wp.max(lam, 1.0e-30)
-    r = wp.clamp((wp.log(l) * _INV_LN10 - _LOG10_LAM_MIN) * _ROWS_PER_DECADE, 0.0, float(nr - 1))
-    inv_tmax = 1.0 / wp.min(_HALF_PI, _K / wp.sqrt(l))
-    r0 = wp.min(int(wp.floor(r)), nr - 2)
-    fr = r - float(r0)
-    xa = (wp.clamp(theta_a * inv_tmax, -1.0, 1.0) + 1.0) * 0.5 * float(nc - 1)
-    xb = (wp.clamp(theta_b * inv_tmax, -1.0, 1.0) + 1.0) * 0.5 * float(nc - 1)
-    a0 = wp.min(int(wp.floor(xa)), nc - 2)
-    b0 = wp.min(int(wp.floor(xb)), nc - 2)
-    fa = xa - float(a0)
-    fb = xb - float(b0)
-    va = ((table[r0, a0] * (1.0 - fa) + table[r0, a0 + 1] * fa) * (1.0 - fr)
-          + (table[r0 + 1, a0] * (1.0 - fa) + table[r0 + 1, a0 + 1] * fa) * fr)
-    vb = ((table[r0, b0] * (1.0 - fb) + table[r0, b0 + 1] * fb) * (1.0 - fr)
-          + (table[r0 + 1, b0] * (1.0 - fb) + table[r0 + 1, b0 + 1] * fb) * fr)
-    return va, vb
+    r0, fr, tmax = _fh_row(table, lam)
+    return _fh_at(table, r0, fr, tmax, theta_a), _fh_at(table, r0, fr, tmax, theta_b)
 
 
 @wp.func

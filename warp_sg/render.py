@@ -108,6 +108,9 @@ class Renderer:
         self.device = resolve_device(device if device is not None else scene.render.device)
         self.progress = progress
         self.timings: dict = {"precompute_parts": {}}
+        self._env_arrays_key = ()  # (see _env_arrays; () = not built yet)
+        self._env_sg_arrays = None
+        self._env_base_wp = None  # the environment map on the device (background), uploaded once
         t0 = time.perf_counter()
         with wp.ScopedDevice(self.device):
             self._setup_geometry()
@@ -285,7 +288,7 @@ class Renderer:
         mixture's, e.g. amplitudes the non-negative fit set to 0) are left out."""
         env = self.env_light
         key = None if env is None or self._env_sg_base is None else (id(self._env_sg_base), float(env.rotation), float(env.scale))
-        if getattr(self, "_env_arrays_key", ()) == key:
+        if self._env_arrays_key == key:
             return self._env_sg_arrays
         d = self.device
         es = S.EnvSG()
@@ -453,7 +456,7 @@ class Renderer:
         env = self.env_light
         radiance = None
         if env is not None and self.scene.render.background:
-            if getattr(self, "_env_base_wp", None) is None:
+            if self._env_base_wp is None:
                 self._env_base_wp = wp.array(np.ascontiguousarray(self.env_base, np.float32), dtype=wp.vec3,
                                              device=self.device)
             radiance = self._env_base_wp
