@@ -34,9 +34,10 @@ def shading_variants():
     from warp_sg import shading as S
 
     full = S.Features(env_diffuse=S.ENV_SG, env_specular=S.ENV_PREFILTERED, lights=True, specular=True,
-                      shadows=True, textures=True, normal_maps=True, fh_sigmoid=False)
+                      shadows=True, textures=True, normal_maps=True, fh_sigmoid=False, env_vis_vertex=True)
     off = {"env_diffuse": S.ENV_NONE, "env_specular": S.ENV_NONE, "lights": False, "specular": False,
-           "shadows": False, "textures": False, "normal_maps": False, "fh_sigmoid": True}
+           "shadows": False, "textures": False, "normal_maps": False, "fh_sigmoid": True,
+           "env_vis_vertex": False}
     variants = [full] + [replace(full, **{f.name: off[f.name]}) for f in fields(S.Features)]
     return [S.shade_kernel(f) for f in variants]
 

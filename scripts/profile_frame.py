@@ -1,6 +1,10 @@
 """Per-stage and per-lobe profile of a warm frame (docs/benchmarks.md "Frame profile").
 
-    python scripts/profile_frame.py [SCENE.toml ...] [--size 512] [--repeat 5]
+    python scripts/profile_frame.py [SCENE.toml | torus:N ...] [--size 512] [--repeat 5]
+                                    [--env-visibility vertex|pixel]
+
+(``torus:N`` is the frame-scaling bench scene with a torus of about N triangles,
+``warp_sg.bench_scaling.scaling_scene``.)
 
 For each scene: precompute once, then
 
@@ -46,19 +50,26 @@ def _wall_new_view(r, repeat):
     return rows[len(rows) // 2]
 
 
-def profile(path, size, repeat):
+def profile(path, size, repeat, env_visibility=None):
     import raster
     import warp_sg as ws
     from warp_sg.render import Renderer
 
-    scene = ws.load_scene(path)
+    if path.startswith("torus:"):
+        from warp_sg.bench_scaling import scaling_scene
+
+        scene = scaling_scene(int(path.split(":")[1]), size)
+    else:
+        scene = ws.load_scene(path)
     scene.camera = replace(scene.camera, width=size, height=size)
+    if env_visibility:
+        scene.render.env_visibility = env_visibility
     r = Renderer(scene, device="cpu")
     g = r.geometry
     f = r.features()
     n_env = r._env_arrays().count if f.env_diffuse else 0
     n_lights = len(r.shading_lights)
-    print(f"\n### {path} at {size}²: {len(g.triangles)} triangles, {len(g.vertices)} vertices; "
+    print(f"\n### {path} at {size}², env_visibility {scene.render.env_visibility}: {len(g.triangles)} triangles, {len(g.vertices)} vertices; "
           f"{n_env} environment lobes, {n_lights} lights (incl. sun peaks), "
           f"{r.ssdf.pca_terms if r.ssdf else 0} PCA terms\n")
     print("| antialias | frame ms | raster ms | shade ms | resolve ms | shaded samples | raster stages (ms) |")
@@ -94,9 +105,10 @@ def main(argv=None):
     ap.add_argument("scenes", nargs="*", default=["examples/cook_torrance.toml"])
     ap.add_argument("--size", type=int, default=512)
     ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--env-visibility", choices=("vertex", "pixel"), default=None)
     a = ap.parse_args(argv)
     for s in a.scenes:
-        profile(s, a.size, a.repeat)
+        profile(s, a.size, a.repeat, a.env_visibility)
 
 
 if __name__ == "__main__":

@@ -110,6 +110,8 @@ class Renderer:
         self.timings: dict = {"precompute_parts": {}}
         self._env_arrays_key = ()  # (see _env_arrays; () = not built yet)
         self._env_sg_arrays = None
+        self._env_vis_key = None  # (see _env_vertex_visibility)
+        self._env_vis = None
         self._env_base_wp = None  # the environment map on the device (background), uploaded once
         t0 = time.perf_counter()
         with wp.ScopedDevice(self.device):
@@ -312,6 +314,33 @@ class Renderer:
         self._env_arrays_key, self._env_sg_arrays = key, es
         return es
 
+    def _env_vis_vertex(self) -> bool:
+        """Whether the environment-diffuse visibility comes from the per-vertex cache
+        (``[render] env_visibility = "vertex"``, shadows on, an environment SG mixture)."""
+        return (self.scene.render.env_visibility == "vertex" and self.shadows and self.show_shadows
+                and self.env_diffuse_mode == S.ENV_SG)
+
+    def _env_vertex_visibility(self, es):
+        """``es.vis``: the per-vertex visible fraction of each environment lobe
+        (:mod:`warp_sg.vertex_visibility`), rebuilt only when the lobe axes (rotation, fit) or the
+        visibility data change — not on camera, material, light or environment-scale edits."""
+        d = self.device
+        if not self._env_vis_vertex():
+            if self._env_vis is None or self._env_vis_key is not None:
+                self._env_vis_key, self._env_vis = None, wp.zeros((1, 1), dtype=float, device=d)
+        else:
+            key = (self._env_arrays_key[:2], id(self.ssdf), self.scene.render.fh)
+            if key != self._env_vis_key:
+                from .vertex_visibility import env_vertex_visibility
+
+                t = time.perf_counter()
+                self._env_vis = env_vertex_visibility(self.vis, es, len(self.geometry.vertices),
+                                                      self.scene.render.fh == "sigmoid", d)
+                self._env_vis_key = key
+                self.timings["env_vertex_visibility"] = time.perf_counter() - t
+        es.vis = self._env_vis
+        return es
+
     def _setup_materials(self):
         from .brdf.material_wp import pack_materials
 
@@ -367,6 +396,7 @@ class Renderer:
             textures=self.has_textures,
             normal_maps=self.has_normal_maps,
             fh_sigmoid=self.scene.render.fh == "sigmoid",
+            env_vis_vertex=self._env_vis_vertex(),
         )
 
     # ------------------------------------------------------------------ dynamic changes
@@ -574,7 +604,7 @@ class Renderer:
     def _launch_shade(self, tri_id, bary, bg, eye, out):
         d = self.device
         self._ensure_gamma()  # a material may have become specular
-        es = self._env_arrays()
+        es = self._env_vertex_visibility(self._env_arrays())
         f = self.features()
         kern = S.shade_kernel(f)
         if f.env_specular == S.ENV_PREFILTERED:

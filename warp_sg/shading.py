@@ -18,6 +18,9 @@ Environment, diffuse — eq. 39 with the exact irradiance of each SG ``L*_j`` of
 
     Rd += ρd(o, p_G) μ_j ∫G_j e(Ns·p_j, λ_j) vis_ratio(p_G, λ_G),   G = C* ⊗ L*_j (eq. 5, 40)
 
+(with ``Features.env_vis_vertex`` the visibility factor is ``Σ_k b_k V[i_k, j]``, the per-vertex
+cache of ``warp_sg.vertex_visibility``: the lobe axes are fixed in world space.)
+
 Environment, specular — eq. 41, for each slice lobe G_k of ks ρs(o, ·) (spherical warp of the
 NDF lobes, eq. 17–22, ``shading_slice_lobe``)::
 
@@ -106,6 +109,9 @@ class EnvSG:
     axis: wp.array(dtype=wp.vec3)
     lam: wp.array(dtype=float)
     mu: wp.array(dtype=wp.vec3)
+    #: (V, count) visible fraction of C*(n_v) ⊗ G_j per vertex (``warp_sg.vertex_visibility``),
+    #: read by the variant with ``Features.env_vis_vertex``; a (1, 1) placeholder otherwise
+    vis: wp.array2d(dtype=float)
 
 
 # --------------------------------------------------------------------------------------------
@@ -184,6 +190,9 @@ class Features:
     textures: bool = False
     normal_maps: bool = False
     fh_sigmoid: bool = False
+    #: environment-diffuse visibility interpolated from the per-vertex cache ``EnvSG.vis``
+    #: (``warp_sg.vertex_visibility``) instead of one SSDF lookup per lobe per pixel
+    env_vis_vertex: bool = False
 
 
 _KERNELS: dict = {}
@@ -208,6 +217,7 @@ def shade_kernel(f: Features):
     TEX = bool(f.textures)
     NMAP = bool(f.normal_maps)
     FH = 1 if f.fh_sigmoid else 0
+    VVIS = bool(f.env_vis_vertex) and SHADOWS == 1
     USE_GAMMA = ENV_S == ENV_PREFILTERED
     if USE_GAMMA:
         GammaT, gamma_lookup = _gamma_parts()
@@ -285,7 +295,11 @@ def shade_kernel(f: Features):
                     E = sg_irradiance(irr, ns, env.axis[j], env.lam[j], env.mu[j])
                     if wp.length_sq(E) > 0.0:
                         pe, le, se = sg_product(ns, CC_LAM, env.axis[j], env.lam[j])
-                        vr = vis_ratio(SHADOWS, FH, vis, q, pe, le)
+                        vr = float(1.0)
+                        if wp.static(VVIS):  # the per-vertex cache, interpolated
+                            vr = b0 * env.vis[i0, j] + b1 * env.vis[i1, j] + b2 * env.vis[i2, j]
+                        else:
+                            vr = vis_ratio(SHADOWS, FH, vis, q, pe, le)
                         col += wp.cw_mul(E, diffuse_at(mat, o_l, world_to_local(pe, ts, bs, ns))) * vr
 
         # ---------------- environment, specular (eq. 41) ----------------
@@ -308,7 +322,7 @@ def shade_kernel(f: Features):
                         col += wp.cw_mul(mw, g) * (e * vr)
         out[y, x] = wp.vec3(wp.max(col[0], 0.0), wp.max(col[1], 0.0), wp.max(col[2], 0.0))
 
-    key = "shade_" + "_".join(str(int(v)) for v in (ENV_D, ENV_S, LIGHTS, SPEC, SHADOWS, TEX, NMAP, FH))
+    key = "shade_" + "_".join(str(int(v)) for v in (ENV_D, ENV_S, LIGHTS, SPEC, SHADOWS, TEX, NMAP, FH, VVIS))
     shade.__name__ = key
     shade.__qualname__ = key
     k = wp.kernel(shade, enable_backward=False, module="unique")
