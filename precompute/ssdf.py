@@ -37,6 +37,7 @@ from warp_sg.device import resolve_device
 from warp_sg.errors import InputError
 from warp_sg.pca import pca
 
+from .occluder_cone import occluder_cones
 from .ssdf_wp import texel_directions
 from .visibility import OFFSET_SCALE, _MeshContext, _tqdm, _visibility_kernel, run_batches, validate_mesh
 
@@ -47,7 +48,7 @@ DEFAULT_PCA_TERMS = 24
 
 _HALF_PI = wp.constant(0.5 * math.pi)
 #: Cache format of the "ssdf" kind; bump when the SSDF definition changes.
-SSDF_VERSION = 1
+SSDF_VERSION = 2  # 2: per-vertex occluder cones (precompute.occluder_cone)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -245,6 +246,9 @@ class SSDFData:
     ray_resolution: int = DEFAULT_RAY_RESOLUTION
     pca_rms_error: np.ndarray = field(default_factory=lambda: np.zeros(0))
     key: str = ""
+    #: (V, 4) per-vertex occluder cones (:func:`precompute.occluder_cone.occluder_cones`); empty:
+    #: unknown (no lookup is skipped)
+    cones: np.ndarray = field(default_factory=lambda: np.zeros((0, 4), np.float32))
 
     @property
     def pca_terms(self) -> int:
@@ -312,9 +316,10 @@ def ssdf_for_mesh(vertices, triangles, normals, *, resolution: int = DEFAULT_RES
         p = pca(X, int(pca_terms))
         R = int(resolution)
         return {"mean": p.mean.reshape(R, R), "basis": p.basis.reshape(-1, R, R), "weights": p.weights,
-                "pca_rms_error": p.rms_error}
+                "pca_rms_error": p.rms_error, "cones": occluder_cones(X, n, R)}
 
     data = _cache.load_or_build("ssdf", key, build) if use_cache else build()
     return SSDFData(resolution=int(resolution), mean=data["mean"].astype(np.float32),
                     basis=data["basis"].astype(np.float32), weights=data["weights"].astype(np.float32),
-                    ray_resolution=int(ray_resolution), pca_rms_error=np.asarray(data["pca_rms_error"]), key=key)
+                    ray_resolution=int(ray_resolution), pca_rms_error=np.asarray(data["pca_rms_error"]), key=key,
+                    cones=np.asarray(data["cones"], np.float32))

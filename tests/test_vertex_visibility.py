@@ -44,7 +44,7 @@ def test_each_vertex_value_is_the_visible_fraction_of_its_product_lobe_by_ray_ca
     r = renderer
     g = r.geometry
     es = r._env_arrays()
-    vv = r._env_vis.numpy()
+    vv = r.env_vis_cache.value.numpy()
     axes, lams = es.axis.numpy().astype(np.float64), es.lam.numpy().astype(np.float64)
     floor = np.flatnonzero((np.abs(g.vertices[:, 1]) < 1e-6) & (np.hypot(g.vertices[:, 0], g.vertices[:, 2]) < 1.0))
     ball = np.flatnonzero(g.vertices[:, 1] > 0.02)[::7]
@@ -93,18 +93,18 @@ def test_cached_frame_matches_the_per_pixel_frame_and_the_reference(renderer):
 
 def test_camera_material_and_scale_edits_reuse_the_cache_and_rotation_rebuilds_it(renderer):
     r = renderer
-    cached = r._env_vis
+    cached, builds = r.env_vis_cache.value, r.env_vis_cache.builds
     r.set_camera(origin=(0.3, 1.5, 2.7))
     r.set_material("ball", kd=[0.2, 0.6, 0.3])
     r.set_environment_scale(1.5)
     r.render()
-    assert r._env_vis is cached
+    assert r.env_vis_cache.value is cached and r.env_vis_cache.builds == builds
     r.set_environment_scale(1.0)
     r.set_material("ball", kd=[0.6, 0.5, 0.4])
     r.set_camera(origin=(0.0, 1.6, 2.6))
     r.set_environment_rotation(40.0)
     img = r.render()
-    assert r._env_vis is not cached
+    assert r.env_vis_cache.value is not cached and r.env_vis_cache.builds == builds + 1
     fresh = Renderer(_scene(rotation=40.0), device="cpu").render()
     np.testing.assert_allclose(img, fresh, rtol=1e-5, atol=1e-6)
     r.set_environment_rotation(0.0)
@@ -114,4 +114,4 @@ def test_camera_material_and_scale_edits_reuse_the_cache_and_rotation_rebuilds_i
 def test_pixel_mode_and_unshadowed_scenes_build_no_cache():
     r = Renderer(_scene(mode="pixel", width=16, height=12), device="cpu")
     r.render()
-    assert "env_vertex_visibility" not in r.timings and not r.features().env_vis_vertex
+    assert r.env_vis_cache.builds == 0 and not r.features().env_vis_vertex

@@ -189,6 +189,12 @@ def fh_hemisphere_wp(lam: float) -> float:
 
 
 @wp.func
+def fh_theta_max_wp(lam: float) -> float:
+    """θmax(λ) = min(π/2, FH_K/√λ) (:func:`fh_theta_max`): the table's f̂h is constant for θd ≥ θmax."""
+    return wp.min(_HALF_PI, _K / wp.sqrt(wp.max(lam, 1.0e-30)))
+
+
+@wp.func
 def _fh_row(table: wp.array2d(dtype=float), lam: float):
     """Row of λ in :func:`fh_table_array`: (r0, fr, θmax(λ)), the lower row, its weight and the
     column scale (one log and one square root)."""
@@ -197,7 +203,7 @@ def _fh_row(table: wp.array2d(dtype=float), lam: float):
     r = (wp.log(l) * _INV_LN10 - _LOG10_LAM_MIN) * _ROWS_PER_DECADE
     r = wp.clamp(r, 0.0, float(nr - 1))
     r0 = wp.min(int(wp.floor(r)), nr - 2)
-    return r0, r - float(r0), wp.min(_HALF_PI, _K / wp.sqrt(l))
+    return r0, r - float(r0), fh_theta_max_wp(l)
 
 
 @wp.func

@@ -37,6 +37,7 @@ from .scene import COLOUR_PARAMS, Geometry, Material, Scene
 from .surface import material_texture_slots
 from . import shading as S
 from .textures import Texture, build_atlas
+from .vertex_visibility import EnvVisibilityCache
 
 
 def refined_geometry(g: Geometry, ref) -> Geometry:
@@ -110,8 +111,7 @@ class Renderer:
         self.timings: dict = {"precompute_parts": {}}
         self._env_arrays_key = ()  # (see _env_arrays; () = not built yet)
         self._env_sg_arrays = None
-        self._env_vis_key = None  # (see _env_vertex_visibility)
-        self._env_vis = None
+        self.env_vis_cache = EnvVisibilityCache()  # (see _env_vertex_visibility)
         self._env_base_wp = None  # the environment map on the device (background), uploaded once
         t0 = time.perf_counter()
         with wp.ScopedDevice(self.device):
@@ -188,6 +188,8 @@ class Renderer:
         g = self.geometry
         d = self.device
         vis = S.Visibility()
+        from precompute.occluder_cone import no_cones, texel_half_diagonal
+
         from .fh import fh_table_array
 
         vis.fh_table = fh_table_array(d)
@@ -211,12 +213,17 @@ class Renderer:
                                                      resolution=rs.ssdf_resolution, pca_terms=rs.pca_terms, device=d,
                                                      progress=self.progress, compute=self._ssdf_compute)
             vis.mean, vis.basis, vis.weights = self.ssdf.device_arrays(d)
+            cones = self.ssdf.cones if len(self.ssdf.cones) == len(g.vertices) else no_cones(len(g.vertices))
+            vis.cones = wp.array(cones, dtype=wp.vec4, device=d)
+            vis.cone_band = texel_half_diagonal(self.ssdf.resolution)
             self.timings["precompute_parts"]["ssdf"] = time.perf_counter() - t
         else:
             self.ssdf = None
             vis.mean = wp.zeros((2, 2), dtype=float, device=d)
             vis.basis = wp.zeros((2, 2, 0), dtype=float, device=d)
             vis.weights = wp.zeros((1, 1), dtype=float, device=d)
+            vis.cones = wp.array(no_cones(1), dtype=wp.vec4, device=d)
+            vis.cone_band = 1.0
         self.vis = vis
 
     def _setup_environment(self):
@@ -324,21 +331,12 @@ class Renderer:
         """``es.vis``: the per-vertex visible fraction of each environment lobe
         (:mod:`warp_sg.vertex_visibility`), rebuilt only when the lobe axes (rotation, fit) or the
         visibility data change — not on camera, material, light or environment-scale edits."""
-        d = self.device
-        if not self._env_vis_vertex():
-            if self._env_vis is None or self._env_vis_key is not None:
-                self._env_vis_key, self._env_vis = None, wp.zeros((1, 1), dtype=float, device=d)
-        else:
-            key = (self._env_arrays_key[:2], id(self.ssdf), self.scene.render.fh)
-            if key != self._env_vis_key:
-                from .vertex_visibility import env_vertex_visibility
-
-                t = time.perf_counter()
-                self._env_vis = env_vertex_visibility(self.vis, es, len(self.geometry.vertices),
-                                                      self.scene.render.fh == "sigmoid", d)
-                self._env_vis_key = key
-                self.timings["env_vertex_visibility"] = time.perf_counter() - t
-        es.vis = self._env_vis
+        c = self.env_vis_cache
+        key = (self._env_arrays_key[:2], id(self.ssdf), id(self.vis.cones), self.scene.render.fh) \
+            if self._env_vis_vertex() else None
+        es.vis = c.array(key, self.vis, es, len(self.geometry.vertices), self.scene.render.fh == "sigmoid", self.device)
+        if key is not None:
+            self.timings["env_vertex_visibility"] = c.seconds
         return es
 
     def _setup_materials(self):

@@ -54,7 +54,7 @@ import warp as wp
 from .brdf.material_wp import (Material, brdf_diffuse, brdf_eval, brdf_mo, ndf_lobe, slice_lobe, slice_lobe_count,
                                 warp_axis)
 from .fastmath import fast_asin
-from .fh import fh_ratio_table_pair
+from .fh import fh_ratio_table_pair, fh_theta_max_wp
 from .frames import local_to_world, world_to_local
 from .lights import LightArrays, light_irradiance
 from .sg import CLAMPED_COSINE_SHARPNESS
@@ -67,6 +67,7 @@ from .surface import (  # noqa: F401  (re-exported: slot constants, MaterialText
 from .ssdf_product import sg_visibility_scale_sigmoid
 
 
+from precompute.occluder_cone import occluder_clearance  # noqa: E402
 from precompute.ssdf_wp import SSDFPoint, ssdf_at, ssdf_point  # noqa: E402
 
 ENV_NONE, ENV_SG, ENV_PREFILTERED = 0, 1, 2
@@ -99,6 +100,8 @@ class Visibility:
     weights: wp.array2d(dtype=float)
     normals: wp.array(dtype=wp.vec3)  # the per-vertex normals (frames) the SSDFs were computed in
     fh_table: wp.array2d(dtype=float)
+    cones: wp.array(dtype=wp.vec4)  # per-vertex occluder cones (precompute.occluder_cone)
+    cone_band: float  # their texel margin h: the width of the skip's blend
 
 
 @wp.struct
@@ -136,11 +139,17 @@ def vis_ratio(shadows: int, fh_mode: int, vis: Visibility, q: SSDFPoint, p: wp.v
     the SSDF of an unoccluded point (its horizon). The unshadowed response (exact BRDF and cosine,
     or the exact SG irradiance) already accounts for the horizon, so the SSDF supplies only what
     the occluders take away. ``q``: the shading point (``ssdf_point``, once per pixel). 1 without
-    shadows."""
+    shadows. With the table ``fh``, a lobe that clears the occluder cones of the point's vertices
+    by ``min(θh, θmax(λ))`` is fully visible (``precompute.occluder_cone``): no SSDF lookup."""
     if shadows == 0:
         return 1.0
-    th = ssdf_at(vis.mean, vis.basis, vis.weights, q, p)
     th_h = fast_asin(wp.dot(p, q.ng))
+    s = float(0.0)
+    if fh_mode == 0:
+        s = occluder_clearance(vis.cones, q, p, th_h, fh_theta_max_wp(lam), vis.cone_band)
+        if s >= 1.0:
+            return 1.0
+    th = ssdf_at(vis.mean, vis.basis, vis.weights, q, p)
     a = float(0.0)
     b = float(0.0)
     if fh_mode == 1:
@@ -148,7 +157,8 @@ def vis_ratio(shadows: int, fh_mode: int, vis: Visibility, q: SSDFPoint, p: wp.v
         b = sg_visibility_scale_sigmoid(th_h, lam)
     else:
         a, b = fh_ratio_table_pair(vis.fh_table, th, th_h, lam)
-    return wp.clamp(a / wp.max(b, 1.0e-8), 0.0, 1.0)
+    r = wp.clamp(a / wp.max(b, 1.0e-8), 0.0, 1.0)
+    return r + (1.0 - r) * s
 
 
 @wp.func

@@ -59,4 +59,31 @@ def env_vertex_visibility(vis: Visibility, env: EnvSG, n_vertices: int, fh_sigmo
     return out
 
 
-__all__ = ["env_vertex_visibility", "env_vertex_visibility_kernel"]
+class EnvVisibilityCache:
+    """The (V, J) array of :func:`env_vertex_visibility` kept between frames: ``array(key, ...)``
+    rebuilds it only when ``key`` (lobe axes and sharpnesses, visibility data, fh method) changes;
+    ``key=None`` gives a (1, 1) placeholder (the variant without the cache). ``builds`` counts
+    rebuilds and ``seconds`` is the last one's time."""
+
+    def __init__(self):
+        self.key = None
+        self.value = None
+        self.builds = 0
+        self.seconds = 0.0
+
+    def array(self, key, vis: Visibility, env: EnvSG, n_vertices: int, fh_sigmoid: bool, device) -> wp.array2d:
+        import time
+
+        if key is None:
+            if self.value is None or self.key is not None:
+                self.key, self.value = None, wp.zeros((1, 1), dtype=float, device=device)
+        elif key != self.key:
+            t = time.perf_counter()
+            self.value = env_vertex_visibility(vis, env, n_vertices, fh_sigmoid, device)
+            self.key = key
+            self.builds += 1
+            self.seconds = time.perf_counter() - t
+        return self.value
+
+
+__all__ = ["EnvVisibilityCache", "env_vertex_visibility", "env_vertex_visibility_kernel"]
