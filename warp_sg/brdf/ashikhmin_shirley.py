@@ -33,7 +33,8 @@ def aniso_log_cos(h):
     hz = np.maximum(h[..., 2], 0.0)
     small = s2 < 1e-12
     s2s = np.where(small, 1.0, s2)
-    L = np.where(small, -1.0 / (1.0 + hz), np.log1p(-np.minimum(s2s / (1.0 + hz), 1.0)) / s2s)
+    with np.errstate(divide="ignore"):  # h on the horizon (hz = 0): ln 0 = −inf, so D = exp(n·L) = 0
+        L = np.where(small, -1.0 / (1.0 + hz), np.log1p(-np.minimum(s2s / (1.0 + hz), 1.0)) / s2s)
     return L, hx2, hy2
 
 
