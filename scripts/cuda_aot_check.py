@@ -6,7 +6,8 @@ Warp's NVRTC builds PTX for the given architecture on a machine without a CUDA d
 CUDA path of every kernel (rasterizer, precompute, shading variants, reference) is at least
 compiled on the CPU-only machines. Imports every module of ``warp_sg``, ``raster`` and
 ``precompute``, instantiates the shading kernel variants a scene can select (all features on, and
-each feature off in turn), and calls ``wp.compile_aot_module(..., arch=ARCH, use_ptx=True)`` on
+each feature off in turn; the all-features variant for representative material-model sets: one
+diffuse, one microfacet, Lafortune, measured, GGX, and a mix), and calls ``wp.compile_aot_module(..., arch=ARCH, use_ptx=True)`` on
 each module that holds kernels. Exits 1 and names the module when one fails.
 """
 from __future__ import annotations
@@ -37,8 +38,11 @@ def shading_variants():
                       shadows=True, textures=True, normal_maps=True, fh_sigmoid=False, env_vis_vertex=True)
     off = {"env_diffuse": S.ENV_NONE, "env_specular": S.ENV_NONE, "lights": False, "specular": False,
            "shadows": False, "textures": False, "normal_maps": False, "fh_sigmoid": True,
-           "env_vis_vertex": False}
+           "env_vis_vertex": False, "models": (0,)}
     variants = [full] + [replace(full, **{f.name: off[f.name]}) for f in fields(S.Features)]
+    # material-model variants (brdf.material_variants): Oren–Nayar, Cook–Torrance, Lafortune,
+    # measured, GGX, and Lambert + Blinn–Phong + Ward + Ashikhmin–Shirley
+    variants += [replace(full, models=ms) for ms in ((1,), (4,), (8,), (9,), (10,), (0, 3, 6, 7))]
     return [S.shade_kernel(f) for f in variants]
 
 

@@ -30,6 +30,7 @@ from dataclasses import replace
 import numpy as np
 import warp as wp
 
+from .brdf.material_variants import models_of
 from .device import resolve_device
 from .errors import InputError, SceneError
 from .lights import DirectionalLight, EnvironmentLight, PointLight, light_arrays
@@ -395,15 +396,21 @@ class Renderer:
             normal_maps=self.has_normal_maps,
             fh_sigmoid=self.scene.render.fh == "sigmoid",
             env_vis_vertex=self._env_vis_vertex(),
+            models=models_of(self.material_table.records),
         )
 
     # ------------------------------------------------------------------ dynamic changes
     def set_material(self, name: str, **params) -> None:
         """Change constant parameters of material ``name`` (a texture path/Texture value makes it
-        textured). No precompute is re-run."""
+        textured). ``model=`` switches the BRDF model; its constant parameters are then only those
+        of this call (textures stay); the next frame uses the kernel variant of the new set of
+        models (``Features.models``). No precompute is re-run."""
         if name not in self.scene.materials:
             raise SceneError(f"unknown material '{name}'", where="set_material")
         m = self.scene.materials[name]
+        params = dict(params)
+        if "model" in params:
+            m.model, m.params = str(params.pop("model")), {}
         for k, v in params.items():
             if isinstance(v, Texture):
                 m.textures[k] = v

@@ -39,7 +39,9 @@ rotation about it to the mapped tangent. The BRDF and its slice are built in the
 
 Kernel variants: the kernel is specialised by scene content (``Features``): environment diffuse
 (SG mixture | none), environment specular (ΓL | none), lights, specular materials, shadows
-(SSDF), textures, normal/tangent maps and the fh method. Variants are created once per feature
+(SSDF), textures, normal/tangent maps, the fh method and the set of material models (the BRDF
+functions, ``shading_slice_lobe`` and ``diffuse_at`` come from ``material_funcs`` of
+``brdf.material_variants``, built for just those models). Variants are created once per feature
 tuple and cached (``shade_kernel``); code a scene does not need is removed at compile time with
 ``wp.static``. The kernel is 1-D over row-major samples with an index offset ``base``, so on the
 CPU disjoint ranges run on a small thread pool (``raster.parallel.launch``; Warp runs one CPU
@@ -51,8 +53,7 @@ from dataclasses import dataclass
 
 import warp as wp
 
-from .brdf.material_wp import (Material, brdf_diffuse, brdf_eval, brdf_mo, ndf_lobe, slice_lobe, slice_lobe_count,
-                                warp_axis)
+from .brdf.material_wp import ALL_MODELS, Material, above, material_funcs
 from .fastmath import fast_asin
 from .fh import fh_ratio_table_pair, fh_theta_max_wp
 from .frames import local_to_world, world_to_local
@@ -74,9 +75,6 @@ ENV_NONE, ENV_SG, ENV_PREFILTERED = 0, 1, 2
 #: sharpness of the eq. 40 clamped-cosine lobe: only used to place and size the product lobe
 #: C* ⊗ G whose visibility / ΓL lookup stands for the cosine-weighted lobe
 CC_LAM = wp.constant(CLAMPED_COSINE_SHARPNESS)
-
-#: smallest cosine of the (clamped) view / lobe directions in the shading frame
-COS_MIN = wp.constant(1.0e-3)
 
 
 @wp.struct
@@ -121,16 +119,6 @@ class EnvSG:
 # building blocks (@wp.func)
 # --------------------------------------------------------------------------------------------
 @wp.func
-def above(v: wp.vec3) -> wp.vec3:
-    """v with its z clamped to ≥ COS_MIN (renormalised): keeps grazing directions shadeable."""
-    if v[2] >= COS_MIN:
-        return v
-    xy = wp.sqrt(wp.max(v[0] * v[0] + v[1] * v[1], 1.0e-30))
-    s = wp.sqrt(1.0 - COS_MIN * COS_MIN) / xy
-    return wp.vec3(v[0] * s, v[1] * s, COS_MIN)
-
-
-@wp.func
 def vis_ratio(shadows: int, fh_mode: int, vis: Visibility, q: SSDFPoint, p: wp.vec3, lam: float) -> float:
     """The visible fraction of a lobe (p, λ) relative to the unoccluded point:
     ``fh(θd(p), λ) / fh(θh(p), λ)`` with θd the SSDF of the shading point at world direction p
@@ -161,30 +149,6 @@ def vis_ratio(shadows: int, fh_mode: int, vis: Visibility, q: SSDFPoint, p: wp.v
     return r + (1.0 - r) * s
 
 
-@wp.func
-def shading_slice_lobe(mat: Material, o: wp.vec3, k: int):
-    """SG lobe k of the slice ks ρs(o, ·) (spherical warp, eq. 17–22) for shading: as
-    ``material_wp.slice_lobe``, but ``Mo`` is taken at the warped axis lifted to just above the
-    horizon instead of dropping the whole lobe once its axis dips below it (at grazing views half
-    of such a lobe is still above the horizon; the cosine weight ``e(n·pW, λW)`` of the caller
-    removes the rest)."""
-    m = mat.model
-    if m == 2 or m == 8:
-        return slice_lobe(mat, o, k)
-    axis, lam, mu = ndf_lobe(mat, k)
-    pW, lamW, c = warp_axis(axis, lam, o)
-    amp = wp.vec3(0.0, 0.0, 0.0)
-    if c > 0.0:
-        amp = brdf_mo(mat, o, above(pW)) * mu
-    return pW, lamW, amp
-
-
-@wp.func
-def diffuse_at(mat: Material, o_l: wp.vec3, p_l: wp.vec3) -> wp.vec3:
-    """ρd(o, i) evaluated at a product lobe's axis (kd/π exactly for Lambert)."""
-    return brdf_diffuse(mat, o_l, above(p_l))
-
-
 # --------------------------------------------------------------------------------------------
 # kernel variants
 # --------------------------------------------------------------------------------------------
@@ -203,6 +167,12 @@ class Features:
     #: environment-diffuse visibility interpolated from the per-vertex cache ``EnvSG.vis``
     #: (``warp_sg.vertex_visibility``) instead of one SSDF lookup per lobe per pixel
     env_vis_vertex: bool = False
+    #: sorted material model codes of the scene (``material_wp.models_of``); the material
+    #: functions are specialised to them (``material_funcs``); default: every model
+    models: tuple = tuple(sorted(ALL_MODELS))
+
+    def __post_init__(self):
+        object.__setattr__(self, "models", tuple(sorted({int(m) for m in self.models})))
 
 
 _KERNELS: dict = {}
@@ -228,6 +198,9 @@ def shade_kernel(f: Features):
     NMAP = bool(f.normal_maps)
     FH = 1 if f.fh_sigmoid else 0
     VVIS = bool(f.env_vis_vertex) and SHADOWS == 1
+    MF = material_funcs(f.models)  # the material switch reduced to the scene's models
+    brdf_eval, diffuse_at, slice_lobe_count = MF.brdf_eval, MF.diffuse_at, MF.slice_lobe_count
+    shading_slice_lobe = MF.shading_slice_lobe
     USE_GAMMA = ENV_S == ENV_PREFILTERED
     if USE_GAMMA:
         GammaT, gamma_lookup = _gamma_parts()
@@ -332,7 +305,7 @@ def shade_kernel(f: Features):
                         col += wp.cw_mul(mw, g) * (e * vr)
         out[y, x] = wp.vec3(wp.max(col[0], 0.0), wp.max(col[1], 0.0), wp.max(col[2], 0.0))
 
-    key = "shade_" + "_".join(str(int(v)) for v in (ENV_D, ENV_S, LIGHTS, SPEC, SHADOWS, TEX, NMAP, FH, VVIS))
+    key = "shade_" + "_".join(str(int(v)) for v in (ENV_D, ENV_S, LIGHTS, SPEC, SHADOWS, TEX, NMAP, FH, VVIS)) + MF.tag
     shade.__name__ = key
     shade.__qualname__ = key
     k = wp.kernel(shade, enable_backward=False, module="unique")

@@ -1,15 +1,17 @@
 r"""Evaluation side of the kernel BRDF contract (:mod:`warp_sg.brdf.material_wp`, which re-exports
-every name and documents the contract): ``brdf_eval``, ``brdf_diffuse``, ``brdf_specular``,
-``brdf_mo``, ``brdf_ndf`` and their building blocks, and the SG lobes of the specular slice
-(``ndf_lobe``, ``slice_lobe_count``, ``slice_lobe`` with its explicit-table overload, the spherical
-warp ``warp_axis`` / ``warp_lobe``). Local frame, z+ = normal, x = tangent.
+every name and documents the contract): the model-independent building blocks of ``brdf_eval``,
+``brdf_mo``, ``brdf_ndf`` and the SG lobes of the specular slice (half vector, Fresnel, shadowing
+terms, GGX and Ashikhmin–Shirley pieces, the Lafortune lobe, the GGX node table, the spherical
+warp of an axis ``warp_axis``, the horizon lift ``above``). The functions that switch on
+``mat.model`` are built from these in :mod:`~warp_sg.brdf.material_variants`, once per set of
+models. Local frame, z+ = normal, x = tangent.
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the @wp.func / struct annotations.
 import warp as wp
 
 from ..frames import frame_bitangent, frame_tangent
-from .material_struct import INV_PI, LN_EPS, PI, TWO_PI, WARP_COS_EPS, Material
-from .measured_wp import fresnel_dielectric, measured_mo, merl_eval
+from .material_struct import LN_EPS, WARP_COS_EPS, Material
+from .measured_wp import fresnel_dielectric
 
 
 # ------------------------------------------------------------------------------------------------
@@ -177,85 +179,23 @@ def ggx_extent(a: float) -> float:
     return wp.min(wp.atan(wp.sqrt((E - 1.0) / den)), cap)
 
 
+#: smallest cosine of the (clamped) view / lobe directions in the shading frame (``above``)
+COS_MIN = wp.constant(1.0e-3)
+
+
+@wp.func
+def above(v: wp.vec3) -> wp.vec3:
+    """v with its z clamped to ≥ COS_MIN (renormalised): keeps grazing directions shadeable."""
+    if v[2] >= COS_MIN:
+        return v
+    xy = wp.sqrt(wp.max(v[0] * v[0] + v[1] * v[1], 1.0e-30))
+    s = wp.sqrt(1.0 - COS_MIN * COS_MIN) / xy
+    return wp.vec3(v[0] * s, v[1] * s, COS_MIN)
+
+
 # ------------------------------------------------------------------------------------------------
-# NDF and Mo
+# Lafortune lobe and Oren–Nayar parameters
 # ------------------------------------------------------------------------------------------------
-@wp.func
-def brdf_ndf(mat: Material, h: wp.vec3) -> float:
-    """D(h) of the factorisation ρs = Mo·D (peak 1). Measured: the NDF SG mixture of the table."""
-    m = mat.model
-    p = mat.params
-    if h[2] <= 0.0:
-        return 0.0
-    if m == 2 or m == 3:
-        return cos_pow(h, p[0])
-    if m == 4:
-        t = wp.atan2(wp.sqrt(sin2_theta(h)), h[2]) / p[0]
-        return wp.exp(-t * t)
-    if m == 5:
-        return wp.exp(-sin2_theta(h) / (h[2] * h[2]) / (p[0] * p[0]))
-    if m == 6:
-        e = (h[0] * h[0] / (p[0] * p[0]) + h[1] * h[1] / (p[1] * p[1])) / (h[2] * h[2])
-        return wp.exp(-e)
-    if m == 7:
-        return wp.exp(as_exponent_log(h, p[0], p[1]))
-    if m == 10:
-        return ggx_ndf_peak1(h, p[0], p[1])
-    if m == 9:
-        d = float(0.0)
-        for k in range(mat.lobe_count):
-            j = mat.lobe_start + k
-            a = mat.lobe_axis[j]
-            dd = h - a
-            d += mat.lobe_amplitude[j] * wp.exp(-mat.lobe_sharpness[j] * 0.5 * wp.dot(dd, dd))
-        return d
-    return 0.0
-
-
-@wp.func
-def mo_raw(mat: Material, o: wp.vec3, i: wp.vec3) -> wp.vec3:
-    """Mo(o, i) without ks (zero if o or i is below the horizon)."""
-    if o[2] <= 0.0 or i[2] <= 0.0:
-        return wp.vec3(0.0, 0.0, 0.0)
-    m = mat.model
-    p = mat.params
-    one = wp.vec3(1.0, 1.0, 1.0)
-    if m == 2 or m == 3:
-        return one * ((p[0] + 2.0) / TWO_PI)
-    if m == 4 or m == 5:
-        h = half_vec(o, i)
-        val = g_over_cos(o, i, h) * INV_PI
-        if m == 5:
-            hz = wp.max(h[2], 1.0e-6)
-            hz2 = hz * hz
-            val = val / (4.0 * p[0] * p[0] * hz2 * hz2)
-        return fresnel_eval(mat, wp.dot(i, h)) * val
-    if m == 6:
-        c = wp.sqrt(wp.max(o[2] * i[2], 1.0e-12))
-        return one * (1.0 / (4.0 * PI * p[0] * p[1] * c))
-    if m == 7:
-        h = half_vec(o, i)
-        ih = wp.max(wp.dot(i, h), 1.0e-12)
-        cmax = wp.max(wp.max(i[2], o[2]), 1.0e-12)
-        val = wp.sqrt((p[0] + 1.0) * (p[1] + 1.0)) / (8.0 * PI * ih * cmax)
-        return fresnel_eval(mat, ih) * val
-    if m == 10:
-        h = half_vec(o, i)
-        val = ggx_g2_over_cos(o, i, p[0], p[1]) / (4.0 * PI * p[0] * p[1])
-        return fresnel_eval(mat, wp.dot(i, h)) * val
-    if m == 8:
-        return one
-    if m == 9:
-        return measured_mo(mat.mo_tables, mat.table_index, mat.fresnel_a, o, i)
-    return wp.vec3(0.0, 0.0, 0.0)
-
-
-@wp.func
-def brdf_mo(mat: Material, o: wp.vec3, i: wp.vec3) -> wp.vec3:
-    """ks ∘ Mo(o, i) (architecture contract: includes ks)."""
-    return wp.cw_mul(mat.ks, mo_raw(mat, o, i))
-
-
 @wp.func
 def lafortune_lobe(mat: Material, j: int, o: wp.vec3, i: wp.vec3) -> float:
     c = mat.lobe_axis[j]
@@ -266,73 +206,15 @@ def lafortune_lobe(mat: Material, j: int, o: wp.vec3, i: wp.vec3) -> float:
 
 
 @wp.func
-def brdf_specular(mat: Material, o: wp.vec3, i: wp.vec3) -> wp.vec3:
-    """ρs(o, i) without ks; zero below the horizon."""
-    if o[2] <= 0.0 or i[2] <= 0.0:
-        return wp.vec3(0.0, 0.0, 0.0)
-    m = mat.model
-    if m <= 1:
-        return wp.vec3(0.0, 0.0, 0.0)
-    if m == 2:
-        r = reflect_z(o)
-        d = r - i
-        omd = 0.5 * wp.dot(d, d)
-        if omd >= 1.0:
-            return wp.vec3(0.0, 0.0, 0.0)
-        lobe = wp.exp(mat.params[0] * log1p_f(-omd))
-        return wp.vec3(1.0, 1.0, 1.0) * ((mat.params[0] + 2.0) / TWO_PI * lobe)
-    if m == 8:
-        s = float(0.0)
-        for k in range(mat.lobe_count):
-            s += lafortune_lobe(mat, mat.lobe_start + k, o, i)
-        return wp.vec3(s, s, s)
-    h = half_vec(o, i)
-    return mo_raw(mat, o, i) * brdf_ndf(mat, h)
-
-
-@wp.func
 def oren_nayar_params(sigma: float) -> wp.vec4:
     """``params`` of an Oren–Nayar material for roughness σ (radians): (A, B, σ, 0) (lambert.py)."""
     s2 = sigma * sigma
     return wp.vec4(1.0 - s2 / (2.0 * (s2 + 0.33)), 0.45 * s2 / (s2 + 0.09), sigma, 0.0)
 
 
-@wp.func
-def brdf_diffuse(mat: Material, o: wp.vec3, i: wp.vec3) -> wp.vec3:
-    """kd/π, or Oren–Nayar kd/π (A + B max(0, ix ox + iy oy)/max(cos θi, cos θo))."""
-    if o[2] <= 0.0 or i[2] <= 0.0:
-        return wp.vec3(0.0, 0.0, 0.0)
-    if mat.model == 1:
-        dphi = wp.max(o[0] * i[0] + o[1] * i[1], 0.0)
-        cmax = wp.max(wp.max(o[2], i[2]), 1.0e-12)
-        return mat.kd * (INV_PI * (mat.params[0] + mat.params[1] * dphi / cmax))
-    return mat.kd * INV_PI
-
-
-@wp.func
-def brdf_eval(mat: Material, o: wp.vec3, i: wp.vec3) -> wp.vec3:
-    """Exact BRDF kd/π + ks ∘ ρs(o, i) (measured: the tabulated data); zero below the horizon."""
-    if o[2] <= 0.0 or i[2] <= 0.0:
-        return wp.vec3(0.0, 0.0, 0.0)
-    if mat.model == 9:
-        return merl_eval(mat.merl_data, mat.data_offset, o, i)
-    return brdf_diffuse(mat, o, i) + wp.cw_mul(mat.ks, brdf_specular(mat, o, i))
-
-
 # ------------------------------------------------------------------------------------------------
-# SG lobes: NDF lobes and the warped slice
+# SG lobes: GGX node table, anisotropic overlap, spherical warp of an axis
 # ------------------------------------------------------------------------------------------------
-@wp.func
-def _aniso_lobe(mat: Material, k: int, lam: float, theta_v: float, wide_x: int):
-    n = mat.lobe_count
-    theta_i = 2.0 * theta_v / float(n + 1)
-    a = (float(k) - 0.5 * float(n - 1)) * theta_i
-    axis = wp.vec3(0.0, wp.sin(a), wp.cos(a))
-    if wide_x == 1:
-        axis = wp.vec3(wp.sin(a), 0.0, wp.cos(a))
-    return axis, lam, brdf_ndf(mat, axis)
-
-
 #: GGX roughness nodes of the shipped fits (ggx.py TABLE_A0, TABLE_STEP, TABLE_N; MIN_LAMBDA)
 GGX_TABLE_A0 = wp.constant(0.025)
 GGX_TABLE_STEP = wp.constant(0.025)
@@ -373,69 +255,6 @@ def _aniso_overlap(n: int, k: int, lam: float, theta_v: float) -> float:
 
 
 @wp.func
-def ndf_lobe(mat: Material, k: int):
-    """NDF SG lobe k (0 ≤ k < lobe_count): (axis, sharpness, amplitude) in the local frame."""
-    p = mat.params
-    m = mat.model
-    if mat.analytic == 1:
-        z = wp.vec3(0.0, 0.0, 1.0)
-        if m == 2 or m == 3:
-            return z, wp.max(p[0], 1.0e-6), 1.0
-        if m == 4 or m == 5:
-            return z, 2.0 / (p[0] * p[0]), 1.0
-        if m == 6:
-            if p[0] == p[1]:
-                return z, 2.0 / (p[0] * p[0]), 1.0
-            amin = wp.min(p[0], p[1])
-            amax = wp.max(p[0], p[1])
-            wide_x = int(0)
-            if p[0] > p[1]:
-                wide_x = 1
-            return _aniso_lobe(mat, k, 2.0 / (amin * amin), wp.atan(amax * wp.sqrt(-LN_EPS)), wide_x)
-        if m == 7:
-            if p[0] == p[1]:
-                return z, wp.max(p[0], 1.0e-6), 1.0
-            nmin = wp.min(p[0], p[1])
-            nmax = wp.max(p[0], p[1])
-            # θv = arccos(ε^{1/(nmin+1)}) = 2 asin(√((1 − ε^{1/(nmin+1)})/2))
-            omc = expm1_neg_f(-LN_EPS / (nmin + 1.0))
-            theta_v = 2.0 * wp.asin(wp.sqrt(0.5 * omc))
-            wide_x = int(0)
-            if p[0] < p[1]:
-                wide_x = 1
-            return _aniso_lobe(mat, k, nmax, theta_v, wide_x)
-        if m == 10:
-            if p[2] == p[3]:  # isotropic material: the node table (any per-texel α)
-                lam_t, mu_t = ggx_table_lobe(mat, k, wp.sqrt(p[0] * p[1]))
-                return z, lam_t, mu_t
-            wide_x = int(0)
-            if p[0] > p[1]:
-                wide_x = 1
-            amin = wp.min(p[0], p[1])
-            lam_g = 2.0 / (amin * amin)
-            theta_g = ggx_extent(wp.max(p[0], p[1]))
-            ax_g, l_g, mu_g = _aniso_lobe(mat, k, lam_g, theta_g, wide_x)
-            return ax_g, l_g, mu_g / _aniso_overlap(mat.lobe_count, k, lam_g, theta_g)
-    j = mat.lobe_start + k
-    lam = mat.lobe_sharpness[j]
-    if m == 10:
-        # GGX fits scale with the NDF's curvature 1/α² − 1 (D̂ = 1 − 2(1/α² − 1)θ² + …): fitted for
-        # (αx, αy) = (p[2], p[3]); a textured α rescales the sharpness (factor 1 when untextured)
-        c_fit = wp.max(1.0 / (p[2] * p[3]) - 1.0, 1.0e-6)
-        c_tex = wp.max(1.0 / (p[0] * p[1]) - 1.0, 1.0e-6)
-        lam = lam * c_tex / c_fit
-    return mat.lobe_axis[j], lam, mat.lobe_amplitude[j]
-
-
-@wp.func
-def slice_lobe_count(mat: Material) -> int:
-    """Number of SG lobes of the specular slice (0 for diffuse-only models)."""
-    if mat.model <= 1:
-        return 0
-    return mat.lobe_count
-
-
-@wp.func
 def warp_axis(pD: wp.vec3, lam: float, o: wp.vec3):
     """Spherical warp of an NDF lobe's axis and sharpness (eq. 17–22): (pW = reflection of o about
     pD, λW = λD/(4|pD·o|), pD·o); the grazing limit pD·o → 0 is guarded by WARP_COS_EPS."""
@@ -445,44 +264,3 @@ def warp_axis(pD: wp.vec3, lam: float, o: wp.vec3):
     if l > 0.0:
         pW = pW / l
     return pW, lam / (4.0 * wp.max(wp.abs(c), WARP_COS_EPS)), c
-
-
-@wp.func
-def warp_lobe(mat: Material, pD: wp.vec3, lam: float, mu: float, o: wp.vec3):
-    """Spherical warp (eq. 17–22): (pW, λD/(4|pD·o|), ks ∘ Mo(o, pW) μ)."""
-    pW, lamW, c = warp_axis(pD, lam, o)
-    amp = wp.vec3(0.0, 0.0, 0.0)
-    if c > 0.0 and pW[2] > 0.0 and o[2] > 0.0:
-        amp = brdf_mo(mat, o, pW) * mu
-    return pW, lamW, amp
-
-
-@wp.func
-def slice_lobe(mat: Material, o: wp.vec3, k: int):
-    """SG lobe k of the slice ks ρs(o, ·): (axis, sharpness, amplitude RGB)."""
-    m = mat.model
-    if m == 8:
-        j = mat.lobe_start + k
-        c = mat.lobe_axis[j]
-        v = wp.cw_mul(c, o)
-        nv = wp.length(v)
-        n = wp.max(mat.lobe_sharpness[j], 1.0e-6)
-        if nv <= 0.0:
-            return wp.vec3(0.0, 0.0, 1.0), n, wp.vec3(0.0, 0.0, 0.0)
-        amp = mat.lobe_amplitude[j] * wp.exp(wp.min(mat.lobe_sharpness[j] * wp.log(nv), 80.0))
-        return v / nv, n, mat.ks * amp
-    axis, lam, mu = ndf_lobe(mat, k)
-    if m == 2:
-        return reflect_z(o), lam, mat.ks * ((mat.params[0] + 2.0) / TWO_PI * mu)
-    return warp_lobe(mat, axis, lam, mu, o)
-
-
-@wp.func
-def slice_lobe(mat: Material, lobe_axis: wp.array(dtype=wp.vec3), lobe_sharpness: wp.array(dtype=float),
-               lobe_amplitude: wp.array(dtype=float), o: wp.vec3, k: int):
-    """Overload with explicitly passed lobe tables (architecture.md signature)."""
-    mm = mat
-    mm.lobe_axis = lobe_axis
-    mm.lobe_sharpness = lobe_sharpness
-    mm.lobe_amplitude = lobe_amplitude
-    return slice_lobe(mm, o, k)

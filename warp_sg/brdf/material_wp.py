@@ -39,9 +39,11 @@ in the local tangent frame (x = tangent).
 
 Files: this module is the public entry (``from warp_sg.brdf import material_wp as M``) and
 re-exports every name of :mod:`~warp_sg.brdf.material_struct` (the struct, model codes and
-packing), :mod:`~warp_sg.brdf.material_eval_wp` (evaluation and SG lobes) and
-:mod:`~warp_sg.brdf.material_sample_wp` (importance sampling) — the same objects, so kernels may
-use either.
+packing), :mod:`~warp_sg.brdf.material_eval_wp` (model-independent building blocks),
+:mod:`~warp_sg.brdf.material_variants` (the functions that switch on ``mat.model``: the generic
+all-model ones here, and ``material_funcs(models)`` for kernels specialised to a set of models)
+and :mod:`~warp_sg.brdf.material_sample_wp` (importance sampling) — the same objects, so kernels
+may use either.
 """
 from .material_struct import (  # noqa: F401
     _ANALYTIC, FRESNEL_CONDUCTOR, FRESNEL_DIELECTRIC, FRESNEL_NONE, FRESNEL_SCHLICK, INV_PI, LN_EPS, Material,
@@ -50,11 +52,13 @@ from .material_struct import (  # noqa: F401
     MODEL_WARD, pack_materials, PI, TWO_PI, WARP_COS_EPS,
 )
 from .material_eval_wp import (  # noqa: F401
-    _aniso_lobe, as_exponent_log, brdf_diffuse, brdf_eval, brdf_mo, brdf_ndf, brdf_specular, cos_pow,
-    expm1_neg_f, fresnel_eval, from_axis, g_over_cos, ggx_extent, ggx_g1, ggx_g2_over_cos, ggx_lambda_cos,
-    ggx_ndf_peak1, ggx_table_lobe, half_vec, lafortune_lobe, log1p_f, log_cos_theta, lum,
-    mo_raw, ndf_lobe, oren_nayar_params, reflect_z, sin2_theta, slice_lobe, slice_lobe_count, warp_axis,
-    warp_lobe,
+    COS_MIN, above, as_exponent_log, cos_pow, expm1_neg_f, fresnel_eval, from_axis, g_over_cos, ggx_extent, ggx_g1,
+    ggx_g2_over_cos, ggx_lambda_cos, ggx_ndf_peak1, ggx_table_lobe, half_vec, lafortune_lobe, log1p_f,
+    log_cos_theta, lum, oren_nayar_params, reflect_z, sin2_theta, warp_axis,
+)
+from .material_variants import (  # noqa: F401
+    _aniso_lobe, ALL_MODELS, brdf_diffuse, brdf_eval, brdf_mo, brdf_ndf, brdf_specular, diffuse_at, material_funcs,
+    models_of, mo_raw, ndf_lobe, shading_slice_lobe, slice_lobe, slice_lobe_count, variant_tag, warp_lobe,
 )
 from .material_sample_wp import (  # noqa: F401
     as_h, as_pdf_h, beckmann_alphas, beckmann_h, beckmann_pdf_h, brdf_pdf, brdf_sample, cos_power_dir,
