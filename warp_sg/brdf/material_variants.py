@@ -19,7 +19,7 @@ which models it contains.
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the @wp.func annotations; the
 # functions are closures over the model set.
-from types import SimpleNamespace
+from typing import Any, NamedTuple
 
 import warp as wp
 
@@ -36,6 +36,26 @@ ALL_MODELS = frozenset(range(11))
 _CACHE: dict = {}
 
 
+class MaterialFuncs(NamedTuple):
+    """The ``@wp.func``s of one model set (:func:`material_funcs`)."""
+
+    models: tuple  # the sorted model codes
+    tag: str       # the name suffix of the functions (``variant_tag``)
+    brdf_ndf: Any
+    mo_raw: Any
+    brdf_mo: Any
+    brdf_specular: Any
+    brdf_diffuse: Any
+    brdf_eval: Any
+    aniso_lobe: Any
+    ndf_lobe: Any
+    slice_lobe_count: Any
+    warp_lobe: Any
+    slice_lobe: Any
+    shading_slice_lobe: Any
+    diffuse_at: Any
+
+
 def models_of(records) -> tuple:
     """The sorted model codes of packed material records (``MaterialTable.records``)."""
     return tuple(sorted({int(r["model"]) for r in records}))
@@ -47,12 +67,13 @@ def variant_tag(models) -> str:
     return "" if ms == ALL_MODELS else "_m" + "_".join(str(m) for m in sorted(ms))
 
 
-def material_funcs(models=ALL_MODELS) -> SimpleNamespace:
+def material_funcs(models=ALL_MODELS) -> MaterialFuncs:
     """The model-switching ``@wp.func``s for the model codes ``models`` (any iterable of ints in
     ``ALL_MODELS``; cached per set): ``brdf_ndf``, ``mo_raw``, ``brdf_mo``, ``brdf_specular``,
     ``brdf_diffuse``, ``brdf_eval``, ``ndf_lobe``, ``slice_lobe_count``, ``warp_lobe``,
     ``slice_lobe`` (with its explicit-table overload), and the shading pair ``shading_slice_lobe``,
-    ``diffuse_at``; ``models`` (the sorted tuple) and ``tag`` (the name suffix)."""
+    ``diffuse_at`` (a :class:`MaterialFuncs`, with ``models``, the sorted codes, and ``tag``, the
+    name suffix)."""
     ms = frozenset(int(m) for m in models)
     if not ms or not ms <= ALL_MODELS:
         raise InputError(f"material model codes {sorted(ms)} are not a non-empty subset of 0..10",
@@ -189,15 +210,17 @@ def material_funcs(models=ALL_MODELS) -> SimpleNamespace:
 
     @wp.func(name="brdf_eval" + T)
     def brdf_eval(mat: Material, o: wp.vec3, i: wp.vec3) -> wp.vec3:
-        """Exact BRDF kd/π + ks ∘ ρs(o, i) (measured: the tabulated data); zero below the horizon."""
-        if o[2] <= 0.0 or i[2] <= 0.0:
-            return wp.vec3(0.0, 0.0, 0.0)
+        """Exact BRDF kd/π + ks ∘ ρs(o, i) (measured: the tabulated data); zero below the horizon
+        (each part is)."""
         if wp.static(H[9]):
             if mat.model == 9:
+                if o[2] <= 0.0 or i[2] <= 0.0:
+                    return wp.vec3(0.0, 0.0, 0.0)
                 return merl_eval(mat.merl_data, mat.data_offset, o, i)
-        if wp.static(any(H[2:])):
-            return brdf_diffuse(mat, o, i) + wp.cw_mul(mat.ks, brdf_specular(mat, o, i))
-        return brdf_diffuse(mat, o, i)
+        f = brdf_diffuse(mat, o, i)
+        if wp.static(any(H[2:])):  # a specular model is in the set
+            f += wp.cw_mul(mat.ks, brdf_specular(mat, o, i))
+        return f
 
     # -------------------------------------------------------------------------------- SG lobes
     @wp.func(name="aniso_lobe" + T)
@@ -345,27 +368,13 @@ def material_funcs(models=ALL_MODELS) -> SimpleNamespace:
         """ρd(o, i) evaluated at a product lobe's axis (kd/π exactly for Lambert)."""
         return brdf_diffuse(mat, o_l, above(p_l))
 
-    ns = SimpleNamespace(models=tuple(sorted(ms)), tag=T, brdf_ndf=brdf_ndf, mo_raw=mo_raw, brdf_mo=brdf_mo,
-                         brdf_specular=brdf_specular, brdf_diffuse=brdf_diffuse, brdf_eval=brdf_eval,
-                         aniso_lobe=_aniso_lobe, ndf_lobe=ndf_lobe, slice_lobe_count=slice_lobe_count,
-                         warp_lobe=warp_lobe, slice_lobe=slice_lobe, shading_slice_lobe=shading_slice_lobe,
-                         diffuse_at=diffuse_at)
-    _CACHE[ms] = ns
-    return ns
+    fs = MaterialFuncs(tuple(sorted(ms)), T, brdf_ndf, mo_raw, brdf_mo, brdf_specular, brdf_diffuse, brdf_eval,
+                       _aniso_lobe, ndf_lobe, slice_lobe_count, warp_lobe, slice_lobe, shading_slice_lobe, diffuse_at)
+    _CACHE[ms] = fs
+    return fs
 
 
 #: the generic (all-model) functions, re-exported by :mod:`~warp_sg.brdf.material_wp`
 GENERIC = material_funcs(ALL_MODELS)
-brdf_ndf = GENERIC.brdf_ndf
-mo_raw = GENERIC.mo_raw
-brdf_mo = GENERIC.brdf_mo
-brdf_specular = GENERIC.brdf_specular
-brdf_diffuse = GENERIC.brdf_diffuse
-brdf_eval = GENERIC.brdf_eval
-_aniso_lobe = GENERIC.aniso_lobe
-ndf_lobe = GENERIC.ndf_lobe
-slice_lobe_count = GENERIC.slice_lobe_count
-warp_lobe = GENERIC.warp_lobe
-slice_lobe = GENERIC.slice_lobe
-shading_slice_lobe = GENERIC.shading_slice_lobe
-diffuse_at = GENERIC.diffuse_at
+(_, _, brdf_ndf, mo_raw, brdf_mo, brdf_specular, brdf_diffuse, brdf_eval, _aniso_lobe, ndf_lobe, slice_lobe_count,
+ warp_lobe, slice_lobe, shading_slice_lobe, diffuse_at) = GENERIC
