@@ -30,7 +30,6 @@ from dataclasses import replace
 import numpy as np
 import warp as wp
 
-from .brdf.material_variants import models_of
 from .device import resolve_device
 from .errors import InputError, SceneError
 from .lights import DirectionalLight, EnvironmentLight, PointLight, light_arrays
@@ -396,19 +395,17 @@ class Renderer:
             normal_maps=self.has_normal_maps,
             fh_sigmoid=self.scene.render.fh == "sigmoid",
             env_vis_vertex=self._env_vis_vertex(),
-            models=models_of(self.material_table.records),
+            models=self.material_table.models,
         )
 
     # ------------------------------------------------------------------ dynamic changes
     def set_material(self, name: str, **params) -> None:
         """Change constant parameters of material ``name`` (a texture path/Texture value makes it
-        textured). ``model=`` switches the BRDF model; its constant parameters are then only those
-        of this call (textures stay); the next frame uses the kernel variant of the new set of
-        models (``Features.models``). No precompute is re-run."""
+        textured; ``model=`` switches the model, whose constant parameters are then only this call's:
+        the next frame uses the kernel variant of the new model set). No precompute is re-run."""
         if name not in self.scene.materials:
             raise SceneError(f"unknown material '{name}'", where="set_material")
         m = self.scene.materials[name]
-        params = dict(params)
         if "model" in params:
             m.model, m.params = str(params.pop("model")), {}
         for k, v in params.items():

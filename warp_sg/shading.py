@@ -167,7 +167,7 @@ class Features:
     #: environment-diffuse visibility interpolated from the per-vertex cache ``EnvSG.vis``
     #: (``warp_sg.vertex_visibility``) instead of one SSDF lookup per lobe per pixel
     env_vis_vertex: bool = False
-    #: sorted material model codes of the scene (``material_wp.models_of``); the material
+    #: sorted material model codes of the scene (``MaterialTable.models``); the material
     #: functions are specialised to them (``material_funcs``); default: every model
     models: tuple = tuple(sorted(ALL_MODELS))
 

@@ -79,6 +79,11 @@ class MaterialTable:
         self.records = records
         self.device = device
 
+    @property
+    def models(self) -> tuple:
+        """The sorted model codes of the table (the kernel variant's ``shading.Features.models``)."""
+        return tuple(sorted({int(r["model"]) for r in self.records}))
+
     def __len__(self):
         return len(self.records)
 

@@ -13,7 +13,7 @@ and in :mod:`~warp_sg.brdf.material_wp`.
 
 A material whose model is not in the set falls through every branch: zero specular part, ``kd/π``
 diffuse part — callers pass the set of every model a scene's material table holds
-(:func:`models_of`). Functions of a set are cached (one build per distinct set and process) and
+(``MaterialTable.models``). Functions of a set are cached (one build per distinct set and process) and
 named ``<func>_m<ids>`` (generic set: the plain names), so the generated source of a kernel shows
 which models it contains.
 """
@@ -54,11 +54,6 @@ class MaterialFuncs(NamedTuple):
     slice_lobe: Any
     shading_slice_lobe: Any
     diffuse_at: Any
-
-
-def models_of(records) -> tuple:
-    """The sorted model codes of packed material records (``MaterialTable.records``)."""
-    return tuple(sorted({int(r["model"]) for r in records}))
 
 
 def variant_tag(models) -> str:

@@ -58,7 +58,7 @@ from .material_eval_wp import (  # noqa: F401
 )
 from .material_variants import (  # noqa: F401
     _aniso_lobe, ALL_MODELS, brdf_diffuse, brdf_eval, brdf_mo, brdf_ndf, brdf_specular, diffuse_at, material_funcs,
-    models_of, mo_raw, ndf_lobe, shading_slice_lobe, slice_lobe, slice_lobe_count, variant_tag, warp_lobe,
+    mo_raw, ndf_lobe, shading_slice_lobe, slice_lobe, slice_lobe_count, variant_tag, warp_lobe,
 )
 from .material_sample_wp import (  # noqa: F401
     as_h, as_pdf_h, beckmann_alphas, beckmann_h, beckmann_pdf_h, brdf_pdf, brdf_sample, cos_power_dir,
