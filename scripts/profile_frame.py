@@ -1,10 +1,11 @@
 """Per-stage and per-lobe profile of a warm frame (docs/benchmarks.md "Frame profile").
 
-    python scripts/profile_frame.py [SCENE.toml | torus:N ...] [--size 512] [--repeat 5]
-                                    [--env-visibility vertex|pixel]
+    python scripts/profile_frame.py [SCENE.toml | torus:N | lambert:SCENE.toml ...] [--size 512]
+                                    [--repeat 5] [--env-visibility vertex|pixel] [--kernel-cache DIR]
 
 (``torus:N`` is the frame-scaling bench scene with a torus of about N triangles,
-``warp_sg.bench_scaling.scaling_scene``.)
+``warp_sg.bench_scaling.scaling_scene``; ``lambert:SCENE.toml`` is the scene with every material
+made Lambert with its own kd: a one-model scene with the same geometry and lights.)
 
 For each scene: precompute once, then
 
@@ -12,7 +13,11 @@ For each scene: precompute once, then
   raster sub-stages (``raster.rasterize(profile=True)``), background, shading, resolve;
 * **shading parts** (process CPU time of a re-shade, visibility buffer reused): the full kernel
   and the kernel variants without shadows, environment diffuse, environment specular and local
-  lights; the difference divided by the number of lobes (or lights) is the cost of one lobe.
+  lights; the difference divided by the number of lobes (or lights) is the cost of one lobe;
+* **material-model variants** (``brdf.material_variants``): the re-shade CPU time of the kernel
+  specialised to the scene's material models against the generic all-model kernel (measured
+  alternately, best of each), and the CPU time to compile each (a real compile only with an empty
+  Warp kernel cache: ``--kernel-cache`` names a fresh folder).
 
 CPU time, not wall time, because these machines are shared: other processes inflate wall times.
 """
@@ -59,6 +64,13 @@ def profile(path, size, repeat, env_visibility=None):
         from warp_sg.bench_scaling import scaling_scene
 
         scene = scaling_scene(int(path.split(":")[1]), size)
+    elif path.startswith("lambert:"):
+        scene = ws.load_scene(path.split(":", 1)[1])
+        for m in scene.materials.values():
+            kd = m.params.get("kd", [0.6, 0.6, 0.6])
+            m.model, m.params, m.normal_map, m.tangent_map = "lambert", {"kd": kd}, None, None
+            m.textures = {k: t for k, t in m.textures.items() if k == "kd"}
+            m.invalidate()
     else:
         scene = ws.load_scene(path)
     scene.camera = replace(scene.camera, width=size, height=size)
@@ -67,6 +79,7 @@ def profile(path, size, repeat, env_visibility=None):
     r = Renderer(scene, device="cpu")
     g = r.geometry
     f = r.features()
+    compile_s = _compile_times(f)
     n_env = r._env_arrays().count if f.env_diffuse else 0
     n_lights = len(r.shading_lights)
     print(f"\n### {path} at {size}², env_visibility {scene.render.env_visibility}: {len(g.triangles)} triangles, {len(g.vertices)} vertices; "
@@ -98,6 +111,43 @@ def profile(path, size, repeat, env_visibility=None):
         per = f"{1e3 * (full - c) / n:.1f}" if n else ""
         print(f"| {name} | {1e3 * c:.1f} | {1e3 * (full - c):.1f} | {per} |")
     r.features = orig
+    _model_variants(r, f, repeat, compile_s)
+
+
+def _generic(f):
+    from warp_sg.brdf.material_variants import ALL_MODELS
+
+    return replace(f, models=tuple(sorted(ALL_MODELS)))
+
+
+def _compile_times(f):
+    """CPU seconds to build (or load from the kernel cache) the scene's variant and the generic one."""
+    from warp_sg import shading as S
+
+    S.resolve_box.module.load("cpu")  # the compiler's one-time start-up is not a variant's cost
+    out = []
+    for ff in (f, _generic(f)):
+        c = time.process_time()
+        S.shade_kernel(ff).module.load("cpu")
+        out.append(time.process_time() - c)
+    return out
+
+
+def _model_variants(r, f, repeat, compile_s):
+    gen = _generic(f)
+    orig = r.features
+    best = {f: float("inf"), gen: float("inf")}
+    for _ in range(3):  # alternate, so that both see the same machine load
+        for ff in best:
+            r.features = lambda ff=ff: ff
+            best[ff] = min(best[ff], _cpu_reshade(r, repeat))
+    r.features = orig
+    print(f"\nmaterial-model variants (re-shade CPU time, best of {3 * repeat}; compile CPU s):\n")
+    print("| kernel | models | CPU ms | compile s |")
+    print("|---|---|---|---|")
+    print(f"| scene's variant | {f.models} | {1e3 * best[f]:.1f} | {compile_s[0]:.1f} |")
+    print(f"| generic | all {len(gen.models)} | {1e3 * best[gen]:.1f} | {compile_s[1]:.1f} |")
+    print(f"\ngeneric / specialised: {best[gen] / best[f]:.3f}")
 
 
 def main(argv=None):
@@ -106,7 +156,12 @@ def main(argv=None):
     ap.add_argument("--size", type=int, default=512)
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--env-visibility", choices=("vertex", "pixel"), default=None)
+    ap.add_argument("--kernel-cache", default=None, help="Warp kernel cache folder (a fresh one: real compile times)")
     a = ap.parse_args(argv)
+    if a.kernel_cache:
+        import warp as wp
+
+        wp.config.kernel_cache_dir = a.kernel_cache
     for s in a.scenes:
         profile(s, a.size, a.repeat, a.env_visibility)
 
