@@ -87,3 +87,16 @@ def test_background_kernel_matches_the_camera_rays_and_the_numpy_environment_loo
     got = background_image(bg, "cpu").numpy()
     want = env_lookup_numpy(env, cam.ray_directions(supersample=3), rotation=R) * 1.5
     np.testing.assert_allclose(got, want, rtol=2e-4, atol=2e-5)
+
+
+def test_a_bad_material_edit_raises_and_leaves_the_material_and_the_image_as_they_were(renderer):
+    from warp_sg.errors import SceneError
+
+    before = renderer.render()
+    params = dict(renderer.scene.materials["ball"].params)
+    for bad in ({"n": -5.0}, {"model": "no_such_model"}, {"kd": [0.2, 0.3]}):
+        with pytest.raises(SceneError, match="ball"):
+            renderer.set_material("ball", **bad)
+        assert renderer.scene.materials["ball"].model == "blinn_phong"
+        assert renderer.scene.materials["ball"].params == params
+    np.testing.assert_array_equal(renderer.render(), before)

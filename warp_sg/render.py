@@ -405,7 +405,9 @@ class Renderer:
         the next frame uses the kernel variant of the new model set). No precompute is re-run."""
         if name not in self.scene.materials:
             raise SceneError(f"unknown material '{name}'", where="set_material")
-        m = self.scene.materials[name]
+        # edit a copy and swap it in only once it is valid: a bad value leaves the material as it was
+        m = replace(self.scene.materials[name], params=dict(self.scene.materials[name].params),
+                    textures=dict(self.scene.materials[name].textures), _brdf=None)
         if "model" in params:
             m.model, m.params = str(params.pop("model")), {}
         for k, v in params.items():
@@ -417,11 +419,11 @@ class Renderer:
             else:
                 m.textures.pop(k, None)
                 m.params[k] = v
-        m.invalidate()
         try:
             _ = m.brdf
         except InputError as e:
             raise SceneError(f"[materials.{name}] {e}") from None
+        self.scene.materials[name] = m
         with wp.ScopedDevice(self.device):
             self._setup_materials()
 
