@@ -133,12 +133,19 @@ def shading_section(device="cpu", quick=False, frames=None):
     w, h = (48, 36) if quick else (320, 240)
     n = frames or (1 if quick else 5)
     cases = [("full scene", {}), ("no environment", {"env": False}), ("no local lights", {"lights": False}),
-             ("diffuse-only materials", {"diffuse_only": True}), ("shadows off", {"shadows": False})]
+             ("diffuse-only materials", {"diffuse_only": True}), ("shadows off", {"shadows": False}),
+             # the per-vertex cache of the environment lobes' visibility off: one lookup per lobe per pixel
+             ("environment visibility per pixel", {"render": {"env_visibility": "pixel"}})]
     rows = []
     base = None
     with fresh_cache():
         for name, kw in cases:
-            r = Renderer(bench_scene(w, h, quick=quick, **kw), device=device)
+            kw = dict(kw)
+            settings = kw.pop("render", {})
+            scene = bench_scene(w, h, quick=quick, **kw)
+            for k, v in settings.items():
+                setattr(scene.render, k, v)
+            r = Renderer(scene, device=device)
             shade, frame = _frames(r, n)
             if base is None:
                 base = shade
