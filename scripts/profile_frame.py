@@ -1,7 +1,7 @@
 """Per-stage and per-lobe profile of a warm frame (docs/benchmarks.md "Frame profile").
 
     python scripts/profile_frame.py [SCENE.toml | torus:N | lambert:SCENE.toml ...] [--size 512]
-                                    [--repeat 5] [--env-visibility vertex|pixel] [--kernel-cache DIR]
+                                    [--repeat 5] [--visibility-sampling vertex|pixel] [--kernel-cache DIR]
 
 (``torus:N`` is the frame-scaling bench scene with a torus of about N triangles,
 ``warp_sg.bench_scaling.scaling_scene``; ``lambert:SCENE.toml`` is the scene with every material
@@ -55,7 +55,7 @@ def _wall_new_view(r, repeat):
     return rows[len(rows) // 2]
 
 
-def profile(path, size, repeat, env_visibility=None):
+def profile(path, size, repeat, visibility_sampling=None):
     import raster
     import warp_sg as ws
     from warp_sg.render import Renderer
@@ -74,15 +74,15 @@ def profile(path, size, repeat, env_visibility=None):
     else:
         scene = ws.load_scene(path)
     scene.camera = replace(scene.camera, width=size, height=size)
-    if env_visibility:
-        scene.render.env_visibility = env_visibility
+    if visibility_sampling:
+        scene.render.visibility_sampling = visibility_sampling
     r = Renderer(scene, device="cpu")
     g = r.geometry
     f = r.features()
     compile_s = _compile_times(f)
     n_env = r._env_arrays().count if f.env_diffuse else 0
     n_lights = len(r.shading_lights)
-    print(f"\n### {path} at {size}², env_visibility {scene.render.env_visibility}: {len(g.triangles)} triangles, {len(g.vertices)} vertices; "
+    print(f"\n### {path} at {size}², visibility_sampling {scene.render.visibility_sampling}: {len(g.triangles)} triangles, {len(g.vertices)} vertices; "
           f"{n_env} environment lobes, {n_lights} lights (incl. sun peaks), "
           f"{r.ssdf.pca_terms if r.ssdf else 0} PCA terms\n")
     print("| antialias | frame ms | raster ms | shade ms | resolve ms | shaded samples | raster stages (ms) |")
@@ -155,7 +155,7 @@ def main(argv=None):
     ap.add_argument("scenes", nargs="*", default=["examples/cook_torrance.toml"])
     ap.add_argument("--size", type=int, default=512)
     ap.add_argument("--repeat", type=int, default=5)
-    ap.add_argument("--env-visibility", choices=("vertex", "pixel"), default=None)
+    ap.add_argument("--visibility-sampling", choices=("vertex", "pixel"), default=None)
     ap.add_argument("--kernel-cache", default=None, help="Warp kernel cache folder (a fresh one: real compile times)")
     a = ap.parse_args(argv)
     if a.kernel_cache:
@@ -163,7 +163,7 @@ def main(argv=None):
 
         wp.config.kernel_cache_dir = a.kernel_cache
     for s in a.scenes:
-        profile(s, a.size, a.repeat, a.env_visibility)
+        profile(s, a.size, a.repeat, a.visibility_sampling)
 
 
 if __name__ == "__main__":

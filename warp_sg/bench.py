@@ -135,7 +135,7 @@ def shading_section(device="cpu", quick=False, frames=None):
     cases = [("full scene", {}), ("no environment", {"env": False}), ("no local lights", {"lights": False}),
              ("diffuse-only materials", {"diffuse_only": True}), ("shadows off", {"shadows": False}),
              # the per-vertex cache of the environment lobes' visibility off: one lookup per lobe per pixel
-             ("environment visibility per pixel", {"render": {"env_visibility": "pixel"}})]
+             ("environment visibility per pixel", {"render": {"visibility_sampling": "pixel"}})]
     rows = []
     base = None
     with fresh_cache():

@@ -5,7 +5,7 @@ these names; :meth:`warp_sg.scene.Scene.geometry` calls :func:`build_geometry`.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -42,6 +42,19 @@ class Geometry:
 # --------------------------------------------------------------------------------------------
 # meshes
 # --------------------------------------------------------------------------------------------
+def refined_geometry(g: Geometry, ref) -> Geometry:
+    """``g`` carried onto a :class:`precompute.refine.Refinement` of its mesh: positions and
+    normals from the refinement, uvs and tangents interpolated (tangents renormalised), triangle
+    attributes from the parent triangle, vertex objects from the nearest input vertex."""
+    tang = ref.interpolate(np.asarray(g.tangents, np.float64))
+    tang /= np.maximum(np.linalg.norm(tang, axis=1, keepdims=True), 1e-30)
+    return replace(g, vertices=np.asarray(ref.vertices, np.float32), normals=np.asarray(ref.normals, np.float32),
+                   uvs=ref.interpolate(np.asarray(g.uvs, np.float64)).astype(np.float32),
+                   tangents=tang.astype(np.float32), triangles=np.asarray(ref.triangles, np.int32),
+                   tri_material=g.tri_material[ref.parent_tri], tri_object=g.tri_object[ref.parent_tri],
+                   vertex_object=ref.interpolate(g.vertex_object))
+
+
 def validate_mesh(vertices, triangles, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Check a mesh; returns (vertices f32, triangles i32, keep mask of non-degenerate triangles).
 

@@ -33,24 +33,12 @@ import warp as wp
 from .device import resolve_device
 from .errors import InputError, SceneError
 from .lights import DirectionalLight, EnvironmentLight, PointLight, light_arrays
+from .geometry import refined_geometry
 from .scene import COLOUR_PARAMS, Geometry, Material, Scene
 from .surface import material_texture_slots
 from . import shading as S
 from .textures import Texture, build_atlas
-from .vertex_visibility import EnvVisibilityCache
-
-
-def refined_geometry(g: Geometry, ref) -> Geometry:
-    """``g`` carried onto a :class:`precompute.refine.Refinement` of its mesh: positions and
-    normals from the refinement, uvs and tangents interpolated (tangents renormalised), triangle
-    attributes from the parent triangle, vertex objects from the nearest input vertex."""
-    tang = ref.interpolate(np.asarray(g.tangents, np.float64))
-    tang /= np.maximum(np.linalg.norm(tang, axis=1, keepdims=True), 1e-30)
-    return replace(g, vertices=np.asarray(ref.vertices, np.float32), normals=np.asarray(ref.normals, np.float32),
-                   uvs=ref.interpolate(np.asarray(g.uvs, np.float64)).astype(np.float32),
-                   tangents=tang.astype(np.float32), triangles=np.asarray(ref.triangles, np.int32),
-                   tri_material=g.tri_material[ref.parent_tri], tri_object=g.tri_object[ref.parent_tri],
-                   vertex_object=ref.interpolate(g.vertex_object))
+from .vertex_visibility import VertexCache
 
 
 def _refine_key(g: Geometry, budget: int) -> str:
@@ -111,7 +99,8 @@ class Renderer:
         self.timings: dict = {"precompute_parts": {}}
         self._env_arrays_key = ()  # (see _env_arrays; () = not built yet)
         self._env_sg_arrays = None
-        self.env_vis_cache = EnvVisibilityCache()  # (see _env_vertex_visibility)
+        self.env_vis_cache = VertexCache()  # per-vertex visibility (see _vertex_visibility)
+        self.light_vis_cache = VertexCache()
         self._env_base_wp = None  # the environment map on the device (background), uploaded once
         t0 = time.perf_counter()
         with wp.ScopedDevice(self.device):
@@ -224,6 +213,7 @@ class Renderer:
             vis.weights = wp.zeros((1, 1), dtype=float, device=d)
             vis.cones = wp.array(no_cones(1), dtype=wp.vec4, device=d)
             vis.cone_band = 1.0
+        vis.light_deficit = wp.zeros((1, 1), dtype=float, device=d)
         self.vis = vis
 
     def _setup_environment(self):
@@ -321,22 +311,30 @@ class Renderer:
         self._env_arrays_key, self._env_sg_arrays = key, es
         return es
 
-    def _env_vis_vertex(self) -> bool:
-        """Whether the environment-diffuse visibility comes from the per-vertex cache
-        (``[render] env_visibility = "vertex"``, shadows on, an environment SG mixture)."""
-        return (self.scene.render.env_visibility == "vertex" and self.shadows and self.show_shadows
-                and self.env_diffuse_mode == S.ENV_SG)
+    def _vertex_sampled(self) -> bool:
+        """Visibility of fixed directions sampled per vertex (``[render] visibility_sampling =
+        "vertex"``) with shadows shown."""
+        return self.scene.render.visibility_sampling == "vertex" and self.shadows and self.show_shadows
 
-    def _env_vertex_visibility(self, es):
-        """``es.vis``: the per-vertex visible fraction of each environment lobe
-        (:mod:`warp_sg.vertex_visibility`), rebuilt only when the lobe axes (rotation, fit) or the
-        visibility data change — not on camera, material, light or environment-scale edits."""
-        c = self.env_vis_cache
-        key = (self._env_arrays_key[:2], id(self.ssdf), id(self.vis.cones), self.scene.render.fh) \
-            if self._env_vis_vertex() else None
-        es.vis = c.array(key, self.vis, es, len(self.geometry.vertices), self.scene.render.fh == "sigmoid", self.device)
-        if key is not None:
-            self.timings["env_vertex_visibility"] = c.seconds
+    def _vertex_visibility(self, es):
+        """The per-vertex caches (:mod:`warp_sg.vertex_visibility`): ``es.vis``, each environment
+        lobe's visible fraction, rebuilt when the lobe axes (rotation, fit) or the visibility data
+        change; ``vis.light_deficit``, each light's SSDF deficit, rebuilt when the lights change.
+        Camera, material and environment-scale edits reuse both."""
+        from .vertex_visibility import env_vertex_visibility, light_vertex_deficit
+
+        d, nv, fh = self.device, len(self.geometry.vertices), self.scene.render.fh
+        on = self._vertex_sampled()
+        key = (self._env_arrays_key[:2], self.ssdf, self.vis.cones, fh) \
+            if on and self.env_diffuse_mode == S.ENV_SG else None
+        es.vis = self.env_vis_cache.array(key, lambda: env_vertex_visibility(self.vis, es, nv, fh == "sigmoid", d), d)
+        # the lights' places and sizes, not their intensities (an environment-scale edit rescales the sun)
+        where = tuple((li.type, *np.ravel(getattr(li, "position", getattr(li, "direction", ()))).tolist(),
+                       float(li.radius)) for li in self.shading_lights)
+        key = (where, self.ssdf, self.vis.cones) if on and self.shading_lights else None
+        self.vis.light_deficit = self.light_vis_cache.array(
+            key, lambda: light_vertex_deficit(self.vis, self.geo_arrays.positions, self.light_arrays, nv, d), d)
+        self.timings["vertex_visibility"] = self.env_vis_cache.seconds + self.light_vis_cache.seconds
         return es
 
     def _setup_materials(self):
@@ -394,7 +392,8 @@ class Renderer:
             textures=self.has_textures,
             normal_maps=self.has_normal_maps,
             fh_sigmoid=self.scene.render.fh == "sigmoid",
-            env_vis_vertex=self._env_vis_vertex(),
+            env_vis_vertex=self._vertex_sampled() and self.env_diffuse_mode == S.ENV_SG,
+            light_vis_vertex=self._vertex_sampled() and len(self.shading_lights) > 0,
             models=self.material_table.models,
         )
 
@@ -608,7 +607,7 @@ class Renderer:
     def _launch_shade(self, tri_id, bary, bg, eye, out):
         d = self.device
         self._ensure_gamma()  # a material may have become specular
-        es = self._env_vertex_visibility(self._env_arrays())
+        es = self._vertex_visibility(self._env_arrays())
         f = self.features()
         kern = S.shade_kernel(f)
         if f.env_specular == S.ENV_PREFILTERED:

@@ -157,9 +157,10 @@ class RenderSettings:
     * ``gamma_levels`` — number of λ levels of the ΓL pyramid (0 = precompute's default ladder,
       λ0 = 0.5 growing by √2 up to the map's resolution); ``gamma_resolution`` — largest cube face.
     * ``fh`` — ``"table"`` (exact, tabulated) or ``"sigmoid"`` (paper appendix).
-    * ``env_visibility`` — ``"vertex"`` (default): the environment lobes' visible fractions are
-      computed per vertex once and interpolated (:mod:`warp_sg.vertex_visibility`); ``"pixel"``:
-      one SSDF lookup per lobe per pixel.
+    * ``visibility_sampling`` — ``"vertex"`` (default): the SSDF is read once per vertex for the
+      directions that do not depend on the view — each environment lobe (its visible fraction) and
+      each light (its SSDF deficit) — cached and interpolated (:mod:`warp_sg.vertex_visibility`);
+      ``"pixel"``: one SSDF lookup per lobe and light per pixel.
     * ``background`` — pixels that see no object show the environment.
     * ``device`` — default device for ``ws.render(scene)`` ("cpu", "cuda", "auto").
     """
@@ -176,7 +177,7 @@ class RenderSettings:
     gamma_levels: int = 0
     gamma_resolution: int = 128
     fh: str = "table"
-    env_visibility: str = "vertex"
+    visibility_sampling: str = "vertex"
     background: bool = True
     device: str = "cpu"
 
@@ -192,8 +193,9 @@ class RenderSettings:
                 raise SceneError(f"{where} key '{k}' must be true or false, got {getattr(self, k)!r}")
         if self.fh not in ("table", "sigmoid"):
             raise SceneError(f"{where} key 'fh' must be 'table' or 'sigmoid', got {self.fh!r}")
-        if self.env_visibility not in ("vertex", "pixel"):
-            raise SceneError(f"{where} key 'env_visibility' must be 'vertex' or 'pixel', got {self.env_visibility!r}")
+        if self.visibility_sampling not in ("vertex", "pixel"):
+            raise SceneError(f"{where} key 'visibility_sampling' must be 'vertex' or 'pixel', "
+                             f"got {self.visibility_sampling!r}")
         if not isinstance(self.device, str):
             raise SceneError(f"{where} key 'device' must be a string, got {self.device!r}")
 

@@ -393,7 +393,7 @@ _RENDER_DOC = {
     "gamma_levels": "λ levels of the ΓL pyramid (0 = default ladder)",
     "gamma_resolution": "largest cube face of the ΓL pyramid",
     "fh": "Fh: 'table' (exact, tabulated) or 'sigmoid' (paper appendix)",
-    "env_visibility": "environment-lobe visibility: 'vertex' (per vertex, cached, interpolated) or 'pixel'",
+    "visibility_sampling": "SSDF of environment lobes and lights: 'vertex' (per vertex, cached, interpolated) or 'pixel'",
     "background": "pixels that see no object show the environment",
     "device": "default device: 'cpu', 'cuda', 'cuda:N' or 'auto'",
 }
@@ -406,7 +406,7 @@ def _render_type(k):
         return integer(*RENDER_INT_RANGES[k], description=doc)
     if k == "fh":
         return choice(("table", "sigmoid"), doc)
-    if k == "env_visibility":
+    if k == "visibility_sampling":
         return choice(("vertex", "pixel"), doc)
     if isinstance(default, bool):
         return boolean(doc)

@@ -100,6 +100,9 @@ class Visibility:
     fh_table: wp.array2d(dtype=float)
     cones: wp.array(dtype=wp.vec4)  # per-vertex occluder cones (precompute.occluder_cone)
     cone_band: float  # their texel margin h: the width of the skip's blend
+    #: (V, lights) per-vertex SSDF deficit θd − θh towards each light (``warp_sg.vertex_visibility``),
+    #: read by the variant with ``Features.light_vis_vertex``; a (1, 1) placeholder otherwise
+    light_deficit: wp.array2d(dtype=float)
 
 
 @wp.struct
@@ -138,6 +141,13 @@ def vis_ratio(shadows: int, fh_mode: int, vis: Visibility, q: SSDFPoint, p: wp.v
         if s >= 1.0:
             return 1.0
     th = ssdf_at(vis.mean, vis.basis, vis.weights, q, p)
+    r = fh_fraction(fh_mode, vis, th, th_h, lam)
+    return r + (1.0 - r) * s
+
+
+@wp.func
+def fh_fraction(fh_mode: int, vis: Visibility, th: float, th_h: float, lam: float) -> float:
+    """``fh(θd, λ) / fh(θh, λ)`` clamped to [0, 1] (eq. 30 over the unoccluded point's value)."""
     a = float(0.0)
     b = float(0.0)
     if fh_mode == 1:
@@ -145,8 +155,7 @@ def vis_ratio(shadows: int, fh_mode: int, vis: Visibility, q: SSDFPoint, p: wp.v
         b = sg_visibility_scale_sigmoid(th_h, lam)
     else:
         a, b = fh_ratio_table_pair(vis.fh_table, th, th_h, lam)
-    r = wp.clamp(a / wp.max(b, 1.0e-8), 0.0, 1.0)
-    return r + (1.0 - r) * s
+    return wp.clamp(a / wp.max(b, 1.0e-8), 0.0, 1.0)
 
 
 # --------------------------------------------------------------------------------------------
@@ -167,6 +176,8 @@ class Features:
     #: environment-diffuse visibility interpolated from the per-vertex cache ``EnvSG.vis``
     #: (``warp_sg.vertex_visibility``) instead of one SSDF lookup per lobe per pixel
     env_vis_vertex: bool = False
+    #: lights' SSDF deficit interpolated from the per-vertex cache ``Visibility.light_deficit``
+    light_vis_vertex: bool = False
     #: sorted material model codes of the scene (``MaterialTable.models``); the material
     #: functions are specialised to them (``material_funcs``); default: every model
     models: tuple = tuple(sorted(ALL_MODELS))
@@ -198,6 +209,7 @@ def shade_kernel(f: Features):
     NMAP = bool(f.normal_maps)
     FH = 1 if f.fh_sigmoid else 0
     VVIS = bool(f.env_vis_vertex) and SHADOWS == 1
+    LVIS = bool(f.light_vis_vertex) and SHADOWS == 1
     MF = material_funcs(f.models)  # the material switch reduced to the scene's models
     brdf_eval, diffuse_at, slice_lobe_count = MF.brdf_eval, MF.diffuse_at, MF.slice_lobe_count
     shading_slice_lobe = MF.shading_slice_lobe
@@ -265,7 +277,15 @@ def shade_kernel(f: Features):
                 e = sg_irradiance_norm(irr, li[2], ll)
                 if e > 0.0:
                     f = brdf_eval(mat, o_l, above(li))
-                    vr = vis_ratio(SHADOWS, FH, vis, q, la, ll)
+                    vr = float(1.0)
+                    if wp.static(LVIS):  # θd = θh + the vertices' interpolated deficit (per-vertex cache)
+                        dd = (b0 * vis.light_deficit[i0, j] + b1 * vis.light_deficit[i1, j]
+                              + b2 * vis.light_deficit[i2, j])
+                        if dd < 0.0:
+                            th_h = fast_asin(wp.dot(la, q.ng))
+                            vr = fh_fraction(FH, vis, th_h + dd, th_h, ll)
+                    else:
+                        vr = vis_ratio(SHADOWS, FH, vis, q, la, ll)
                     col += wp.cw_mul(f, E) * (e * vr)
 
         # ---------------- environment, diffuse (eq. 39) ----------------
@@ -305,7 +325,7 @@ def shade_kernel(f: Features):
                         col += wp.cw_mul(mw, g) * (e * vr)
         out[y, x] = wp.vec3(wp.max(col[0], 0.0), wp.max(col[1], 0.0), wp.max(col[2], 0.0))
 
-    key = "shade_" + "_".join(str(int(v)) for v in (ENV_D, ENV_S, LIGHTS, SPEC, SHADOWS, TEX, NMAP, FH, VVIS)) + MF.tag
+    key = "shade_" + "_".join(str(int(v)) for v in (ENV_D, ENV_S, LIGHTS, SPEC, SHADOWS, TEX, NMAP, FH, VVIS, LVIS)) + MF.tag
     shade.__name__ = key
     shade.__qualname__ = key
     k = wp.kernel(shade, enable_backward=False, module="unique")

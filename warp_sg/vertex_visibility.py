@@ -1,4 +1,5 @@
-r"""Per-vertex visibility of the environment's SG lobes, cached between frames.
+r"""Per-vertex visibility of the directions that do not depend on the view, cached between frames:
+the environment's SG lobes and the lights.
 
 The diffuse environment term (eq. 39, ``warp_sg.shading``) needs, for every SG ``G_j`` of the
 environment mixture, the visible fraction ``vis_ratio(p, λ)`` of the product lobe
@@ -23,13 +24,26 @@ specular lobes stay per pixel.
 
 The array is rebuilt only when the lobe axes or sharpnesses change (environment rotation, a new
 fit) or the visibility data does; an environment scale, material, light or camera edit reuses it.
+
+**Lights** (:func:`light_vertex_deficit`): per vertex and light the SSDF *deficit*
+``min(θd_v(l_v) − θh_v(l_v), 0)`` towards the light (direction ``l_v`` from the vertex, read in the
+vertex's own frame; 0 where the occluder cone is clear, ``precompute.occluder_cone``). The shading
+kernel takes ``θd = θh + Σ_k b_k deficit_k`` with the pixel's own ``θh = asin(l·n)`` and the usual
+``fh(θd, λ)/fh(θh, λ)``: the SSDF is interpolated as in the paper (so a sharp shadow edge falls
+where the interpolated SSDF crosses zero, inside a triangle), an unoccluded point is exactly lit,
+and each vertex is read towards the light as seen from that vertex. Rebuilt when a light moves or
+changes size.
 """
 from __future__ import annotations
 
 import warp as wp
 
-from precompute.ssdf_wp import ssdf_point
+from precompute.occluder_cone import occluder_clearance
+from precompute.ssdf_wp import ssdf_at, ssdf_point
 
+from .fastmath import fast_asin
+from .fh import fh_theta_max_wp
+from .lights import LightArrays, light_irradiance
 from .shading import CC_LAM, EnvSG, Visibility, vis_ratio
 from .sg_wp import sg_product
 
@@ -48,6 +62,38 @@ def env_vertex_visibility_kernel(base: int, fh_mode: int, vis: Visibility, env: 
     out[v, j] = vis_ratio(1, fh_mode, vis, q, pe, le)
 
 
+@wp.kernel(enable_backward=False)
+def light_vertex_deficit_kernel(base: int, vis: Visibility, positions: wp.array(dtype=wp.vec3), lights: LightArrays,
+                                out: wp.array2d(dtype=float)):
+    """``out[v, j] = min(θd_v(l_v) − θh_v(l_v), 0)``: vertex v's SSDF towards light j (direction
+    ``l_v`` from the vertex, its own frame) less its horizon value ``asin(l_v·n_v)`` — 0 where no
+    occluder is closer than the horizon (and where the occluder cone is clear: no lookup)."""
+    e = base + wp.tid()
+    nl = out.shape[1]
+    v = e // nl
+    j = e - v * nl
+    n = wp.normalize(vis.normals[v])
+    la, ll, E = light_irradiance(lights, j, positions[v])
+    q = ssdf_point(vis.normals, v, v, v, 1.0, 0.0, 0.0, n)
+    th_h = fast_asin(wp.clamp(wp.dot(la, n), -1.0, 1.0))
+    s = occluder_clearance(vis.cones, q, la, th_h, fh_theta_max_wp(ll), vis.cone_band)
+    d = float(0.0)
+    if s < 1.0:
+        d = (1.0 - s) * wp.min(ssdf_at(vis.mean, vis.basis, vis.weights, q, la) - th_h, 0.0)
+    out[v, j] = d
+
+
+def light_vertex_deficit(vis: Visibility, positions, lights: LightArrays, n_vertices: int, device) -> wp.array2d:
+    """(V, lights) float array of :func:`light_vertex_deficit_kernel` on ``device`` (CPU: thread pool)."""
+    from raster import parallel
+
+    out = wp.zeros((max(int(n_vertices), 1), max(int(lights.count), 1)), dtype=float, device=device)
+    if lights.count > 0 and n_vertices > 0:
+        parallel.launch(light_vertex_deficit_kernel, int(n_vertices) * int(lights.count),
+                        [vis, positions, lights, out], device, min_chunk=1024)
+    return out
+
+
 def env_vertex_visibility(vis: Visibility, env: EnvSG, n_vertices: int, fh_sigmoid: bool, device) -> wp.array2d:
     """(V, J) float array of :func:`env_vertex_visibility_kernel` on ``device`` (CPU: thread pool)."""
     from raster import parallel
@@ -59,11 +105,19 @@ def env_vertex_visibility(vis: Visibility, env: EnvSG, n_vertices: int, fh_sigmo
     return out
 
 
-class EnvVisibilityCache:
-    """The (V, J) array of :func:`env_vertex_visibility` kept between frames: ``array(key, ...)``
-    rebuilds it only when ``key`` (lobe axes and sharpnesses, visibility data, fh method) changes;
-    ``key=None`` gives a (1, 1) placeholder (the variant without the cache). ``builds`` counts
-    rebuilds and ``seconds`` is the last one's time."""
+def _same_key(a, b) -> bool:
+    """Keys match element by element: plain values by ``==``, objects (arrays, structs) by identity."""
+    if a is None or b is None or len(a) != len(b):
+        return False
+    return all(x is y or (isinstance(x, (tuple, str, int, float)) and type(x) is type(y) and x == y)
+               for x, y in zip(a, b))
+
+
+class VertexCache:
+    """A per-vertex array kept between frames: ``array(key, build, device)`` calls ``build()`` only
+    when ``key`` changes (:func:`_same_key`: values by ``==``, objects by identity — the key holds
+    them, so a rebuilt object never matches a stale key); ``key=None`` gives a (1, 1) placeholder (the kernel variant
+    without the cache). ``builds`` counts rebuilds and ``seconds`` is the last one's time."""
 
     def __init__(self):
         self.key = None
@@ -71,19 +125,20 @@ class EnvVisibilityCache:
         self.builds = 0
         self.seconds = 0.0
 
-    def array(self, key, vis: Visibility, env: EnvSG, n_vertices: int, fh_sigmoid: bool, device) -> wp.array2d:
+    def array(self, key, build, device) -> wp.array2d:
         import time
 
         if key is None:
             if self.value is None or self.key is not None:
                 self.key, self.value = None, wp.zeros((1, 1), dtype=float, device=device)
-        elif key != self.key:
+        elif not _same_key(key, self.key):
             t = time.perf_counter()
-            self.value = env_vertex_visibility(vis, env, n_vertices, fh_sigmoid, device)
+            self.value = build()
             self.key = key
             self.builds += 1
             self.seconds = time.perf_counter() - t
         return self.value
 
 
-__all__ = ["EnvVisibilityCache", "env_vertex_visibility", "env_vertex_visibility_kernel"]
+__all__ = ["VertexCache", "env_vertex_visibility", "env_vertex_visibility_kernel", "light_vertex_deficit",
+           "light_vertex_deficit_kernel"]
