@@ -14,6 +14,9 @@ exact where it is cheap — one BRDF evaluation at the light's direction l::
 
     Rlights += ρ(o, l) E e(n·l, λ_l) vis_ratio(l, λ_l)
 
+(with ``Features.light_vis_vertex`` the SSDF towards the light is ``θd = θh + Σ_k b_k D[i_k, j]``,
+the per-vertex deficit cache of ``warp_sg.vertex_visibility``, and no lookup is made.)
+
 Environment, diffuse — eq. 39 with the exact irradiance of each SG ``L*_j`` of the mixture::
 
     Rd += ρd(o, p_G) μ_j ∫G_j e(Ns·p_j, λ_j) vis_ratio(p_G, λ_G),   G = C* ⊗ L*_j (eq. 5, 40)
