@@ -308,7 +308,7 @@ class Renderer:
             es.axis = wp.array((ax @ R.T).astype(np.float32), dtype=wp.vec3, device=d)
             es.lam = wp.array(lam.astype(np.float32), dtype=float, device=d)
             es.mu = wp.array((mu * env.scale).astype(np.float32), dtype=wp.vec3, device=d)
-        self._env_arrays_key, self._env_sg_arrays = key, es
+        self._env_arrays_key, self._env_sg_arrays = key, S.lobe_constants(es, self.irr_table, d)
         return es
 
     def _vertex_sampled(self) -> bool:

@@ -232,17 +232,22 @@ def sg_irradiance_sharp(c: float, lam: float) -> float:
 
 
 @wp.func
-def sg_irradiance_norm(table: wp.array2d(dtype=float), c: float, lam: float) -> float:
-    """e(c, λ) = E / (μ ∫G): exp of the bilinear interpolant in (log10 λ, c) of the ln e table
-    (:func:`irradiance_table_array`); λ < 1e-2 uses the first row (flat there), λ > 1e3 the
-    sharp-lobe form :func:`sg_irradiance_sharp`."""
+def sg_irradiance_row(table: wp.array2d(dtype=float), lam: float) -> float:
+    """The (fractional) row of λ in :func:`irradiance_table_array`, clamped to the table: a
+    per-lobe constant, computed once per lobe where many points share the lobe."""
+    l = wp.max(lam, _LAM_TINY)
+    return wp.clamp((wp.log(l) * _INV_LN10 - _LOG10_LAM_MIN) * _ROWS_PER_DECADE, 0.0, float(table.shape[0] - 1))
+
+
+@wp.func
+def sg_irradiance_norm_at(table: wp.array2d(dtype=float), c: float, lam: float, r: float) -> float:
+    """:func:`sg_irradiance_norm` with the row ``r = sg_irradiance_row(table, λ)`` given."""
     cc = wp.clamp(c, -1.0, 1.0)
     l = wp.max(lam, _LAM_TINY)
     if l > _LAM_SWITCH:
         return sg_irradiance_sharp(cc, l)
     nr = table.shape[0]
     nc = table.shape[1]
-    r = wp.clamp((wp.log(l) * _INV_LN10 - _LOG10_LAM_MIN) * _ROWS_PER_DECADE, 0.0, float(nr - 1))
     x = (cc + 1.0) * 0.5 * float(nc - 1)
     r0 = wp.min(int(wp.floor(r)), nr - 2)
     x0 = wp.min(int(wp.floor(x)), nc - 2)
@@ -254,7 +259,22 @@ def sg_irradiance_norm(table: wp.array2d(dtype=float), c: float, lam: float) -> 
 
 
 @wp.func
+def sg_irradiance_norm(table: wp.array2d(dtype=float), c: float, lam: float) -> float:
+    """e(c, λ) = E / (μ ∫G): exp of the bilinear interpolant in (log10 λ, c) of the ln e table
+    (:func:`irradiance_table_array`); λ < 1e-2 uses the first row (flat there), λ > 1e3 the
+    sharp-lobe form :func:`sg_irradiance_sharp`."""
+    if wp.max(lam, _LAM_TINY) > _LAM_SWITCH:
+        return sg_irradiance_sharp(wp.clamp(c, -1.0, 1.0), wp.max(lam, _LAM_TINY))
+    return sg_irradiance_norm_at(table, c, lam, sg_irradiance_row(table, lam))
+
+
+@wp.func
+def sg_power(lam: float, mu: wp.vec3) -> wp.vec3:
+    """μ ∫G(λ), ∫G = 2π (1 − e^{−2λ}) / λ (λ at least the table's smallest): the SG's total power."""
+    return mu * sg_integral(wp.max(lam, _LAM_TINY))
+
+
+@wp.func
 def sg_irradiance(table: wp.array2d(dtype=float), n: wp.vec3, p: wp.vec3, lam: float, mu: wp.vec3) -> wp.vec3:
     """E = ∫ μ exp(λ (i·p − 1)) max(n·i, 0) di = μ ∫G(λ) e(n·p, λ), ∫G = 2π (1 − e^{−2λ}) / λ."""
-    l = wp.max(lam, _LAM_TINY)
-    return mu * (sg_integral(l) * sg_irradiance_norm(table, wp.dot(n, p), l))
+    return sg_power(lam, mu) * sg_irradiance_norm(table, wp.dot(n, p), wp.max(lam, _LAM_TINY))

@@ -62,7 +62,7 @@ from .fh import fh_ratio_table_pair, fh_theta_max_wp
 from .frames import local_to_world, world_to_local
 from .lights import LightArrays, light_irradiance
 from .sg import CLAMPED_COSINE_SHARPNESS
-from .sg_irradiance import sg_irradiance, sg_irradiance_norm
+from .sg_irradiance import sg_irradiance_norm, sg_irradiance_norm_at, sg_irradiance_row, sg_power
 from .sg_wp import sg_integral, sg_product
 from .surface import (  # noqa: F401  (re-exported: slot constants, MaterialTextures)
     N_SLOTS, SLOT_KD, SLOT_KS, SLOT_NORMAL, SLOT_P0, SLOT_P1, SLOT_TANGENT, MaterialTextures,
@@ -116,6 +116,10 @@ class EnvSG:
     axis: wp.array(dtype=wp.vec3)
     lam: wp.array(dtype=float)
     mu: wp.array(dtype=wp.vec3)
+    #: per lobe, the constants of its exact irradiance (``lobe_constants``): μ ∫G(λ) and its row
+    #: in the irradiance table, so a pixel pays only the table lookup
+    power: wp.array(dtype=wp.vec3)
+    irr_row: wp.array(dtype=float)
     #: (V, count) visible fraction of C*(n_v) ⊗ G_j per vertex (``warp_sg.vertex_visibility``),
     #: read by the variant with ``Features.env_vis_vertex``; a (1, 1) placeholder otherwise
     vis: wp.array2d(dtype=float)
@@ -159,6 +163,25 @@ def fh_fraction(fh_mode: int, vis: Visibility, th: float, th_h: float, lam: floa
     else:
         a, b = fh_ratio_table_pair(vis.fh_table, th, th_h, lam)
     return wp.clamp(a / wp.max(b, 1.0e-8), 0.0, 1.0)
+
+
+@wp.kernel(enable_backward=False)
+def _lobe_constants_kernel(irr: wp.array2d(dtype=float), lam: wp.array(dtype=float), mu: wp.array(dtype=wp.vec3),
+                           power: wp.array(dtype=wp.vec3), row: wp.array(dtype=float)):
+    j = wp.tid()
+    power[j] = sg_power(lam[j], mu[j])
+    row[j] = sg_irradiance_row(irr, lam[j])
+
+
+def lobe_constants(es: EnvSG, irr, device) -> EnvSG:
+    """Fill ``es.power`` (μ ∫G(λ)) and ``es.irr_row`` (the lobe's irradiance-table row) once per
+    environment change: ``sg_irradiance(irr, n, p, λ, μ) = power · sg_irradiance_norm_at(irr, n·p,
+    λ, irr_row)`` for every pixel."""
+    n = int(es.lam.shape[0])
+    es.power = wp.zeros(n, dtype=wp.vec3, device=device)
+    es.irr_row = wp.zeros(n, dtype=float, device=device)
+    wp.launch(_lobe_constants_kernel, dim=n, inputs=[irr, es.lam, es.mu, es.power, es.irr_row], device=device)
+    return es
 
 
 # --------------------------------------------------------------------------------------------
@@ -213,6 +236,7 @@ def shade_kernel(f: Features):
     FH = 1 if f.fh_sigmoid else 0
     VVIS = bool(f.env_vis_vertex) and SHADOWS == 1
     LVIS = bool(f.light_vis_vertex) and SHADOWS == 1
+    RHO_D_CONST = 1 not in f.models  # no Oren–Nayar: ρd = kd/π, whatever the directions
     MF = material_funcs(f.models)  # the material switch reduced to the scene's models
     brdf_eval, diffuse_at, slice_lobe_count = MF.brdf_eval, MF.diffuse_at, MF.slice_lobe_count
     shading_slice_lobe = MF.shading_slice_lobe
@@ -297,16 +321,22 @@ def shade_kernel(f: Features):
         # is 17 % low at 54°), times the visible fraction of the product lobe C* ⊗ G_j.
         if wp.static(ENV_D == 1):
             if has_kd:
+                rho_d = diffuse_at(mat, o_l, wp.vec3(0.0, 0.0, 1.0))  # ρd itself where it is constant
                 for j in range(env.count):
-                    E = sg_irradiance(irr, ns, env.axis[j], env.lam[j], env.mu[j])
+                    ax = env.axis[j]
+                    E = env.power[j] * sg_irradiance_norm_at(irr, wp.dot(ns, ax), env.lam[j], env.irr_row[j])
                     if wp.length_sq(E) > 0.0:
-                        pe, le, se = sg_product(ns, CC_LAM, env.axis[j], env.lam[j])
-                        vr = float(1.0)
-                        if wp.static(VVIS):  # the per-vertex cache, interpolated
-                            vr = b0 * env.vis[i0, j] + b1 * env.vis[i1, j] + b2 * env.vis[i2, j]
+                        if wp.static(VVIS and RHO_D_CONST):  # no product lobe needed: cache × kd/π
+                            col += wp.cw_mul(E, rho_d) * (b0 * env.vis[i0, j] + b1 * env.vis[i1, j]
+                                                          + b2 * env.vis[i2, j])
                         else:
-                            vr = vis_ratio(SHADOWS, FH, vis, q, pe, le)
-                        col += wp.cw_mul(E, diffuse_at(mat, o_l, world_to_local(pe, ts, bs, ns))) * vr
+                            pe, le, se = sg_product(ns, CC_LAM, ax, env.lam[j])
+                            vr = float(1.0)
+                            if wp.static(VVIS):  # the per-vertex cache, interpolated
+                                vr = b0 * env.vis[i0, j] + b1 * env.vis[i1, j] + b2 * env.vis[i2, j]
+                            else:
+                                vr = vis_ratio(SHADOWS, FH, vis, q, pe, le)
+                            col += wp.cw_mul(E, diffuse_at(mat, o_l, world_to_local(pe, ts, bs, ns))) * vr
 
         # ---------------- environment, specular (eq. 41) ----------------
         # For each slice lobe G_k (axis pW, λW, amplitude μ_k ∝ Mo): ∫ G_k(i) max(n·i, 0) L(i) di ≈
