@@ -227,6 +227,10 @@ def sg_irradiance_sharp(c: float, lam: float) -> float:
     if sigma <= 0.0:
         return wp.max(m, 0.0)
     z = m / sigma
+    if z > 6.0:  # Φ(z) > 1 − 1e-9 and σφ(z) < 1e-9 m: e = m to float precision (most lit points)
+        return m
+    if z < -6.0:  # the lobe is below the horizon: m Φ(z) + σ φ(z) < 1e-9 σ
+        return 0.0
     v = m * 0.5 * wp.erfc(-z * _INV_SQRT2) + sigma * _INV_SQRT_2PI * wp.exp(-0.5 * z * z)
     return wp.max(v, 0.0)
 
