@@ -3,6 +3,8 @@ the static geometry is rasterised from its device arrays without revalidation, a
 lobes that carry no energy are left out — each checked against a renderer built from scratch."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -100,3 +102,19 @@ def test_a_bad_material_edit_raises_and_leaves_the_material_and_the_image_as_the
         assert renderer.scene.materials["ball"].model == "blinn_phong"
         assert renderer.scene.materials["ball"].params == params
     np.testing.assert_array_equal(renderer.render(), before)
+
+
+def test_a_new_view_overwrites_the_old_buffer_and_equals_a_fresh_rasterisation(renderer):
+    ga, cam = renderer.geo_arrays, renderer.scene.camera
+    old = raster.rasterize(ga.positions, ga.tris, cam, device="cpu", supersample=2, validate=False)
+    ptr = old.tri_id.ptr
+    moved = replace(cam, origin=(0.6, 1.1, 2.9))
+    a = raster.rasterize(ga.positions, ga.tris, moved, device="cpu", supersample=2, validate=False, reuse=old)
+    b = raster.rasterize(ga.positions, ga.tris, moved, device="cpu", supersample=2, validate=False)
+    assert a.tri_id.ptr == ptr  # the same memory, rewritten
+    np.testing.assert_array_equal(a.tri_id.numpy(), b.tri_id.numpy())
+    np.testing.assert_array_equal(a.bary.numpy(), b.bary.numpy())
+    np.testing.assert_array_equal(a.depth.numpy(), b.depth.numpy())
+    # a buffer of another size is not reused
+    c = raster.rasterize(ga.positions, ga.tris, moved, device="cpu", supersample=1, validate=False, reuse=a)
+    assert c.tri_id.ptr != a.tri_id.ptr and c.tri_id.shape == (cam.height, cam.width)

@@ -519,10 +519,10 @@ class Renderer:
 
         k = self.scene.render.supersampling if k is None else k
         key = (repr(self.scene.camera), int(k))
-        if self._vb_key != key:
-            self._vb = None  # free the old buffer first
+        if self._vb_key != key:  # the old buffer's arrays are overwritten when the size matches
+            old, self._vb = self._vb, None
             self._vb = raster.rasterize(self.geo_arrays.positions, self.geo_arrays.tris, self.scene.camera,
-                                        device=self.device, supersample=k, validate=False)
+                                        device=self.device, supersample=k, validate=False, reuse=old)
             self._vb_key = key
             self.timings["raster_reused"] = False
         else:
