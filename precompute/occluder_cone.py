@@ -15,8 +15,8 @@ Per vertex the occluded set is bounded by a cone, axis ``c`` (world space) and h
 the mean direction of the occluded texels and the largest angle from it, plus ``h`` (the half
 diagonal of a texel, for the texels' extent). Then ``dist(p, O) ≥ ∠(p, c) − α``. Texels count as
 occluded where the (uncompressed, :func:`precompute.ssdf.compute_ssdf`) SSDF is negative, or is
-below both ``h`` and its horizon value ``θh`` by more than ``0.3 h`` (the distance transform's own error on an open plane is up to 0.17 h) (an occluder inside the texel
-that does not cover its centre). A vertex with no such texel stores ``α = −1`` (nothing occludes
+below ``h`` and more than ``0.3 h`` below its horizon value ``θh``: an occluder inside the texel
+that does not cover its centre (the distance transform's own error on an open plane is up to 0.17 h). A vertex with no such texel stores ``α = −1`` (nothing occludes
 it); one whose occluders surround it gets ``α ≥ π`` (never skipped).
 
 Kernel side, :func:`occluder_clearance` returns ``s ∈ [0, 1]``: 1 when every vertex of the shading
@@ -86,33 +86,31 @@ def no_cones(n_vertices: int) -> np.ndarray:
 
 
 @wp.func
-def _cone_clearance(cone: wp.vec4, p: wp.vec3, m: float, band: float) -> float:
-    """smoothstep(0, band, ∠(p, c) − α − m): 1 once p is m + band clear of the cone."""
+def _vertex_clearance(cone: wp.vec4, n: wp.vec3, p: wp.vec3, th_h: float, tmax: float, band: float) -> float:
+    """smoothstep(0, band, ∠(p, c) − α − m) for one vertex (cone ``c, α``, normal ``n``): 1 once p is
+    ``m + band`` clear of the cone, ``m = min(max(θh, θh_k), θmax)`` at least 0 (the larger of the
+    pixel's and the vertex's horizon angle: conservative for both the blended and the own-frame reads)."""
     if cone[3] < 0.0:
         return 1.0
+    m = wp.clamp(wp.min(wp.max(th_h, fast_asin(wp.clamp(wp.dot(p, n), -1.0, 1.0))), tmax), 0.0, _HALF_PI)
     c = wp.clamp(p[0] * cone[0] + p[1] * cone[1] + p[2] * cone[2], -1.0, 1.0)
-    gap = _HALF_PI - fast_asin(c) - cone[3] - m
-    return wp.smoothstep(0.0, band, gap)
+    return wp.smoothstep(0.0, band, _HALF_PI - fast_asin(c) - cone[3] - m)
 
 
 @wp.func
 def occluder_clearance(cones: wp.array(dtype=wp.vec4), q: SSDFPoint, p: wp.vec3, th_h: float, tmax: float,
                        band: float) -> float:
     """``s ∈ [0, 1]``: how clearly the lobe at world direction ``p`` misses the occluders of the
-    vertices that carry the point ``q`` (:func:`precompute.ssdf_wp.ssdf_point`). ``th_h``: the
-    point's horizon angle of ``p``, ``tmax``: the fh saturation angle θmax(λ). Per vertex k the
-    clearance needed is ``min(max(θh, θh_k), θmax)`` (the larger of the pixel's and the vertex's
-    horizon angle: conservative for both the blended and the own-frame reads), at least 0."""
+    vertices that carry the point ``q`` (:func:`precompute.ssdf_wp.ssdf_point`): the smallest
+    :func:`_vertex_clearance` of the vertices with a weight. ``th_h``: the point's horizon angle of
+    ``p``; ``tmax``: the fh saturation angle θmax(λ)."""
     s = float(1.0)
     if q.c0 + q.e0 > 0.0:
-        m0 = wp.clamp(wp.min(wp.max(th_h, fast_asin(wp.clamp(wp.dot(p, q.n0), -1.0, 1.0))), tmax), 0.0, _HALF_PI)
-        s = wp.min(s, _cone_clearance(cones[q.i0], p, m0, band))
+        s = wp.min(s, _vertex_clearance(cones[q.i0], q.n0, p, th_h, tmax, band))
     if s > 0.0 and q.c1 + q.e1 > 0.0:
-        m1 = wp.clamp(wp.min(wp.max(th_h, fast_asin(wp.clamp(wp.dot(p, q.n1), -1.0, 1.0))), tmax), 0.0, _HALF_PI)
-        s = wp.min(s, _cone_clearance(cones[q.i1], p, m1, band))
+        s = wp.min(s, _vertex_clearance(cones[q.i1], q.n1, p, th_h, tmax, band))
     if s > 0.0 and q.c2 + q.e2 > 0.0:
-        m2 = wp.clamp(wp.min(wp.max(th_h, fast_asin(wp.clamp(wp.dot(p, q.n2), -1.0, 1.0))), tmax), 0.0, _HALF_PI)
-        s = wp.min(s, _cone_clearance(cones[q.i2], p, m2, band))
+        s = wp.min(s, _vertex_clearance(cones[q.i2], q.n2, p, th_h, tmax, band))
     return s
 
 

@@ -187,8 +187,7 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
     best_invw = ws.get2d("best_invw", (H, W), wp.float32)  # 1/w of the nearest so far (0 = empty)
     best_invw.zero_()
     # the fine raster writes tri_id and bary of the winners straight into the outputs
-    if (reuse is not None and reuse.width == W and reuse.height == H and str(reuse.device) == device
-            and reuse.tri_id.shape == (H, W)):
+    if reuse is not None and reuse.width == W and reuse.height == H and str(reuse.device) == device:
         tri_id, bary, depth = reuse.tri_id, reuse.bary, reuse.depth
     else:
         tri_id = wp.empty((H, W), dtype=wp.int32, device=device)

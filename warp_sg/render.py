@@ -331,9 +331,10 @@ class Renderer:
         # the lights' places and sizes, not their intensities (an environment-scale edit rescales the sun)
         where = tuple((li.type, *np.ravel(getattr(li, "position", getattr(li, "direction", ()))).tolist(),
                        float(li.radius)) for li in self.shading_lights)
-        key = (where, self.ssdf, self.vis.cones) if on and self.shading_lights else None
+        key = (where, self.ssdf, self.vis.cones, fh) if on and self.shading_lights else None
         self.vis.light_deficit = self.light_vis_cache.array(
-            key, lambda: light_vertex_deficit(self.vis, self.geo_arrays.positions, self.light_arrays, nv, d), d)
+            key, lambda: light_vertex_deficit(self.vis, self.geo_arrays.positions, self.light_arrays, nv,
+                                              fh == "sigmoid", d), d)
         self.timings["vertex_visibility"] = self.env_vis_cache.seconds + self.light_vis_cache.seconds
         return es
 

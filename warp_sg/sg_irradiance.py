@@ -267,9 +267,10 @@ def sg_irradiance_norm(table: wp.array2d(dtype=float), c: float, lam: float) -> 
     """e(c, λ) = E / (μ ∫G): exp of the bilinear interpolant in (log10 λ, c) of the ln e table
     (:func:`irradiance_table_array`); λ < 1e-2 uses the first row (flat there), λ > 1e3 the
     sharp-lobe form :func:`sg_irradiance_sharp`."""
-    if wp.max(lam, _LAM_TINY) > _LAM_SWITCH:
-        return sg_irradiance_sharp(wp.clamp(c, -1.0, 1.0), wp.max(lam, _LAM_TINY))
-    return sg_irradiance_norm_at(table, c, lam, sg_irradiance_row(table, lam))
+    r = float(0.0)
+    if wp.max(lam, _LAM_TINY) <= _LAM_SWITCH:  # no table row (no log) for the sharp-lobe form
+        r = sg_irradiance_row(table, lam)
+    return sg_irradiance_norm_at(table, c, lam, r)
 
 
 @wp.func

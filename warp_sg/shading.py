@@ -129,6 +129,16 @@ class EnvSG:
 # building blocks (@wp.func)
 # --------------------------------------------------------------------------------------------
 @wp.func
+def lookup_skip(fh_mode: int, vis: Visibility, q: SSDFPoint, p: wp.vec3, th_h: float, lam: float) -> float:
+    """How far the SSDF lookup of lobe (p, λ) at point ``q`` may be skipped, ``s ∈ [0, 1]``
+    (``precompute.occluder_cone.occluder_clearance``; 1: its visibility is exactly 1). Only with the
+    tabulated fh, whose flat tail beyond θmax(λ) makes the skip exact; 0 with the sigmoid."""
+    if fh_mode != 0:
+        return 0.0
+    return occluder_clearance(vis.cones, q, p, th_h, fh_theta_max_wp(lam), vis.cone_band)
+
+
+@wp.func
 def vis_ratio(shadows: int, fh_mode: int, vis: Visibility, q: SSDFPoint, p: wp.vec3, lam: float) -> float:
     """The visible fraction of a lobe (p, λ) relative to the unoccluded point:
     ``fh(θd(p), λ) / fh(θh(p), λ)`` with θd the SSDF of the shading point at world direction p
@@ -142,11 +152,9 @@ def vis_ratio(shadows: int, fh_mode: int, vis: Visibility, q: SSDFPoint, p: wp.v
     if shadows == 0:
         return 1.0
     th_h = fast_asin(wp.dot(p, q.ng))
-    s = float(0.0)
-    if fh_mode == 0:
-        s = occluder_clearance(vis.cones, q, p, th_h, fh_theta_max_wp(lam), vis.cone_band)
-        if s >= 1.0:
-            return 1.0
+    s = lookup_skip(fh_mode, vis, q, p, th_h, lam)
+    if s >= 1.0:
+        return 1.0
     th = ssdf_at(vis.mean, vis.basis, vis.weights, q, p)
     r = fh_fraction(fh_mode, vis, th, th_h, lam)
     return r + (1.0 - r) * s
@@ -326,15 +334,14 @@ def shade_kernel(f: Features):
                     ax = env.axis[j]
                     E = env.power[j] * sg_irradiance_norm_at(irr, wp.dot(ns, ax), env.lam[j], env.irr_row[j])
                     if wp.length_sq(E) > 0.0:
+                        vr = float(1.0)
+                        if wp.static(VVIS):  # the per-vertex cache, interpolated
+                            vr = b0 * env.vis[i0, j] + b1 * env.vis[i1, j] + b2 * env.vis[i2, j]
                         if wp.static(VVIS and RHO_D_CONST):  # no product lobe needed: cache × kd/π
-                            col += wp.cw_mul(E, rho_d) * (b0 * env.vis[i0, j] + b1 * env.vis[i1, j]
-                                                          + b2 * env.vis[i2, j])
+                            col += wp.cw_mul(E, rho_d) * vr
                         else:
                             pe, le, se = sg_product(ns, CC_LAM, ax, env.lam[j])
-                            vr = float(1.0)
-                            if wp.static(VVIS):  # the per-vertex cache, interpolated
-                                vr = b0 * env.vis[i0, j] + b1 * env.vis[i1, j] + b2 * env.vis[i2, j]
-                            else:
+                            if wp.static(not VVIS):
                                 vr = vis_ratio(SHADOWS, FH, vis, q, pe, le)
                             col += wp.cw_mul(E, diffuse_at(mat, o_l, world_to_local(pe, ts, bs, ns))) * vr
 

@@ -19,8 +19,7 @@ own sampling rate for visibility: the SSDFs live on the vertices (§5, "per-vert
 mesh is refined where visibility changes (``precompute.refine``). The environment lobes are broad
 (product lobes of sharpness ≤ λ_j + 2.1), so the visible fraction is smooth across a triangle and
 interpolating it instead of the SSDF changes little (tests/test_vertex_visibility.py measures both
-against the Monte-Carlo reference). Sharp lights (a sun, point lights) and the view-dependent
-specular lobes stay per pixel.
+against the Monte-Carlo reference). The view-dependent specular lobes stay per pixel.
 
 The array is rebuilt only when the lobe axes or sharpnesses change (environment rotation, a new
 fit) or the visibility data does; an environment scale, material, light or camera edit reuses it.
@@ -36,15 +35,15 @@ changes size.
 """
 from __future__ import annotations
 
+import time
+
 import warp as wp
 
-from precompute.occluder_cone import occluder_clearance
 from precompute.ssdf_wp import ssdf_at, ssdf_point
 
 from .fastmath import fast_asin
-from .fh import fh_theta_max_wp
 from .lights import LightArrays, light_irradiance
-from .shading import CC_LAM, EnvSG, Visibility, vis_ratio
+from .shading import CC_LAM, EnvSG, Visibility, lookup_skip, vis_ratio
 from .sg_wp import sg_product
 
 
@@ -63,8 +62,8 @@ def env_vertex_visibility_kernel(base: int, fh_mode: int, vis: Visibility, env: 
 
 
 @wp.kernel(enable_backward=False)
-def light_vertex_deficit_kernel(base: int, vis: Visibility, positions: wp.array(dtype=wp.vec3), lights: LightArrays,
-                                out: wp.array2d(dtype=float)):
+def light_vertex_deficit_kernel(base: int, fh_mode: int, vis: Visibility, positions: wp.array(dtype=wp.vec3),
+                                lights: LightArrays, out: wp.array2d(dtype=float)):
     """``out[v, j] = min(θd_v(l_v) − θh_v(l_v), 0)``: vertex v's SSDF towards light j (direction
     ``l_v`` from the vertex, its own frame) less its horizon value ``asin(l_v·n_v)`` — 0 where no
     occluder is closer than the horizon (and where the occluder cone is clear: no lookup)."""
@@ -76,33 +75,35 @@ def light_vertex_deficit_kernel(base: int, vis: Visibility, positions: wp.array(
     la, ll, E = light_irradiance(lights, j, positions[v])
     q = ssdf_point(vis.normals, v, v, v, 1.0, 0.0, 0.0, n)
     th_h = fast_asin(wp.clamp(wp.dot(la, n), -1.0, 1.0))
-    s = occluder_clearance(vis.cones, q, la, th_h, fh_theta_max_wp(ll), vis.cone_band)
+    s = lookup_skip(fh_mode, vis, q, la, th_h, ll)
     d = float(0.0)
     if s < 1.0:
         d = (1.0 - s) * wp.min(ssdf_at(vis.mean, vis.basis, vis.weights, q, la) - th_h, 0.0)
     out[v, j] = d
 
 
-def light_vertex_deficit(vis: Visibility, positions, lights: LightArrays, n_vertices: int, device) -> wp.array2d:
-    """(V, lights) float array of :func:`light_vertex_deficit_kernel` on ``device`` (CPU: thread pool)."""
+def _vertex_table(kernel, n_vertices: int, n_cols: int, inputs: list, device) -> wp.array2d:
+    """(V, n_cols) float array of a per-(vertex, column) ``kernel`` (element ``v·n_cols + j``;
+    CPU: thread pool); (1, 1) zeros when there is nothing to compute."""
     from raster import parallel
 
-    out = wp.zeros((max(int(n_vertices), 1), max(int(lights.count), 1)), dtype=float, device=device)
-    if lights.count > 0 and n_vertices > 0:
-        parallel.launch(light_vertex_deficit_kernel, int(n_vertices) * int(lights.count),
-                        [vis, positions, lights, out], device, min_chunk=1024)
+    out = wp.zeros((max(int(n_vertices), 1), max(int(n_cols), 1)), dtype=float, device=device)
+    if n_cols > 0 and n_vertices > 0:
+        parallel.launch(kernel, int(n_vertices) * int(n_cols), [*inputs, out], device, min_chunk=1024)
     return out
+
+
+def light_vertex_deficit(vis: Visibility, positions, lights: LightArrays, n_vertices: int, fh_sigmoid: bool,
+                         device) -> wp.array2d:
+    """(V, lights) array of :func:`light_vertex_deficit_kernel`."""
+    return _vertex_table(light_vertex_deficit_kernel, n_vertices, lights.count,
+                         [1 if fh_sigmoid else 0, vis, positions, lights], device)
 
 
 def env_vertex_visibility(vis: Visibility, env: EnvSG, n_vertices: int, fh_sigmoid: bool, device) -> wp.array2d:
-    """(V, J) float array of :func:`env_vertex_visibility_kernel` on ``device`` (CPU: thread pool)."""
-    from raster import parallel
-
-    out = wp.empty((max(int(n_vertices), 1), max(int(env.count), 1)), dtype=float, device=device)
-    if env.count > 0 and n_vertices > 0:
-        parallel.launch(env_vertex_visibility_kernel, int(n_vertices) * int(env.count),
-                        [1 if fh_sigmoid else 0, vis, env, out], device, min_chunk=1024)
-    return out
+    """(V, J) array of :func:`env_vertex_visibility_kernel`."""
+    return _vertex_table(env_vertex_visibility_kernel, n_vertices, env.count, [1 if fh_sigmoid else 0, vis, env],
+                         device)
 
 
 def _same_key(a, b) -> bool:
@@ -116,8 +117,9 @@ def _same_key(a, b) -> bool:
 class VertexCache:
     """A per-vertex array kept between frames: ``array(key, build, device)`` calls ``build()`` only
     when ``key`` changes (:func:`_same_key`: values by ``==``, objects by identity — the key holds
-    them, so a rebuilt object never matches a stale key); ``key=None`` gives a (1, 1) placeholder (the kernel variant
-    without the cache). ``builds`` counts rebuilds and ``seconds`` is the last one's time."""
+    them, so a rebuilt object never matches a stale key); ``key=None`` gives a (1, 1) placeholder
+    (the kernel variant without the cache). ``builds`` counts rebuilds; ``seconds`` is the time the
+    last ``array`` call spent building (0 when it reused the array)."""
 
     def __init__(self):
         self.key = None
@@ -126,8 +128,7 @@ class VertexCache:
         self.seconds = 0.0
 
     def array(self, key, build, device) -> wp.array2d:
-        import time
-
+        self.seconds = 0.0
         if key is None:
             if self.value is None or self.key is not None:
                 self.key, self.value = None, wp.zeros((1, 1), dtype=float, device=device)
