@@ -127,7 +127,9 @@ def test_material_funcs_reject_unknown_model_codes():
 @pytest.fixture(scope="module")
 def renderer():
     """Two spheres ("a", "b") under a directional light and a small procedural sky (SG diffuse and
-    prefiltered specular environment; no shadows: no precompute)."""
+    prefiltered specular environment; no shadows: no precompute). Per-pixel sampling: the per-vertex
+    diffuse environment sum needs ρd = kd/π, which the generic kernel (with Oren–Nayar) cannot
+    assume, so it would differ by its interpolation (tests/test_env_irradiance_vertex.py)."""
     cam = Camera(origin=(0.0, 0.0, 3.5), target=(0.0, 0.0, 0.0), fov=40.0, width=24, height=24)
     sphere = {"radius": 0.45, "resolution": (16, 32)}
     scene = Scene(camera=cam,
@@ -136,7 +138,8 @@ def renderer():
                   materials={"a": B.Lambert(kd=0.5), "b": B.Lambert(kd=0.5)},
                   lights=[DirectionalLight(direction=(0.3, 0.5, 1.0), radius=0.1, intensity=2.0),
                           EnvironmentLight(procedural="sky", options={"width": 32, "height": 16})],
-                  render=RenderSettings(shadows=False, env_lobes=4, supersampling=1, antialias=1, background=False))
+                  render=RenderSettings(shadows=False, env_lobes=4, supersampling=1, antialias=1, background=False,
+                                        visibility_sampling="pixel"))
     return Renderer(scene)
 
 

@@ -38,7 +38,7 @@ from .scene import COLOUR_PARAMS, Geometry, Material, Scene
 from .surface import material_texture_slots
 from . import shading as S
 from .textures import Texture, build_atlas
-from .vertex_visibility import VertexCache
+from .vertex_visibility import caches
 
 
 def _refine_key(g: Geometry, budget: int) -> str:
@@ -99,8 +99,8 @@ class Renderer:
         self.timings: dict = {"precompute_parts": {}}
         self._env_arrays_key = ()  # (see _env_arrays; () = not built yet)
         self._env_sg_arrays = None
-        self.env_vis_cache = VertexCache()  # per-vertex visibility (see _vertex_visibility)
-        self.light_vis_cache = VertexCache()
+        self.env_vis_cache, self.light_vis_cache, self.env_irr_cache = caches()  # (_vertex_visibility)
+        self.env_irr_scale = 1.0  # the environment scale env_irr_cache was built with
         self._env_base_wp = None  # the environment map on the device (background), uploaded once
         t0 = time.perf_counter()
         with wp.ScopedDevice(self.device):
@@ -316,27 +316,17 @@ class Renderer:
         "vertex"``) with shadows shown."""
         return self.scene.render.visibility_sampling == "vertex" and self.shadows and self.show_shadows
 
-    def _vertex_visibility(self, es):
-        """The per-vertex caches (:mod:`warp_sg.vertex_visibility`): ``es.vis``, each environment
-        lobe's visible fraction, rebuilt when the lobe axes (rotation, fit) or the visibility data
-        change; ``vis.light_deficit``, each light's SSDF deficit, rebuilt when the lights change.
-        Camera, material and environment-scale edits reuse both."""
-        from .vertex_visibility import env_vertex_visibility, light_vertex_deficit
+    def _env_irradiance_vertex(self) -> bool:
+        """The diffuse environment sum per vertex where it interpolates well (``visibility_sampling =
+        "vertex"``; needs ρd = kd/π, no Oren–Nayar, and no normal maps)."""
+        return (self.scene.render.visibility_sampling == "vertex" and self.env_diffuse_mode == S.ENV_SG
+                and not self.has_normal_maps and 1 not in self.material_table.models)
 
-        d, nv, fh = self.device, len(self.geometry.vertices), self.scene.render.fh
-        on = self._vertex_sampled()
-        key = (self._env_arrays_key[:2], self.ssdf, self.vis.cones, fh) \
-            if on and self.env_diffuse_mode == S.ENV_SG else None
-        es.vis = self.env_vis_cache.array(key, lambda: env_vertex_visibility(self.vis, es, nv, fh == "sigmoid", d), d)
-        # the lights' places and sizes, not their intensities (an environment-scale edit rescales the sun)
-        where = tuple((li.type, *np.ravel(getattr(li, "position", getattr(li, "direction", ()))).tolist(),
-                       float(li.radius)) for li in self.shading_lights)
-        key = (where, self.ssdf, self.vis.cones, fh) if on and self.shading_lights else None
-        self.vis.light_deficit = self.light_vis_cache.array(
-            key, lambda: light_vertex_deficit(self.vis, self.geo_arrays.positions, self.light_arrays, nv,
-                                              fh == "sigmoid", d), d)
-        self.timings["vertex_visibility"] = self.env_vis_cache.seconds + self.light_vis_cache.seconds
-        return es
+    def _vertex_visibility(self, es):
+        """The per-vertex caches, brought up to date (:func:`warp_sg.vertex_visibility.update_caches`)."""
+        from .vertex_visibility import update_caches
+
+        return update_caches(self, es)
 
     def _setup_materials(self):
         from .brdf.material_wp import pack_materials
@@ -395,6 +385,7 @@ class Renderer:
             fh_sigmoid=self.scene.render.fh == "sigmoid",
             env_vis_vertex=self._vertex_sampled() and self.env_diffuse_mode == S.ENV_SG,
             light_vis_vertex=self._vertex_sampled() and len(self.shading_lights) > 0,
+            env_irradiance_vertex=self._env_irradiance_vertex(),
             models=self.material_table.models,
         )
 

@@ -22,7 +22,10 @@ Environment, diffuse — eq. 39 with the exact irradiance of each SG ``L*_j`` of
     Rd += ρd(o, p_G) μ_j ∫G_j e(Ns·p_j, λ_j) vis_ratio(p_G, λ_G),   G = C* ⊗ L*_j (eq. 5, 40)
 
 (with ``Features.env_vis_vertex`` the visibility factor is ``Σ_k b_k V[i_k, j]``, the per-vertex
-cache of ``warp_sg.vertex_visibility``: the lobe axes are fixed in world space.)
+cache of ``warp_sg.vertex_visibility``: the lobe axes are fixed in world space. With
+``Features.env_irradiance_vertex`` and ρd = kd/π the whole sum, which depends on the point and its
+normal only, is taken per vertex and interpolated, ``ρd Σ_k b_k D[i_k]``, on the triangles whose
+check at their edge midpoints and centroid found that within 0.5 % of the per-pixel sum.)
 
 Environment, specular — eq. 41, for each slice lobe G_k of ks ρs(o, ·) (spherical warp of the
 NDF lobes, eq. 17–22, ``shading_slice_lobe``)::
@@ -123,6 +126,13 @@ class EnvSG:
     #: (V, count) visible fraction of C*(n_v) ⊗ G_j per vertex (``warp_sg.vertex_visibility``),
     #: read by the variant with ``Features.env_vis_vertex``; a (1, 1) placeholder otherwise
     vis: wp.array2d(dtype=float)
+    #: (V,) the diffuse environment term per vertex without ρd, Σ_j μ_j ∫G_j e(n_v·p_j, λ_j) V[v, j],
+    #: and (T,) per triangle 1 where interpolating it is within tolerance of the per-pixel sum
+    #: (``warp_sg.vertex_visibility.env_vertex_irradiance``), read by the variant with
+    #: ``Features.env_irradiance_vertex``; length-1 placeholders otherwise
+    irr_vertex: wp.array(dtype=wp.vec3)
+    gouraud: wp.array(dtype=wp.uint8)
+    irr_scale: float  # the environment scale now over the one irr_vertex was built with
 
 
 # --------------------------------------------------------------------------------------------
@@ -212,6 +222,9 @@ class Features:
     env_vis_vertex: bool = False
     #: lights' SSDF deficit interpolated from the per-vertex cache ``Visibility.light_deficit``
     light_vis_vertex: bool = False
+    #: the whole diffuse environment term interpolated from ``EnvSG.irr_vertex`` on the triangles
+    #: where ``EnvSG.gouraud`` says that is within tolerance (needs ρd = kd/π and no normal maps)
+    env_irradiance_vertex: bool = False
     #: sorted material model codes of the scene (``MaterialTable.models``); the material
     #: functions are specialised to them (``material_funcs``); default: every model
     models: tuple = tuple(sorted(ALL_MODELS))
@@ -245,6 +258,7 @@ def shade_kernel(f: Features):
     VVIS = bool(f.env_vis_vertex) and SHADOWS == 1
     LVIS = bool(f.light_vis_vertex) and SHADOWS == 1
     RHO_D_CONST = 1 not in f.models  # no Oren–Nayar: ρd = kd/π, whatever the directions
+    EVTX = bool(f.env_irradiance_vertex) and RHO_D_CONST and not NMAP and ENV_D == 1
     MF = material_funcs(f.models)  # the material switch reduced to the scene's models
     brdf_eval, diffuse_at, slice_lobe_count = MF.brdf_eval, MF.diffuse_at, MF.slice_lobe_count
     shading_slice_lobe = MF.shading_slice_lobe
@@ -330,7 +344,13 @@ def shade_kernel(f: Features):
         if wp.static(ENV_D == 1):
             if has_kd:
                 rho_d = diffuse_at(mat, o_l, wp.vec3(0.0, 0.0, 1.0))  # ρd itself where it is constant
-                for j in range(env.count):
+                nj = env.count
+                if wp.static(EVTX):  # the per-vertex sum, where the triangle's check allows it
+                    if env.gouraud[t] != wp.uint8(0):
+                        dsum = b0 * env.irr_vertex[i0] + b1 * env.irr_vertex[i1] + b2 * env.irr_vertex[i2]
+                        col += wp.cw_mul(dsum, rho_d) * env.irr_scale
+                        nj = 0
+                for j in range(nj):
                     ax = env.axis[j]
                     E = env.power[j] * sg_irradiance_norm_at(irr, wp.dot(ns, ax), env.lam[j], env.irr_row[j])
                     if wp.length_sq(E) > 0.0:
@@ -365,7 +385,8 @@ def shade_kernel(f: Features):
                         col += wp.cw_mul(mw, g) * (e * vr)
         out[y, x] = wp.vec3(wp.max(col[0], 0.0), wp.max(col[1], 0.0), wp.max(col[2], 0.0))
 
-    key = "shade_" + "_".join(str(int(v)) for v in (ENV_D, ENV_S, LIGHTS, SPEC, SHADOWS, TEX, NMAP, FH, VVIS, LVIS)) + MF.tag
+    key = "shade_" + "_".join(str(int(v)) for v in (ENV_D, ENV_S, LIGHTS, SPEC, SHADOWS, TEX, NMAP, FH, VVIS, LVIS,
+                                                      EVTX)) + MF.tag
     shade.__name__ = key
     shade.__qualname__ = key
     k = wp.kernel(shade, enable_backward=False, module="unique")

@@ -32,11 +32,21 @@ kernel takes ``θd = θh + Σ_k b_k deficit_k`` with the pixel's own ``θh = asi
 where the interpolated SSDF crosses zero, inside a triangle), an unoccluded point is exactly lit,
 and each vertex is read towards the light as seen from that vertex. Rebuilt when a light moves or
 changes size.
+
+**The diffuse environment sum** (:func:`env_vertex_irradiance`): with ρd = kd/π the whole diffuse
+environment term is ``ρd D``, ``D = Σ_j μ_j ∫G_j e(n·p_j, λ_j) V_j`` — a function of the point and
+its normal only. ``D`` is evaluated per vertex and interpolated (Gouraud) on the triangles where
+that is accurate: each triangle compares the interpolated value with the per-pixel sum at the
+interpolated normal at its three edge midpoints and centroid, and is shaded per pixel when they
+differ by more than :data:`GOURAUD_TOLERANCE` (0.5 %) of its largest value. Flat triangles pass
+exactly; finely tessellated curved ones pass; a coarse sphere keeps the per-pixel sum. Rebuilt on
+environment rotation or with the visibility cache; a scale edit only rescales it.
 """
 from __future__ import annotations
 
 import time
 
+import numpy as np
 import warp as wp
 
 from precompute.ssdf_wp import ssdf_at, ssdf_point
@@ -44,6 +54,7 @@ from precompute.ssdf_wp import ssdf_at, ssdf_point
 from .fastmath import fast_asin
 from .lights import LightArrays, light_irradiance
 from .shading import CC_LAM, EnvSG, Visibility, lookup_skip, vis_ratio
+from .sg_irradiance import sg_irradiance_norm_at
 from .sg_wp import sg_product
 
 
@@ -82,6 +93,97 @@ def light_vertex_deficit_kernel(base: int, fh_mode: int, vis: Visibility, positi
     out[v, j] = d
 
 
+@wp.func
+def env_diffuse_sum(irr: wp.array2d(dtype=float), env: EnvSG, use_vis: int, n: wp.vec3, i0: int, i1: int, i2: int,
+                    b0: float, b1: float, b2: float) -> wp.vec3:
+    """``Σ_j μ_j ∫G_j e(n·p_j, λ_j) Σ_k b_k V[i_k, j]``: the shading kernel's diffuse environment
+    sum without ρd at normal ``n`` (visibility interpolated from ``env.vis`` when ``use_vis``)."""
+    acc = wp.vec3(0.0, 0.0, 0.0)
+    for j in range(env.count):
+        vr = float(1.0)
+        if use_vis != 0:
+            vr = b0 * env.vis[i0, j] + b1 * env.vis[i1, j] + b2 * env.vis[i2, j]
+        acc += env.power[j] * (sg_irradiance_norm_at(irr, wp.dot(n, env.axis[j]), env.lam[j], env.irr_row[j]) * vr)
+    return acc
+
+
+@wp.kernel(enable_backward=False)
+def env_vertex_irradiance_kernel(base: int, use_vis: int, irr: wp.array2d(dtype=float), env: EnvSG,
+                                 normals: wp.array(dtype=wp.vec3), out: wp.array(dtype=wp.vec3)):
+    """``out[v] = D[v]``, the diffuse environment sum at vertex v (its normal, its visibility)."""
+    v = base + wp.tid()
+    out[v] = env_diffuse_sum(irr, env, use_vis, wp.normalize(normals[v]), v, v, v, 1.0, 0.0, 0.0)
+
+
+@wp.func
+def _max3(a: wp.vec3) -> float:
+    return wp.max(wp.max(a[0], a[1]), a[2])
+
+
+@wp.kernel(enable_backward=False)
+def env_gouraud_kernel(base: int, use_vis: int, irr: wp.array2d(dtype=float), env: EnvSG,
+                       normals: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.vec3i),
+                       dv: wp.array(dtype=wp.vec3), tol: float, out: wp.array(dtype=wp.uint8)):
+    """``out[t] = 1`` where ``Σ_k b_k D[i_k]`` is within ``tol`` (relative to the largest value seen
+    on the triangle) of the per-pixel sum at the normal ``normalize(Σ_k b_k n_k)``, checked at the
+    three edge midpoints and the centroid (the error of linear interpolation of a smooth function
+    peaks there; it is exact at the vertices)."""
+    t = base + wp.tid()
+    tri = tris[t]
+    i0 = tri[0]
+    i1 = tri[1]
+    i2 = tri[2]
+    d0 = dv[i0]
+    d1 = dv[i1]
+    d2 = dv[i2]
+    scale = wp.max(wp.max(_max3(d0), _max3(d1)), _max3(d2))
+    err = float(0.0)
+    for k in range(4):
+        b0 = float(1.0) / 3.0
+        b1 = float(1.0) / 3.0
+        if k == 0:
+            b0 = 0.5
+            b1 = 0.5
+        elif k == 1:
+            b0 = 0.0
+            b1 = 0.5
+        elif k == 2:
+            b0 = 0.5
+            b1 = 0.0
+        b2 = 1.0 - b0 - b1
+        n = wp.normalize(normals[i0] * b0 + normals[i1] * b1 + normals[i2] * b2)
+        ref = env_diffuse_sum(irr, env, use_vis, n, i0, i1, i2, b0, b1, b2)
+        d = wp.abs(d0 * b0 + d1 * b1 + d2 * b2 - ref)
+        err = wp.max(err, _max3(d))
+        scale = wp.max(scale, _max3(ref))
+    ok = wp.uint8(0)
+    if err <= tol * scale:
+        ok = wp.uint8(1)
+    out[t] = ok
+
+
+#: relative error of the interpolated diffuse environment sum a triangle may have (checked at its
+#: edge midpoints and centroid) to be shaded from the per-vertex values
+GOURAUD_TOLERANCE = 0.005
+
+
+def env_vertex_irradiance(irr, env: EnvSG, normals, tris, use_vis: bool, device,
+                          tol: float = GOURAUD_TOLERANCE):
+    """``(D, ok)``: the diffuse environment sum per vertex (V,) vec3 and the per-triangle flag (T,)
+    uint8 of where interpolating it stays within ``tol`` (:func:`env_gouraud_kernel`). ``env.vis``
+    must be the per-vertex visibility when ``use_vis``."""
+    from raster import parallel
+
+    nv, nt = int(normals.shape[0]), int(tris.shape[0])
+    dv = wp.zeros(max(nv, 1), dtype=wp.vec3, device=device)
+    ok = wp.zeros(max(nt, 1), dtype=wp.uint8, device=device)
+    flag = 1 if use_vis else 0
+    parallel.launch(env_vertex_irradiance_kernel, nv, [flag, irr, env, normals, dv], device, min_chunk=1024)
+    parallel.launch(env_gouraud_kernel, nt, [flag, irr, env, normals, tris, dv, float(tol), ok], device,
+                    min_chunk=1024)
+    return dv, ok
+
+
 def _vertex_table(kernel, n_vertices: int, n_cols: int, inputs: list, device) -> wp.array2d:
     """(V, n_cols) float array of a per-(vertex, column) ``kernel`` (element ``v·n_cols + j``;
     CPU: thread pool); (1, 1) zeros when there is nothing to compute."""
@@ -117,21 +219,22 @@ def _same_key(a, b) -> bool:
 class VertexCache:
     """A per-vertex array kept between frames: ``array(key, build, device)`` calls ``build()`` only
     when ``key`` changes (:func:`_same_key`: values by ``==``, objects by identity — the key holds
-    them, so a rebuilt object never matches a stale key); ``key=None`` gives a (1, 1) placeholder
-    (the kernel variant without the cache). ``builds`` counts rebuilds; ``seconds`` is the time the
+    them, so a rebuilt object never matches a stale key); ``key=None`` gives ``placeholder(device)``
+    (default a (1, 1) float array: the argument of the kernel variant without the cache). ``builds`` counts rebuilds; ``seconds`` is the time the
     last ``array`` call spent building (0 when it reused the array)."""
 
-    def __init__(self):
+    def __init__(self, placeholder=lambda device: wp.zeros((1, 1), dtype=float, device=device)):
         self.key = None
         self.value = None
         self.builds = 0
         self.seconds = 0.0
+        self.placeholder = placeholder
 
-    def array(self, key, build, device) -> wp.array2d:
+    def array(self, key, build, device):
         self.seconds = 0.0
         if key is None:
             if self.value is None or self.key is not None:
-                self.key, self.value = None, wp.zeros((1, 1), dtype=float, device=device)
+                self.key, self.value = None, self.placeholder(device)
         elif not _same_key(key, self.key):
             t = time.perf_counter()
             self.value = build()
@@ -141,5 +244,49 @@ class VertexCache:
         return self.value
 
 
-__all__ = ["VertexCache", "env_vertex_visibility", "env_vertex_visibility_kernel", "light_vertex_deficit",
+def caches() -> tuple:
+    """The renderer's three caches: environment visibility, lights' deficit, diffuse environment sum."""
+    return VertexCache(), VertexCache(), VertexCache(lambda d: (wp.zeros(1, dtype=wp.vec3, device=d),
+                                                                wp.zeros(1, dtype=wp.uint8, device=d)))
+
+
+def update_caches(r, es: EnvSG) -> EnvSG:
+    """Bring a ``Renderer``'s per-vertex caches up to date and attach them to the shading arguments:
+
+    * ``es.vis`` (``r.env_vis_cache``), each environment lobe's visible fraction: rebuilt when the
+      lobe axes (rotation, fit) or the visibility data change;
+    * ``r.vis.light_deficit`` (``r.light_vis_cache``), each light's SSDF deficit: rebuilt when a
+      light moves or is resized (not on an intensity or environment-scale edit);
+    * ``es.irr_vertex``, ``es.gouraud`` (``r.env_irr_cache``), the diffuse environment sum and where
+      it interpolates: rebuilt on environment rotation or a new ``es.vis``; a scale edit sets
+      ``es.irr_scale`` (the sum is linear in it).
+
+    Camera and material edits reuse all three. ``r.timings["vertex_visibility"]``: this call's
+    rebuild time."""
+    from . import shading as S
+
+    d, nv, fh = r.device, len(r.geometry.vertices), r.scene.render.fh
+    on = r._vertex_sampled()
+    vvis = on and r.env_diffuse_mode == S.ENV_SG
+    key = (r._env_arrays_key[:2], r.ssdf, r.vis.cones, fh) if vvis else None
+    es.vis = r.env_vis_cache.array(key, lambda: env_vertex_visibility(r.vis, es, nv, fh == "sigmoid", d), d)
+    where = tuple((li.type, *np.ravel(getattr(li, "position", getattr(li, "direction", ()))).tolist(),
+                   float(li.radius)) for li in r.shading_lights)
+    key = (where, r.ssdf, r.vis.cones, fh) if on and r.shading_lights else None
+    r.vis.light_deficit = r.light_vis_cache.array(
+        key, lambda: light_vertex_deficit(r.vis, r.geo_arrays.positions, r.light_arrays, nv, fh == "sigmoid", d), d)
+    # D is linear in the environment's scale: built once per rotation, rescaled by es.irr_scale
+    scale = float(r.env_light.scale) if r.env_light is not None else 0.0
+    key = (r._env_arrays_key[:2], scale > 0.0, es.vis, r.geo_arrays.normals) if r._env_irradiance_vertex() else None
+    if not _same_key(key, r.env_irr_cache.key):
+        r.env_irr_scale = scale
+    es.irr_vertex, es.gouraud = r.env_irr_cache.array(key, lambda: env_vertex_irradiance(
+        r.irr_table, es, r.geo_arrays.normals, r.geo_arrays.tris, vvis, d), d)
+    es.irr_scale = scale / r.env_irr_scale if key is not None and scale > 0.0 else 0.0
+    r.timings["vertex_visibility"] = sum(c.seconds for c in (r.env_vis_cache, r.light_vis_cache, r.env_irr_cache))
+    return es
+
+
+__all__ = ["VertexCache", "caches", "update_caches", "env_vertex_irradiance", "env_vertex_visibility",
+           "GOURAUD_TOLERANCE", "env_vertex_visibility_kernel", "light_vertex_deficit",
            "light_vertex_deficit_kernel"]
