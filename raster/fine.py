@@ -14,7 +14,8 @@ Coverage: sample (x+½, y+½) in fixed point is inside when every edge function 
 top-left edge. Depth: the 1/w plane of the original triangle (larger = nearer), kept only in
 [1/far, 1/near]; ties go to the lower triangle id so the result does not depend on queue order.
 The winner's perspective-correct barycentrics (λ1/Σλ, λ2/Σλ from the record's planes) are written
-with it, straight into the output buffers; ``resolve_kernel`` only turns 1/w into depth.
+with it, straight into the output buffers (cleared before the first pass); ``resolve_kernel`` turns
+1/w into depth, only when a caller asks for it.
 ``count_mode`` additionally counts every covering sub-triangle per pixel (depth test off) — the
 watertightness diagnostic.
 """
@@ -189,7 +190,6 @@ def resolve_pixel_kernel(
     base: int,
     best_invw: wp.array2d(dtype=wp.float32),
     tri_id: wp.array2d(dtype=wp.int32),
-    bary: wp.array2d(dtype=wp.vec2),
     depth: wp.array2d(dtype=wp.float32),
 ):
     """One thread per pixel (CUDA): as ``resolve_kernel``."""
@@ -200,7 +200,6 @@ def resolve_pixel_kernel(
     if y >= tri_id.shape[0]:
         return
     if tri_id[y, x] < 0:
-        bary[y, x] = wp.vec2(0.0, 0.0)
         depth[y, x] = wp.inf
     else:
         depth[y, x] = 1.0 / best_invw[y, x]
@@ -211,18 +210,17 @@ def resolve_kernel(
     base: int,
     best_invw: wp.array2d(dtype=wp.float32),
     tri_id: wp.array2d(dtype=wp.int32),
-    bary: wp.array2d(dtype=wp.vec2),
     depth: wp.array2d(dtype=wp.float32),
 ):
-    """One thread per image row: depth = 1/(1/w) of the winner; empty pixels get bary (0, 0) and
-    depth +inf (their tri_id is already -1)."""
+    """One thread per image row: depth = 1/(1/w) of the winner, +inf where empty (only when a
+    caller asks for ``VisibilityBuffer.depth``: the renderer needs tri_id and bary alone, and
+    antialiasing reads 1/w itself)."""
     y = base + wp.tid()
     if y >= tri_id.shape[0]:
         return
     x = int(0)
     while x < tri_id.shape[1]:
         if tri_id[y, x] < 0:
-            bary[y, x] = wp.vec2(0.0, 0.0)
             depth[y, x] = wp.inf
         else:
             depth[y, x] = 1.0 / best_invw[y, x]

@@ -11,7 +11,7 @@ Pipeline (Laine & Karras 2011, sort-middle, every stage a Warp kernel):
 5. ``coarse.coarse_scatter_kernel``: per-tile queues of sub-triangle ids;
 6. ``fine.fine_tile_kernel`` (CPU, tiles on a thread pool) or ``fine.fine_pixel_kernel`` (CUDA):
    coverage with the top-left rule + depth test into (1/w, tri) buffers, no atomics;
-7. ``fine.resolve_kernel``: tri_id, perspective-correct barycentrics, depth.
+7. ``fine.resolve_kernel``: depth from 1/w, on the first access to ``VisibilityBuffer.depth``.
 
 Steps 4–6 run in as many passes over the sub-triangles as the queue-memory budget needs
 (``max_pairs``); the depth buffers persist across passes.
@@ -101,24 +101,43 @@ class VisibilityBuffer:
     * ``tri_id`` int32: index of the visible input triangle, -1 where empty;
     * ``bary`` vec2: perspective-correct barycentric weights of the triangle's vertices 1 and 2
       (vertex 0's weight is ``1 - b1 - b2``); (0, 0) where empty;
-    * ``depth`` float32: distance along the camera's view axis; +inf where empty;
+    * ``inv_depth`` float32: 1 / the distance along the camera's view axis (the interpolated 1/w
+      the depth test compares); 0 where empty;
+    * ``depth`` float32 (a property, computed on first access): distance along the camera's view
+      axis, +inf where empty;
     * ``coverage`` int32 (only with ``coverage_count=True``, else None): how many (sub-)triangles
       cover each pixel centre with the depth test off.
     """
 
     tri_id: wp.array
     bary: wp.array
-    depth: wp.array
+    inv_depth: wp.array
     coverage: wp.array | None
     width: int
     height: int
     supersample: int
     device: str
     stats: dict
+    _schedule: str = "tile"
+    _depth_buf: wp.array | None = None  # reused storage for depth (a previous buffer's)
+    _depth: wp.array | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
         return (self.height, self.width)
+
+    @property
+    def depth(self) -> wp.array:
+        if self._depth is None:
+            H, W = self.height, self.width
+            d = self._depth_buf if self._depth_buf is not None else wp.empty((H, W), dtype=wp.float32,
+                                                                              device=self.device)
+            if self._schedule == "tile":  # CPU: a row per thread
+                parallel.launch(resolve_kernel, H, [self.inv_depth, self.tri_id, d], self.device, min_chunk=16)
+            else:
+                parallel.launch(resolve_pixel_kernel, H * W, [self.inv_depth, self.tri_id, d], self.device)
+            self._depth, self._depth_buf = d, None
+        return self._depth
 
 
 def _as_numpy_mesh(vertices, triangles):
@@ -184,16 +203,18 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
     clock.lap("validate")
 
     ws = _workspace(device)
-    best_invw = ws.get2d("best_invw", (H, W), wp.float32)  # 1/w of the nearest so far (0 = empty)
-    best_invw.zero_()
-    # the fine raster writes tri_id and bary of the winners straight into the outputs
+    # the fine raster writes 1/w, tri_id and bary of the winners straight into the outputs
+    depth_buf = None
     if reuse is not None and reuse.width == W and reuse.height == H and str(reuse.device) == device:
-        tri_id, bary, depth = reuse.tri_id, reuse.bary, reuse.depth
+        tri_id, bary, best_invw = reuse.tri_id, reuse.bary, reuse.inv_depth
+        depth_buf = reuse._depth if reuse._depth is not None else reuse._depth_buf
     else:
         tri_id = wp.empty((H, W), dtype=wp.int32, device=device)
         bary = wp.empty((H, W), dtype=wp.vec2, device=device)
-        depth = wp.empty((H, W), dtype=wp.float32, device=device)
+        best_invw = wp.empty((H, W), dtype=wp.float32, device=device)
+    best_invw.zero_()  # (memsets: on the CPU faster than clearing in the fine kernel's tiles)
     tri_id.fill_(-1)
+    bary.zero_()
     clock.lap("clear")
     coverage = wp.zeros((H, W), dtype=wp.int32, device=device) if coverage_count else None
     cov_arg = coverage if coverage is not None else wp.zeros((1, 1), dtype=wp.int32, device=device)
@@ -239,13 +260,12 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
         _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera,
                         best_invw, tri_id, bary, cov_arg, coverage is not None, device,
                         max_pairs or DEFAULT_MAX_PAIRS, schedule, stats, ws, clock)
-
-    if schedule == "tile":  # CPU: a row per thread, no per-pixel division, sequential writes
-        parallel.launch(resolve_kernel, H, [best_invw, tri_id, bary, depth], device, min_chunk=16)
-    else:
-        parallel.launch(resolve_pixel_kernel, H * W, [best_invw, tri_id, bary, depth], device)
-    clock.lap("resolve")
-    return VisibilityBuffer(tri_id, bary, depth, coverage, W, H, k, device, stats)
+    vb = VisibilityBuffer(tri_id, bary, best_invw, coverage, W, H, k, device, stats, _schedule=schedule,
+                          _depth_buf=depth_buf)
+    if profile:
+        vb.depth
+        clock.lap("resolve")
+    return vb
 
 
 class _Bins:

@@ -30,54 +30,57 @@ CONTRAST = 0.2
 
 
 @wp.kernel(enable_backward=False)
-def classify_kernel(base: int, tri_id: wp.array2d(dtype=int), depth: wp.array2d(dtype=float),
+def classify_kernel(base: int, tri_id: wp.array2d(dtype=int), inv_depth: wp.array2d(dtype=float),
                     tri_object: wp.array(dtype=int), a: int, resid_tol: float,
                     edge: wp.array2d(dtype=int), count: wp.array(dtype=int)):
-    """edge[y, x] (0/1) and the pixel's sample count (1 or a²) for pass 1."""
+    """edge[y, x] (0/1) and the pixel's sample count (1 or a²) for pass 1. ``inv_depth``: the
+    raster's 1/z (0 where empty). A block that one triangle covers is interior at once (1/z is
+    affine across a triangle)."""
     W = edge.shape[1]
     k = base + wp.tid()
     y = k / W
     x = k - y * W
     t0 = tri_id[y * a, x * a]
-    o0 = int(-1)
-    if t0 >= 0:
-        o0 = tri_object[t0]
-    is_edge = int(0)
-    # least-squares plane of 1/z over the a×a grid (centred coordinates u, v)
-    c = 0.5 * float(a - 1)
-    n = float(a * a)
-    s = float(0.0)
-    su = float(0.0)
-    sv = float(0.0)
-    wmax = float(0.0)
+    one = int(1)
     for j in range(a):
         for i in range(a):
-            t = tri_id[y * a + j, x * a + i]
-            o = int(-1)
-            if t >= 0:
-                o = tri_object[t]
-            if o != o0:
-                is_edge = 1
-            z = depth[y * a + j, x * a + i]
-            w = float(0.0)
-            if t >= 0 and z > 0.0:
-                w = 1.0 / z
-            s += w
-            su += w * (float(i) - c)
-            sv += w * (float(j) - c)
-            wmax = wp.max(wmax, w)
-    if is_edge == 0 and wmax > 0.0:
-        suu = n * float(a * a - 1) / 12.0  # Σ (i − c)² over the a×a block (a > 1)
-        m = s / n
-        gu = su / suu
-        gv = sv / suu
+            if tri_id[y * a + j, x * a + i] != t0:
+                one = 0
+    is_edge = int(0)
+    if one == 0:
+        o0 = int(-1)
+        if t0 >= 0:
+            o0 = tri_object[t0]
+        # least-squares plane of 1/z over the a×a grid (centred coordinates u, v)
+        c = 0.5 * float(a - 1)
+        n = float(a * a)
+        s = float(0.0)
+        su = float(0.0)
+        sv = float(0.0)
+        wmax = float(0.0)
         for j in range(a):
             for i in range(a):
-                z = depth[y * a + j, x * a + i]
-                w = 1.0 / z
-                r = w - (m + gu * (float(i) - c) + gv * (float(j) - c))
-                if wp.abs(r) > resid_tol * wmax:
+                t = tri_id[y * a + j, x * a + i]
+                o = int(-1)
+                if t >= 0:
+                    o = tri_object[t]
+                if o != o0:
                     is_edge = 1
+                w = inv_depth[y * a + j, x * a + i]
+                s += w
+                su += w * (float(i) - c)
+                sv += w * (float(j) - c)
+                wmax = wp.max(wmax, w)
+        if is_edge == 0 and wmax > 0.0:
+            suu = n * float(a * a - 1) / 12.0  # Σ (i − c)² over the a×a block (a > 1)
+            m = s / n
+            gu = su / suu
+            gv = sv / suu
+            for j in range(a):
+                for i in range(a):
+                    r = inv_depth[y * a + j, x * a + i] - (m + gu * (float(i) - c) + gv * (float(j) - c))
+                    if wp.abs(r) > resid_tol * wmax:
+                        is_edge = 1
     edge[y, x] = is_edge
     if is_edge == 1:
         count[y * W + x] = a * a
@@ -190,7 +193,7 @@ def render_adaptive(vb, tri_object: wp.array, background: Background, a: int, H:
     edge = wp.empty((H, W), dtype=int, device=device)
     count = wp.empty(H * W, dtype=int, device=device)
     img = wp.empty((H, W), dtype=wp.vec3, device=device)
-    parallel.launch(classify_kernel, H * W, [vb.tri_id, vb.depth, tri_object, a, EDGE_DEPTH_RESIDUAL, edge, count],
+    parallel.launch(classify_kernel, H * W, [vb.tri_id, vb.inv_depth, tri_object, a, EDGE_DEPTH_RESIDUAL, edge, count],
                     device)
     stats = {}
     for p in (1, 2):
