@@ -89,6 +89,11 @@ def test_background_kernel_matches_the_camera_rays_and_the_numpy_environment_loo
     got = background_image(bg, "cpu").numpy()
     want = env_lookup_numpy(env, cam.ray_directions(supersample=3), rotation=R) * 1.5
     np.testing.assert_allclose(got, want, rtol=2e-4, atol=2e-5)
+    # masked by a visibility buffer: the lookup only where it sees no object, 0 elsewhere
+    tri = rng.integers(-1, 2, got.shape[:2]).astype(np.int32)
+    masked = background_image(bg, "cpu", wp.array(tri, dtype=int, device="cpu")).numpy()
+    np.testing.assert_allclose(masked[tri < 0], want[tri < 0], rtol=2e-4, atol=2e-5)
+    assert (masked[tri >= 0] == 0).all()
 
 
 def test_a_bad_material_edit_raises_and_leaves_the_material_and_the_image_as_they_were(renderer):

@@ -49,11 +49,17 @@ def background_at(bg: Background, j: int, i: int) -> wp.vec3:
 
 
 @wp.kernel(enable_backward=False)
-def background_kernel(base: int, bg: Background, out: wp.array2d(dtype=wp.vec3)):
-    """out[j, i] = background_at(bg, j, i) over the whole grid."""
+def background_kernel(base: int, bg: Background, masked: int, tri_id: wp.array2d(dtype=int),
+                      out: wp.array2d(dtype=wp.vec3)):
+    """out[j, i] = background_at(bg, j, i) over the whole grid (``masked``: only where
+    ``tri_id < 0``, 0 elsewhere)."""
     k = base + wp.tid()
     j = k / bg.width
     i = k - j * bg.width
+    if masked != 0:
+        if tri_id[j, i] >= 0:
+            out[j, i] = wp.vec3(0.0, 0.0, 0.0)
+            return
     out[j, i] = background_at(bg, j, i)
 
 
@@ -74,12 +80,16 @@ def background_params(camera, k: int, radiance, rotation, scale: float, device) 
     return bg
 
 
-def background_image(bg: Background, device) -> wp.array:
-    """(k·H, k·W) ``wp.array(vec3)``: :func:`background_at` at every sub-pixel centre."""
+def background_image(bg: Background, device, tri_id: wp.array | None = None) -> wp.array:
+    """(k·H, k·W) ``wp.array(vec3)``: :func:`background_at` at every sub-pixel centre; with
+    ``tri_id`` (the visibility buffer of the same grid) only where it sees no object (the shading
+    kernel reads nothing else), 0 elsewhere."""
     from raster import parallel
 
     out = wp.empty((bg.height, bg.width), dtype=wp.vec3, device=device)
-    parallel.launch(background_kernel, bg.height * bg.width, [bg, out], device, min_chunk=4096)
+    mask = tri_id if tri_id is not None else wp.zeros((1, 1), dtype=int, device=device)
+    parallel.launch(background_kernel, bg.height * bg.width, [bg, int(tri_id is not None), mask, out], device,
+                    min_chunk=4096)
     return out
 
 

@@ -36,6 +36,7 @@ import numpy as np
 import warp as wp
 
 from warp_sg.errors import ImageError
+from warp_sg.fastmath import fast_asin, fast_atan2
 
 PI = wp.constant(3.141592653589793)
 TWO_PI = wp.constant(6.283185307179586)
@@ -115,12 +116,13 @@ def downsample_envmap(env: np.ndarray, factor: int = 2) -> np.ndarray:
 # --------------------------------------------------------------------------------------------
 @wp.func
 def wp_dir_to_uv(d: wp.vec3) -> wp.vec2:
-    """(u, v) of unit direction ``d`` (u wrapped to [0, 1))."""
-    u = wp.atan2(d[0], -d[2]) / TWO_PI
+    """(u, v) of unit direction ``d`` (u wrapped to [0, 1)); polynomial atan2 / asin
+    (``warp_sg.fastmath``, ≈ 2e-6 rad: 1/1000 of a texel of a 2048-wide map)."""
+    u = fast_atan2(d[0], -d[2]) / TWO_PI
     u = u - wp.floor(u)
     if u >= 1.0:
         u = 0.0
-    v = wp.acos(wp.clamp(d[1], -1.0, 1.0)) / PI
+    v = (0.5 * PI - fast_asin(wp.clamp(d[1], -1.0, 1.0))) / PI
     return wp.vec2(u, v)
 
 

@@ -113,7 +113,7 @@ class Renderer:
         wp.synchronize_device(self.device)
         self.timings["precompute"] = time.perf_counter() - t0
         self._background_key = None
-        self._background = None
+        self._background = self._background_vb = None
         self._vb_key = None
         self._vb = None
 
@@ -494,12 +494,12 @@ class Renderer:
         cam = self.scene.camera
         env = self.env_light
         key = (repr(cam), k, None if env is None else (env.rotation, env.scale), self.scene.render.background)
-        if key != self._background_key:
+        if key != self._background_key or self._background_vb is not self._vb:
             from .background import background_image
 
-            self._background = None
-            self._background = background_image(self._background_params(k), self.device)
-            self._background_key = key
+            self._background = None  # only where the visibility buffer sees no object
+            self._background = background_image(self._background_params(k), self.device, self._vb.tri_id)
+            self._background_key, self._background_vb = key, self._vb
         return self._background
 
     def rasterize(self, k: int | None = None):

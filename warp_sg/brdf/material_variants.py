@@ -24,6 +24,7 @@ from typing import Any, NamedTuple
 import warp as wp
 
 from ..errors import InputError
+from ..fastmath import fast_atan2
 from .material_eval_wp import (_aniso_overlap, above, as_exponent_log, cos_pow, expm1_neg_f, fresnel_eval, g_over_cos,
                                ggx_extent, ggx_g2_over_cos, ggx_ndf_peak1, ggx_table_lobe, half_vec, lafortune_lobe,
                                log1p_f, reflect_z, sin2_theta, warp_axis)
@@ -90,7 +91,7 @@ def material_funcs(models=ALL_MODELS) -> MaterialFuncs:
                 return cos_pow(h, p[0])
         if wp.static(H[4]):
             if m == 4:
-                t = wp.atan2(wp.sqrt(sin2_theta(h)), h[2]) / p[0]
+                t = fast_atan2(wp.sqrt(sin2_theta(h)), h[2]) / p[0]  # the angle of h (2e-6 rad)
                 return wp.exp(-t * t)
         if wp.static(H[5]):
             if m == 5:
