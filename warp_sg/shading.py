@@ -259,6 +259,9 @@ def shade_kernel(f: Features):
     LVIS = bool(f.light_vis_vertex) and SHADOWS == 1
     RHO_D_CONST = 1 not in f.models  # no Oren–Nayar: ρd = kd/π, whatever the directions
     EVTX = bool(f.env_irradiance_vertex) and RHO_D_CONST and not NMAP and ENV_D == 1
+    # per-pixel SSDF reads outside the specular loop (lights without the deficit cache, diffuse
+    # lobes without the visibility cache): the SSDF point is built for every pixel
+    Q_EARLY = SHADOWS == 1 and ((LIGHTS and not LVIS) or (ENV_D == 1 and not VVIS))
     MF = material_funcs(f.models)  # the material switch reduced to the scene's models
     brdf_eval, diffuse_at, slice_lobe_count = MF.brdf_eval, MF.diffuse_at, MF.slice_lobe_count
     shading_slice_lobe = MF.shading_slice_lobe
@@ -306,10 +309,12 @@ def shade_kernel(f: Features):
             ns, ts = apply_shading_maps(tex, mi, uv, ng, ts)
         bs = wp.cross(ns, ts)
         o_l = above(world_to_local(o, ts, bs, ns))
-        if wp.static(SHADOWS == 1):  # the point's SSDF frames, once for every light and lobe
+        # the point's SSDF frames, once for every light and lobe that reads the SSDF: at once when
+        # lights or diffuse lobes read it per pixel, else only where a specular lobe does
+        q = SSDFPoint()
+        q.ng = ng
+        if wp.static(Q_EARLY):
             q = ssdf_point(vis.normals, i0, i1, i2, b0, b1, b2, ng)
-        else:
-            q = SSDFPoint()
 
         col = wp.vec3(0.0, 0.0, 0.0)
         has_kd = wp.length_sq(mat.kd) > 0.0
@@ -373,6 +378,9 @@ def shade_kernel(f: Features):
         # paper's C* ⊗ ρ*_k (0.14 of its peak at the horizon times Mo ∝ 1/(n·i)) grows as 1/(n·o).
         if wp.static(SPEC and ENV_S == 2):
             nspec = slice_lobe_count(mat)
+            if wp.static(SHADOWS == 1 and not Q_EARLY):
+                if nspec > 0:
+                    q = ssdf_point(vis.normals, i0, i1, i2, b0, b1, b2, ng)
             for k in range(nspec):
                 pw_l, lw, mw = shading_slice_lobe(mat, o_l, k)
                 if wp.length_sq(mw) > 0.0:
