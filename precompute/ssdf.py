@@ -260,14 +260,40 @@ class SSDFData:
         R = self.resolution
         return (self.mean.reshape(1, -1) + w @ self.basis.reshape(self.pca_terms, -1)).reshape(-1, R, R)
 
-    def device_arrays(self, device="cpu"):
+    def device_arrays(self, device="cpu", decompress_bytes: int = 0):
         """``(mean wp.array2d (R, R), basis wp.array3d (R, R, NV), weights wp.array2d (V, NV))`` for
         :mod:`precompute.ssdf_wp`; the basis is texel-major on the device (a bilinear tap reads NV
-        contiguous floats)."""
+        contiguous floats).
+
+        Decompressed form, when the reconstructed maps take at most ``decompress_bytes``
+        (``V·R²`` float32): ``mean`` zeros, ``basis`` of shape (R, R, 0) and ``weights`` (V, R²),
+        each vertex's reconstructed map ``mean + Σ_j w_j basis_j`` row-major (``reconstruct``). A
+        lookup then reads 4 texels per vertex instead of 4·(NV + 1) values and NV weights: the same
+        SSDF (``ssdf_wp._ssdf_combo`` takes either form)."""
         device = resolve_device(device)
+        R, V = self.resolution, self.weights.shape[0]
+        if V * R * R * 4 <= int(decompress_bytes):
+            maps = self.reconstruct().reshape(V, R * R).astype(np.float32)
+            return (wp.zeros((R, R), dtype=float, device=device), wp.zeros((R, R, 0), dtype=float, device=device),
+                    wp.array(maps, dtype=float, device=device))
         return (wp.array(self.mean, dtype=float, device=device),
                 wp.array(np.ascontiguousarray(np.moveaxis(self.basis, 0, -1)), dtype=float, device=device),
                 wp.array(self.weights, dtype=float, device=device))
+
+
+def decompress_budget() -> int:
+    """Bytes the renderer may spend on decompressed SSDF maps (``SSDFData.device_arrays``):
+    ``WARP_SG_SSDF_DECOMPRESS_MB`` (default 256 MiB; 0 keeps the PCA form). 50 k vertices at the
+    default 32² maps take 205 MB."""
+    import os
+
+    raw = os.environ.get("WARP_SG_SSDF_DECOMPRESS_MB", "256")
+    try:
+        mb = float(raw)
+    except ValueError:
+        raise InputError(f"WARP_SG_SSDF_DECOMPRESS_MB must be a number of MiB, got {raw!r}",
+                         where="WARP_SG_SSDF_DECOMPRESS_MB") from None
+    return max(int(mb * (1 << 20)), 0)
 
 
 def _ssdf_params(resolution, ray_resolution, pca_terms):

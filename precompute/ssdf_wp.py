@@ -282,7 +282,8 @@ def _ssdf_combo(mean: wp.array2d(dtype=float), basis: wp.array3d(dtype=float),
                 c0: float, c1: float, c2: float, d: wp.vec3) -> float:
     """Σ_k c_k V^d_k(d) for local direction d (one bilinear footprint; below-horizon rule applied to
     the combination as ``min(U, 0) − (Σc_k)·asin(−z)``: a direction below a vertex's horizon is at
-    least its angle below it from the visible set). ``basis`` texel-major (R, R, NV)."""
+    least its angle below it from the visible set). ``basis`` texel-major (R, R, NV); NV = 0: the
+    decompressed form, ``weights`` (V, R²) the vertices' maps (``SSDFData.device_arrays``)."""
     R = mean.shape[0]
     t = _texel_coords(d, R)
     x0 = int(t[0])
@@ -294,11 +295,25 @@ def _ssdf_combo(mean: wp.array2d(dtype=float), basis: wp.array3d(dtype=float),
     w10 = (1.0 - fx) * fy
     w11 = fx * fy
     csum = c0 + c1 + c2
-    v = csum * (mean[y0, x0] * w00 + mean[y0, x0 + 1] * w01 + mean[y0 + 1, x0] * w10 + mean[y0 + 1, x0 + 1] * w11)
-    for j in range(basis.shape[2]):
-        wj = c0 * weights[i0, j] + c1 * weights[i1, j] + c2 * weights[i2, j]
-        v += wj * (basis[y0, x0, j] * w00 + basis[y0, x0 + 1, j] * w01
-                   + basis[y0 + 1, x0, j] * w10 + basis[y0 + 1, x0 + 1, j] * w11)
+    v = float(0.0)
+    if basis.shape[2] == 0:  # decompressed (SSDFData.device_arrays): weights[i] is vertex i's map
+        k = y0 * R + x0
+        if c0 != 0.0:
+            v += c0 * (weights[i0, k] * w00 + weights[i0, k + 1] * w01 + weights[i0, k + R] * w10
+                       + weights[i0, k + R + 1] * w11)
+        if c1 != 0.0:
+            v += c1 * (weights[i1, k] * w00 + weights[i1, k + 1] * w01 + weights[i1, k + R] * w10
+                       + weights[i1, k + R + 1] * w11)
+        if c2 != 0.0:
+            v += c2 * (weights[i2, k] * w00 + weights[i2, k + 1] * w01 + weights[i2, k + R] * w10
+                       + weights[i2, k + R + 1] * w11)
+    else:
+        v = csum * (mean[y0, x0] * w00 + mean[y0, x0 + 1] * w01 + mean[y0 + 1, x0] * w10
+                    + mean[y0 + 1, x0 + 1] * w11)
+        for j in range(basis.shape[2]):
+            wj = c0 * weights[i0, j] + c1 * weights[i1, j] + c2 * weights[i2, j]
+            v += wj * (basis[y0, x0, j] * w00 + basis[y0, x0 + 1, j] * w01
+                       + basis[y0 + 1, x0, j] * w10 + basis[y0 + 1, x0 + 1, j] * w11)
     if d[2] < 0.0:
         return wp.min(v, 0.0) - csum * fast_asin(wp.min(-d[2], 1.0))
     return v

@@ -83,8 +83,11 @@ def _frame_kernel(n: wp.array(dtype=wp.vec3), out: wp.array2d(dtype=wp.vec3)):
     out[k, 3] = frame_bitangent(n[k])
 
 
-def _lookups(data, N, tris, bary, dirs, device):
-    mean, basis, w = data.device_arrays(device)
+def _lookups(data, N, tris, bary, dirs, device, decompress=False):
+    """(ssdf_eval_bary, ssdf_eval_world) by the Warp kernels; ``decompress``: from the decompressed
+    device form (each vertex's reconstructed map) instead of the PCA form."""
+    mean, basis, w = data.device_arrays(device, decompress_bytes=1 << 40 if decompress else 0)
+    assert (basis.shape[2] == 0) == decompress
     n = len(dirs)
     ob = wp.zeros(n, dtype=float, device=device)
     ow = wp.zeros(n, dtype=float, device=device)
@@ -182,10 +185,11 @@ def test_seam_at_the_ssdf_lookup_and_its_fix(scene, device):
     assert r["other", "world"][0] == pytest.approx(r["other", "bary"][0], abs=1e-3)
 
 
-def test_eval_world_matches_numpy_twin_and_bary_where_frames_agree(scene, device):
+@pytest.mark.parametrize("decompress", [False, True], ids=["pca", "decompressed"])
+def test_eval_world_matches_numpy_twin_and_bary_where_frames_agree(scene, device, decompress):
     V, F, N, data = scene
     tri_ids, tris, bary, P, ng, d = _samples(V, F, N, per_tri=3, per_point=4, seed=2, hemisphere=False)
-    old, new = _lookups(data, N, tris, bary, d, device)
+    old, new = _lookups(data, N, tris, bary, d, device, decompress)
     twin = ssdf_wp.ssdf_eval_world_np(data.mean, data.basis, data.weights, N, tris, bary, d, ng)
     np.testing.assert_allclose(new, twin, atol=2e-4)
     # fast path: all three frames within 20° of the pixel frame -> exactly ssdf_eval_bary
@@ -195,7 +199,8 @@ def test_eval_world_matches_numpy_twin_and_bary_where_frames_agree(scene, device
     np.testing.assert_allclose(new[agree], old[agree], atol=1e-5)
 
 
-def test_eval_world_at_a_vertex_is_that_vertex_ssdf_in_its_own_frame(scene, device):
+@pytest.mark.parametrize("decompress", [False, True], ids=["pca", "decompressed"])
+def test_eval_world_at_a_vertex_is_that_vertex_ssdf_in_its_own_frame(scene, device, decompress):
     """b = (1, 0, 0): the vertex's own SSDF at the world direction, below-horizon rule included
     (θd = min(V, 0) − asin(−z) for z = p·n < 0), whatever the frames of the other two vertices."""
     V, F, N, data = scene
@@ -206,7 +211,7 @@ def test_eval_world_at_a_vertex_is_that_vertex_ssdf_in_its_own_frame(scene, devi
     d = rng.normal(size=(len(tri), 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     bary = np.tile([1.0, 0.0, 0.0], (len(tri), 1))
-    old, new = _lookups(data, N, tri, bary, d, device)
+    old, new = _lookups(data, N, tri, bary, d, device, decompress)
     dl = to_local(d, N[tri[:, 0]])
     want = np.array([ssdf_wp.ssdf_eval_np(data.mean, data.basis, data.weights[v], x) for v, x in zip(tri[:, 0], dl)])
     np.testing.assert_allclose(new, want, atol=2e-5)

@@ -182,3 +182,23 @@ def test_light_edits_rebuild_the_light_cache_and_camera_edits_do_not():
     assert r.light_vis_cache.builds == builds + 1
     fresh = Renderer(_scene(light=(-0.7, 1.4, 0.2), width=24, height=20), device="cpu").render()
     np.testing.assert_allclose(img, fresh, rtol=1e-5, atol=1e-6)
+
+
+def test_decompressed_ssdf_maps_render_the_same_frame_as_the_pca_form(monkeypatch):
+    """``WARP_SG_SSDF_DECOMPRESS_MB``: under the budget the renderer keeps each vertex's
+    reconstructed map (``SSDFData.device_arrays``), 0 keeps the PCA form; same frame either way."""
+    from warp_sg.errors import InputError
+
+    monkeypatch.setenv("WARP_SG_SSDF_DECOMPRESS_MB", "0")
+    pca = Renderer(_scene(light=(1.0, 2.0, 1.0)), device="cpu")
+    assert pca.vis.basis.shape[2] > 0
+    monkeypatch.setenv("WARP_SG_SSDF_DECOMPRESS_MB", "64")
+    raw = Renderer(_scene(light=(1.0, 2.0, 1.0)), device="cpu")
+    R = raw.ssdf.resolution
+    assert raw.vis.basis.shape[2] == 0 and raw.vis.weights.shape == (len(raw.geometry.vertices), R * R)
+    a, b = pca.render(), raw.render()
+    assert a.max() > 0.1
+    np.testing.assert_allclose(b, a, rtol=1e-4, atol=1e-6 * a.max())
+    monkeypatch.setenv("WARP_SG_SSDF_DECOMPRESS_MB", "lots")
+    with pytest.raises(InputError, match="WARP_SG_SSDF_DECOMPRESS_MB"):
+        Renderer(_scene(), device="cpu")

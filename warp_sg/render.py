@@ -201,7 +201,7 @@ class Renderer:
                 self.ssdf = precompute.ssdf_for_mesh(g.vertices, g.triangles, g.normals,
                                                      resolution=rs.ssdf_resolution, pca_terms=rs.pca_terms, device=d,
                                                      progress=self.progress, compute=self._ssdf_compute)
-            vis.mean, vis.basis, vis.weights = self.ssdf.device_arrays(d)
+            vis.mean, vis.basis, vis.weights = self.ssdf.device_arrays(d, precompute.ssdf.decompress_budget())
             cones = self.ssdf.cones if len(self.ssdf.cones) == len(g.vertices) else no_cones(len(g.vertices))
             vis.cones = wp.array(cones, dtype=wp.vec4, device=d)
             vis.cone_band = texel_half_diagonal(self.ssdf.resolution)
