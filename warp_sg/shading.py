@@ -172,9 +172,13 @@ def vis_ratio(shadows: int, fh_mode: int, vis: Visibility, q: SSDFPoint, p: wp.v
 
 @wp.func
 def fh_fraction(fh_mode: int, vis: Visibility, th: float, th_h: float, lam: float) -> float:
-    """``fh(θd, λ) / fh(θh, λ)`` clamped to [0, 1] (eq. 30 over the unoccluded point's value)."""
+    """``fh(θd, λ) / fh(θh, λ)`` clamped to [0, 1] (eq. 30 over the unoccluded point's value).
+    With the table, both angles at or beyond θmax(λ) read its flat tail: exactly 1, no lookup."""
     a = float(0.0)
     b = float(0.0)
+    if fh_mode == 0:
+        if wp.min(th, th_h) >= fh_theta_max_wp(lam):
+            return 1.0
     if fh_mode == 1:
         a = sg_visibility_scale_sigmoid(th, lam)
         b = sg_visibility_scale_sigmoid(th_h, lam)
