@@ -7,6 +7,6 @@ Stages: camera.py → setup.py → bin.py → coarse.py → fine.py, orchestrate
 """
 from .camera import Camera
 from .interpolate import interpolate
-from .rasterize import VisibilityBuffer, rasterize
+from .rasterize import VisibilityBuffer, rasterize, tile_grid
 
-__all__ = ["Camera", "VisibilityBuffer", "interpolate", "rasterize"]
+__all__ = ["Camera", "VisibilityBuffer", "interpolate", "rasterize", "tile_grid"]

@@ -15,7 +15,9 @@ top-left edge. Depth: the 1/w plane of the original triangle (larger = nearer), 
 [1/far, 1/near]; ties go to the lower triangle id so the result does not depend on queue order.
 The winner's perspective-correct barycentrics (λ1/Σλ, λ2/Σλ from the record's planes) are written
 with it, straight into the output buffers (cleared before the first pass); ``resolve_kernel`` turns
-1/w into depth, only when a caller asks for it.
+1/w into depth, only when a caller asks for it. ``masked = 1``: only the tiles with ``tile_mask[t]
+!= 0`` are drawn, and the first pass (``clear = 1``) clears just those (the rest of the buffers is
+left as it was: antialiasing rasterises the sub-pixels of the few tiles it needs).
 ``count_mode`` additionally counts every covering sub-triangle per pixel (depth test off) — the
 watertightness diagnostic.
 """
@@ -56,6 +58,9 @@ def fine_tile_kernel(
     height: int,
     inv_far: float,
     count_mode: int,
+    masked: int,
+    tile_mask: wp.array(dtype=wp.uint8),
+    clear: int,
     offsets: wp.array(dtype=wp.int32),
     queue: wp.array(dtype=SubTri),
     best_invw: wp.array2d(dtype=wp.float32),
@@ -66,12 +71,21 @@ def fine_tile_kernel(
     t = base + wp.tid()
     if t >= n_tiles:
         return
+    if masked == 1:
+        if tile_mask[t] == wp.uint8(0):
+            return
     tx = t % tiles_x
     ty = t // tiles_x
     X0 = tx * TILE
     Y0 = ty * TILE
     X1 = wp.min(X0 + TILE, width) - 1
     Y1 = wp.min(Y0 + TILE, height) - 1
+    if clear == 1:  # first pass of a masked raster: only the tiles drawn are cleared
+        for cy in range(Y0, Y1 + 1):
+            for cx in range(X0, X1 + 1):
+                best_invw[cy, cx] = 0.0
+                best_tri[cy, cx] = -1
+                best_bary[cy, cx] = wp.vec2(0.0, 0.0)
     start = offsets[t * rows]
     end = offsets[(t + 1) * rows]
     step = wp.int64(SUBPIXEL)
@@ -138,6 +152,9 @@ def fine_pixel_kernel(
     height: int,
     inv_far: float,
     count_mode: int,
+    masked: int,
+    tile_mask: wp.array(dtype=wp.uint8),
+    clear: int,
     offsets: wp.array(dtype=wp.int32),
     queue: wp.array(dtype=SubTri),
     best_invw: wp.array2d(dtype=wp.float32),
@@ -149,13 +166,19 @@ def fine_pixel_kernel(
     t = g // (TILE * TILE)
     if t >= n_tiles:
         return
+    if masked == 1:
+        if tile_mask[t] == wp.uint8(0):
+            return
     local = g - t * (TILE * TILE)
     x = (t % tiles_x) * TILE + local % TILE
     y = (t // tiles_x) * TILE + local // TILE
     if x >= width or y >= height:
         return
-    bi = best_invw[y, x]
-    bt = best_tri[y, x]
+    bi = float(0.0)
+    bt = int(-1)
+    if clear == 0:  # (clear = 1: the first pass of a masked raster starts the pixel empty)
+        bi = best_invw[y, x]
+        bt = best_tri[y, x]
     bq = int(-1)
     cnt = int(0)
     sx = sample_fixed(x)
@@ -181,6 +204,10 @@ def fine_pixel_kernel(
         best_invw[y, x] = bi
         best_tri[y, x] = bt
         best_bary[y, x] = barycentrics(rec.p, rec.v0, x, y, bi)
+    elif clear == 1:
+        best_invw[y, x] = 0.0
+        best_tri[y, x] = -1
+        best_bary[y, x] = wp.vec2(0.0, 0.0)
     if count_mode == 1:
         coverage[y, x] = coverage[y, x] + cnt
 

@@ -157,7 +157,7 @@ def _as_numpy_mesh(vertices, triangles):
 def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: int = 1,
               cull_backfaces: bool = False, coverage_count: bool = False, max_pairs: int | None = None,
               schedule: str = "auto", profile: bool = False, validate: bool = True,
-              reuse: VisibilityBuffer | None = None) -> VisibilityBuffer:
+              reuse: VisibilityBuffer | None = None, tile_mask: wp.array | None = None) -> VisibilityBuffer:
     """Rasterize a triangle mesh into a :class:`VisibilityBuffer` of (k·H, k·W) pixels.
 
     ``vertices`` (N, 3) float, ``triangles`` (M, 3) int (numpy or ``wp.array``); ``camera`` a
@@ -172,6 +172,9 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
     validation and no host↔device copies. ``reuse``: a buffer the caller is done with; when its size
     and device match, its arrays are overwritten instead of allocating new ones (no page faults on
     the first touch of 16 bytes per sub-pixel every frame); ``reuse`` is invalid afterwards.
+    ``tile_mask``: a ``wp.array(dtype=uint8)`` of one flag per ``TILE``×``TILE`` tile of the
+    (k·H, k·W) grid, row-major (:func:`tile_grid`); only the flagged tiles are drawn and the rest of
+    the buffer is undefined (nothing else is cleared).
     """
     device = resolve_device(device)
     if not isinstance(camera, Camera):
@@ -212,9 +215,14 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
         tri_id = wp.empty((H, W), dtype=wp.int32, device=device)
         bary = wp.empty((H, W), dtype=wp.vec2, device=device)
         best_invw = wp.empty((H, W), dtype=wp.float32, device=device)
-    best_invw.zero_()  # (memsets: on the CPU faster than clearing in the fine kernel's tiles)
-    tri_id.fill_(-1)
-    bary.zero_()
+    tiles_x, tiles_y = tile_grid(W, H)
+    if tile_mask is not None and (tile_mask.dtype != wp.uint8 or tile_mask.shape[0] != tiles_x * tiles_y
+                                  or str(tile_mask.device) != device):
+        raise InputError(f"tile_mask must be a uint8 array of {tiles_x * tiles_y} tiles on {device}", where="tile_mask")
+    if tile_mask is None or n_t == 0:
+        best_invw.zero_()  # (memsets: on the CPU faster than clearing in the fine kernel's tiles)
+        tri_id.fill_(-1)
+        bary.zero_()
     clock.lap("clear")
     coverage = wp.zeros((H, W), dtype=wp.int32, device=device) if coverage_count else None
     cov_arg = coverage if coverage is not None else wp.zeros((1, 1), dtype=wp.int32, device=device)
@@ -257,9 +265,13 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
         n_sub = n_t + n_extra
         stats["sub_triangles"] = n_sub
         stats["clipped_extra"] = n_extra
-        _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera,
-                        best_invw, tri_id, bary, cov_arg, coverage is not None, device,
-                        max_pairs or DEFAULT_MAX_PAIRS, schedule, stats, ws, clock)
+        drew = _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera,
+                               best_invw, tri_id, bary, cov_arg, coverage is not None, device,
+                               max_pairs or DEFAULT_MAX_PAIRS, schedule, stats, ws, clock, tile_mask)
+        if tile_mask is not None and not drew:  # no pass drew (nothing in view): the buffers are empty
+            best_invw.zero_()
+            tri_id.fill_(-1)
+            bary.zero_()
     vb = VisibilityBuffer(tri_id, bary, best_invw, coverage, W, H, k, device, stats, _schedule=schedule,
                           _depth_buf=depth_buf)
     if profile:
@@ -284,8 +296,15 @@ class _Bins:
         self.batch = max(1, (n_t + self.rows - 1) // self.rows)
 
 
+def tile_grid(width: int, height: int) -> tuple[int, int]:
+    """(tiles_x, tiles_y): the fine raster's ``TILE``×``TILE`` tiles over a width × height grid."""
+    return (width + TILE - 1) // TILE, (height + TILE - 1) // TILE
+
+
 def _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera, best_invw, best_tri, best_bary,
-                    coverage, count_mode, device, max_pairs, schedule, stats, ws, clock):
+                    coverage, count_mode, device, max_pairs, schedule, stats, ws, clock, tile_mask):
+    """Bin, scatter and draw in as many passes as the queue budget needs; returns whether a fine
+    pass ran (the first one clears the masked tiles)."""
     n_sub = n_t + n_extra
     tiles_x, n_tiles, rows = bins.tiles_x, bins.n_tiles, bins.rows
     counts, offsets, cursor = bins.counts, bins.offsets, bins.cursor
@@ -294,6 +313,9 @@ def _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera, best_invw, best_tri,
 
     stack = [(0, n_sub)]
     first = True
+    drew = False
+    masked = int(tile_mask is not None)
+    mask_arg = tile_mask if tile_mask is not None else ws.get("no_mask", 1, wp.uint8)
     while stack:
         lo, hi = stack.pop()
         n = hi - lo
@@ -330,13 +352,15 @@ def _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera, best_invw, best_tri,
                                  [lo, batch, rows, tiles_x, W, H, subs, offsets, cursor, queue, 0], device)
         first = False
         clock.lap("coarse")
-        args = [tiles_x, n_tiles, rows, W, H, inv_far, int(count_mode), offsets, queue,
-                best_invw, best_tri, best_bary, coverage]
+        args = [tiles_x, n_tiles, rows, W, H, inv_far, int(count_mode), masked, mask_arg, int(masked and not drew),
+                offsets, queue, best_invw, best_tri, best_bary, coverage]
         if schedule == "tile":
             parallel.launch(fine_tile_kernel, n_tiles, args, device, chunks=8 * parallel.cpu_workers(), min_chunk=1)
         else:
             parallel.launch(fine_pixel_kernel, n_tiles * TILE * TILE, args, device, min_chunk=TILE * TILE)
+        drew = True
         clock.lap("fine")
+    return drew
 
 
-__all__ = ["VisibilityBuffer", "rasterize", "clear_workspace", "DEFAULT_MAX_PAIRS"]
+__all__ = ["VisibilityBuffer", "rasterize", "tile_grid", "clear_workspace", "DEFAULT_MAX_PAIRS"]

@@ -4,6 +4,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 import trimesh
 
 import raster
@@ -186,6 +187,39 @@ def test_small_queue_budget_gives_identical_buffers_in_several_passes(device):
     assert b.stats["passes"] > 2 and a.stats["passes"] == 1
     assert (a.tri_id.numpy() == b.tri_id.numpy()).all()
     assert np.array_equal(a.depth.numpy(), b.depth.numpy())
+
+
+@pytest.mark.parametrize("schedule, max_pairs", [("tile", None), ("pixel", None), ("tile", 400)])
+def test_tile_mask_draws_only_the_flagged_tiles_and_they_match_the_full_raster(device, schedule, max_pairs):
+    """A masked raster (antialiasing's sub-pixels near edges) equals the full one, itself checked
+    against ray casting above, on the flagged tiles (several queue passes included), and leaves the
+    other tiles of a reused buffer untouched."""
+    import warp as wp
+
+    V, F = torus_mesh(64, 32)
+    cam = _cam(w=64, h=48)
+    k = 2
+    full = raster.rasterize(V, F, cam, device=device, supersample=k)
+    tx, ty = raster.tile_grid(64 * k, 48 * k)
+    flags = (np.random.default_rng(3).random(tx * ty) < 0.4).astype(np.uint8)
+    old = raster.rasterize(V, F[:1], cam, device=device, supersample=k)  # a buffer to reuse
+    old.tri_id.fill_(-7)
+    m = raster.rasterize(V, F, cam, device=device, supersample=k, schedule=schedule, max_pairs=max_pairs, reuse=old,
+                         tile_mask=wp.array(flags, dtype=wp.uint8, device=device))
+    if max_pairs:
+        assert m.stats["passes"] > 2
+    from raster.fixed import TILE as T
+    from warp_sg.errors import InputError
+
+    on = np.repeat(np.repeat(flags.reshape(ty, tx), T, 0), T, 1)[:48 * k, :64 * k].astype(bool)
+    assert 0.2 < on.mean() < 0.6
+    t_full, t_m = full.tri_id.numpy(), m.tri_id.numpy()
+    assert (t_m[on] == t_full[on]).all() and (t_full[on] >= 0).any() and (t_full[on] < 0).any()
+    assert np.array_equal(m.bary.numpy()[on], full.bary.numpy()[on])
+    assert np.array_equal(m.inv_depth.numpy()[on], full.inv_depth.numpy()[on])
+    assert (t_m[~on] == -7).all()  # not drawn, not cleared
+    with pytest.raises(InputError, match="tile_mask"):
+        raster.rasterize(V, F, cam, device=device, supersample=k, tile_mask=wp.zeros(3, dtype=wp.uint8, device=device))
 
 
 def test_tile_and_pixel_schedules_agree_and_are_deterministic(device):
