@@ -15,8 +15,9 @@ top-left edge. Depth: the 1/w plane of the original triangle (larger = nearer), 
 [1/far, 1/near]; ties go to the lower triangle id so the result does not depend on queue order.
 The winner's perspective-correct barycentrics (λ1/Σλ, λ2/Σλ from the record's planes) are written
 with it, straight into the output buffers (cleared before the first pass); ``resolve_kernel`` turns
-1/w into depth, only when a caller asks for it. ``masked = 1``: only the tiles with ``tile_mask[t]
-!= 0`` are drawn, and the first pass (``clear = 1``) clears just those (the rest of the buffers is
+1/w into depth, only when a caller asks for it. ``masked = 1``: only the tiles listed in
+``tile_list`` are drawn (thread / block i draws the i-th), and the first pass (``clear = 1``) clears
+just those (the rest of the buffers is
 left as it was: antialiasing rasterises the sub-pixels of the few tiles it needs).
 ``count_mode`` additionally counts every covering sub-triangle per pixel (depth test off) — the
 watertightness diagnostic.
@@ -59,7 +60,7 @@ def fine_tile_kernel(
     inv_far: float,
     count_mode: int,
     masked: int,
-    tile_mask: wp.array(dtype=wp.uint8),
+    tile_list: wp.array(dtype=wp.int32),
     clear: int,
     offsets: wp.array(dtype=wp.int32),
     queue: wp.array(dtype=SubTri),
@@ -69,11 +70,12 @@ def fine_tile_kernel(
     coverage: wp.array2d(dtype=wp.int32),
 ):
     t = base + wp.tid()
+    if masked == 1:  # thread i draws the i-th flagged tile
+        if t >= tile_list.shape[0]:
+            return
+        t = tile_list[t]
     if t >= n_tiles:
         return
-    if masked == 1:
-        if tile_mask[t] == wp.uint8(0):
-            return
     tx = t % tiles_x
     ty = t // tiles_x
     X0 = tx * TILE
@@ -153,7 +155,7 @@ def fine_pixel_kernel(
     inv_far: float,
     count_mode: int,
     masked: int,
-    tile_mask: wp.array(dtype=wp.uint8),
+    tile_list: wp.array(dtype=wp.int32),
     clear: int,
     offsets: wp.array(dtype=wp.int32),
     queue: wp.array(dtype=SubTri),
@@ -164,12 +166,13 @@ def fine_pixel_kernel(
 ):
     g = base + wp.tid()
     t = g // (TILE * TILE)
+    local = g - t * (TILE * TILE)
+    if masked == 1:  # block i draws the i-th flagged tile
+        if t >= tile_list.shape[0]:
+            return
+        t = tile_list[t]
     if t >= n_tiles:
         return
-    if masked == 1:
-        if tile_mask[t] == wp.uint8(0):
-            return
-    local = g - t * (TILE * TILE)
     x = (t % tiles_x) * TILE + local % TILE
     y = (t // tiles_x) * TILE + local // TILE
     if x >= width or y >= height:

@@ -315,7 +315,12 @@ def _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera, best_invw, best_tri,
     first = True
     drew = False
     masked = int(tile_mask is not None)
-    mask_arg = tile_mask if tile_mask is not None else ws.get("no_mask", 1, wp.uint8)
+    if masked:  # the flagged tiles as a list: threads draw only those, evenly spread over the pool
+        flagged = np.flatnonzero(tile_mask.numpy()).astype(np.int32)
+        tile_list = wp.array(flagged if len(flagged) else np.zeros(1, np.int32), dtype=wp.int32, device=device)
+        n_draw = len(flagged)
+    else:
+        tile_list, n_draw = ws.get("no_tiles", 1, wp.int32), n_tiles
     while stack:
         lo, hi = stack.pop()
         n = hi - lo
@@ -352,12 +357,12 @@ def _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera, best_invw, best_tri,
                                  [lo, batch, rows, tiles_x, W, H, subs, offsets, cursor, queue, 0], device)
         first = False
         clock.lap("coarse")
-        args = [tiles_x, n_tiles, rows, W, H, inv_far, int(count_mode), masked, mask_arg, int(masked and not drew),
+        args = [tiles_x, n_tiles, rows, W, H, inv_far, int(count_mode), masked, tile_list, int(masked and not drew),
                 offsets, queue, best_invw, best_tri, best_bary, coverage]
         if schedule == "tile":
-            parallel.launch(fine_tile_kernel, n_tiles, args, device, chunks=8 * parallel.cpu_workers(), min_chunk=1)
+            parallel.launch(fine_tile_kernel, n_draw, args, device, chunks=8 * parallel.cpu_workers(), min_chunk=1)
         else:
-            parallel.launch(fine_pixel_kernel, n_tiles * TILE * TILE, args, device, min_chunk=TILE * TILE)
+            parallel.launch(fine_pixel_kernel, n_draw * TILE * TILE, args, device, min_chunk=TILE * TILE)
         drew = True
         clock.lap("fine")
     return drew

@@ -52,3 +52,67 @@ def test_a_flat_floor_at_grazing_view_is_not_an_edge_except_at_its_border(cache_
     # (1/depth is affine across a flat triangle, so the grazing floor itself is no edge)
     assert r.timings["edge_pixels"] <= 3 * cam.width
     assert np.all(np.isfinite(img))
+
+
+def _pole_scene(**render):
+    """A pole thinner than a pixel (radius 0.004 at 2.2 m: ≈ 0.4 px wide) in front of a floor: the
+    pixel centres miss it along much of its length."""
+    import trimesh
+
+    pole = trimesh.creation.cylinder(radius=0.004, height=1.2, sections=8)
+    V = np.asarray(pole.vertices)[:, [0, 2, 1]] + np.array([0.13, 0.6, 0.8])  # z-axis -> y-axis
+    F = np.asarray(pole.faces)[:, ::-1]  # (the axis swap mirrors: keep the faces outward)
+    cam = Camera(origin=(0.0, 0.6, 3.0), target=(0.0, 0.4, 0.0), fov=40.0, width=40, height=32)
+    return Scene(camera=cam,
+                 objects=[SceneObject(material="pole", name="pole", vertices=V, triangles=F),
+                          SceneObject(material="floor", primitive="plane", name="floor",
+                                      params={"size": (6.0, 6.0), "resolution": (2, 2)})],
+                 materials={"pole": ws.brdf.Lambert(kd=0.0), "floor": ws.brdf.Lambert(kd=0.8)},
+                 lights=[EnvironmentLight(procedural="constant", options={"radiance": [1.0, 1.0, 1.0]})],
+                 render=RenderSettings(shadows=False, **render))
+
+
+def test_geometry_thinner_than_a_pixel_is_antialiased_where_pixel_centres_miss_it(cache_dir):
+    """The contour edges flag the pole's pixels even where no pixel centre sees it: adaptive
+    antialiasing matches shading every sub-pixel there, point sampling does not."""
+    full = ws.render(_pole_scene(supersampling=4))
+    r = ws.Renderer(_pole_scene(antialias=4))
+    adaptive = r.render()
+    point = ws.render(_pole_scene(antialias=1))
+    floor = full[-1, 0].sum()
+    covered = full.sum(-1) < 0.97 * floor  # pixels the pole darkens by > 3 % (sub-pixel coverage)
+    missed = covered & (point.sum(-1) > 0.999 * floor)  # ... that point sampling does not see
+    assert missed.sum() >= 5
+    err = np.abs(adaptive - full).sum(-1)
+    assert err[missed].max() < 0.02 * floor
+    assert r.timings["subpixel_tiles"] < 0.5
+
+
+def test_every_edge_of_a_full_subpixel_raster_is_a_candidate_pixel(cache_dir):
+    """Reference: the a×a raster of the whole image (itself checked against ray casting in
+    tests/test_raster.py) classified everywhere; every pixel it finds to be an edge must be
+    flagged by the contours or the 1× object changes."""
+    import warp as wp
+
+    import raster
+    from raster import parallel
+    from warp_sg import antialias as A
+
+    r = ws.Renderer(_scene(antialias=4))
+    r.render()
+    cam, a, H, W = r.scene.camera, 4, r.scene.camera.height, r.scene.camera.width
+    full = raster.rasterize(r.geo_arrays.positions, r.geo_arrays.tris, cam, supersample=a)
+    every = wp.array(np.full(H * W, A.CAND_GEOMETRY, np.int32), dtype=int)
+    edge, count = wp.empty(H * W, dtype=int), wp.empty(H * W, dtype=int)
+    parallel.launch(A.classify_kernel, H * W, [every, full.tri_id, full.inv_depth, r._tri_object, a,
+                                               A.EDGE_DEPTH_RESIDUAL, W, edge, count], "cpu")
+    edges = edge.numpy().astype(bool)
+    vb1 = r.rasterize(1)
+    img = wp.zeros((H, W), dtype=wp.vec3)  # no contrast: geometry flags only
+    cand = wp.empty(H * W, dtype=int)
+    parallel.launch(A.candidates_kernel, H * W, [vb1.tri_id, r._tri_object, r._subpixels.contours(cam), img,
+                                                 A.CONTRAST, cand], "cpu")
+    flagged = cand.numpy() != 0
+    assert edges.sum() > 50
+    assert not (edges & ~flagged).any()
+    assert flagged.mean() < 0.5  # and far from everything

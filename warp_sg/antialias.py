@@ -1,22 +1,35 @@
 r"""Edge- and contrast-adaptive antialiasing on the device (``[render] antialias = a``).
 
-Coverage is rasterised at a×a sub-pixels; shading is adaptive, in two passes, all in Warp kernels
-(no per-frame host round trip of the a²-sized buffers):
+Every pixel is first shaded once, at its centre, from the 1× visibility buffer (the frame without
+antialiasing). Sub-pixel coverage is then rasterised only where it can matter, and those pixels
+are shaded again at all a×a sub-pixels and box-filtered. All in Warp kernels (no per-frame host
+round trip of the a²-sized buffers):
 
-1. :func:`classify_kernel` marks a pixel as an **edge** when its sub-pixels see different objects
-   (or the background), or one object in front of itself: the inverse depths ``1/z`` of the block
-   leave the least-squares plane fitted to them by more than ``EDGE_DEPTH_RESIDUAL`` of their
-   maximum (1/z is affine in screen space across a flat triangle, and nearly so across one pixel
-   of a smooth surface, however grazing). An interior pixel is shaded once, at its central
-   sub-pixel; an edge pixel at all a² sub-pixels.
-2. :func:`contrast_kernel` marks the interior pixels whose luminance differs from a 4-neighbour's
-   by more than ``CONTRAST`` of the larger one (shadow edges, glints, texture edges); they are
-   shaded again at all a² sub-pixels.
+1. :func:`candidates_kernel` flags the pixels that may need sub-pixels:
+
+   * **contours** — pixels on or next to a silhouette or boundary edge of the mesh as seen from
+     the eye (:mod:`warp_sg.silhouette`): every occlusion boundary lies on one, including
+     geometry thinner than a pixel that the pixel centres miss;
+   * **object changes** — a 4-neighbour in the 1× buffer sees another object or the background
+     (intersections of two objects, which are edges of neither);
+   * **contrast** — the luminance of the 1× image differs from a 4-neighbour's by more than
+     ``CONTRAST`` of the larger one (shadow edges, glints, texture edges).
+
+2. The a×a sub-pixels are rasterised only in the raster tiles that hold a flagged pixel
+   (``raster.rasterize(tile_mask=...)``, :func:`tiles_kernel`): on the frame-scaling scene
+   (100 k triangles, 512²) about a tenth of the tiles.
+3. :func:`classify_kernel` decides for each flagged pixel: an **edge** when its sub-pixels see
+   different objects (or the background), or one object in front of itself — the inverse depths
+   ``1/z`` of the block leave the least-squares plane fitted to them by more than
+   ``EDGE_DEPTH_RESIDUAL`` of their maximum (1/z is affine in screen space across a flat
+   triangle, and nearly so across one pixel of a smooth surface, however grazing). Edge and
+   contrast pixels are shaded at all a² sub-pixels; the others keep their centre sample.
 
 Every kernel is 1-D over row-major pixels with a leading ``base`` offset and is launched through
-``raster.parallel.launch`` (CPU launches are split over a thread pool). Each pass: per-pixel sample counts → exclusive scan (``wp.utils.array_scan``) → a gather of the
-samples' (triangle, barycentrics, background) into a 1 × N list that the ordinary shading kernel
-shades → :func:`resolve_kernel` box-filters each pixel's samples back into the image.
+``raster.parallel.launch`` (CPU launches are split over a thread pool). The second pass: per-pixel
+sample counts → exclusive scan (``wp.utils.array_scan``) → a gather of the samples' (triangle,
+barycentrics, background) into a 1 × N list that the ordinary shading kernel shades →
+:func:`resolve_kernel` box-filters each pixel's samples back into the image.
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the kernel annotations.
 import warp as wp
@@ -29,15 +42,86 @@ EDGE_DEPTH_RESIDUAL = 0.01
 CONTRAST = 0.2
 
 
+#: candidate flags (bits of ``cand``)
+CAND_GEOMETRY = wp.constant(1)
+CAND_CONTRAST = wp.constant(2)
+
+
+@wp.func
+def _object_of(tri_object: wp.array(dtype=int), t: int) -> int:
+    o = int(-1)
+    if t >= 0:
+        o = tri_object[t]
+    return o
+
+
 @wp.kernel(enable_backward=False)
-def classify_kernel(base: int, tri_id: wp.array2d(dtype=int), inv_depth: wp.array2d(dtype=float),
-                    tri_object: wp.array(dtype=int), a: int, resid_tol: float,
-                    edge: wp.array2d(dtype=int), count: wp.array(dtype=int)):
-    """edge[y, x] (0/1) and the pixel's sample count (1 or a²) for pass 1. ``inv_depth``: the
-    raster's 1/z (0 where empty). A block that one triangle covers is interior at once (1/z is
-    affine across a triangle)."""
-    W = edge.shape[1]
+def candidates_kernel(base: int, tri_id: wp.array2d(dtype=int), tri_object: wp.array(dtype=int),
+                      contours: wp.array2d(dtype=wp.uint8), img: wp.array2d(dtype=wp.vec3), contrast: float,
+                      cand: wp.array(dtype=int)):
+    """``cand[k]``: ``CAND_GEOMETRY`` where the pixel is on a contour or a 4-neighbour sees another
+    object (1× buffer), plus ``CAND_CONTRAST`` where the 1× image's luminance differs from a
+    4-neighbour's by more than ``contrast`` of the larger one."""
+    H = img.shape[0]
+    W = img.shape[1]
     k = base + wp.tid()
+    y = k / W
+    x = k - y * W
+    o0 = _object_of(tri_object, tri_id[y, x])
+    lum = wp.vec3(0.2126, 0.7152, 0.0722)
+    l0 = wp.dot(img[y, x], lum)
+    f = int(0)
+    if contours[y, x] != wp.uint8(0):
+        f = CAND_GEOMETRY
+    for d in range(4):
+        yy = y
+        xx = x
+        if d == 0:
+            xx = x - 1
+        elif d == 1:
+            xx = x + 1
+        elif d == 2:
+            yy = y - 1
+        else:
+            yy = y + 1
+        if yy >= 0 and yy < H and xx >= 0 and xx < W:
+            if _object_of(tri_object, tri_id[yy, xx]) != o0:
+                f = f | CAND_GEOMETRY
+            l1 = wp.dot(img[yy, xx], lum)
+            if wp.abs(l0 - l1) > contrast * wp.max(wp.max(l0, l1), 1.0e-30):
+                f = f | CAND_CONTRAST
+    cand[k] = f
+
+
+@wp.kernel(enable_backward=False)
+def tiles_kernel(base: int, cand: wp.array(dtype=int), W: int, a: int, tile: int, tiles_x: int,
+                 mask: wp.array(dtype=wp.uint8)):
+    """Flag the raster tiles (``tile``² sub-pixels of the a× grid) that a flagged pixel's a×a
+    block overlaps (one to four)."""
+    k = base + wp.tid()
+    if cand[k] == 0:
+        return
+    y = k / W
+    x = k - y * W
+    for ty in range((y * a) / tile, (y * a + a - 1) / tile + 1):
+        for tx in range((x * a) / tile, (x * a + a - 1) / tile + 1):
+            mask[ty * tiles_x + tx] = wp.uint8(1)
+
+
+@wp.kernel(enable_backward=False)
+def classify_kernel(base: int, cand: wp.array(dtype=int), tri_id: wp.array2d(dtype=int),
+                    inv_depth: wp.array2d(dtype=float), tri_object: wp.array(dtype=int), a: int, resid_tol: float,
+                    W: int, edge: wp.array(dtype=int), count: wp.array(dtype=int)):
+    """For a flagged pixel, whether its a×a block (``tri_id``, ``inv_depth``: the a× raster's ids
+    and 1/z, 0 where empty) is an edge, and its second-pass sample count: a² for an edge or a
+    contrast pixel, else 0 (it keeps its centre sample). A block that one triangle covers is no
+    edge (1/z is affine across a triangle)."""
+    k = base + wp.tid()
+    edge[k] = 0
+    count[k] = 0
+    f = cand[k]
+    if f == 0:
+        return
     y = k / W
     x = k - y * W
     t0 = tri_id[y * a, x * a]
@@ -48,9 +132,7 @@ def classify_kernel(base: int, tri_id: wp.array2d(dtype=int), inv_depth: wp.arra
                 one = 0
     is_edge = int(0)
     if one == 0:
-        o0 = int(-1)
-        if t0 >= 0:
-            o0 = tri_object[t0]
+        o0 = _object_of(tri_object, t0)
         # least-squares plane of 1/z over the a×a grid (centred coordinates u, v)
         c = 0.5 * float(a - 1)
         n = float(a * a)
@@ -60,11 +142,7 @@ def classify_kernel(base: int, tri_id: wp.array2d(dtype=int), inv_depth: wp.arra
         wmax = float(0.0)
         for j in range(a):
             for i in range(a):
-                t = tri_id[y * a + j, x * a + i]
-                o = int(-1)
-                if t >= 0:
-                    o = tri_object[t]
-                if o != o0:
+                if _object_of(tri_object, tri_id[y * a + j, x * a + i]) != o0:
                     is_edge = 1
                 w = inv_depth[y * a + j, x * a + i]
                 s += w
@@ -81,44 +159,8 @@ def classify_kernel(base: int, tri_id: wp.array2d(dtype=int), inv_depth: wp.arra
                     r = inv_depth[y * a + j, x * a + i] - (m + gu * (float(i) - c) + gv * (float(j) - c))
                     if wp.abs(r) > resid_tol * wmax:
                         is_edge = 1
-    edge[y, x] = is_edge
-    if is_edge == 1:
-        count[y * W + x] = a * a
-    else:
-        count[y * W + x] = 1
-
-
-@wp.kernel(enable_backward=False)
-def contrast_kernel(base: int, img: wp.array2d(dtype=wp.vec3), edge: wp.array2d(dtype=int), a: int,
-                    contrast: float, count: wp.array(dtype=int)):
-    """Sample count of pass 2: a² for an interior pixel that contrasts with a 4-neighbour, else 0."""
-    H = img.shape[0]
-    W = img.shape[1]
-    k = base + wp.tid()
-    y = k / W
-    x = k - y * W
-    count[k] = 0
-    if edge[y, x] == 1:
-        return
-    lum = wp.vec3(0.2126, 0.7152, 0.0722)
-    l0 = wp.dot(img[y, x], lum)
-    hit = int(0)
-    for d in range(4):
-        yy = y
-        xx = x
-        if d == 0:
-            xx = x - 1
-        elif d == 1:
-            xx = x + 1
-        elif d == 2:
-            yy = y - 1
-        else:
-            yy = y + 1
-        if yy >= 0 and yy < H and xx >= 0 and xx < W:
-            l1 = wp.dot(img[yy, xx], lum)
-            if wp.abs(l0 - l1) > contrast * wp.max(wp.max(l0, l1), 1.0e-30):
-                hit = 1
-    if hit == 1:
+    edge[k] = is_edge
+    if is_edge == 1 or (f & CAND_CONTRAST) != 0:
         count[k] = a * a
 
 
@@ -139,9 +181,9 @@ def gather_kernel(base: int, tri_id: wp.array2d(dtype=int), bary: wp.array2d(dty
                   background: Background, count: wp.array(dtype=int), offset: wp.array(dtype=int),
                   a: int, W: int, tri_s: wp.array2d(dtype=int), bary_s: wp.array2d(dtype=wp.vec2),
                   bg_s: wp.array2d(dtype=wp.vec3)):
-    """Write pixel k's samples at ``offset[k]``: its central sub-pixel (count 1) or all a² (count a²);
-    a sample that sees no object gets the environment along its ray (computed here, for the
-    gathered samples only)."""
+    """Write pixel k's a² sub-pixel samples at ``offset[k]`` (count a²; nothing for count 0); a sample
+    that sees no object gets the environment along its ray (computed here, for the gathered samples
+    only)."""
     k = base + wp.tid()
     n = count[k]
     if n == 0:
@@ -149,10 +191,6 @@ def gather_kernel(base: int, tri_id: wp.array2d(dtype=int), bary: wp.array2d(dty
     y = k / W
     x = k - y * W
     o0 = offset[k]
-    if n == 1:
-        c = a / 2
-        _gather_one(tri_id, bary, background, y * a + c, x * a + c, o0, tri_s, bary_s, bg_s)
-        return
     for j in range(a):
         for i in range(a):
             _gather_one(tri_id, bary, background, y * a + j, x * a + i, o0 + j * a + i, tri_s, bary_s, bg_s)
@@ -183,37 +221,99 @@ def _plan(count: wp.array) -> tuple[wp.array, int]:
     return offset, total
 
 
-def render_adaptive(vb, tri_object: wp.array, background: Background, a: int, H: int, W: int, shade, device):
-    """The antialiased (H, W) ``wp.array(dtype=vec3)`` image of a visibility buffer ``vb`` rasterised
-    at a×a (``shade(tri_s, bary_s, bg_s, out)`` shades a 1 × N sample list; ``background``: the
-    camera rays and environment of the a×a grid, :func:`warp_sg.background.background_params`). Returns
-    ``(image, stats)`` with the sample and pixel counts of each pass."""
-    from raster import parallel
+class SubpixelCache:
+    """What antialiasing keeps between frames of one renderer (static geometry): the mesh's edge
+    adjacency (once), the contour mask of the current camera, and the sub-pixel raster of the
+    current camera with the tiles it holds — a later frame (a material, light or environment edit)
+    rasterises only the tiles it newly needs (``raster.rasterize`` leaves the other tiles of a
+    reused buffer as they are)."""
 
-    edge = wp.empty((H, W), dtype=int, device=device)
-    count = wp.empty(H * W, dtype=int, device=device)
-    img = wp.empty((H, W), dtype=wp.vec3, device=device)
-    parallel.launch(classify_kernel, H * W, [vb.tri_id, vb.inv_depth, tri_object, a, EDGE_DEPTH_RESIDUAL, edge, count],
-                    device)
-    stats = {}
-    for p in (1, 2):
-        if p == 2:
-            parallel.launch(contrast_kernel, H * W, [img, edge, a, CONTRAST, count], device)
-        offset, n = _plan(count)
-        stats[f"pass{p}_samples"] = n
-        if n == 0:
-            continue
+    def __init__(self, positions: wp.array, tris: wp.array, device):
+        self.positions, self.tris, self.device = positions, tris, device
+        self.edges = None
+        self._contours = (None, None)
+        self._sub = (None, None, None)  # (key, flagged tiles (numpy bool), VisibilityBuffer)
+        self.raster_seconds = 0.0
+
+    def contours(self, camera) -> wp.array:
+        from .silhouette import edge_adjacency, mark_contours
+
+        if self.edges is None:
+            ev, ef = edge_adjacency(self.positions.numpy(), self.tris.numpy())
+            self.edges = (wp.array(ev, dtype=wp.vec2i, device=self.device),
+                          wp.array(ef, dtype=wp.vec2i, device=self.device))
+        key = repr(camera)
+        if self._contours[0] != key:
+            self._contours = (key, mark_contours(self.positions, self.tris, *self.edges, camera, self.device))
+        return self._contours[1]
+
+    def raster(self, camera, a: int, mask: wp.array):
+        """The a× visibility buffer, valid at least on the tiles ``mask`` flags."""
+        import time
+
+        import numpy as np
+
+        import raster as R
+
+        t = time.perf_counter()
+        key = (repr(camera), int(a))
+        want = mask.numpy().astype(bool)
+        old_key, have, vb = self._sub
+        if old_key == key and not (want & ~have).any():
+            self.raster_seconds = time.perf_counter() - t
+            return vb
+        if old_key == key:  # draw just the new tiles into the same buffer
+            draw, have = want & ~have, want | have
+        else:
+            draw, have = want, want
+        vb = R.rasterize(self.positions, self.tris, camera, device=self.device, supersample=a, validate=False,
+                         reuse=vb, tile_mask=wp.array(draw.astype(np.uint8), dtype=wp.uint8, device=self.device))
+        self._sub = (key, have, vb)
+        self.raster_seconds = time.perf_counter() - t
+        return vb
+
+
+def render_adaptive(vb1, img, contours, raster_sub, tri_object: wp.array, background: Background, a: int,
+                    H: int, W: int, shade, device):
+    """Antialias ``img`` (H, W) ``wp.array(dtype=vec3)``, the frame shaded once per pixel centre
+    from the 1× visibility buffer ``vb1``, in place (module docstring). ``contours``: (H, W) uint8
+    of :func:`warp_sg.silhouette.mark_contours`; ``raster_sub(tile_mask)`` rasterises the a×a
+    sub-pixels of the flagged tiles (``raster.rasterize(..., supersample=a, tile_mask=...)``);
+    ``shade(tri_s, bary_s, bg_s, out)`` shades a 1 × N sample list; ``background``: the camera
+    rays and environment of the a×a grid (:func:`warp_sg.background.background_params`). Returns
+    ``(image, stats)``: candidate, edge and contrast pixel counts, the flagged tile fraction and
+    the samples of the second pass."""
+    import numpy as np
+
+    from raster import parallel, tile_grid
+    from raster.fixed import TILE
+
+    n_pix = H * W
+    cand = wp.empty(n_pix, dtype=int, device=device)
+    parallel.launch(candidates_kernel, n_pix, [vb1.tri_id, tri_object, contours, img, CONTRAST, cand], device)
+    tiles_x, tiles_y = tile_grid(W * a, H * a)
+    mask = wp.zeros(tiles_x * tiles_y, dtype=wp.uint8, device=device)
+    parallel.launch(tiles_kernel, n_pix, [cand, W, a, TILE, tiles_x, mask], device)
+    vb = raster_sub(mask)
+    edge = wp.empty(n_pix, dtype=int, device=device)
+    count = wp.empty(n_pix, dtype=int, device=device)
+    parallel.launch(classify_kernel, n_pix, [cand, vb.tri_id, vb.inv_depth, tri_object, a, EDGE_DEPTH_RESIDUAL, W,
+                                             edge, count], device)
+    offset, n = _plan(count)
+    c = cand.numpy()
+    stats = {"candidate_pixels": int(np.count_nonzero(c)), "edge_pixels": int(edge.numpy().sum()),
+             "contrast_pixels": int(np.count_nonzero(c & CAND_CONTRAST)), "tile_fraction": float(mask.numpy().mean()),
+             "pass1_samples": n_pix, "pass2_samples": n}
+    if n > 0:
         tri_s = wp.empty((1, n), dtype=int, device=device)
         bary_s = wp.empty((1, n), dtype=wp.vec2, device=device)
         bg_s = wp.empty((1, n), dtype=wp.vec3, device=device)
-        parallel.launch(gather_kernel, H * W, [vb.tri_id, vb.bary, background, count, offset, a, W, tri_s, bary_s,
+        parallel.launch(gather_kernel, n_pix, [vb.tri_id, vb.bary, background, count, offset, a, W, tri_s, bary_s,
                                                bg_s], device)
         out = wp.empty((1, n), dtype=wp.vec3, device=device)
         shade(tri_s, bary_s, bg_s, out)
-        parallel.launch(resolve_kernel, H * W, [out, count, offset, W, img], device)
-    # pass 1 shades 1 sample per interior pixel and a² per edge pixel: the edge count follows
-    stats["edge_pixels"] = (stats["pass1_samples"] - H * W) // (a * a - 1)
+        parallel.launch(resolve_kernel, n_pix, [out, count, offset, W, img], device)
     return img, stats
 
 
-__all__ = ["render_adaptive", "EDGE_DEPTH_RESIDUAL", "CONTRAST"]
+__all__ = ["render_adaptive", "SubpixelCache", "EDGE_DEPTH_RESIDUAL", "CONTRAST", "CAND_GEOMETRY", "CAND_CONTRAST"]

@@ -114,6 +114,7 @@ class Renderer:
         self.timings["precompute"] = time.perf_counter() - t0
         self._background_key = None
         self._background = self._background_vb = None
+        self._subpixels = None  # antialiasing's per-camera caches (warp_sg.antialias.SubpixelCache)
         self._vb_key = None
         self._vb = None
 
@@ -554,22 +555,29 @@ class Renderer:
         return img
 
     def _render_adaptive(self, a: int) -> np.ndarray:
-        """Edge- and contrast-adaptive antialiasing on the device (:mod:`warp_sg.antialias`)."""
-        from .antialias import render_adaptive
+        """Edge- and contrast-adaptive antialiasing on the device (:mod:`warp_sg.antialias`): the
+        1× frame, then a×a sub-pixels where it needs them."""
+        from .antialias import SubpixelCache, render_adaptive
 
-        d = self.device
-        cam = self.scene.camera
+        d, cam = self.device, self.scene.camera
+        if self._subpixels is None:
+            self._subpixels = SubpixelCache(self.geo_arrays.positions, self.geo_arrays.tris, d)
+        sp = self._subpixels
         t0 = _timer(d)
-        vb = self.rasterize(a)
+        vb = self.rasterize(1)
         t1 = _timer(d)
-        img, st = render_adaptive(vb, self._tri_object, self._background_params(a), a, cam.height, cam.width,
-                                  lambda tri, bary, bg, out: self._launch_shade(tri, bary, bg, cam.origin, out), d)
+        img = wp.empty((cam.height, cam.width), dtype=wp.vec3, device=d)
+        self._launch_shade(vb.tri_id, vb.bary, self._background_image(1), cam.origin, img)
+        shade = lambda tri, bary, bg, out: self._launch_shade(tri, bary, bg, cam.origin, out)  # noqa: E731
+        img, st = render_adaptive(vb, img, sp.contours(cam), lambda m: sp.raster(cam, a, m), self._tri_object,
+                                  self._background_params(a), a, cam.height, cam.width, shade, d)
         t2 = _timer(d)
         out = img.numpy().astype(np.float32)
         t3 = time.perf_counter()
-        self.timings.update(raster=t1 - t0, shade=t2 - t1, resolve=t3 - t2, frame=t3 - t0,
-                            shaded_samples=st["pass1_samples"] + st["pass2_samples"], edge_pixels=st["edge_pixels"],
-                            contrast_samples=st["pass2_samples"])
+        self.timings.update(raster=t1 - t0 + sp.raster_seconds, shade=t2 - t1 - sp.raster_seconds, resolve=t3 - t2,
+                            frame=t3 - t0, shaded_samples=st["pass1_samples"] + st["pass2_samples"],
+                            edge_pixels=st["edge_pixels"], contrast_pixels=st["contrast_pixels"],
+                            subpixel_tiles=st["tile_fraction"])
         return out
 
     def shade_vertices(self, eye=None) -> np.ndarray:
