@@ -36,14 +36,16 @@ def shading_variants():
 
     full = S.Features(env_diffuse=S.ENV_SG, env_specular=S.ENV_PREFILTERED, lights=True, specular=True,
                       shadows=True, textures=True, normal_maps=True, fh_sigmoid=False, env_vis_vertex=True,
-                      light_vis_vertex=True)
+                      light_vis_vertex=True, env_irradiance_vertex=True)
     off = {"env_diffuse": S.ENV_NONE, "env_specular": S.ENV_NONE, "lights": False, "specular": False,
            "shadows": False, "textures": False, "normal_maps": False, "fh_sigmoid": True,
-           "env_vis_vertex": False, "light_vis_vertex": False, "models": (0,)}
+           "env_vis_vertex": False, "light_vis_vertex": False, "env_irradiance_vertex": False, "models": (0,)}
     variants = [full] + [replace(full, **{f.name: off[f.name]}) for f in fields(S.Features)]
     # material-model variants (brdf.material_variants): Oren–Nayar, Cook–Torrance, Lafortune,
     # measured, GGX, and Lambert + Blinn–Phong + Ward + Ashikhmin–Shirley
     variants += [replace(full, models=ms) for ms in ((1,), (4,), (8,), (9,), (10,), (0, 3, 6, 7))]
+    # the per-vertex diffuse environment sum needs ρd = kd/π and no normal maps (shading.EVTX)
+    variants += [replace(full, normal_maps=False, models=(0, 4))]
     return [S.shade_kernel(f) for f in variants]
 
 
