@@ -37,6 +37,8 @@ def bin_count_kernel(
     height: int,
     subs: wp.array(dtype=SubTri),
     counts: wp.array(dtype=wp.int32),
+    masked: int,
+    tile_mask: wp.array(dtype=wp.uint8),
 ):
     j = base + wp.tid()
     s = sub_lo + j
@@ -45,7 +47,7 @@ def bin_count_kernel(
     if rec.tri < 0:
         return  # empty slot (culled / clipped away / no pixel centre covered)
     bb = pixel_bbox(rec.v0, rec.v1, rec.v2, width, height)
-    count_tiles(bb, rec.v0, rec.v1, rec.v2, tiles_x, rows, row, counts)
+    count_tiles(bb, rec.v0, rec.v1, rec.v2, tiles_x, rows, row, counts, masked, tile_mask)
 
 
 def scan_counts(counts: wp.array, offsets: wp.array) -> int:

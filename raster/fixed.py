@@ -95,19 +95,29 @@ def tile_overlaps(v0: wp.vec2i, v1: wp.vec2i, v2: wp.vec2i, bb: wp.vec4i, tx: in
 
 
 @wp.func
+def tile_drawn(masked: int, tile_mask: wp.array(dtype=wp.uint8), t: int):
+    """Whether tile t is drawn: always, or (``masked = 1``) where ``tile_mask[t]`` is set."""
+    return masked == 0 or tile_mask[t] != wp.uint8(0)
+
+
+@wp.func
 def count_tiles(bb: wp.vec4i, v0: wp.vec2i, v1: wp.vec2i, v2: wp.vec2i, tiles_x: int, rows: int, row: int,
-                counts: wp.array(dtype=wp.int32)):
-    """Bin raster of one triangle: +1 in ``counts[tile·rows + row]`` for every tile it may touch
-    (bbox tiles; exact edge test when the bbox spans several tiles both ways)."""
+                counts: wp.array(dtype=wp.int32), masked: int, tile_mask: wp.array(dtype=wp.uint8)):
+    """Bin raster of one triangle: +1 in ``counts[tile·rows + row]`` for every drawn tile
+    (:func:`tile_drawn`) it may touch (bbox tiles; exact edge test when the bbox spans several
+    tiles both ways)."""
     tx0 = bb[0] >> TILE_BITS  # bbox is clamped to the screen: non-negative
     tx1 = bb[2] >> TILE_BITS
     ty0 = bb[1] >> TILE_BITS
     ty1 = bb[3] >> TILE_BITS
     if tx0 == tx1 and ty0 == ty1:  # the common case: one tile
-        wp.atomic_add(counts, (ty0 * tiles_x + tx0) * rows + row, 1)
+        t1 = ty0 * tiles_x + tx0
+        if tile_drawn(masked, tile_mask, t1):
+            wp.atomic_add(counts, t1 * rows + row, 1)
         return
     small = (tx1 - tx0) < 1 or (ty1 - ty0) < 1
     for ty in range(ty0, ty1 + 1):
         for tx in range(tx0, tx1 + 1):
-            if small or tile_overlaps(v0, v1, v2, bb, tx, ty):
-                wp.atomic_add(counts, (ty * tiles_x + tx) * rows + row, 1)
+            if tile_drawn(masked, tile_mask, ty * tiles_x + tx):
+                if small or tile_overlaps(v0, v1, v2, bb, tx, ty):
+                    wp.atomic_add(counts, (ty * tiles_x + tx) * rows + row, 1)

@@ -219,6 +219,8 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
     if tile_mask is not None and (tile_mask.dtype != wp.uint8 or tile_mask.shape[0] != tiles_x * tiles_y
                                   or str(tile_mask.device) != device):
         raise InputError(f"tile_mask must be a uint8 array of {tiles_x * tiles_y} tiles on {device}", where="tile_mask")
+    masked = int(tile_mask is not None)
+    mask_arg = tile_mask if tile_mask is not None else ws.get("no_mask", 1, wp.uint8)
     if tile_mask is None or n_t == 0:
         best_invw.zero_()  # (memsets: on the CPU faster than clearing in the fine kernel's tiles)
         tri_id.fill_(-1)
@@ -250,7 +252,7 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
         extra[n_t:].zero_()
         subs = ws.get("subs", n_t, SubTri)
         bins = _Bins(W, H, device, ws, n_t)
-        bin_args = [bins.batch, bins.rows, bins.tiles_x, bins.counts]
+        bin_args = [bins.batch, bins.rows, bins.tiles_x, bins.counts, masked, mask_arg]
         parallel.launch_rows(setup_kernel, n_t, min(bins.rows, n_t),
                              [clip, vsnap, vcode, tris, W, H, near, gx, gy, cull, subs, extra, *bin_args], device)
         extra_off = ws.get("extra_off", n_t + 1, wp.int32)
@@ -267,7 +269,7 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
         stats["clipped_extra"] = n_extra
         drew = _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera,
                                best_invw, tri_id, bary, cov_arg, coverage is not None, device,
-                               max_pairs or DEFAULT_MAX_PAIRS, schedule, stats, ws, clock, tile_mask)
+                               max_pairs or DEFAULT_MAX_PAIRS, schedule, stats, ws, clock, tile_mask, mask_arg)
         if tile_mask is not None and not drew:  # no pass drew (nothing in view): the buffers are empty
             best_invw.zero_()
             tri_id.fill_(-1)
@@ -302,7 +304,7 @@ def tile_grid(width: int, height: int) -> tuple[int, int]:
 
 
 def _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera, best_invw, best_tri, best_bary,
-                    coverage, count_mode, device, max_pairs, schedule, stats, ws, clock, tile_mask):
+                    coverage, count_mode, device, max_pairs, schedule, stats, ws, clock, tile_mask, mask_arg):
     """Bin, scatter and draw in as many passes as the queue budget needs; returns whether a fine
     pass ran (the first one clears the masked tiles)."""
     n_sub = n_t + n_extra
@@ -328,7 +330,8 @@ def _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera, best_invw, best_tri,
         batch = (n + r - 1) // r
         if not first:  # a split pass: count its slot range (rows = contiguous slot batches)
             counts.zero_()
-            parallel.launch_rows(bin_count_kernel, n, r, [lo, batch, rows, tiles_x, W, H, subs, counts], device)
+            parallel.launch_rows(bin_count_kernel, n, r, [lo, batch, rows, tiles_x, W, H, subs, counts, masked, mask_arg],
+                                 device)
         total = scan_counts(counts, offsets)
         clock.lap("bin")
         if total > max_pairs and n > 1:
@@ -347,14 +350,17 @@ def _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera, best_invw, best_tri,
         if first:
             # counted by setup: primaries per pool thread, then the clipped extra pieces (few) serially
             parallel.launch_rows(coarse_scatter_kernel, n_t, min(rows, n_t),
-                                 [0, bins.batch, rows, tiles_x, W, H, subs, offsets, cursor, queue, 0], device)
+                                 [0, bins.batch, rows, tiles_x, W, H, subs, offsets, cursor, queue, 0, masked, mask_arg],
+                                 device)
             if n_extra > 0:
                 wp.launch(coarse_scatter_kernel, dim=n_extra,
-                          inputs=[0, n_t, bins.batch, rows, tiles_x, W, H, subs, offsets, cursor, queue, 1],
+                          inputs=[0, n_t, bins.batch, rows, tiles_x, W, H, subs, offsets, cursor, queue, 1, masked,
+                                  mask_arg],
                           device=device)
         else:
             parallel.launch_rows(coarse_scatter_kernel, n, r,
-                                 [lo, batch, rows, tiles_x, W, H, subs, offsets, cursor, queue, 0], device)
+                                 [lo, batch, rows, tiles_x, W, H, subs, offsets, cursor, queue, 0, masked, mask_arg],
+                                 device)
         first = False
         clock.lap("coarse")
         args = [tiles_x, n_tiles, rows, W, H, inv_far, int(count_mode), masked, tile_list, int(masked and not drew),

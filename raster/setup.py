@@ -335,6 +335,8 @@ def setup_kernel(
     rows: int,
     tiles_x: int,
     counts: wp.array(dtype=wp.int32),
+    masked: int,
+    tile_mask: wp.array(dtype=wp.uint8),
 ):
     """Triangle i → its first sub-triangle in slot i (an empty bbox when nothing survives) and
     ``extra[i]`` = number of further pieces (clipped triangles only), emitted by ``setup_extra_kernel``."""
@@ -387,7 +389,7 @@ def setup_kernel(
         rec.tri = -1  # empty slot
     subs[i] = rec
     if bin_batch > 0 and n_valid > 0:  # bin raster fused in: count the tiles of this piece
-        count_tiles(bb, s0, a, b, tiles_x, rows, i // bin_batch, counts)
+        count_tiles(bb, s0, a, b, tiles_x, rows, i // bin_batch, counts, masked, tile_mask)
     extra[i] = wp.max(n_valid - 1, 0)
 
 
@@ -409,6 +411,8 @@ def setup_extra_kernel(
     rows: int,
     tiles_x: int,
     counts: wp.array(dtype=wp.int32),
+    masked: int,
+    tile_mask: wp.array(dtype=wp.uint8),
 ):
     """Second and later pieces of clipped triangles, into slots M + extra_off[i] + j."""
     i = base + wp.tid()
@@ -432,7 +436,7 @@ def setup_extra_kernel(
                 rec.v2 = qb
                 subs[o] = rec
                 if bin_batch > 0:
-                    count_tiles(qbb, q0, qa, qb, tiles_x, rows, i // bin_batch, counts)
+                    count_tiles(qbb, q0, qa, qb, tiles_x, rows, i // bin_batch, counts, masked, tile_mask)
                 o += 1
             n_valid += 1
 

@@ -56,6 +56,8 @@ def _wall_new_view(r, repeat):
 
 
 def profile(path, size, repeat, visibility_sampling=None):
+    import warp as wp
+
     import raster
     import warp_sg as ws
     from warp_sg.render import Renderer
@@ -90,9 +92,18 @@ def profile(path, size, repeat, visibility_sampling=None):
     for aa in (1, scene.render.antialias):
         scene.render.antialias = aa
         wall, t = _wall_new_view(r, repeat)
-        vb = raster.rasterize(r.geo_arrays.positions, r.geo_arrays.tris, scene.camera, device="cpu", supersample=aa,
-                              profile=True, validate=False)
-        st = ", ".join(f"{k} {1e3 * v:.1f}" for k, v in vb.stats["times"].items())
+        # the 1x raster, and with antialiasing the a×a sub-pixels of the tiles the frame flagged
+        parts = [(1, None)] + ([(aa, r._subpixels._sub[1])] if aa > 1 else [])
+        st = ""
+        for k, tiles in parts:
+            mask = None if tiles is None else wp.array(tiles.astype(np.uint8), dtype=wp.uint8, device="cpu")
+            vb = None
+            for _ in range(2):  # the second time into the first one's buffers, as the renderer does
+                vb = raster.rasterize(r.geo_arrays.positions, r.geo_arrays.tris, scene.camera, device="cpu",
+                                      supersample=k, profile=True, validate=False, tile_mask=mask, reuse=vb)
+            times = {n: v for n, v in vb.stats["times"].items() if n != "resolve"}  # (depth: not in a frame)
+            st += (f"; {k}× on {100 * tiles.mean():.0f} % of the tiles: " if tiles is not None else "1×: ")
+            st += ", ".join(f"{n} {1e3 * v:.1f}" for n, v in times.items())
         print(f"| {aa} | {1e3 * wall:.1f} | {1e3 * t['raster']:.1f} | {1e3 * t['shade']:.1f} | "
               f"{1e3 * t['resolve']:.1f} | {t.get('shaded_samples')} | {st} |")
     scene.render.antialias = 1

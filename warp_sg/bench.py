@@ -134,7 +134,8 @@ def shading_section(device="cpu", quick=False, frames=None):
     n = frames or (1 if quick else 5)
     cases = [("full scene", {}), ("no environment", {"env": False}), ("no local lights", {"lights": False}),
              ("diffuse-only materials", {"diffuse_only": True}), ("shadows off", {"shadows": False}),
-             # visibility_sampling = "pixel": one SSDF lookup per lobe and light per pixel
+             # visibility_sampling = "pixel": one SSDF lookup per lobe and light per pixel, and the
+             # diffuse environment sum per pixel
              ("visibility per pixel (no per-vertex caches)", {"render": {"visibility_sampling": "pixel"}})]
     rows = []
     base = None

@@ -159,8 +159,9 @@ class RenderSettings:
     * ``fh`` — ``"table"`` (exact, tabulated) or ``"sigmoid"`` (paper appendix).
     * ``visibility_sampling`` — ``"vertex"`` (default): the SSDF is read once per vertex for the
       directions that do not depend on the view — each environment lobe (its visible fraction) and
-      each light (its SSDF deficit) — cached and interpolated (:mod:`warp_sg.vertex_visibility`);
-      ``"pixel"``: one SSDF lookup per lobe and light per pixel.
+      each light (its SSDF deficit) — cached and interpolated (:mod:`warp_sg.vertex_visibility`),
+      and so is the diffuse environment sum where a triangle's check allows it; ``"pixel"``: one
+      SSDF lookup per lobe and light per pixel, the diffuse environment sum per pixel.
     * ``background`` — pixels that see no object show the environment.
     * ``device`` — default device for ``ws.render(scene)`` ("cpu", "cuda", "auto").
     """

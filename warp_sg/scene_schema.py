@@ -393,7 +393,7 @@ _RENDER_DOC = {
     "gamma_levels": "λ levels of the ΓL pyramid (0 = default ladder)",
     "gamma_resolution": "largest cube face of the ΓL pyramid",
     "fh": "Fh: 'table' (exact, tabulated) or 'sigmoid' (paper appendix)",
-    "visibility_sampling": "SSDF of environment lobes and lights: 'vertex' (per vertex, cached, interpolated) or 'pixel'",
+    "visibility_sampling": "SSDF of environment lobes and lights, and the diffuse environment sum: 'vertex' (per vertex, cached, interpolated) or 'pixel'",
     "background": "pixels that see no object show the environment",
     "device": "default device: 'cpu', 'cuda', 'cuda:N' or 'auto'",
 }
