@@ -41,7 +41,10 @@ Limits:
 Table (:func:`irradiance_table`, default path): the exact ``ln e`` in float32 (clamped at −80,
 i.e. e ≈ 1.8e-35), rows uniform in ``log10 λ ∈ [−2, 3]`` (32 per decade, 161 rows), columns uniform
 in ``c ∈ [−1, 1]`` (513); the lookup is ``exp`` of the bilinear interpolant in ``(log10 λ, c)``.
-Below λ = 1e-2 the first row is used (flat, see above: ≤ 0.67 % off); above the switch λ = 1e3
+A lobe entirely above the horizon (``λ (1 − √(1 − c²)) ≥ 24``, :data:`ABOVE_HORIZON`: its value
+on the horizon is e^{−24}) has ``e = c (coth λ − 1/λ) = c (1 − 1/λ)`` for λ ≥ 24, exactly, and is
+not looked up (most lit points of a small light: no log, no exp). Below λ = 1e-2 the first row is
+used (flat, see above: ≤ 0.67 % off); above the switch λ = 1e3
 (:data:`IRR_LAM_SWITCH`, the last row) the sharp-lobe form is used (the step there is ≤ 2.5e-5 in
 ``e``). ``ln e`` rather than ``e`` is tabulated because near c = −1 ``e`` decays like ``e^{−2λ}``
 from row to row (bilinear ``e`` on 16 × 257 was 2.0 % off there even with the floor below); the
@@ -69,6 +72,10 @@ IRR_N_LAM = int(round((IRR_LOG10_LAM_MAX - IRR_LOG10_LAM_MIN) * IRR_ROWS_PER_DEC
 IRR_N_C = 513
 #: Gauss–Legendre nodes per quadrature piece for the table (converged to ~1e-12 already at 64).
 IRR_TABLE_NODES = 64
+#: λ (1 − sin θ) from which a lobe at angle θ from the normal has no mass below the horizon that
+#: matters (its value there is e^{−24}; the mass below is under λ e^{−24} ≈ 4e-11 λ of the total):
+#: then e = c (1 − 1/λ), the lobe's mean cosine, exactly (no table)
+ABOVE_HORIZON = 24.0
 #: Above this sharpness the sharp-lobe Gaussian form replaces the table (its last row).
 IRR_LAM_SWITCH = 10.0 ** IRR_LOG10_LAM_MAX
 #: λ is clamped to at least this (∫G and e stay finite at λ = 0).
@@ -181,7 +188,11 @@ def sg_irradiance_norm_np(c, lam, table: np.ndarray | None = None):
     v0 = tab[r0, x0] * (1.0 - fx) + tab[r0, x0 + 1] * fx
     v1 = tab[r0 + 1, x0] * (1.0 - fx) + tab[r0 + 1, x0 + 1] * fx
     v = np.exp(v0 * (1.0 - fr) + v1 * fr)
-    return np.where(lam > IRR_LAM_SWITCH, e_sharp_np(c, lam), v)
+    v = np.where(lam > IRR_LAM_SWITCH, e_sharp_np(c, lam), v)
+    # the whole lobe above the horizon: its mean cosine (as _above_horizon)
+    up = (lam >= ABOVE_HORIZON) & (c > 0) & (lam * (1.0 - np.sqrt(np.maximum((1.0 - c) * (1.0 + c), 0.0)))
+                                             >= ABOVE_HORIZON)
+    return np.where(up, c * (1.0 - 1.0 / lam), v)
 
 
 def sg_irradiance_np(n, p, lam, mu=1.0, table: np.ndarray | None = None):
@@ -235,6 +246,20 @@ def sg_irradiance_sharp(c: float, lam: float) -> float:
     return wp.max(v, 0.0)
 
 
+_ABOVE = wp.constant(ABOVE_HORIZON)
+
+
+@wp.func
+def _above_horizon(c: float, lam: float) -> float:
+    """``c (1 − 1/λ)`` — the lobe's mean cosine, ``c (coth λ − 1/λ)`` with coth λ = 1 to e^{−48} —
+    where the whole lobe lies above the horizon (then e is exactly that: no table, no log or exp);
+    −1 otherwise."""
+    if lam >= _ABOVE and c > 0.0:
+        if lam * (1.0 - wp.sqrt(wp.max((1.0 - c) * (1.0 + c), 0.0))) >= _ABOVE:
+            return c * (1.0 - 1.0 / lam)
+    return -1.0
+
+
 @wp.func
 def sg_irradiance_row(table: wp.array2d(dtype=float), lam: float) -> float:
     """The (fractional) row of λ in :func:`irradiance_table_array`, clamped to the table: a
@@ -248,6 +273,9 @@ def sg_irradiance_norm_at(table: wp.array2d(dtype=float), c: float, lam: float, 
     """:func:`sg_irradiance_norm` with the row ``r = sg_irradiance_row(table, λ)`` given."""
     cc = wp.clamp(c, -1.0, 1.0)
     l = wp.max(lam, _LAM_TINY)
+    up = _above_horizon(cc, l)
+    if up >= 0.0:
+        return up
     if l > _LAM_SWITCH:
         return sg_irradiance_sharp(cc, l)
     nr = table.shape[0]
@@ -268,7 +296,8 @@ def sg_irradiance_norm(table: wp.array2d(dtype=float), c: float, lam: float) -> 
     (:func:`irradiance_table_array`); λ < 1e-2 uses the first row (flat there), λ > 1e3 the
     sharp-lobe form :func:`sg_irradiance_sharp`."""
     r = float(0.0)
-    if wp.max(lam, _LAM_TINY) <= _LAM_SWITCH:  # no table row (no log) for the sharp-lobe form
+    l = wp.max(lam, _LAM_TINY)
+    if l <= _LAM_SWITCH and _above_horizon(wp.clamp(c, -1.0, 1.0), l) < 0.0:  # a row (a log) only if read
         r = sg_irradiance_row(table, lam)
     return sg_irradiance_norm_at(table, c, lam, r)
 
