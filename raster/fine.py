@@ -216,6 +216,31 @@ def fine_pixel_kernel(
 
 
 @wp.kernel
+def clear_tiles_kernel(
+    base: int,
+    tiles_x: int,
+    width: int,
+    height: int,
+    tile_list: wp.array(dtype=wp.int32),
+    best_invw: wp.array2d(dtype=wp.float32),
+    best_tri: wp.array2d(dtype=wp.int32),
+    best_bary: wp.array2d(dtype=wp.vec2),
+):
+    """Empty the listed tiles (a masked raster in which no pass drew: nothing covers them)."""
+    i = base + wp.tid()
+    if i >= tile_list.shape[0]:
+        return
+    t = tile_list[i]
+    X0 = (t % tiles_x) * TILE
+    Y0 = (t // tiles_x) * TILE
+    for cy in range(Y0, wp.min(Y0 + TILE, height)):
+        for cx in range(X0, wp.min(X0 + TILE, width)):
+            best_invw[cy, cx] = 0.0
+            best_tri[cy, cx] = -1
+            best_bary[cy, cx] = wp.vec2(0.0, 0.0)
+
+
+@wp.kernel
 def resolve_pixel_kernel(
     base: int,
     best_invw: wp.array2d(dtype=wp.float32),

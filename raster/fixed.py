@@ -96,8 +96,11 @@ def tile_overlaps(v0: wp.vec2i, v1: wp.vec2i, v2: wp.vec2i, bb: wp.vec4i, tx: in
 
 @wp.func
 def tile_drawn(masked: int, tile_mask: wp.array(dtype=wp.uint8), t: int):
-    """Whether tile t is drawn: always, or (``masked = 1``) where ``tile_mask[t]`` is set."""
-    return masked == 0 or tile_mask[t] != wp.uint8(0)
+    """Whether tile t is drawn: always, or (``masked = 1``) where ``tile_mask[t]`` is set (nested:
+    the mask is a 1-element placeholder when unmasked, and not every Warp short-circuits ``or``)."""
+    if masked == 0:
+        return True
+    return tile_mask[t] != wp.uint8(0)
 
 
 @wp.func

@@ -33,7 +33,7 @@ from . import parallel
 from .bin import TILE, bin_count_kernel, scan_counts
 from .camera import Camera
 from .coarse import coarse_scatter_kernel
-from .fine import fine_pixel_kernel, fine_tile_kernel, resolve_kernel, resolve_pixel_kernel
+from .fine import clear_tiles_kernel, fine_pixel_kernel, fine_tile_kernel, resolve_kernel, resolve_pixel_kernel
 from .setup import MAX_RESOLUTION, SubTri, guard_factors, setup_extra_kernel, setup_kernel, vertex_kernel
 
 DEFAULT_MAX_PAIRS = 1 << 21  # triangle/tile pairs per pass: 128 MiB of 64-byte queue records
@@ -221,10 +221,14 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
         raise InputError(f"tile_mask must be a uint8 array of {tiles_x * tiles_y} tiles on {device}", where="tile_mask")
     masked = int(tile_mask is not None)
     mask_arg = tile_mask if tile_mask is not None else ws.get("no_mask", 1, wp.uint8)
-    if tile_mask is None or n_t == 0:
+    if masked:  # the flagged tiles as a list: threads draw only those, evenly spread over the pool
+        flagged = np.flatnonzero(tile_mask.numpy()).astype(np.int32)
+        tile_list = wp.array(flagged if len(flagged) else np.zeros(0, np.int32), dtype=wp.int32, device=device)
+    else:
         best_invw.zero_()  # (memsets: on the CPU faster than clearing in the fine kernel's tiles)
         tri_id.fill_(-1)
         bary.zero_()
+        tile_list = ws.get("no_tiles", 1, wp.int32)
     clock.lap("clear")
     coverage = wp.zeros((H, W), dtype=wp.int32, device=device) if coverage_count else None
     cov_arg = coverage if coverage is not None else wp.zeros((1, 1), dtype=wp.int32, device=device)
@@ -269,11 +273,13 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
         stats["clipped_extra"] = n_extra
         drew = _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera,
                                best_invw, tri_id, bary, cov_arg, coverage is not None, device,
-                               max_pairs or DEFAULT_MAX_PAIRS, schedule, stats, ws, clock, tile_mask, mask_arg)
-        if tile_mask is not None and not drew:  # no pass drew (nothing in view): the buffers are empty
-            best_invw.zero_()
-            tri_id.fill_(-1)
-            bary.zero_()
+                               max_pairs or DEFAULT_MAX_PAIRS, schedule, stats, ws, clock, masked, mask_arg,
+                               tile_list)
+    else:
+        drew = False
+    if masked and not drew:  # no pass drew (nothing in the flagged tiles): empty just those
+        parallel.launch(clear_tiles_kernel, len(flagged), [tiles_x, W, H, tile_list, best_invw, tri_id, bary], device,
+                        min_chunk=16)
     vb = VisibilityBuffer(tri_id, bary, best_invw, coverage, W, H, k, device, stats, _schedule=schedule,
                           _depth_buf=depth_buf)
     if profile:
@@ -304,7 +310,8 @@ def tile_grid(width: int, height: int) -> tuple[int, int]:
 
 
 def _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera, best_invw, best_tri, best_bary,
-                    coverage, count_mode, device, max_pairs, schedule, stats, ws, clock, tile_mask, mask_arg):
+                    coverage, count_mode, device, max_pairs, schedule, stats, ws, clock, masked, mask_arg,
+                    tile_list):
     """Bin, scatter and draw in as many passes as the queue budget needs; returns whether a fine
     pass ran (the first one clears the masked tiles)."""
     n_sub = n_t + n_extra
@@ -316,13 +323,7 @@ def _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera, best_invw, best_tri,
     stack = [(0, n_sub)]
     first = True
     drew = False
-    masked = int(tile_mask is not None)
-    if masked:  # the flagged tiles as a list: threads draw only those, evenly spread over the pool
-        flagged = np.flatnonzero(tile_mask.numpy()).astype(np.int32)
-        tile_list = wp.array(flagged if len(flagged) else np.zeros(1, np.int32), dtype=wp.int32, device=device)
-        n_draw = len(flagged)
-    else:
-        tile_list, n_draw = ws.get("no_tiles", 1, wp.int32), n_tiles
+    n_draw = int(tile_list.shape[0]) if masked else n_tiles
     while stack:
         lo, hi = stack.pop()
         n = hi - lo

@@ -105,8 +105,11 @@ def test_an_environment_scale_edit_rescales_the_vertex_values_without_a_rebuild(
     np.testing.assert_allclose(b, fresh.render(), rtol=1e-5, atol=1e-7)
     r.set_environment_scale(0.0)
     assert np.abs(r.render()).max() == 0.0
+    r.set_environment_scale(1e-39)  # (built at unit scale: no overflow of a ratio of scales)
+    assert np.isfinite(r.render()).all()
     r.set_environment_scale(1.0)
     np.testing.assert_allclose(r.render(), a, rtol=1e-5, atol=1e-7)
+    assert r.env_irr_cache.builds == builds
 
 
 def test_pixel_sampling_and_oren_nayar_keep_the_per_pixel_sum():

@@ -222,6 +222,32 @@ def test_tile_mask_draws_only_the_flagged_tiles_and_they_match_the_full_raster(d
         raster.rasterize(V, F, cam, device=device, supersample=k, tile_mask=wp.zeros(3, dtype=wp.uint8, device=device))
 
 
+@pytest.mark.parametrize("schedule", ["tile", "pixel"])
+def test_masked_redraw_of_empty_tiles_clears_only_those_tiles(device, schedule):
+    """Antialiasing draws the tiles a later frame newly needs into the buffer it keeps: when no
+    triangle reaches them, they are emptied and every other tile keeps its contents."""
+    import warp as wp
+
+    from raster.fixed import TILE
+
+    V, F = torus_mesh(32, 16)
+    cam = _cam(w=64, h=48)
+    tx, ty = raster.tile_grid(128, 96)
+    full = raster.rasterize(V, F, cam, device=device, supersample=2)
+    before = full.tri_id.numpy().copy()
+    assert before[:TILE, :TILE].max() < 0  # tile 0 (a corner) sees only background
+    full.tri_id[:TILE, :TILE].fill_(5)  # stale contents in it
+    flags = np.zeros(tx * ty, np.uint8)
+    flags[0] = 1
+    m = raster.rasterize(V, F, cam, device=device, supersample=2, schedule=schedule, reuse=full,
+                         tile_mask=wp.array(flags, dtype=wp.uint8, device=device))
+    after = m.tri_id.numpy()
+    assert (after[:TILE, :TILE] == -1).all()
+    np.testing.assert_array_equal(after[TILE:], before[TILE:])
+    np.testing.assert_array_equal(after[:TILE, TILE:], before[:TILE, TILE:])
+    assert (before >= 0).sum() > 500
+
+
 def test_tile_and_pixel_schedules_agree_and_are_deterministic(device):
     V, F = _jittered_grid(30, 1.0, -1.0, seed=5)
     V2, F2 = torus_mesh(48, 24)

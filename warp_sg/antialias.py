@@ -8,10 +8,11 @@ round trip of the a²-sized buffers):
 1. :func:`candidates_kernel` flags the pixels that may need sub-pixels:
 
    * **contours** — pixels on or next to a silhouette or boundary edge of the mesh as seen from
-     the eye (:mod:`warp_sg.silhouette`): every occlusion boundary lies on one, including
-     geometry thinner than a pixel that the pixel centres miss;
+     the eye (:mod:`warp_sg.silhouette`): where a surface passes in front of another, the
+     boundary lies on one, also for geometry thinner than a pixel that the pixel centres miss;
    * **object changes** — a 4-neighbour in the 1× buffer sees another object or the background
-     (intersections of two objects, which are edges of neither);
+     (intersections of two objects, which are edges of neither; a mesh passing through itself
+     and near/far-plane cuts are flagged only by this or the contrast test);
    * **contrast** — the luminance of the 1× image differs from a 4-neighbour's by more than
      ``CONTRAST`` of the larger one (shadow edges, glints, texture edges).
 

@@ -100,7 +100,6 @@ class Renderer:
         self._env_arrays_key = ()  # (see _env_arrays; () = not built yet)
         self._env_sg_arrays = None
         self.env_vis_cache, self.light_vis_cache, self.env_irr_cache = caches()  # (_vertex_visibility)
-        self.env_irr_scale = 1.0  # the environment scale env_irr_cache was built with
         self._env_base_wp = None  # the environment map on the device (background), uploaded once
         t0 = time.perf_counter()
         with wp.ScopedDevice(self.device):
@@ -309,6 +308,7 @@ class Renderer:
             es.axis = wp.array((ax @ R.T).astype(np.float32), dtype=wp.vec3, device=d)
             es.lam = wp.array(lam.astype(np.float32), dtype=float, device=d)
             es.mu = wp.array((mu * env.scale).astype(np.float32), dtype=wp.vec3, device=d)
+            self._env_mu_unit = wp.array(mu.astype(np.float32), dtype=wp.vec3, device=d)  # (update_caches)
         self._env_arrays_key, self._env_sg_arrays = key, S.lobe_constants(es, self.irr_table, d)
         return es
 

@@ -126,13 +126,14 @@ class EnvSG:
     #: (V, count) visible fraction of C*(n_v) ⊗ G_j per vertex (``warp_sg.vertex_visibility``),
     #: read by the variant with ``Features.env_vis_vertex``; a (1, 1) placeholder otherwise
     vis: wp.array2d(dtype=float)
-    #: (V,) the diffuse environment term per vertex without ρd, Σ_j μ_j ∫G_j e(n_v·p_j, λ_j) V[v, j],
+    #: (V,) the diffuse environment term per vertex without ρd at unit environment scale,
+    #: Σ_j μ_j ∫G_j e(n_v·p_j, λ_j) V[v, j],
     #: and (T,) per triangle 1 where interpolating it is within tolerance of the per-pixel sum
     #: (``warp_sg.vertex_visibility.env_vertex_irradiance``), read by the variant with
     #: ``Features.env_irradiance_vertex``; length-1 placeholders otherwise
     irr_vertex: wp.array(dtype=wp.vec3)
     gouraud: wp.array(dtype=wp.uint8)
-    irr_scale: float  # the environment scale now over the one irr_vertex was built with
+    irr_scale: float  # the environment scale (irr_vertex is built at unit scale)
 
 
 # --------------------------------------------------------------------------------------------

@@ -1,7 +1,8 @@
 r"""Silhouette and boundary edges seen from a camera, marked on the pixel grid.
 
 Antialiasing (:mod:`warp_sg.antialias`) needs sub-pixel coverage only where a pixel may hold an
-occlusion boundary. Every such boundary of a mesh lies on one of its **contour edges**:
+occlusion boundary. Where one surface passes in front of another, the boundary lies on one of the
+front mesh's **contour edges**:
 
 * a *silhouette* edge, whose two triangles face opposite ways as seen from the eye
   (``sign((p1 − p0) × (p2 − p0) · (eye − p0))`` differs) — where an object passes in front of
@@ -14,9 +15,12 @@ seams where an exporter split vertices for normals or UVs are not boundaries. Pe
 :func:`mark_contours` projects the contour edges through the pinhole camera (clipped to the near
 plane and to the image) and marks every pixel each one passes through and its 8 neighbours: a
 conservative mask, also for geometry thinner than a pixel that point sampling at pixel centres
-misses (a wire between two pixel centres still has its contour edges marked). Intersections of
-two objects are not edges of either; antialiasing finds those from the 1× buffer (neighbouring
-pixels that see different objects).
+misses (a wire between two pixel centres still has its contour edges marked).
+
+Boundaries that lie on no edge: where two objects intersect, where one mesh passes through itself,
+and where the near or far plane cuts the geometry. Antialiasing finds the first from the 1× buffer
+(neighbouring pixels that see different objects), the others only where that test or its contrast
+test flags them.
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the kernel annotations.
 import math

@@ -244,6 +244,17 @@ class VertexCache:
         return self.value
 
 
+def _unit_scale(es: EnvSG, mu, irr, device) -> EnvSG:
+    """A copy of ``es`` with the amplitudes ``mu`` (the environment's unscaled ones) and their
+    lobe constants: what the per-vertex diffuse sum is built from, so that any later scale,
+    however small or large, is one multiplication (``EnvSG.irr_scale``)."""
+    from .shading import lobe_constants
+
+    u = EnvSG()
+    u.count, u.axis, u.lam, u.vis, u.mu = es.count, es.axis, es.lam, es.vis, mu
+    return lobe_constants(u, irr, device)
+
+
 def caches() -> tuple:
     """The renderer's three caches: environment visibility, lights' deficit, diffuse environment sum."""
     return VertexCache(), VertexCache(), VertexCache(lambda d: (wp.zeros(1, dtype=wp.vec3, device=d),
@@ -258,8 +269,8 @@ def update_caches(r, es: EnvSG) -> EnvSG:
     * ``r.vis.light_deficit`` (``r.light_vis_cache``), each light's SSDF deficit: rebuilt when a
       light moves or is resized (not on an intensity or environment-scale edit);
     * ``es.irr_vertex``, ``es.gouraud`` (``r.env_irr_cache``), the diffuse environment sum and where
-      it interpolates: rebuilt on environment rotation or a new ``es.vis``; a scale edit sets
-      ``es.irr_scale`` (the sum is linear in it).
+      it interpolates: built at unit scale, rebuilt on environment rotation or a new ``es.vis``;
+      ``es.irr_scale`` is the environment's scale (the sum is linear in it).
 
     Camera and material edits reuse all three. ``r.timings["vertex_visibility"]``: this call's
     rebuild time."""
@@ -275,14 +286,12 @@ def update_caches(r, es: EnvSG) -> EnvSG:
     key = (where, r.ssdf, r.vis.cones, fh) if on and r.shading_lights else None
     r.vis.light_deficit = r.light_vis_cache.array(
         key, lambda: light_vertex_deficit(r.vis, r.geo_arrays.positions, r.light_arrays, nv, fh == "sigmoid", d), d)
-    # D is linear in the environment's scale: built once per rotation, rescaled by es.irr_scale
-    scale = float(r.env_light.scale) if r.env_light is not None else 0.0
-    key = (r._env_arrays_key[:2], scale > 0.0, es.vis, r.geo_arrays.normals) if r._env_irradiance_vertex() else None
-    if not _same_key(key, r.env_irr_cache.key):
-        r.env_irr_scale = scale
+    # D is linear in the environment's scale: built at unit scale once per rotation, scaled per pixel
+    key = (r._env_arrays_key[:2], es.vis, r.geo_arrays.normals) if r._env_irradiance_vertex() else None
     es.irr_vertex, es.gouraud = r.env_irr_cache.array(key, lambda: env_vertex_irradiance(
-        r.irr_table, es, r.geo_arrays.normals, r.geo_arrays.tris, vvis, d), d)
-    es.irr_scale = scale / r.env_irr_scale if key is not None and scale > 0.0 else 0.0
+        r.irr_table, _unit_scale(es, r._env_mu_unit, r.irr_table, d), r.geo_arrays.normals, r.geo_arrays.tris,
+        vvis, d), d)
+    es.irr_scale = float(r.env_light.scale) if r.env_light is not None else 0.0
     r.timings["vertex_visibility"] = sum(c.seconds for c in (r.env_vis_cache, r.light_vis_cache, r.env_irr_cache))
     return es
 
