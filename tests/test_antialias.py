@@ -125,3 +125,23 @@ def test_every_edge_of_a_full_subpixel_raster_is_a_candidate_pixel(cache_dir, ma
     assert edges.sum() > 20
     assert not (edges & ~flagged).any()
     assert flagged.mean() < 0.5  # and far from everything
+
+
+def test_the_device_reduction_of_the_frame_counts_matches_numpy():
+    """On CUDA the counts come from an atomic reduction (only four integers come back); it is
+    checked here by running that kernel once on the CPU (one launch: atomics are exact there)."""
+    import warp as wp
+
+    from warp_sg import antialias as A
+
+    rng = np.random.default_rng(1)
+    cand = wp.array(rng.integers(0, 4, 5000).astype(np.int32), dtype=int)
+    edge = wp.array(rng.integers(0, 2, 5000).astype(np.int32), dtype=int)
+    mask = wp.array(rng.integers(0, 2, 700).astype(np.uint8), dtype=wp.uint8)
+    out = wp.zeros(4, dtype=int)
+    wp.launch(A._counts_kernel, dim=5000, inputs=[cand, edge, mask, out])
+    c, e, m = cand.numpy(), edge.numpy(), mask.numpy()
+    want = [np.count_nonzero(c), e.sum(), np.count_nonzero(c & A.CAND_CONTRAST), np.count_nonzero(m)]
+    assert out.numpy().tolist() == [int(x) for x in want]
+    got = A._counts(cand, edge, mask, "cpu")
+    assert got["tile_fraction"] == np.count_nonzero(m) / 700 and got["edge_pixels"] == e.sum()

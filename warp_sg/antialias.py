@@ -222,6 +222,40 @@ def _plan(count: wp.array) -> tuple[wp.array, int]:
     return offset, total
 
 
+@wp.kernel(enable_backward=False)
+def _counts_kernel(cand: wp.array(dtype=int), edge: wp.array(dtype=int), mask: wp.array(dtype=wp.uint8),
+                   out: wp.array(dtype=int)):
+    """(candidates, edges, contrast pixels, flagged tiles) by atomics (one CUDA launch)."""
+    k = wp.tid()
+    if k < cand.shape[0]:
+        if cand[k] != 0:
+            wp.atomic_add(out, 0, 1)
+        if edge[k] != 0:
+            wp.atomic_add(out, 1, 1)
+        if (cand[k] & CAND_CONTRAST) != 0:
+            wp.atomic_add(out, 2, 1)
+    if k < mask.shape[0]:
+        if mask[k] != wp.uint8(0):
+            wp.atomic_add(out, 3, 1)
+
+
+def _counts(cand, edge, mask, device) -> dict:
+    """The frame's pixel and tile counts: numpy views on the CPU; on CUDA a reduction on the
+    device, so that only four integers come back (not the per-pixel arrays)."""
+    import numpy as np
+
+    if str(device).startswith("cpu"):
+        c = cand.numpy()
+        n = (np.count_nonzero(c), int(edge.numpy().sum()), np.count_nonzero(c & CAND_CONTRAST),
+             np.count_nonzero(mask.numpy()))
+    else:
+        out = wp.zeros(4, dtype=int, device=device)
+        wp.launch(_counts_kernel, dim=max(cand.shape[0], mask.shape[0]), inputs=[cand, edge, mask, out], device=device)
+        n = out.numpy()
+    return {"candidate_pixels": int(n[0]), "edge_pixels": int(n[1]), "contrast_pixels": int(n[2]),
+            "tile_fraction": float(n[3]) / max(int(mask.shape[0]), 1)}
+
+
 class SubpixelCache:
     """What antialiasing keeps between frames of one renderer (static geometry): the mesh's edge
     adjacency (once), the contour mask of the current camera, and the sub-pixel raster of the
@@ -301,10 +335,7 @@ def render_adaptive(vb1, img, contours, raster_sub, tri_object: wp.array, backgr
     parallel.launch(classify_kernel, n_pix, [cand, vb.tri_id, vb.inv_depth, tri_object, a, EDGE_DEPTH_RESIDUAL, W,
                                              edge, count], device)
     offset, n = _plan(count)
-    c = cand.numpy()
-    stats = {"candidate_pixels": int(np.count_nonzero(c)), "edge_pixels": int(edge.numpy().sum()),
-             "contrast_pixels": int(np.count_nonzero(c & CAND_CONTRAST)), "tile_fraction": float(mask.numpy().mean()),
-             "pass1_samples": n_pix, "pass2_samples": n}
+    stats = {**_counts(cand, edge, mask, device), "pass1_samples": n_pix, "pass2_samples": n}
     if n > 0:
         tri_s = wp.empty((1, n), dtype=int, device=device)
         bary_s = wp.empty((1, n), dtype=wp.vec2, device=device)
