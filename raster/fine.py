@@ -49,6 +49,17 @@ def barycentrics(pl: wp.mat33, v0: wp.vec2i, x: int, y: int, invw: float):
     return wp.vec2(b1, b2)
 
 
+@wp.func
+def clear_tile(best_invw: wp.array2d(dtype=wp.float32), best_tri: wp.array2d(dtype=wp.int32),
+               best_bary: wp.array2d(dtype=wp.vec2), X0: int, Y0: int, X1: int, Y1: int):
+    """Pixels [X0, X1] × [Y0, Y1] empty: 1/w 0, tri -1, bary (0, 0)."""
+    for cy in range(Y0, Y1 + 1):
+        for cx in range(X0, X1 + 1):
+            best_invw[cy, cx] = 0.0
+            best_tri[cy, cx] = -1
+            best_bary[cy, cx] = wp.vec2(0.0, 0.0)
+
+
 @wp.kernel
 def fine_tile_kernel(
     base: int,
@@ -83,11 +94,7 @@ def fine_tile_kernel(
     X1 = wp.min(X0 + TILE, width) - 1
     Y1 = wp.min(Y0 + TILE, height) - 1
     if clear == 1:  # first pass of a masked raster: only the tiles drawn are cleared
-        for cy in range(Y0, Y1 + 1):
-            for cx in range(X0, X1 + 1):
-                best_invw[cy, cx] = 0.0
-                best_tri[cy, cx] = -1
-                best_bary[cy, cx] = wp.vec2(0.0, 0.0)
+        clear_tile(best_invw, best_tri, best_bary, X0, Y0, X1, Y1)
     start = offsets[t * rows]
     end = offsets[(t + 1) * rows]
     step = wp.int64(SUBPIXEL)
@@ -233,11 +240,7 @@ def clear_tiles_kernel(
     t = tile_list[i]
     X0 = (t % tiles_x) * TILE
     Y0 = (t // tiles_x) * TILE
-    for cy in range(Y0, wp.min(Y0 + TILE, height)):
-        for cx in range(X0, wp.min(X0 + TILE, width)):
-            best_invw[cy, cx] = 0.0
-            best_tri[cy, cx] = -1
-            best_bary[cy, cx] = wp.vec2(0.0, 0.0)
+    clear_tile(best_invw, best_tri, best_bary, X0, Y0, wp.min(X0 + TILE, width) - 1, wp.min(Y0 + TILE, height) - 1)
 
 
 @wp.kernel
