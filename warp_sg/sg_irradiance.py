@@ -269,13 +269,9 @@ def sg_irradiance_row(table: wp.array2d(dtype=float), lam: float) -> float:
 
 
 @wp.func
-def sg_irradiance_norm_at(table: wp.array2d(dtype=float), c: float, lam: float, r: float) -> float:
-    """:func:`sg_irradiance_norm` with the row ``r = sg_irradiance_row(table, λ)`` given."""
-    cc = wp.clamp(c, -1.0, 1.0)
-    l = wp.max(lam, _LAM_TINY)
-    up = _above_horizon(cc, l)
-    if up >= 0.0:
-        return up
+def _norm_below(table: wp.array2d(dtype=float), cc: float, l: float, r: float) -> float:
+    """e(c, λ) for a lobe not entirely above the horizon (``cc`` clamped, ``l`` ≥ the tiny λ):
+    the sharp-lobe form above the switch, else the table at row ``r``."""
     if l > _LAM_SWITCH:
         return sg_irradiance_sharp(cc, l)
     nr = table.shape[0]
@@ -291,15 +287,31 @@ def sg_irradiance_norm_at(table: wp.array2d(dtype=float), c: float, lam: float, 
 
 
 @wp.func
+def sg_irradiance_norm_at(table: wp.array2d(dtype=float), c: float, lam: float, r: float) -> float:
+    """:func:`sg_irradiance_norm` with the row ``r = sg_irradiance_row(table, λ)`` given."""
+    cc = wp.clamp(c, -1.0, 1.0)
+    l = wp.max(lam, _LAM_TINY)
+    up = _above_horizon(cc, l)
+    if up >= 0.0:
+        return up
+    return _norm_below(table, cc, l, r)
+
+
+@wp.func
 def sg_irradiance_norm(table: wp.array2d(dtype=float), c: float, lam: float) -> float:
     """e(c, λ) = E / (μ ∫G): exp of the bilinear interpolant in (log10 λ, c) of the ln e table
     (:func:`irradiance_table_array`); λ < 1e-2 uses the first row (flat there), λ > 1e3 the
-    sharp-lobe form :func:`sg_irradiance_sharp`."""
-    r = float(0.0)
+    sharp-lobe form :func:`sg_irradiance_sharp`; a lobe entirely above the horizon its exact mean
+    cosine (no row, no log)."""
+    cc = wp.clamp(c, -1.0, 1.0)
     l = wp.max(lam, _LAM_TINY)
-    if l <= _LAM_SWITCH and _above_horizon(wp.clamp(c, -1.0, 1.0), l) < 0.0:  # a row (a log) only if read
-        r = sg_irradiance_row(table, lam)
-    return sg_irradiance_norm_at(table, c, lam, r)
+    up = _above_horizon(cc, l)
+    if up >= 0.0:
+        return up
+    r = float(0.0)
+    if l <= _LAM_SWITCH:  # no table row (no log) for the sharp-lobe form
+        r = sg_irradiance_row(table, l)
+    return _norm_below(table, cc, l, r)
 
 
 @wp.func
