@@ -320,8 +320,8 @@ class Renderer:
     def _env_irradiance_vertex(self) -> bool:
         """The diffuse environment sum per vertex where it interpolates well (``visibility_sampling =
         "vertex"``; needs ρd = kd/π, no Oren–Nayar, and no normal maps)."""
-        return (self.scene.render.visibility_sampling == "vertex" and self.env_diffuse_mode == S.ENV_SG
-                and not self.has_normal_maps and 1 not in self.material_table.models)
+        return self.scene.render.visibility_sampling == "vertex" and S.diffuse_sum_per_vertex_ok(
+            self.env_diffuse_mode, self.material_table.models, self.has_normal_maps)
 
     def _vertex_visibility(self, es):
         """The per-vertex caches, brought up to date (:func:`warp_sg.vertex_visibility.update_caches`)."""

@@ -241,6 +241,14 @@ class Features:
 _KERNELS: dict = {}
 
 
+def diffuse_sum_per_vertex_ok(env_diffuse: int, models, normal_maps: bool) -> bool:
+    """Whether the whole diffuse environment term can be taken from per-vertex values
+    (``EnvSG.irr_vertex``): an SG environment, ρd = kd/π whatever the directions (no Oren–Nayar,
+    model 1) and the interpolated normal as the shading normal (no normal maps). The renderer asks
+    this before building the cache; the kernel variant before reading it."""
+    return int(env_diffuse) == ENV_SG and 1 not in tuple(models) and not normal_maps
+
+
 def _gamma_parts():
     """(struct type, @wp.func gamma_lookup(struct, p, lam) -> vec3) of the prefiltered ΓL pyramid."""
     from precompute import prefilter as P
@@ -263,7 +271,7 @@ def shade_kernel(f: Features):
     VVIS = bool(f.env_vis_vertex) and SHADOWS == 1
     LVIS = bool(f.light_vis_vertex) and SHADOWS == 1
     RHO_D_CONST = 1 not in f.models  # no Oren–Nayar: ρd = kd/π, whatever the directions
-    EVTX = bool(f.env_irradiance_vertex) and RHO_D_CONST and not NMAP and ENV_D == 1
+    EVTX = bool(f.env_irradiance_vertex) and diffuse_sum_per_vertex_ok(f.env_diffuse, f.models, f.normal_maps)
     # per-pixel SSDF reads outside the specular loop (lights without the deficit cache, diffuse
     # lobes without the visibility cache): the SSDF point is built for every pixel
     Q_EARLY = SHADOWS == 1 and ((LIGHTS and not LVIS) or (ENV_D == 1 and not VVIS))

@@ -274,23 +274,20 @@ def update_caches(r, es: EnvSG) -> EnvSG:
 
     Camera and material edits reuse all three. ``r.timings["vertex_visibility"]``: this call's
     rebuild time."""
-    from . import shading as S
-
     d, nv, fh = r.device, len(r.geometry.vertices), r.scene.render.fh
-    on = r._vertex_sampled()
-    vvis = on and r.env_diffuse_mode == S.ENV_SG
-    key = (r._env_arrays_key[:2], r.ssdf, r.vis.cones, fh) if vvis else None
+    f = r.features()  # the caches the kernel variant reads
+    key = (r._env_arrays_key[:2], r.ssdf, r.vis.cones, fh) if f.env_vis_vertex else None
     es.vis = r.env_vis_cache.array(key, lambda: env_vertex_visibility(r.vis, es, nv, fh == "sigmoid", d), d)
     where = tuple((li.type, *np.ravel(getattr(li, "position", getattr(li, "direction", ()))).tolist(),
                    float(li.radius)) for li in r.shading_lights)
-    key = (where, r.ssdf, r.vis.cones, fh) if on and r.shading_lights else None
+    key = (where, r.ssdf, r.vis.cones, fh) if f.light_vis_vertex else None
     r.vis.light_deficit = r.light_vis_cache.array(
         key, lambda: light_vertex_deficit(r.vis, r.geo_arrays.positions, r.light_arrays, nv, fh == "sigmoid", d), d)
     # D is linear in the environment's scale: built at unit scale once per rotation, scaled per pixel
-    key = (r._env_arrays_key[:2], es.vis, r.geo_arrays.normals) if r._env_irradiance_vertex() else None
+    key = (r._env_arrays_key[:2], es.vis, r.geo_arrays.normals) if f.env_irradiance_vertex else None
     es.irr_vertex, es.gouraud = r.env_irr_cache.array(key, lambda: env_vertex_irradiance(
         r.irr_table, _unit_scale(es, r._env_mu_unit, r.irr_table, d), r.geo_arrays.normals, r.geo_arrays.tris,
-        vvis, d), d)
+        f.env_vis_vertex, d), d)
     es.irr_scale = float(r.env_light.scale) if r.env_light is not None else 0.0
     r.timings["vertex_visibility"] = sum(c.seconds for c in (r.env_vis_cache, r.light_vis_cache, r.env_irr_cache))
     return es
