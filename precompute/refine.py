@@ -52,6 +52,7 @@ import numpy as np
 
 from warp_sg.errors import InputError
 from warp_sg.frames import to_local, to_world
+from warp_sg.meshcheck import weld_ids
 
 from .ssdf_wp import dir_to_concentric, texel_directions
 from .visibility import _tqdm, bbox_diagonal, hemisphere_visibility, validate_mesh
@@ -161,9 +162,7 @@ class _State:
         a = self.T
         b = np.roll(self.T, -1, axis=1)
         ikey = np.minimum(a, b) * _S + np.maximum(a, b)
-        # weld by exact position (+0.0 turns −0.0 into 0.0) for the geometric edge ids
-        _, gid = np.unique(self.V + 0.0, axis=0, return_inverse=True)
-        gid = gid.reshape(-1).astype(np.int64)
+        gid = weld_ids(self.V)  # by exact position, for the geometric edge ids
         ga, gb = gid[a], gid[b]
         gkey = np.minimum(ga, gb) * _S + np.maximum(ga, gb)
         _, first, geid = np.unique(gkey.ravel(), return_index=True, return_inverse=True)

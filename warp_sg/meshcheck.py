@@ -98,4 +98,12 @@ def check_mesh(vertices, triangles, normals=None, *, where: str | None = None, d
     return v, t, nn
 
 
-__all__ = ["check_mesh"]
+def weld_ids(vertices) -> np.ndarray:
+    """(N,) int64: the same id for vertices at exactly the same position (−0.0 counts as 0.0), so
+    that edges split by an exporter for normals or UVs are found as one geometric edge."""
+    v = np.asarray(vertices)
+    return np.unique(v + 0.0, axis=0, return_inverse=True)[1].reshape(-1).astype(np.int64)
+
+
+__all__ = ["check_mesh", "weld_ids"]
+

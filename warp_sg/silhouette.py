@@ -28,6 +28,8 @@ import math
 import numpy as np
 import warp as wp
 
+from .meshcheck import weld_ids
+
 
 def edge_adjacency(vertices, triangles) -> tuple:
     """``(edge_v (E, 2) int32, edge_f (E, 2) int32)``: each edge of the position-welded mesh once,
@@ -38,8 +40,7 @@ def edge_adjacency(vertices, triangles) -> tuple:
     t = np.asarray(triangles, np.int64).reshape(-1, 3)
     if len(t) == 0:
         return np.zeros((0, 2), np.int32), np.zeros((0, 2), np.int32)
-    _, weld = np.unique(v.view(np.dtype((np.void, 12))).ravel(), return_inverse=True)
-    weld = weld.ravel()
+    weld = weld_ids(v)
     corners = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])   # input ids (3M, 2)
     faces = np.tile(np.arange(len(t)), 3)
     w = weld[corners]
