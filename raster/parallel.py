@@ -43,29 +43,43 @@ def _pool() -> ThreadPoolExecutor:
     return _POOL
 
 
-def launch(kernel, n: int, inputs: list, device: str, chunks: int | None = None, min_chunk: int = 256):
+def launch(kernel, n: int, inputs: list, device: str, chunks: int | None = None, min_chunk: int = 256,
+           per_thread: int | None = None):
     """Launch ``kernel`` over ``n`` elements; ``inputs`` excludes the leading ``base`` offset.
 
     CPU: split into ``chunks`` contiguous ranges (default 4 per worker) run on the pool.
     CUDA: one launch of ``n`` threads.
+
+    ``per_thread`` (kernels with arguments ``(base, per, ...)``): each CPU thread handles ``per``
+    consecutive elements ``base + tid·per + s`` (s < per; the kernel skips indices ≥ n). A Warp
+    CPU kernel copies its struct arguments at every thread's entry; a kernel with many array
+    structs (the shading kernel: ~26 ns per element) spends more there than a background pixel
+    costs to shade, so the CPU amortises it over ``per`` elements. CUDA keeps one element per
+    thread (``per`` = 1).
     """
     n = int(n)
     if n <= 0:
         return
     _ensure_loaded(kernel, device)
-    if not str(device).startswith("cpu"):
-        wp.launch(kernel, dim=n, inputs=[0, *inputs], device=device)
+    cpu = str(device).startswith("cpu")
+    per = max(int(per_thread), 1) if (per_thread is not None and cpu) else 1
+    head = [] if per_thread is None else [per]
+
+    def one(b, m):
+        wp.launch(kernel, dim=-(-m // per), inputs=[b, *head, *inputs], device=device)
+
+    if not cpu:
+        one(0, n)
         return
     workers = cpu_workers()
     if chunks is None:
         chunks = 4 * workers
     chunks = max(1, min(int(chunks), (n + min_chunk - 1) // min_chunk))
     if workers == 1 or chunks == 1:
-        wp.launch(kernel, dim=n, inputs=[0, *inputs], device=device)
+        one(0, n)
         return
-    step = (n + chunks - 1) // chunks
-    ranges = [(b, min(step, n - b)) for b in range(0, n, step)]
-    futs = [_pool().submit(wp.launch, kernel, dim=m, inputs=[b, *inputs], device=device) for b, m in ranges]
+    step = -(-((n + chunks - 1) // chunks) // per) * per  # a multiple of per: ranges never overlap
+    futs = [_pool().submit(one, b, min(step, n - b)) for b in range(0, n, step)]
     for f in futs:
         f.result()
 

@@ -145,3 +145,90 @@ def test_the_device_reduction_of_the_frame_counts_matches_numpy():
     assert out.numpy().tolist() == [int(x) for x in want]
     got = A._counts(cand, edge, mask, "cpu")
     assert got["tile_fraction"] == np.count_nonzero(m) / 700 and got["edge_pixels"] == e.sum()
+
+
+@pytest.mark.parametrize("a", [2, 3, 4, 5, 6, 8])
+def test_contrast_pixels_are_shaded_at_one_sub_pixel_per_row_and_column(a):
+    """The rook pattern: a permutation of the columns (one sample per sub-pixel row and column, so
+    the samples' mean is the pixel centre) that is neither diagonal, for a ≥ 4; all a² below."""
+    import warp as wp
+
+    from warp_sg import antialias as A
+
+    W = 3
+    tid = wp.array(np.zeros((a, a * W), np.int32), dtype=int)
+    bary = wp.array(np.stack(np.meshgrid(np.arange(a * W), np.arange(a)), -1).astype(np.float32) / 100.0,
+                    dtype=wp.vec2)  # bary = sub-pixel (column, row) / 100: identifies the sub-pixel
+    count = wp.array(np.zeros(W, np.int32), dtype=int)
+    cand = wp.array(np.full(W, A.CAND_CONTRAST, np.int32), dtype=int)
+    edge = wp.empty(W, dtype=int)
+    inv_depth = wp.array(np.ones((a, a * W), np.float32), dtype=float)
+    wp.launch(A.classify_kernel, dim=W, inputs=[0, cand, tid, inv_depth, wp.zeros(1, dtype=int), a,
+                                                A.EDGE_DEPTH_RESIDUAL, W, edge, count])
+    n = count.numpy()
+    want = a if a >= 4 else a * a
+    assert n.tolist() == [want] * W and edge.numpy().sum() == 0
+    offset = wp.array(np.concatenate([[0], np.cumsum(n)[:-1]]).astype(np.int32), dtype=int)
+    m = int(n.sum())
+    tri_s, bary_s = wp.empty((1, m), dtype=int), wp.empty((1, m), dtype=wp.vec2)
+    bg_s, w_s = wp.empty((1, m), dtype=wp.vec3), wp.empty(m, dtype=float)
+    bg = _background(a, W)
+    wp.launch(A.gather_kernel, dim=W, inputs=[0, tid, bary, bg, count, offset, edge, a, W, tri_s, bary_s, bg_s, w_s])
+    for k in range(W):
+        sub = np.rint(bary_s.numpy()[0, k * want:(k + 1) * want] * 100.0).astype(int)  # (column, row)
+        col, row = sub[:, 0] - k * a, sub[:, 1]
+        assert np.allclose(w_s.numpy()[k * want:(k + 1) * want], 1.0 / want)
+        if a >= 4:
+            assert sorted(row) == list(range(a)) and sorted(col) == list(range(a))
+            assert not (np.all(col == row) or np.all(col == a - 1 - row))
+        else:
+            assert sorted(zip(row, col)) == [(j, i) for j in range(a) for i in range(a)]
+
+
+def _background(a, W):
+    """A disabled background (no environment): samples that see no object get 0."""
+    from warp_sg.background import background_params
+    from warp_sg.scene import Camera
+
+    return background_params(Camera(width=W, height=1), a, None, None, 1.0, "cpu")
+
+
+def test_an_edge_pixel_is_shaded_once_per_triangle_at_its_sub_pixels_mean_with_their_share():
+    """A 4×4 block seen by two triangles and the background: the gathered samples (triangle,
+    barycentrics, weight) against a numpy construction, and the weighted resolve against the
+    coverage-weighted mean of given sample colours."""
+    import warp as wp
+
+    from warp_sg import antialias as A
+
+    a, W = 4, 1
+    rng = np.random.default_rng(3)
+    tid = np.full((a, a), 7, np.int32)
+    tid[:, 3] = -1  # one column of background
+    tid[2:, :2] = 11  # a second triangle in a corner
+    bary = rng.uniform(0.0, 0.5, (a, a, 2)).astype(np.float32)
+    count = wp.zeros(W, dtype=int)
+    edge = wp.zeros(W, dtype=int)
+    inv_depth = wp.array(np.where(tid >= 0, 1.0, 0.0).astype(np.float32), dtype=float)
+    tri_object = wp.array(np.arange(12, dtype=np.int32), dtype=int)  # each triangle its own object
+    wp.launch(A.classify_kernel, dim=W, inputs=[0, wp.array(np.array([A.CAND_GEOMETRY], np.int32), dtype=int),
+                                                wp.array(tid, dtype=int), inv_depth, tri_object, a,
+                                                A.EDGE_DEPTH_RESIDUAL, W, edge, count])
+    assert edge.numpy()[0] == 1 and count.numpy()[0] == 2 + 4  # two triangles + four background sub-pixels
+    n = 6
+    tri_s, bary_s = wp.empty((1, n), dtype=int), wp.empty((1, n), dtype=wp.vec2)
+    bg_s, w_s = wp.empty((1, n), dtype=wp.vec3), wp.empty(n, dtype=float)
+    wp.launch(A.gather_kernel, dim=W, inputs=[0, wp.array(tid, dtype=int), wp.array(bary, dtype=wp.vec2), _background(a, W),
+                                              count, wp.zeros(W, dtype=int), edge, a, W, tri_s, bary_s, bg_s, w_s])
+    t, b, w = tri_s.numpy()[0], bary_s.numpy()[0], w_s.numpy()
+    for tri, cov in ((7, 8), (11, 4)):
+        (q,) = np.nonzero(t == tri)[0]
+        assert np.isclose(w[q], cov / 16.0)
+        assert np.allclose(b[q], bary[tid == tri].mean(0), atol=1e-6)
+    assert np.allclose(w[t < 0], 1.0 / 16.0) and (t < 0).sum() == 4
+    assert np.isclose(w.sum(), 1.0)
+    colours = rng.uniform(0.0, 1.0, (1, n, 3)).astype(np.float32)
+    img = wp.zeros((1, 1), dtype=wp.vec3)
+    wp.launch(A.resolve_kernel, dim=W, inputs=[0, wp.array(colours, dtype=wp.vec3), w_s, count,
+                                               wp.zeros(W, dtype=int), W, img])
+    assert np.allclose(img.numpy()[0, 0], (colours[0] * w[:, None]).sum(0), atol=1e-6)

@@ -6,6 +6,7 @@ import math
 import numpy as np
 import pytest
 import trimesh
+import warp as wp
 
 import raster
 from raster.reference_checks import raycast_visibility, torus_mesh, uv_sphere
@@ -298,3 +299,23 @@ def test_warp_array_inputs_and_flat_indices_give_the_same_buffer(device):
     assert np.array_equal(a.bary.numpy(), b.bary.numpy())
     n = raster.interpolate(b, F, wp.array(V, dtype=wp.vec3, device=device)).numpy()
     assert n.shape == (40, 48, 3) and np.isfinite(n).all()
+
+
+@wp.kernel(enable_backward=False)
+def _stamp_kernel(base: int, per: int, n: int, hits: wp.array(dtype=int)):
+    for s in range(per):
+        i = base + wp.tid() * per + s
+        if i < n:
+            hits[i] = hits[i] + 1
+
+
+@pytest.mark.parametrize("n,per,chunks", [(1, 16, None), (1000, 16, None), (1001, 7, 3), (4096, 16, 8), (37, 1, 5),
+                                          (5000, 64, 1)])
+def test_a_launch_with_several_elements_per_thread_touches_every_element_exactly_once(n, per, chunks):
+    """``parallel.launch(per_thread=...)``: the thread ranges of every chunk tile 0..n-1 exactly
+    (a kernel that increments its elements finds each at 1)."""
+    from raster import parallel
+
+    hits = wp.zeros(n, dtype=int)
+    parallel.launch(_stamp_kernel, n, [n, hits], "cpu", chunks=chunks, min_chunk=1, per_thread=per)
+    assert (hits.numpy() == 1).all()

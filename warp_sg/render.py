@@ -618,9 +618,9 @@ class Renderer:
         from raster import parallel
 
         n = int(tri_id.shape[0]) * int(tri_id.shape[1])
-        parallel.launch(kern, n, [tri_id, bary, bg, wp.vec3(*np.asarray(eye, np.float32)), self.geo_arrays,
-                                  self.material_table.materials, self.material_textures, self.irr_table,
-                                  self.light_arrays, es, gamma, self.vis, out], d, min_chunk=2048)
+        args = [tri_id, bary, bg, wp.vec3(*np.asarray(eye, np.float32)), self.geo_arrays, self.material_table.materials,
+                self.material_textures, self.irr_table, self.light_arrays, es, gamma, self.vis, out]
+        parallel.launch(kern, n, args, d, min_chunk=2048, per_thread=S.PIXELS_PER_THREAD)
 
 
 def render(scene: Scene, device: str | None = None, progress: bool = False) -> np.ndarray:

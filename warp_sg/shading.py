@@ -240,6 +240,12 @@ class Features:
 
 _KERNELS: dict = {}
 
+#: pixels one CPU thread shades (``raster.parallel.launch(per_thread=...)``): Warp copies the
+#: kernel's struct arguments (geometry, materials, lights, environment, ΓL, SSDF: ~4 KB) at every
+#: thread's entry, ~26 ns — more than a background pixel costs. 16 pixels share one entry
+#: (measured on the frame-scaling scene: shading CPU time −23 %). CUDA shades one per thread.
+PIXELS_PER_THREAD = 16
+
 
 def diffuse_sum_per_vertex_ok(env_diffuse: int, models, normal_maps: bool) -> bool:
     """Whether the whole diffuse environment term can be taken from per-vertex values
@@ -284,127 +290,131 @@ def shade_kernel(f: Features):
     else:
         GammaT, gamma_lookup = EnvSG, None  # placeholder type (unused argument)
 
-    def shade(base: int, tri_id: wp.array2d(dtype=int), bary: wp.array2d(dtype=wp.vec2), background: wp.array2d(dtype=wp.vec3),
+    def shade(base: int, per: int, tri_id: wp.array2d(dtype=int), bary: wp.array2d(dtype=wp.vec2), background: wp.array2d(dtype=wp.vec3),
               cam: wp.vec3, geo: GeometryArrays, mats: wp.array(dtype=Material), tex: MaterialTextures,
               irr: wp.array2d(dtype=float), lights: LightArrays, env: EnvSG, gamma: GammaT, vis: Visibility,
               out: wp.array2d(dtype=wp.vec3)):
-        pix = base + wp.tid()  # row-major pixel index (CPU launches split it over threads)
-        y = pix // tri_id.shape[1]
-        x = pix - y * tri_id.shape[1]
-        t = tri_id[y, x]
-        if t < 0:
-            out[y, x] = background[y, x]
-            return
-        bc = bary[y, x]
-        b1 = bc[0]
-        b2 = bc[1]
-        b0 = 1.0 - b1 - b2
-        tri = geo.tris[t]
-        i0 = tri[0]
-        i1 = tri[1]
-        i2 = tri[2]
-        P = geo.positions[i0] * b0 + geo.positions[i1] * b1 + geo.positions[i2] * b2
-        ng = wp.normalize(geo.normals[i0] * b0 + geo.normals[i1] * b1 + geo.normals[i2] * b2)
-        o = wp.normalize(cam - P)
+        n_pix = tri_id.shape[0] * tri_id.shape[1]
+        for s in range(per):  # per pixels per thread on the CPU (raster.parallel.launch), 1 on CUDA
+            pix = base + wp.tid() * per + s  # row-major pixel index
+            if pix >= n_pix:
+                break
+            y = pix // tri_id.shape[1]
+            x = pix - y * tri_id.shape[1]
+            t = tri_id[y, x]
+            if t < 0:
+                out[y, x] = background[y, x]
+                continue
+            bc = bary[y, x]
+            b1 = bc[0]
+            b2 = bc[1]
+            b0 = 1.0 - b1 - b2
+            tri = geo.tris[t]
+            i0 = tri[0]
+            i1 = tri[1]
+            i2 = tri[2]
+            P = geo.positions[i0] * b0 + geo.positions[i1] * b1 + geo.positions[i2] * b2
+            ng = wp.normalize(geo.normals[i0] * b0 + geo.normals[i1] * b1 + geo.normals[i2] * b2)
+            o = wp.normalize(cam - P)
 
-        mi = geo.tri_material[t]
-        mat = mats[mi]
-        uv = wp.vec2(0.0, 0.0)
-        if wp.static(TEX or NMAP):
-            uv = geo.uvs[i0] * b0 + geo.uvs[i1] * b1 + geo.uvs[i2] * b2
-        if wp.static(TEX):
-            mat = textured_material(mat, tex, mi, uv)
+            mi = geo.tri_material[t]
+            mat = mats[mi]
+            uv = wp.vec2(0.0, 0.0)
+            if wp.static(TEX or NMAP):
+                uv = geo.uvs[i0] * b0 + geo.uvs[i1] * b1 + geo.uvs[i2] * b2
+            if wp.static(TEX):
+                mat = textured_material(mat, tex, mi, uv)
 
-        # shading frame: mesh tangent made orthogonal to the normal, then normal/tangent maps
-        ts = tangent_in_plane(geo.tangents[i0] * b0 + geo.tangents[i1] * b1 + geo.tangents[i2] * b2, ng)
-        ns = ng
-        if wp.static(NMAP):
-            ns, ts = apply_shading_maps(tex, mi, uv, ng, ts)
-        bs = wp.cross(ns, ts)
-        o_l = above(world_to_local(o, ts, bs, ns))
-        # the point's SSDF frames, once for every light and lobe that reads the SSDF: at once when
-        # lights or diffuse lobes read it per pixel, else only where a specular lobe does
-        q = SSDFPoint()
-        q.ng = ng
-        if wp.static(Q_EARLY):
-            q = ssdf_point(vis.normals, i0, i1, i2, b0, b1, b2, ng)
+            # shading frame: mesh tangent made orthogonal to the normal, then normal/tangent maps
+            ts = tangent_in_plane(geo.tangents[i0] * b0 + geo.tangents[i1] * b1 + geo.tangents[i2] * b2, ng)
+            ns = ng
+            if wp.static(NMAP):
+                ns, ts = apply_shading_maps(tex, mi, uv, ng, ts)
+            bs = wp.cross(ns, ts)
+            o_l = above(world_to_local(o, ts, bs, ns))
+            # the point's SSDF frames, once for every light and lobe that reads the SSDF: at once when
+            # lights or diffuse lobes read it per pixel, else only where a specular lobe does
+            q = SSDFPoint()
+            q.ng = ng
+            if wp.static(Q_EARLY):
+                q = ssdf_point(vis.normals, i0, i1, i2, b0, b1, b2, ng)
 
-        col = wp.vec3(0.0, 0.0, 0.0)
-        has_kd = wp.length_sq(mat.kd) > 0.0
+            col = wp.vec3(0.0, 0.0, 0.0)
+            has_kd = wp.length_sq(mat.kd) > 0.0
 
-        # ---------------- local lights (eq. 42–43, exact where it is cheap) ----------------
-        # The unshadowed response to a point / spherical / directional light is the exact BRDF at
-        # the light's direction times its irradiance, weighted by the exact cosine of the light's
-        # SG over the hemisphere e(n·l, λ) (→ max(n·l, 0) for small lights; smooth at the horizon
-        # for large ones). The SSDF supplies only the occluded fraction (vis_ratio).
-        if wp.static(LIGHTS):
-            for j in range(lights.count):
-                la, ll, E = light_irradiance(lights, j, P)
-                li = world_to_local(la, ts, bs, ns)
-                e = sg_irradiance_norm(irr, li[2], ll)
-                if e > 0.0:
-                    f = brdf_eval(mat, o_l, above(li))
-                    vr = float(1.0)
-                    if wp.static(LVIS):  # θd = θh + the vertices' interpolated deficit (per-vertex cache)
-                        dd = (b0 * vis.light_deficit[i0, j] + b1 * vis.light_deficit[i1, j]
-                              + b2 * vis.light_deficit[i2, j])
-                        if dd < 0.0:
-                            th_h = fast_asin(wp.dot(la, q.ng))
-                            vr = fh_fraction(FH, vis, th_h + dd, th_h, ll)
-                    else:
-                        vr = vis_ratio(SHADOWS, FH, vis, q, la, ll)
-                    col += wp.cw_mul(f, E) * (e * vr)
-
-        # ---------------- environment, diffuse (eq. 39) ----------------
-        # Σ_j ρd μ_j ∫G_j e(n·p_j, λ_j): the exact irradiance of each SG of the environment's
-        # mixture (sg_irradiance: within 2 % for every λ, where eq. 40's single clamped-cosine lobe
-        # is 17 % low at 54°), times the visible fraction of the product lobe C* ⊗ G_j.
-        if wp.static(ENV_D == 1):
-            if has_kd:
-                rho_d = diffuse_at(mat, o_l, wp.vec3(0.0, 0.0, 1.0))  # ρd itself where it is constant
-                nj = env.count
-                if wp.static(EVTX):  # the per-vertex sum, where the triangle's check allows it
-                    if env.gouraud[t] != wp.uint8(0):
-                        dsum = b0 * env.irr_vertex[i0] + b1 * env.irr_vertex[i1] + b2 * env.irr_vertex[i2]
-                        col += wp.cw_mul(dsum, rho_d) * env.irr_scale
-                        nj = 0
-                for j in range(nj):
-                    ax = env.axis[j]
-                    E = env.power[j] * sg_irradiance_norm_at(irr, wp.dot(ns, ax), env.lam[j], env.irr_row[j])
-                    if wp.length_sq(E) > 0.0:
-                        vr = float(1.0)
-                        if wp.static(VVIS):  # the per-vertex cache, interpolated
-                            vr = b0 * env.vis[i0, j] + b1 * env.vis[i1, j] + b2 * env.vis[i2, j]
-                        if wp.static(VVIS and RHO_D_CONST):  # no product lobe needed: cache × kd/π
-                            col += wp.cw_mul(E, rho_d) * vr
-                        else:
-                            pe, le, se = sg_product(ns, CC_LAM, ax, env.lam[j])
-                            if wp.static(not VVIS):
-                                vr = vis_ratio(SHADOWS, FH, vis, q, pe, le)
-                            col += wp.cw_mul(E, diffuse_at(mat, o_l, world_to_local(pe, ts, bs, ns))) * vr
-
-        # ---------------- environment, specular (eq. 41) ----------------
-        # For each slice lobe G_k (axis pW, λW, amplitude μ_k ∝ Mo): ∫ G_k(i) max(n·i, 0) L(i) di ≈
-        # [μ_k ∫G_k e(n·pW, λW)] · L̄, the lobe's exact cosine-weighted mass times the mean radiance
-        # L̄ = ΓL(p, λ)/∫G(λ) over the cosine-weighted lobe (p, λ) = C* ⊗ G_k (eq. 35). Exact for a
-        # constant environment and for sharp lobes, and bounded at grazing views, where the
-        # paper's C* ⊗ ρ*_k (0.14 of its peak at the horizon times Mo ∝ 1/(n·i)) grows as 1/(n·o).
-        if wp.static(SPEC and ENV_S == 2):
-            nspec = slice_lobe_count(mat)
-            if wp.static(SHADOWS == 1 and not Q_EARLY):
-                if nspec > 0:
-                    q = ssdf_point(vis.normals, i0, i1, i2, b0, b1, b2, ng)
-            for k in range(nspec):
-                pw_l, lw, mw = shading_slice_lobe(mat, o_l, k)
-                if wp.length_sq(mw) > 0.0:
-                    e = sg_irradiance_norm(irr, pw_l[2], lw) * sg_integral(lw)
+            # ---------------- local lights (eq. 42–43, exact where it is cheap) ----------------
+            # The unshadowed response to a point / spherical / directional light is the exact BRDF at
+            # the light's direction times its irradiance, weighted by the exact cosine of the light's
+            # SG over the hemisphere e(n·l, λ) (→ max(n·l, 0) for small lights; smooth at the horizon
+            # for large ones). The SSDF supplies only the occluded fraction (vis_ratio).
+            if wp.static(LIGHTS):
+                for j in range(lights.count):
+                    la, ll, E = light_irradiance(lights, j, P)
+                    li = world_to_local(la, ts, bs, ns)
+                    e = sg_irradiance_norm(irr, li[2], ll)
                     if e > 0.0:
-                        pw = local_to_world(pw_l, ts, bs, ns)
-                        pa, lam, sc = sg_product(ns, CC_LAM, pw, lw)
-                        g = gamma_lookup(gamma, pa, lam) / sg_integral(lam)
-                        vr = vis_ratio(SHADOWS, FH, vis, q, pa, lam)
-                        col += wp.cw_mul(mw, g) * (e * vr)
-        out[y, x] = wp.vec3(wp.max(col[0], 0.0), wp.max(col[1], 0.0), wp.max(col[2], 0.0))
+                        f = brdf_eval(mat, o_l, above(li))
+                        vr = float(1.0)
+                        if wp.static(LVIS):  # θd = θh + the vertices' interpolated deficit (per-vertex cache)
+                            dd = (b0 * vis.light_deficit[i0, j] + b1 * vis.light_deficit[i1, j]
+                                  + b2 * vis.light_deficit[i2, j])
+                            if dd < 0.0:
+                                th_h = fast_asin(wp.dot(la, q.ng))
+                                vr = fh_fraction(FH, vis, th_h + dd, th_h, ll)
+                        else:
+                            vr = vis_ratio(SHADOWS, FH, vis, q, la, ll)
+                        col += wp.cw_mul(f, E) * (e * vr)
+
+            # ---------------- environment, diffuse (eq. 39) ----------------
+            # Σ_j ρd μ_j ∫G_j e(n·p_j, λ_j): the exact irradiance of each SG of the environment's
+            # mixture (sg_irradiance: within 2 % for every λ, where eq. 40's single clamped-cosine lobe
+            # is 17 % low at 54°), times the visible fraction of the product lobe C* ⊗ G_j.
+            if wp.static(ENV_D == 1):
+                if has_kd:
+                    rho_d = diffuse_at(mat, o_l, wp.vec3(0.0, 0.0, 1.0))  # ρd itself where it is constant
+                    nj = env.count
+                    if wp.static(EVTX):  # the per-vertex sum, where the triangle's check allows it
+                        if env.gouraud[t] != wp.uint8(0):
+                            dsum = b0 * env.irr_vertex[i0] + b1 * env.irr_vertex[i1] + b2 * env.irr_vertex[i2]
+                            col += wp.cw_mul(dsum, rho_d) * env.irr_scale
+                            nj = 0
+                    for j in range(nj):
+                        ax = env.axis[j]
+                        E = env.power[j] * sg_irradiance_norm_at(irr, wp.dot(ns, ax), env.lam[j], env.irr_row[j])
+                        if wp.length_sq(E) > 0.0:
+                            vr = float(1.0)
+                            if wp.static(VVIS):  # the per-vertex cache, interpolated
+                                vr = b0 * env.vis[i0, j] + b1 * env.vis[i1, j] + b2 * env.vis[i2, j]
+                            if wp.static(VVIS and RHO_D_CONST):  # no product lobe needed: cache × kd/π
+                                col += wp.cw_mul(E, rho_d) * vr
+                            else:
+                                pe, le, se = sg_product(ns, CC_LAM, ax, env.lam[j])
+                                if wp.static(not VVIS):
+                                    vr = vis_ratio(SHADOWS, FH, vis, q, pe, le)
+                                col += wp.cw_mul(E, diffuse_at(mat, o_l, world_to_local(pe, ts, bs, ns))) * vr
+
+            # ---------------- environment, specular (eq. 41) ----------------
+            # For each slice lobe G_k (axis pW, λW, amplitude μ_k ∝ Mo): ∫ G_k(i) max(n·i, 0) L(i) di ≈
+            # [μ_k ∫G_k e(n·pW, λW)] · L̄, the lobe's exact cosine-weighted mass times the mean radiance
+            # L̄ = ΓL(p, λ)/∫G(λ) over the cosine-weighted lobe (p, λ) = C* ⊗ G_k (eq. 35). Exact for a
+            # constant environment and for sharp lobes, and bounded at grazing views, where the
+            # paper's C* ⊗ ρ*_k (0.14 of its peak at the horizon times Mo ∝ 1/(n·i)) grows as 1/(n·o).
+            if wp.static(SPEC and ENV_S == 2):
+                nspec = slice_lobe_count(mat)
+                if wp.static(SHADOWS == 1 and not Q_EARLY):
+                    if nspec > 0:
+                        q = ssdf_point(vis.normals, i0, i1, i2, b0, b1, b2, ng)
+                for k in range(nspec):
+                    pw_l, lw, mw = shading_slice_lobe(mat, o_l, k)
+                    if wp.length_sq(mw) > 0.0:
+                        e = sg_irradiance_norm(irr, pw_l[2], lw) * sg_integral(lw)
+                        if e > 0.0:
+                            pw = local_to_world(pw_l, ts, bs, ns)
+                            pa, lam, sc = sg_product(ns, CC_LAM, pw, lw)
+                            g = gamma_lookup(gamma, pa, lam) / sg_integral(lam)
+                            vr = vis_ratio(SHADOWS, FH, vis, q, pa, lam)
+                            col += wp.cw_mul(mw, g) * (e * vr)
+            out[y, x] = wp.vec3(wp.max(col[0], 0.0), wp.max(col[1], 0.0), wp.max(col[2], 0.0))
 
     key = "shade_" + "_".join(str(int(v)) for v in (ENV_D, ENV_S, LIGHTS, SPEC, SHADOWS, TEX, NMAP, FH, VVIS, LVIS,
                                                       EVTX)) + MF.tag
