@@ -104,6 +104,21 @@ def tile_drawn(masked: int, tile_mask: wp.array(dtype=wp.uint8), t: int):
 
 
 @wp.func
+def bbox_drawn(bb: wp.vec4i, tiles_x: int, masked: int, tile_mask: wp.array(dtype=wp.uint8)):
+    """Whether any tile the pixel bbox ``bb`` touches is drawn (:func:`tile_drawn`); a masked
+    raster skips the rest of a triangle's setup (its float64 interpolation planes) when not."""
+    hit = bool(False)
+    if masked == 0:
+        hit = True
+    else:
+        for ty in range(bb[1] >> TILE_BITS, (bb[3] >> TILE_BITS) + 1):
+            for tx in range(bb[0] >> TILE_BITS, (bb[2] >> TILE_BITS) + 1):
+                if tile_mask[ty * tiles_x + tx] != wp.uint8(0):
+                    hit = True
+    return hit
+
+
+@wp.func
 def count_tiles(bb: wp.vec4i, v0: wp.vec2i, v1: wp.vec2i, v2: wp.vec2i, tiles_x: int, rows: int, row: int,
                 counts: wp.array(dtype=wp.int32), masked: int, tile_mask: wp.array(dtype=wp.uint8)):
     """Bin raster of one triangle: +1 in ``counts[tile·rows + row]`` for every drawn tile

@@ -18,7 +18,9 @@
   3. int64 signed area of the snapped triangle: zero → dropped (degenerate), back-facing →
      dropped when culling; the winding is normalised so edge functions are positive inside;
   4. the bounding box of the covered pixel centres (empty → dropped, so sub-pixel triangles that
-     miss every centre cost nothing more);
+     miss every centre cost nothing more; with a tile mask, an unclipped triangle whose bbox
+     touches no drawn tile is dropped too — antialiasing's sub-pixel raster draws a few percent of
+     the tiles, and the planes below are the float64 part of setup);
   5. **interpolation planes** of the *original* triangle in 2D homogeneous form (Olano & Greer
      1997): with ``M = [X·w; Y·w; w]`` (pixel-space homogeneous vertices, float64), the rows of
      ``M⁻¹`` are linear in the pixel position and give ``λ_i = b_i / w``; ``Σλ = 1/w`` is the depth
@@ -39,8 +41,8 @@ from __future__ import annotations
 
 import warp as wp
 
-from .fixed import (HALF, SUBPIXEL, SUBPIXEL_BITS, count_tiles, edge_eval, edge_topleft, eval_plane,  # noqa: F401
-                    lower_px, pixel_bbox, sample_fixed, upper_px)
+from .fixed import (HALF, SUBPIXEL, SUBPIXEL_BITS, bbox_drawn, count_tiles, edge_eval, edge_topleft,  # noqa: F401
+                    eval_plane, lower_px, pixel_bbox, sample_fixed, upper_px)
 
 wp.set_module_options({"enable_backward": False})
 
@@ -359,6 +361,9 @@ def setup_kernel(
             a, b, bb = make_piece(s0, vsnap[t[1]], vsnap[t[2]], width, height, cull)
             if bb[0] <= bb[2]:
                 n_valid = 1
+                if not bbox_drawn(bb, tiles_x, masked, tile_mask):  # only tiles this raster skips
+                    n_valid = 0
+                    bb = wp.vec4i(1, 1, 0, 0)
         else:
             px, py, pw, n = clip_triangle(clip[t[0]], clip[t[1]], clip[t[2]], near, gx, gy)
             if n >= 3:
