@@ -113,15 +113,18 @@ def test_every_edge_of_a_full_subpixel_raster_is_a_candidate_pixel(cache_dir, ma
     full = raster.rasterize(r.geo_arrays.positions, r.geo_arrays.tris, cam, supersample=a)
     every = wp.array(np.full(H * W, A.CAND_GEOMETRY, np.int32), dtype=int)
     edge, count = wp.empty(H * W, dtype=int), wp.empty(H * W, dtype=int)
-    parallel.launch(A.classify_kernel, H * W, [every, full.tri_id, full.inv_depth, r._tri_object, a,
-                                               A.EDGE_DEPTH_RESIDUAL, W, edge, count], "cpu")
+    parallel.launch(A.classify_kernel, H * W, [wp.array(np.arange(H * W, dtype=np.int32), dtype=int), every,
+                                               full.tri_id, full.inv_depth, r._tri_object, a, A.EDGE_DEPTH_RESIDUAL, W,
+                                               edge, count], "cpu")
     edges = edge.numpy().astype(bool)
     vb1 = r.rasterize(1)
     img = wp.zeros((H, W), dtype=wp.vec3)  # no contrast: geometry flags only
-    cand = wp.empty(H * W, dtype=int)
+    cand, flag = wp.empty(H * W, dtype=int), wp.empty(H * W, dtype=int)
     parallel.launch(A.candidates_kernel, H * W, [vb1.tri_id, r._tri_object, r._subpixels.contours(cam), img,
-                                                 A.CONTRAST, cand], "cpu")
+                                                 A.CONTRAST, cand, flag], "cpu")
     flagged = cand.numpy() != 0
+    assert (flag.numpy() == flagged).all()
+    assert A.candidate_list(flag, "cpu").numpy().tolist() == np.flatnonzero(flagged).tolist()
     assert edges.sum() > 20
     assert not (edges & ~flagged).any()
     assert flagged.mean() < 0.5  # and far from everything
@@ -135,15 +138,17 @@ def test_the_device_reduction_of_the_frame_counts_matches_numpy():
     from warp_sg import antialias as A
 
     rng = np.random.default_rng(1)
-    cand = wp.array(rng.integers(0, 4, 5000).astype(np.int32), dtype=int)
-    edge = wp.array(rng.integers(0, 2, 5000).astype(np.int32), dtype=int)
+    c = rng.integers(0, 4, 5000).astype(np.int32)
+    listed = np.flatnonzero(c)
+    cand, idx = wp.array(c, dtype=int), wp.array(listed.astype(np.int32), dtype=int)
+    edge = wp.array(rng.integers(0, 2, len(listed)).astype(np.int32), dtype=int)
     mask = wp.array(rng.integers(0, 2, 700).astype(np.uint8), dtype=wp.uint8)
     out = wp.zeros(4, dtype=int)
-    wp.launch(A._counts_kernel, dim=5000, inputs=[cand, edge, mask, out])
-    c, e, m = cand.numpy(), edge.numpy(), mask.numpy()
+    wp.launch(A._counts_kernel, dim=len(listed), inputs=[idx, cand, edge, mask, out])
+    e, m = edge.numpy(), mask.numpy()
     want = [np.count_nonzero(c), e.sum(), np.count_nonzero(c & A.CAND_CONTRAST), np.count_nonzero(m)]
     assert out.numpy().tolist() == [int(x) for x in want]
-    got = A._counts(cand, edge, mask, "cpu")
+    got = A._counts(idx, cand, edge, mask, "cpu")
     assert got["tile_fraction"] == np.count_nonzero(m) / 700 and got["edge_pixels"] == e.sum()
 
 
@@ -163,7 +168,8 @@ def test_contrast_pixels_are_shaded_at_one_sub_pixel_per_row_and_column(a):
     cand = wp.array(np.full(W, A.CAND_CONTRAST, np.int32), dtype=int)
     edge = wp.empty(W, dtype=int)
     inv_depth = wp.array(np.ones((a, a * W), np.float32), dtype=float)
-    wp.launch(A.classify_kernel, dim=W, inputs=[0, cand, tid, inv_depth, wp.zeros(1, dtype=int), a,
+    every = wp.array(np.arange(W, dtype=np.int32), dtype=int)
+    wp.launch(A.classify_kernel, dim=W, inputs=[0, every, cand, tid, inv_depth, wp.zeros(1, dtype=int), a,
                                                 A.EDGE_DEPTH_RESIDUAL, W, edge, count])
     n = count.numpy()
     want = a if a >= 4 else a * a
@@ -173,7 +179,8 @@ def test_contrast_pixels_are_shaded_at_one_sub_pixel_per_row_and_column(a):
     tri_s, bary_s = wp.empty((1, m), dtype=int), wp.empty((1, m), dtype=wp.vec2)
     bg_s, w_s = wp.empty((1, m), dtype=wp.vec3), wp.empty(m, dtype=float)
     bg = _background(a, W)
-    wp.launch(A.gather_kernel, dim=W, inputs=[0, tid, bary, bg, count, offset, edge, a, W, tri_s, bary_s, bg_s, w_s])
+    wp.launch(A.gather_kernel, dim=W, inputs=[0, every, tid, bary, bg, count, offset, edge, a, W, tri_s, bary_s, bg_s,
+                                              w_s])
     for k in range(W):
         sub = np.rint(bary_s.numpy()[0, k * want:(k + 1) * want] * 100.0).astype(int)  # (column, row)
         col, row = sub[:, 0] - k * a, sub[:, 1]
@@ -211,15 +218,17 @@ def test_an_edge_pixel_is_shaded_once_per_triangle_at_its_sub_pixels_mean_with_t
     edge = wp.zeros(W, dtype=int)
     inv_depth = wp.array(np.where(tid >= 0, 1.0, 0.0).astype(np.float32), dtype=float)
     tri_object = wp.array(np.arange(12, dtype=np.int32), dtype=int)  # each triangle its own object
-    wp.launch(A.classify_kernel, dim=W, inputs=[0, wp.array(np.array([A.CAND_GEOMETRY], np.int32), dtype=int),
+    one = wp.zeros(W, dtype=int)  # the list: pixel 0
+    wp.launch(A.classify_kernel, dim=W, inputs=[0, one, wp.array(np.array([A.CAND_GEOMETRY], np.int32), dtype=int),
                                                 wp.array(tid, dtype=int), inv_depth, tri_object, a,
                                                 A.EDGE_DEPTH_RESIDUAL, W, edge, count])
     assert edge.numpy()[0] == 1 and count.numpy()[0] == 2 + 4  # two triangles + four background sub-pixels
     n = 6
     tri_s, bary_s = wp.empty((1, n), dtype=int), wp.empty((1, n), dtype=wp.vec2)
     bg_s, w_s = wp.empty((1, n), dtype=wp.vec3), wp.empty(n, dtype=float)
-    wp.launch(A.gather_kernel, dim=W, inputs=[0, wp.array(tid, dtype=int), wp.array(bary, dtype=wp.vec2), _background(a, W),
-                                              count, wp.zeros(W, dtype=int), edge, a, W, tri_s, bary_s, bg_s, w_s])
+    wp.launch(A.gather_kernel, dim=W, inputs=[0, one, wp.array(tid, dtype=int), wp.array(bary, dtype=wp.vec2),
+                                              _background(a, W), count, wp.zeros(W, dtype=int), edge, a, W, tri_s,
+                                              bary_s, bg_s, w_s])
     t, b, w = tri_s.numpy()[0], bary_s.numpy()[0], w_s.numpy()
     for tri, cov in ((7, 8), (11, 4)):
         (q,) = np.nonzero(t == tri)[0]
@@ -229,6 +238,6 @@ def test_an_edge_pixel_is_shaded_once_per_triangle_at_its_sub_pixels_mean_with_t
     assert np.isclose(w.sum(), 1.0)
     colours = rng.uniform(0.0, 1.0, (1, n, 3)).astype(np.float32)
     img = wp.zeros((1, 1), dtype=wp.vec3)
-    wp.launch(A.resolve_kernel, dim=W, inputs=[0, wp.array(colours, dtype=wp.vec3), w_s, count,
+    wp.launch(A.resolve_kernel, dim=W, inputs=[0, one, wp.array(colours, dtype=wp.vec3), w_s, count,
                                                wp.zeros(W, dtype=int), W, img])
     assert np.allclose(img.numpy()[0, 0], (colours[0] * w[:, None]).sum(0), atol=1e-6)

@@ -69,10 +69,11 @@ def _object_of(tri_object: wp.array(dtype=int), t: int) -> int:
 @wp.kernel(enable_backward=False)
 def candidates_kernel(base: int, tri_id: wp.array2d(dtype=int), tri_object: wp.array(dtype=int),
                       contours: wp.array2d(dtype=wp.uint8), img: wp.array2d(dtype=wp.vec3), contrast: float,
-                      cand: wp.array(dtype=int)):
+                      cand: wp.array(dtype=int), flag: wp.array(dtype=int)):
     """``cand[k]``: ``CAND_GEOMETRY`` where the pixel is on a contour or a 4-neighbour sees another
     object (1× buffer), plus ``CAND_CONTRAST`` where the 1× image's luminance differs from a
-    4-neighbour's by more than ``contrast`` of the larger one."""
+    4-neighbour's by more than ``contrast`` of the larger one; ``flag[k]`` = 1 where either (for
+    the scan that lists the candidates, :func:`candidate_list`)."""
     H = img.shape[0]
     W = img.shape[1]
     k = base + wp.tid()
@@ -102,16 +103,34 @@ def candidates_kernel(base: int, tri_id: wp.array2d(dtype=int), tri_object: wp.a
             if wp.abs(l0 - l1) > contrast * wp.max(wp.max(l0, l1), 1.0e-30):
                 f = f | CAND_CONTRAST
     cand[k] = f
+    flag[k] = int(f != 0)
 
 
 @wp.kernel(enable_backward=False)
-def tiles_kernel(base: int, cand: wp.array(dtype=int), W: int, a: int, tile: int, tiles_x: int,
-                 mask: wp.array(dtype=wp.uint8)):
-    """Flag the raster tiles (``tile``² sub-pixels of the a× grid) that a flagged pixel's a×a
-    block overlaps (one to four)."""
+def _list_kernel(base: int, flag: wp.array(dtype=int), offset: wp.array(dtype=int), idx: wp.array(dtype=int)):
     k = base + wp.tid()
-    if cand[k] == 0:
-        return
+    if flag[k] != 0:
+        idx[offset[k]] = k
+
+
+def candidate_list(flag: wp.array, device) -> wp.array:
+    """The indices k with ``flag[k]`` = 1, ascending (exclusive scan, then a scatter): the later
+    kernels run over the few candidates, not over every pixel."""
+    from raster import parallel
+
+    offset, n = _plan(flag)
+    idx = wp.empty(n, dtype=int, device=device)
+    if n > 0:
+        parallel.launch(_list_kernel, len(flag), [flag, offset, idx], device)
+    return idx
+
+
+@wp.kernel(enable_backward=False)
+def tiles_kernel(base: int, idx: wp.array(dtype=int), W: int, a: int, tile: int, tiles_x: int,
+                 mask: wp.array(dtype=wp.uint8)):
+    """Flag the raster tiles (``tile``² sub-pixels of the a× grid) that the a×a block of listed
+    pixel ``idx[i]`` overlaps (one to four)."""
+    k = idx[base + wp.tid()]
     y = k / W
     x = k - y * W
     for ty in range((y * a) / tile, (y * a + a - 1) / tile + 1):
@@ -165,17 +184,18 @@ def _group_count(tri_id: wp.array2d(dtype=int), y: int, x: int, a: int) -> int:
 
 
 @wp.kernel(enable_backward=False)
-def classify_kernel(base: int, cand: wp.array(dtype=int), tri_id: wp.array2d(dtype=int),
+def classify_kernel(base: int, idx: wp.array(dtype=int), cand: wp.array(dtype=int), tri_id: wp.array2d(dtype=int),
                     inv_depth: wp.array2d(dtype=float), tri_object: wp.array(dtype=int), a: int, resid_tol: float,
                     W: int, edge: wp.array(dtype=int), count: wp.array(dtype=int)):
-    """For a flagged pixel, whether its a×a block (``tri_id``, ``inv_depth``: the a× raster's ids
+    """For listed pixel k = ``idx[i]`` (entry i of ``edge`` and ``count``), whether its a×a block (``tri_id``, ``inv_depth``: the a× raster's ids
     and 1/z, 0 where empty) is an edge, and its second-pass sample count (:func:`gather_kernel`):
     for an edge one per triangle its sub-pixels see plus one per sub-pixel that sees no object,
     for a contrast pixel the rook pattern's a (a² for a < 4), else 0 (it keeps its centre
     sample). A block that one triangle covers is no edge (1/z is affine across a triangle)."""
-    k = base + wp.tid()
-    edge[k] = 0
-    count[k] = 0
+    i = base + wp.tid()
+    k = idx[i]
+    edge[i] = 0
+    count[i] = 0
     f = cand[k]
     if f == 0:
         return
@@ -184,8 +204,8 @@ def classify_kernel(base: int, cand: wp.array(dtype=int), tri_id: wp.array2d(dty
     t0 = tri_id[y * a, x * a]
     one = int(1)
     for j in range(a):
-        for i in range(a):
-            if tri_id[y * a + j, x * a + i] != t0:
+        for u in range(a):
+            if tri_id[y * a + j, x * a + u] != t0:
                 one = 0
     is_edge = int(0)
     if one == 0:
@@ -198,12 +218,12 @@ def classify_kernel(base: int, cand: wp.array(dtype=int), tri_id: wp.array2d(dty
         sv = float(0.0)
         wmax = float(0.0)
         for j in range(a):
-            for i in range(a):
-                if _object_of(tri_object, tri_id[y * a + j, x * a + i]) != o0:
+            for u in range(a):
+                if _object_of(tri_object, tri_id[y * a + j, x * a + u]) != o0:
                     is_edge = 1
-                w = inv_depth[y * a + j, x * a + i]
+                w = inv_depth[y * a + j, x * a + u]
                 s += w
-                su += w * (float(i) - c)
+                su += w * (float(u) - c)
                 sv += w * (float(j) - c)
                 wmax = wp.max(wmax, w)
         if is_edge == 0 and wmax > 0.0:
@@ -212,15 +232,15 @@ def classify_kernel(base: int, cand: wp.array(dtype=int), tri_id: wp.array2d(dty
             gu = su / suu
             gv = sv / suu
             for j in range(a):
-                for i in range(a):
-                    r = inv_depth[y * a + j, x * a + i] - (m + gu * (float(i) - c) + gv * (float(j) - c))
+                for u in range(a):
+                    r = inv_depth[y * a + j, x * a + u] - (m + gu * (float(u) - c) + gv * (float(j) - c))
                     if wp.abs(r) > resid_tol * wmax:
                         is_edge = 1
-    edge[k] = is_edge
+    edge[i] = is_edge
     if is_edge == 1:
-        count[k] = _group_count(tri_id, y, x, a)
+        count[i] = _group_count(tri_id, y, x, a)
     elif (f & CAND_CONTRAST) != 0:
-        count[k] = _contrast_count(a)
+        count[i] = _contrast_count(a)
 
 
 @wp.func
@@ -236,11 +256,12 @@ def _gather_one(tri_id: wp.array2d(dtype=int), bary: wp.array2d(dtype=wp.vec2), 
 
 
 @wp.kernel(enable_backward=False)
-def gather_kernel(base: int, tri_id: wp.array2d(dtype=int), bary: wp.array2d(dtype=wp.vec2),
+def gather_kernel(base: int, idx: wp.array(dtype=int), tri_id: wp.array2d(dtype=int), bary: wp.array2d(dtype=wp.vec2),
                   background: Background, count: wp.array(dtype=int), offset: wp.array(dtype=int),
                   edge: wp.array(dtype=int), a: int, W: int, tri_s: wp.array2d(dtype=int),
                   bary_s: wp.array2d(dtype=wp.vec2), bg_s: wp.array2d(dtype=wp.vec3), weight_s: wp.array(dtype=float)):
-    """Write pixel k's second-pass samples at ``offset[k]`` (nothing for count 0), each with its
+    """Write the second-pass samples of listed pixel k = ``idx[i]`` at ``offset[i]`` (nothing for
+    ``count[i]`` = 0; ``edge[i]``: whether it is an edge), each with its
     share of the pixel (``weight_s``, the pixel's weights sum to 1):
 
     * an **edge** pixel: one sample per triangle its a×a sub-pixels see, at the mean of their
@@ -249,14 +270,15 @@ def gather_kernel(base: int, tri_id: wp.array2d(dtype=int), bary: wp.array2d(dty
       sees no object is its own sample (the environment along its ray, computed here);
     * a **contrast** pixel (one surface, shading that varies): the rook pattern of a sub-pixels
       (:func:`_rook_column`) for a ≥ 4, else all a², equally weighted."""
-    k = base + wp.tid()
-    n = count[k]
+    i = base + wp.tid()
+    n = count[i]
     if n == 0:
         return
+    k = idx[i]
     y = k / W
     x = k - y * W
-    o = offset[k]
-    if edge[k] == 0:
+    o = offset[i]
+    if edge[i] == 0:
         if a >= 4:
             for j in range(a):
                 _gather_one(tri_id, bary, background, y * a + j, x * a + _rook_column(a, j), o + j, tri_s, bary_s, bg_s)
@@ -287,60 +309,66 @@ def gather_kernel(base: int, tri_id: wp.array2d(dtype=int), bary: wp.array2d(dty
 
 
 @wp.kernel(enable_backward=False)
-def resolve_kernel(base: int, shaded: wp.array2d(dtype=wp.vec3), weight: wp.array(dtype=float),
+def resolve_kernel(base: int, idx: wp.array(dtype=int), shaded: wp.array2d(dtype=wp.vec3), weight: wp.array(dtype=float),
                    count: wp.array(dtype=int), offset: wp.array(dtype=int), W: int, img: wp.array2d(dtype=wp.vec3)):
-    """img[pixel] = the weighted sum of its shaded samples (weights sum to 1; pixels with no sample
-    in this pass keep theirs)."""
-    k = base + wp.tid()
-    n = count[k]
+    """img[pixel ``idx[i]``] = the weighted sum of its shaded samples (weights sum to 1; pixels with
+    no sample in this pass keep theirs)."""
+    i = base + wp.tid()
+    n = count[i]
     if n == 0:
         return
+    k = idx[i]
     y = k / W
     x = k - y * W
     acc = wp.vec3(0.0, 0.0, 0.0)
     for q in range(n):
-        acc += shaded[0, offset[k] + q] * weight[offset[k] + q]
+        acc += shaded[0, offset[i] + q] * weight[offset[i] + q]
     img[y, x] = acc
 
 
 def _plan(count: wp.array) -> tuple[wp.array, int]:
     """Exclusive scan of the per-pixel counts and the total number of samples."""
     offset = wp.empty_like(count)
-    wp.utils.array_scan(count, offset, inclusive=False)
     n = len(count)
-    total = int(offset[n - 1: n].numpy()[0] + count[n - 1: n].numpy()[0]) if n else 0
-    return offset, total
+    if n == 0:
+        return offset, 0
+    wp.utils.array_scan(count, offset, inclusive=False)
+    return offset, int(offset[n - 1: n].numpy()[0] + count[n - 1: n].numpy()[0])
 
 
 @wp.kernel(enable_backward=False)
-def _counts_kernel(cand: wp.array(dtype=int), edge: wp.array(dtype=int), mask: wp.array(dtype=wp.uint8),
-                   out: wp.array(dtype=int)):
-    """(candidates, edges, contrast pixels, flagged tiles) by atomics (one CUDA launch)."""
+def _counts_kernel(idx: wp.array(dtype=int), cand: wp.array(dtype=int), edge: wp.array(dtype=int),
+                   mask: wp.array(dtype=wp.uint8), out: wp.array(dtype=int)):
+    """(candidates, edges, contrast pixels, flagged tiles) of the listed pixels ``idx`` by atomics
+    (one CUDA launch)."""
     k = wp.tid()
-    if k < cand.shape[0]:
-        if cand[k] != 0:
+    if k < idx.shape[0]:
+        c = cand[idx[k]]
+        if c != 0:
             wp.atomic_add(out, 0, 1)
         if edge[k] != 0:
             wp.atomic_add(out, 1, 1)
-        if (cand[k] & CAND_CONTRAST) != 0:
+        if (c & CAND_CONTRAST) != 0:
             wp.atomic_add(out, 2, 1)
     if k < mask.shape[0]:
         if mask[k] != wp.uint8(0):
             wp.atomic_add(out, 3, 1)
 
 
-def _counts(cand, edge, mask, device) -> dict:
-    """The frame's pixel and tile counts: numpy views on the CPU; on CUDA a reduction on the
-    device, so that only four integers come back (not the per-pixel arrays)."""
+def _counts(idx, cand, edge, mask, device) -> dict:
+    """The frame's pixel and tile counts (``idx``: the listed pixels, ``edge`` per list entry):
+    numpy views on the CPU; on CUDA a reduction on the device, so that only four integers come
+    back (not the per-pixel arrays)."""
     import numpy as np
 
     if str(device).startswith("cpu"):
-        c = cand.numpy()
+        c = cand.numpy()[idx.numpy()]
         n = (np.count_nonzero(c), int(edge.numpy().sum()), np.count_nonzero(c & CAND_CONTRAST),
              np.count_nonzero(mask.numpy()))
     else:
         out = wp.zeros(4, dtype=int, device=device)
-        wp.launch(_counts_kernel, dim=max(cand.shape[0], mask.shape[0]), inputs=[cand, edge, mask, out], device=device)
+        wp.launch(_counts_kernel, dim=max(idx.shape[0], mask.shape[0]), inputs=[idx, cand, edge, mask, out],
+                  device=device)
         n = out.numpy()
     return {"candidate_pixels": int(n[0]), "edge_pixels": int(n[1]), "contrast_pixels": int(n[2]),
             "tile_fraction": float(n[3]) / max(int(mask.shape[0]), 1)}
@@ -415,27 +443,33 @@ def render_adaptive(vb1, img, contours, raster_sub, tri_object: wp.array, backgr
 
     n_pix = H * W
     cand = wp.empty(n_pix, dtype=int, device=device)
-    parallel.launch(candidates_kernel, n_pix, [vb1.tri_id, tri_object, contours, img, CONTRAST, cand], device)
+    flag = wp.empty(n_pix, dtype=int, device=device)
+    parallel.launch(candidates_kernel, n_pix, [vb1.tri_id, tri_object, contours, img, CONTRAST, cand, flag], device)
+    idx = candidate_list(flag, device)
+    n_c = len(idx)
+    if n_c == 0:  # nothing to antialias
+        return img, {"candidate_pixels": 0, "edge_pixels": 0, "contrast_pixels": 0, "tile_fraction": 0.0,
+                     "pass1_samples": n_pix, "pass2_samples": 0}
     tiles_x, tiles_y = tile_grid(W * a, H * a)
     mask = wp.zeros(tiles_x * tiles_y, dtype=wp.uint8, device=device)
-    parallel.launch(tiles_kernel, n_pix, [cand, W, a, TILE, tiles_x, mask], device)
+    parallel.launch(tiles_kernel, n_c, [idx, W, a, TILE, tiles_x, mask], device)
     vb = raster_sub(mask)
-    edge = wp.empty(n_pix, dtype=int, device=device)
-    count = wp.empty(n_pix, dtype=int, device=device)
-    parallel.launch(classify_kernel, n_pix, [cand, vb.tri_id, vb.inv_depth, tri_object, a, EDGE_DEPTH_RESIDUAL, W,
-                                             edge, count], device)
+    edge = wp.empty(n_c, dtype=int, device=device)
+    count = wp.empty(n_c, dtype=int, device=device)
+    parallel.launch(classify_kernel, n_c, [idx, cand, vb.tri_id, vb.inv_depth, tri_object, a, EDGE_DEPTH_RESIDUAL,
+                                           W, edge, count], device)
     offset, n = _plan(count)
-    stats = {**_counts(cand, edge, mask, device), "pass1_samples": n_pix, "pass2_samples": n}
+    stats = {**_counts(idx, cand, edge, mask, device), "pass1_samples": n_pix, "pass2_samples": n}
     if n > 0:
         tri_s = wp.empty((1, n), dtype=int, device=device)
         bary_s = wp.empty((1, n), dtype=wp.vec2, device=device)
         bg_s = wp.empty((1, n), dtype=wp.vec3, device=device)
         weight_s = wp.empty(n, dtype=float, device=device)
-        parallel.launch(gather_kernel, n_pix, [vb.tri_id, vb.bary, background, count, offset, edge, a, W, tri_s,
-                                               bary_s, bg_s, weight_s], device)
+        parallel.launch(gather_kernel, n_c, [idx, vb.tri_id, vb.bary, background, count, offset, edge, a, W, tri_s,
+                                             bary_s, bg_s, weight_s], device)
         out = wp.empty((1, n), dtype=wp.vec3, device=device)
         shade(tri_s, bary_s, bg_s, out)
-        parallel.launch(resolve_kernel, n_pix, [out, weight_s, count, offset, W, img], device)
+        parallel.launch(resolve_kernel, n_c, [idx, out, weight_s, count, offset, W, img], device)
     return img, stats
 
 
