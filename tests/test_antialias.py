@@ -153,9 +153,9 @@ def test_the_device_reduction_of_the_frame_counts_matches_numpy():
 
 
 @pytest.mark.parametrize("a", [2, 3, 4, 5, 6, 8])
-def test_contrast_pixels_are_shaded_at_one_sub_pixel_per_row_and_column(a):
-    """The rook pattern: a permutation of the columns (one sample per sub-pixel row and column, so
-    the samples' mean is the pixel centre) that is neither diagonal, for a ≥ 4; all a² below."""
+def test_contrast_pixels_are_shaded_at_a_checkerboard_of_their_sub_pixels(a):
+    """A contrast pixel (no edge): the sub-pixels with (row + column) even, equally weighted — as
+    many in every row and column give or take one, centred on the pixel — for a ≥ 4; all a² below."""
     import warp as wp
 
     from warp_sg import antialias as A
@@ -172,24 +172,23 @@ def test_contrast_pixels_are_shaded_at_one_sub_pixel_per_row_and_column(a):
     wp.launch(A.classify_kernel, dim=W, inputs=[0, every, cand, tid, inv_depth, wp.zeros(1, dtype=int), a,
                                                 A.EDGE_DEPTH_RESIDUAL, W, edge, count])
     n = count.numpy()
-    want = a if a >= 4 else a * a
-    assert n.tolist() == [want] * W and edge.numpy().sum() == 0
+    want = [(j, i) for j in range(a) for i in range(a) if a < 4 or (i + j) % 2 == 0]
+    assert n.tolist() == [len(want)] * W and edge.numpy().sum() == 0
     offset = wp.array(np.concatenate([[0], np.cumsum(n)[:-1]]).astype(np.int32), dtype=int)
     m = int(n.sum())
     tri_s, bary_s = wp.empty((1, m), dtype=int), wp.empty((1, m), dtype=wp.vec2)
     bg_s, w_s = wp.empty((1, m), dtype=wp.vec3), wp.empty(m, dtype=float)
-    bg = _background(a, W)
-    wp.launch(A.gather_kernel, dim=W, inputs=[0, every, tid, bary, bg, count, offset, edge, a, W, tri_s, bary_s, bg_s,
-                                              w_s])
+    wp.launch(A.gather_kernel, dim=W, inputs=[0, every, tid, bary, _background(a, W), count, offset, edge, a, W,
+                                              tri_s, bary_s, bg_s, w_s])
     for k in range(W):
-        sub = np.rint(bary_s.numpy()[0, k * want:(k + 1) * want] * 100.0).astype(int)  # (column, row)
-        col, row = sub[:, 0] - k * a, sub[:, 1]
-        assert np.allclose(w_s.numpy()[k * want:(k + 1) * want], 1.0 / want)
-        if a >= 4:
-            assert sorted(row) == list(range(a)) and sorted(col) == list(range(a))
-            assert not (np.all(col == row) or np.all(col == a - 1 - row))
-        else:
-            assert sorted(zip(row, col)) == [(j, i) for j in range(a) for i in range(a)]
+        s = slice(k * len(want), (k + 1) * len(want))
+        sub = np.rint(bary_s.numpy()[0, s] * 100.0).astype(int)  # (column, row)
+        got = sorted(zip(sub[:, 1], sub[:, 0] - k * a))
+        assert got == sorted(want)
+        assert np.allclose(w_s.numpy()[s], 1.0 / len(want))
+        rows, cols = np.bincount(sub[:, 1], minlength=a), np.bincount(sub[:, 0] - k * a, minlength=a)
+        assert rows.max() - rows.min() <= 1 and cols.max() - cols.min() <= 1
+        assert np.allclose(sub.mean(0) - [k * a, 0], (a - 1) / 2.0)  # centred on the pixel
 
 
 def _background(a, W):
