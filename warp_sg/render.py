@@ -528,9 +528,10 @@ class Renderer:
         With ``[render] supersampling`` k > 1 every one of the k×k sub-pixels is shaded and box-
         filtered. Otherwise, with ``antialias`` a > 1 (the default, 4), coverage is rasterised at
         a×a sub-pixels and shading is edge-adaptive: a pixel whose sub-pixels all see the same
-        object at similar depth is shaded once (at its central sub-pixel), an edge pixel at all a×a
-        sub-pixels, which are box-filtered — antialiased silhouettes at a fraction of the cost of
-        shading every sub-pixel."""
+        object at similar depth is shaded once (at its centre), an edge pixel once per triangle its
+        sub-pixels see, weighted by coverage, a contrasting one at half its sub-pixels
+        (:mod:`warp_sg.antialias`) — antialiased silhouettes at a fraction of the cost of shading
+        every sub-pixel."""
         rs = self.scene.render
         if rs.supersampling == 1 and rs.antialias > 1:
             return self._render_adaptive(int(rs.antialias))
