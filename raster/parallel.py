@@ -1,7 +1,8 @@
 """Spreading one kernel launch over CPU cores.
 
 Warp runs a CPU launch serially on one core. Every data-parallel raster kernel takes an index
-offset ``base`` as its first argument (element ``i = base + wp.tid()``), so disjoint index ranges
+offset ``base`` as its first argument (element ``i = base + wp.tid()``, or ``base + wp.tid()·per +
+s`` for a kernel launched with ``per_thread``), so disjoint index ranges
 of the *same* compiled kernel can be launched from a small Python thread pool (Warp releases the
 GIL while a CPU kernel runs; measured ≈1.9× on 2 cores). On CUDA a single launch covers the
 whole range.
@@ -48,7 +49,7 @@ def launch(kernel, n: int, inputs: list, device: str, chunks: int | None = None,
     """Launch ``kernel`` over ``n`` elements; ``inputs`` excludes the leading ``base`` offset.
 
     CPU: split into ``chunks`` contiguous ranges (default 4 per worker) of at least ``min_chunk``
-    elements run on the pool. A range costs ~30 µs to dispatch (pool hand-off and Warp's launch):
+    elements (the last may be shorter) run on the pool. A range costs ~30 µs to dispatch (pool hand-off and Warp's launch):
     the default keeps ranges at ≥ 4096 elements, so a kernel over a few thousand elements (the
     antialiasing candidates) is not split into ranges that cost more than their work; kernels with
     heavy elements (shading, ray casts) pass a smaller ``min_chunk``.

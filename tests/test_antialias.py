@@ -32,9 +32,11 @@ def test_adaptive_antialiasing_matches_shading_every_subpixel(cache_dir):
     point = ws.render(_scene(antialias=1))
     err = np.abs(adaptive - full).sum(-1)
     err_point = np.abs(point - full).sum(-1)
-    # where it matters (edges) adaptive ≈ full supersampling; point sampling is far off there
-    assert err.mean() < 0.15 * err_point.mean(), (err.mean(), err_point.mean())
-    assert np.quantile(err, 0.99) < 0.05 * full.sum(-1).max()
+    # where it matters (edges, glints) adaptive ≈ full supersampling; point sampling is far off
+    # there (measured 0.003 of point sampling's error; shading half the sub-pixels of contrast
+    # pixels, tried, gave 0.09)
+    assert err.mean() < 0.02 * err_point.mean(), (err.mean(), err_point.mean())
+    assert np.quantile(err, 0.99) < 0.005 * full.sum(-1).max()
     # and it shades far fewer samples than full supersampling (16 per pixel)
     assert t["shaded_samples"] < 0.5 * 16 * 40 * 32
     assert t["edge_pixels"] > 0
@@ -152,10 +154,10 @@ def test_the_device_reduction_of_the_frame_counts_matches_numpy():
     assert got["tile_fraction"] == np.count_nonzero(m) / 700 and got["edge_pixels"] == e.sum()
 
 
-@pytest.mark.parametrize("a", [2, 3, 4, 5, 6, 8])
-def test_contrast_pixels_are_shaded_at_a_checkerboard_of_their_sub_pixels(a):
-    """A contrast pixel (no edge): the sub-pixels with (row + column) even, equally weighted — as
-    many in every row and column give or take one, centred on the pixel — for a ≥ 4; all a² below."""
+@pytest.mark.parametrize("a", [2, 3, 4, 8])
+def test_contrast_pixels_are_shaded_at_every_sub_pixel_equally_weighted(a):
+    """A contrast pixel (no edge) is shaded at all a² sub-pixels, each weighted 1/a²: a glint
+    smaller than a pixel needs them all (half of them, tried, was 30× off on sun glints)."""
     import warp as wp
 
     from warp_sg import antialias as A
@@ -172,8 +174,7 @@ def test_contrast_pixels_are_shaded_at_a_checkerboard_of_their_sub_pixels(a):
     wp.launch(A.classify_kernel, dim=W, inputs=[0, every, cand, tid, inv_depth, wp.zeros(1, dtype=int), a,
                                                 A.EDGE_DEPTH_RESIDUAL, W, edge, count])
     n = count.numpy()
-    want = [(j, i) for j in range(a) for i in range(a) if a < 4 or (i + j) % 2 == 0]
-    assert n.tolist() == [len(want)] * W and edge.numpy().sum() == 0
+    assert n.tolist() == [a * a] * W and edge.numpy().sum() == 0
     offset = wp.array(np.concatenate([[0], np.cumsum(n)[:-1]]).astype(np.int32), dtype=int)
     m = int(n.sum())
     tri_s, bary_s = wp.empty((1, m), dtype=int), wp.empty((1, m), dtype=wp.vec2)
@@ -181,14 +182,10 @@ def test_contrast_pixels_are_shaded_at_a_checkerboard_of_their_sub_pixels(a):
     wp.launch(A.gather_kernel, dim=W, inputs=[0, every, tid, bary, _background(a, W), count, offset, edge, a, W,
                                               tri_s, bary_s, bg_s, w_s])
     for k in range(W):
-        s = slice(k * len(want), (k + 1) * len(want))
+        s = slice(k * a * a, (k + 1) * a * a)
         sub = np.rint(bary_s.numpy()[0, s] * 100.0).astype(int)  # (column, row)
-        got = sorted(zip(sub[:, 1], sub[:, 0] - k * a))
-        assert got == sorted(want)
-        assert np.allclose(w_s.numpy()[s], 1.0 / len(want))
-        rows, cols = np.bincount(sub[:, 1], minlength=a), np.bincount(sub[:, 0] - k * a, minlength=a)
-        assert rows.max() - rows.min() <= 1 and cols.max() - cols.min() <= 1
-        assert np.allclose(sub.mean(0) - [k * a, 0], (a - 1) / 2.0)  # centred on the pixel
+        assert sorted(zip(sub[:, 1], sub[:, 0] - k * a)) == [(j, i) for j in range(a) for i in range(a)]
+        assert np.allclose(w_s.numpy()[s], 1.0 / (a * a))
 
 
 def _background(a, W):

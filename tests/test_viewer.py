@@ -136,6 +136,14 @@ def _material_mask(r, name):
     return (tid >= 0) & (r.geometry.tri_material[np.maximum(tid, 0)] == mi)
 
 
+def _silhouette_pixels(r):
+    """Pixels with a 4-neighbour that sees another material or the background (1× buffer)."""
+    tid = r.rasterize(1).tri_id.numpy()
+    m = np.where(tid >= 0, r.geometry.tri_material[np.maximum(tid, 0)], -1)
+    p = np.pad(m, 1, mode="edge")
+    return ((p[1:-1, :-2] != m) | (p[1:-1, 2:] != m) | (p[:-2, 1:-1] != m) | (p[2:, 1:-1] != m))
+
+
 def _drag(widget, set_value):
     """What a mouse drag does to a VTK widget: Start, move (value changes), End."""
     widget.InvokeEvent("StartInteractionEvent")
@@ -280,8 +288,12 @@ def test_moving_the_light_handle_moves_the_shadow_and_the_shadows_toggle_removes
         noshadow.update_light(0, position=light)
         unshadowed = noshadow.render()
         # = the file with shadows off, which skips the visibility refinement of the mesh: the
-        # normals interpolated over other triangles differ by ~1e-4
-        np.testing.assert_allclose(v.image, unshadowed, rtol=2e-3, atol=1e-4)
+        # normals interpolated over other triangles differ by ~1e-4; at the silhouettes the
+        # antialiasing shades once per triangle a pixel's sub-pixels see (warp_sg.antialias), so
+        # there the two tessellations differ by up to a few percent
+        sil = _silhouette_pixels(r)
+        np.testing.assert_allclose(v.image[~sil], unshadowed[~sil], rtol=2e-3, atol=1e-4)
+        np.testing.assert_allclose(v.image[sil], unshadowed[sil], rtol=5e-2, atol=1e-3)
         _checkbox(v, "shadows", True)
         np.testing.assert_allclose(v.image, lit, rtol=1e-6, atol=1e-7)
         shadow = floor & (lit.mean(2) < 0.5 * unshadowed.mean(2))

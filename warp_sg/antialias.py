@@ -29,21 +29,21 @@ round trip of the a²-sized buffers):
    (:func:`gather_kernel`): an **edge** pixel once per triangle its sub-pixels see, at the mean of
    their barycentrics and weighted by their share (as MSAA shades once per triangle), and once per
    sub-pixel that sees the background; a **contrast** pixel (one surface whose shading varies) at
-   the checkerboard half of its sub-pixels ((row + column) even: 8 of 16 for a = 4, two per row and
-   per column, centred on the pixel; all a² for a < 4). On the frame-scaling scene (100 k
-   triangles, 512²) this is 33 k second-pass samples where shading all a² of those pixels was
-   70 k; the frame's mean error against shading every sub-pixel of the image (``supersampling =
-   4``) rises from 1.7e-4 to 2.0e-4 (the 1× frame's is 1.5e-3). On the plain inputs at 48² (large
-   pixels across a sharp shadow edge) the shadow region's error against the Monte-Carlo reference
-   is within ±15 % of shading all 16; a rook pattern of 4 samples, tried first, raised it by 60 %.
-   A glint that only a sub-pixel off the group's centroid sees is lost at an edge pixel, as with
-   MSAA.
+   every sub-pixel. On the frame-scaling scene (100 k triangles, 512²) this is 56 k second-pass
+   samples where shading all a² of those pixels was 70 k, and the frame's mean error against
+   shading every sub-pixel of the image (``supersampling = 4``) is 1.8e-4 instead of 1.7e-4 (the
+   1× frame's: 1.5e-3). A glint that only a sub-pixel off the group's centroid sees is lost at an
+   edge pixel, as with MSAA. Fewer samples for contrast pixels were tried and dropped: the
+   checkerboard half of the sub-pixels raised the mean error of a Blinn–Phong scene with sun glints
+   (``tests/test_antialias.py``) 30-fold, a 4-sample rook pattern the plain inputs' shadow-region
+   error by 60 %.
 
-Every kernel is 1-D over row-major pixels with a leading ``base`` offset and is launched through
-``raster.parallel.launch`` (CPU launches are split over a thread pool). The second pass: per-pixel
-sample counts → exclusive scan (``wp.utils.array_scan``) → a gather of the samples' (triangle,
-barycentrics, background, weight) into a 1 × N list that the ordinary shading kernel shades →
-:func:`resolve_kernel` sums each pixel's weighted samples back into the image.
+Every kernel is 1-D with a leading ``base`` offset and is launched through
+``raster.parallel.launch`` (CPU launches are split over a thread pool): the candidate test over
+every pixel (row-major), the rest over the list of candidates (:func:`candidate_list`). The second
+pass: per-candidate sample counts → exclusive scan (``wp.utils.array_scan``) → a gather of the
+samples' (triangle, barycentrics, background, weight) into a 1 × N list that the ordinary shading
+kernel shades → :func:`resolve_kernel` sums each pixel's weighted samples back into the image.
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the kernel annotations.
 import warp as wp
@@ -142,16 +142,6 @@ def tiles_kernel(base: int, idx: wp.array(dtype=int), W: int, a: int, tile: int,
 
 
 @wp.func
-def _contrast_count(a: int) -> int:
-    """Samples of a contrast pixel: the checkerboard half of its a×a sub-pixels ((row + column)
-    even; ⌈a²/2⌉) for a ≥ 4, all a² below."""
-    n = a * a
-    if a >= 4:
-        n = (a * a + 1) / 2
-    return n
-
-
-@wp.func
 def _first_of_group(tri_id: wp.array2d(dtype=int), y0: int, x0: int, a: int, q: int) -> int:
     """1 when sub-pixel q (row-major in the pixel's a×a block at (y0, x0)) sees the background or
     is the first of the block's sub-pixels to see its triangle."""
@@ -180,7 +170,7 @@ def classify_kernel(base: int, idx: wp.array(dtype=int), cand: wp.array(dtype=in
     """For listed pixel k = ``idx[i]`` (entry i of ``edge`` and ``count``), whether its a×a block (``tri_id``, ``inv_depth``: the a× raster's ids
     and 1/z, 0 where empty) is an edge, and its second-pass sample count (:func:`gather_kernel`):
     for an edge one per triangle its sub-pixels see plus one per sub-pixel that sees no object,
-    for a contrast pixel the checkerboard's ⌈a²/2⌉ (a² for a < 4), else 0 (it keeps its centre
+    for a contrast pixel a², else 0 (it keeps its centre
     sample). A block that one triangle covers is no edge (1/z is affine across a triangle)."""
     i = base + wp.tid()
     k = idx[i]
@@ -230,7 +220,7 @@ def classify_kernel(base: int, idx: wp.array(dtype=int), cand: wp.array(dtype=in
     if is_edge == 1:
         count[i] = _group_count(tri_id, y, x, a)
     elif (f & CAND_CONTRAST) != 0:
-        count[i] = _contrast_count(a)
+        count[i] = a * a
 
 
 @wp.func
@@ -258,8 +248,8 @@ def gather_kernel(base: int, idx: wp.array(dtype=int), tri_id: wp.array2d(dtype=
       barycentrics (the centroid of the points they see on it), weighted by their number / a² —
       coverage from all a² sub-pixels, shading once per triangle as in MSAA; each sub-pixel that
       sees no object is its own sample (the environment along its ray, computed here);
-    * a **contrast** pixel (one surface, shading that varies): the sub-pixels with (row + column)
-      even for a ≥ 4 (:func:`_contrast_count` of them), else all a², equally weighted."""
+    * a **contrast** pixel (one surface, shading that varies): every sub-pixel, equally weighted
+      (a glint smaller than a pixel needs them all)."""
     i = base + wp.tid()
     n = count[i]
     if n == 0:
@@ -269,12 +259,9 @@ def gather_kernel(base: int, idx: wp.array(dtype=int), tri_id: wp.array2d(dtype=
     x = k - y * W
     o = offset[i]
     if edge[i] == 0:
-        m = int(0)
         for q in range(a * a):
-            if a < 4 or (q / a + q % a) % 2 == 0:
-                _gather_one(tri_id, bary, background, y * a + q / a, x * a + q % a, o + m, tri_s, bary_s, bg_s)
-                weight_s[o + m] = 1.0 / float(n)
-                m += 1
+            _gather_one(tri_id, bary, background, y * a + q / a, x * a + q % a, o + q, tri_s, bary_s, bg_s)
+            weight_s[o + q] = 1.0 / float(n)
         return
     m = int(0)
     for q in range(a * a):

@@ -529,7 +529,7 @@ class Renderer:
         filtered. Otherwise, with ``antialias`` a > 1 (the default, 4), coverage is rasterised at
         a×a sub-pixels and shading is edge-adaptive: a pixel whose sub-pixels all see the same
         object at similar depth is shaded once (at its centre), an edge pixel once per triangle its
-        sub-pixels see, weighted by coverage, a contrasting one at half its sub-pixels
+        sub-pixels see, weighted by coverage, a contrasting one at every sub-pixel
         (:mod:`warp_sg.antialias`) — antialiased silhouettes at a fraction of the cost of shading
         every sub-pixel."""
         rs = self.scene.render
@@ -564,6 +564,7 @@ class Renderer:
         if self._subpixels is None:
             self._subpixels = SubpixelCache(self.geo_arrays.positions, self.geo_arrays.tris, d)
         sp = self._subpixels
+        sp.raster_seconds = 0.0  # (a frame with nothing to antialias does not rasterise sub-pixels)
         t0 = _timer(d)
         vb = self.rasterize(1)
         t1 = _timer(d)

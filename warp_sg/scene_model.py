@@ -146,7 +146,7 @@ class RenderSettings:
     * ``supersampling`` — k: raster and shade at k·H × k·W, box-resolved.
     * ``antialias`` — a (default 4; 1 = off; used when ``supersampling`` is 1): coverage at a×a
       sub-pixels, shading edge-adaptive (interior pixels once, edge pixels once per triangle they
-      see, weighted by coverage; contrasting pixels at half their sub-pixels).
+      see, weighted by coverage; contrasting pixels at every sub-pixel).
     * ``lobes`` — SG lobes of the NDF of isotropic models (anisotropic Ashikhmin-Shirley uses its
       own ``lobes`` parameter).
     * ``env_lobes`` — SG mixture of the environment for the diffuse term (eq. 39), < 10 in the paper.

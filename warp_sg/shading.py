@@ -49,9 +49,10 @@ Kernel variants: the kernel is specialised by scene content (``Features``): envi
 functions, ``shading_slice_lobe`` and ``diffuse_at`` come from ``material_funcs`` of
 ``brdf.material_variants``, built for just those models). Variants are created once per feature
 tuple and cached (``shade_kernel``); code a scene does not need is removed at compile time with
-``wp.static``. The kernel is 1-D over row-major samples with an index offset ``base``, so on the
-CPU disjoint ranges run on a small thread pool (``raster.parallel.launch``; Warp runs one CPU
-launch on one core).
+``wp.static``. The kernel is 1-D over row-major samples with an index offset ``base`` and ``per``
+samples per thread (:data:`PIXELS_PER_THREAD` on the CPU, 1 on CUDA), so on the CPU disjoint
+ranges run on a small thread pool (``raster.parallel.launch``; Warp runs one CPU launch on one
+core).
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the kernel annotations at definition
 # time and the kernel variants are closures.
