@@ -237,3 +237,45 @@ def test_an_edge_pixel_is_shaded_once_per_triangle_at_its_sub_pixels_mean_with_t
     wp.launch(A.resolve_kernel, dim=W, inputs=[0, one, wp.array(colours, dtype=wp.vec3), w_s, count,
                                                wp.zeros(W, dtype=int), W, img])
     assert np.allclose(img.numpy()[0, 0], (colours[0] * w[:, None]).sum(0), atol=1e-6)
+
+
+def test_contour_marks_are_the_pixels_the_projected_edges_cross():
+    """``silhouette.mark_contours`` on one triangle (its three edges are boundary edges, always
+    contours) against the edges projected in float64 and sampled every 1e-3 px: every pixel a
+    sample falls in is marked, and nothing farther than ``MARK_EPS`` (+ 0.01 px) from an edge."""
+    import warp as wp
+
+    from warp_sg import silhouette as SIL
+    from warp_sg.scene import Camera
+
+    cam = Camera(origin=(0.1, 0.3, 2.0), target=(0.0, 0.0, 0.0), fov=50.0, width=37, height=29)
+    V = np.array([[-0.7, -0.2, 0.1], [0.6, -0.5, -0.3], [0.05, 0.65, 0.2]], np.float32)
+    T = np.array([[0, 1, 2]], np.int32)
+    ev, ef = SIL.edge_adjacency(V, T)
+    mark = SIL.mark_contours(wp.array(V, dtype=wp.vec3), wp.array(T, dtype=wp.vec3i),
+                             wp.array(ev, dtype=wp.vec2i), wp.array(ef, dtype=wp.vec2i), cam, "cpu").numpy()
+    r, u, f = (np.asarray(x, np.float64) for x in cam.basis())
+    th = np.tan(np.radians(cam.fov) / 2)
+    v = V.astype(np.float64) - np.asarray(cam.origin)
+    z = v @ f
+    px = np.stack([((v @ r) / (z * th * cam.width / cam.height) + 1) * 0.5 * cam.width,
+                   (1 - (v @ u) / (z * th)) * 0.5 * cam.height], 1)
+    t = np.linspace(0.0, 1.0, 20001)[:, None]
+    pts = np.concatenate([px[a] + (px[b] - px[a]) * t for a, b in ((0, 1), (1, 2), (2, 0))])
+
+    def cells(p):
+        c = np.floor(p).astype(int)
+        ok = (c[:, 0] >= 0) & (c[:, 0] < cam.width) & (c[:, 1] >= 0) & (c[:, 1] < cam.height)
+        m = np.zeros_like(mark, bool)
+        m[c[ok, 1], c[ok, 0]] = True
+        return m
+
+    crossed = cells(pts)
+    g = float(SIL.MARK_EPS) + 0.01
+    near = np.zeros_like(crossed)
+    for dx in (-g, 0.0, g):
+        for dy in (-g, 0.0, g):
+            near |= cells(pts + [dx, dy])
+    assert crossed.sum() > 40
+    assert not (crossed & (mark == 0)).any()  # every crossed pixel is marked
+    assert not ((mark != 0) & ~near).any()    # and nothing else (a 3×3 dilation would fail here)

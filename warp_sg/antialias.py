@@ -7,7 +7,7 @@ round trip of the a²-sized buffers):
 
 1. :func:`candidates_kernel` flags the pixels that may need sub-pixels:
 
-   * **contours** — pixels on or next to a silhouette or boundary edge of the mesh as seen from
+   * **contours** — pixels that a silhouette or boundary edge of the mesh crosses, as seen from
      the eye (:mod:`warp_sg.silhouette`): where a surface passes in front of another, the
      boundary lies on one, also for geometry thinner than a pixel that the pixel centres miss;
    * **object changes** — a 4-neighbour in the 1× buffer sees another object or the background
@@ -18,7 +18,7 @@ round trip of the a²-sized buffers):
 
 2. The a×a sub-pixels are rasterised only in the raster tiles that hold a flagged pixel
    (``raster.rasterize(tile_mask=...)``, :func:`tiles_kernel`): on the frame-scaling scene
-   (100 k triangles, 512²) about a tenth of the tiles.
+   (100 k triangles, 512²) about 6 % of the tiles.
 3. :func:`classify_kernel` decides for each flagged pixel: an **edge** when its sub-pixels see
    different objects (or the background), or one object in front of itself — the inverse depths
    ``1/z`` of the block leave the least-squares plane fitted to them by more than

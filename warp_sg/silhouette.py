@@ -13,9 +13,13 @@ front mesh's **contour edges**:
 Edges are found on the mesh welded by position (:func:`edge_adjacency`, once per geometry), so
 seams where an exporter split vertices for normals or UVs are not boundaries. Per view,
 :func:`mark_contours` projects the contour edges through the pinhole camera (clipped to the near
-plane and to the image) and marks every pixel each one passes through and its 8 neighbours: a
-conservative mask, also for geometry thinner than a pixel that point sampling at pixel centres
-misses (a wire between two pixel centres still has its contour edges marked).
+plane and to the image) and marks every pixel each one passes through, found row by row from the
+segment's x-range in that row, grown by ``MARK_EPS`` (0.02 px): a conservative mask, also for
+geometry thinner than a pixel that point sampling at pixel centres misses (a wire between two
+pixel centres still has its contour edges marked). A pixel no contour edge crosses has all its
+sub-pixels on one side of every occlusion boundary that lies on an edge. (Marking each pixel's 8
+neighbours too, as first written, doubled the candidates on the frame-scaling scene, 3.9 k → 7.8 k
+pixels, for the same image.)
 
 Boundaries that lie on no edge: where two objects intersect, where one mesh passes through itself,
 and where the near or far plane cuts the geometry. Antialiasing finds the first from the 1× buffer
@@ -54,6 +58,11 @@ def edge_adjacency(vertices, triangles) -> tuple:
     f1 = np.where(count == 2, faces[np.minimum(start + 1, len(faces) - 1)], -1)
     edge_f = np.stack([faces[start], f1], 1).astype(np.int32)
     return np.ascontiguousarray(corners[start], np.int32), edge_f
+
+
+#: pixels a contour edge passes within this distance of are marked too (float32 projection here,
+#: vertices snapped to 1/256 of a sub-pixel by the raster)
+MARK_EPS = wp.constant(0.02)
 
 
 @wp.struct
@@ -106,8 +115,8 @@ def facing_kernel(base: int, pos: wp.array(dtype=wp.vec3), tris: wp.array(dtype=
 def mark_contours_kernel(base: int, pos: wp.array(dtype=wp.vec3), side: wp.array(dtype=wp.int8),
                          edge_v: wp.array(dtype=wp.vec2i), edge_f: wp.array(dtype=wp.vec2i), cam: ContourCamera,
                          mark: wp.array2d(dtype=wp.uint8)):
-    """Mark the pixels (and their 8 neighbours) along edge ``base + tid`` if it is a contour
-    (``side``: :func:`facing_kernel`)."""
+    """Mark the pixels that edge ``base + tid`` passes through (within ``MARK_EPS``) if it is a
+    contour (``side``: :func:`facing_kernel`)."""
     e = base + wp.tid()
     ef = edge_f[e]
     if ef[1] >= 0:
@@ -145,19 +154,29 @@ def mark_contours_kernel(base: int, pos: wp.array(dtype=wp.vec3), side: wp.array
         return
     q0 = pa + d * t0
     q1 = pa + d * t1
-    n = int(wp.ceil(wp.max(wp.abs(q1[0] - q0[0]), wp.abs(q1[1] - q0[1])))) + 1
     W = cam.width
     H = cam.height
-    for i in range(n + 1):  # steps of at most one pixel; each marks a 3×3 block
-        q = q0 + (q1 - q0) * (float(i) / float(n))
-        cx = int(wp.floor(q[0]))
-        cy = int(wp.floor(q[1]))
-        for dy in range(-1, 2):
-            for dx in range(-1, 2):
-                x = cx + dx
-                y = cy + dy
-                if x >= 0 and x < W and y >= 0 and y < H:
-                    mark[y, x] = wp.uint8(1)
+    # conservative scan of the segment: in each pixel row it crosses, the columns of its x-range
+    # within that row, grown by MARK_EPS (the raster snaps vertices to 1/256 of a sub-pixel)
+    ya = wp.min(q0[1], q1[1])
+    yb = wp.max(q0[1], q1[1])
+    dy = q1[1] - q0[1]
+    r0 = wp.max(int(wp.floor(ya - MARK_EPS)), 0)
+    r1 = wp.min(int(wp.floor(yb + MARK_EPS)), H - 1)
+    for r in range(r0, r1 + 1):
+        u0 = float(0.0)
+        u1 = float(1.0)
+        if wp.abs(dy) > 1.0e-12:  # the segment's parameters inside rows [r − ε, r + 1 + ε]
+            ua = (float(r) - MARK_EPS - q0[1]) / dy
+            ub = (float(r) + 1.0 + MARK_EPS - q0[1]) / dy
+            u0 = wp.max(0.0, wp.min(ua, ub))
+            u1 = wp.min(1.0, wp.max(ua, ub))
+        xa = q0[0] + (q1[0] - q0[0]) * u0
+        xb = q0[0] + (q1[0] - q0[0]) * u1
+        c0 = wp.max(int(wp.floor(wp.min(xa, xb) - MARK_EPS)), 0)
+        c1 = wp.min(int(wp.floor(wp.max(xa, xb) + MARK_EPS)), W - 1)
+        for c in range(c0, c1 + 1):
+            mark[r, c] = wp.uint8(1)
 
 
 def contour_camera(camera) -> ContourCamera:
@@ -175,8 +194,8 @@ def contour_camera(camera) -> ContourCamera:
 
 def mark_contours(positions: wp.array, tris: wp.array, edge_v: wp.array, edge_f: wp.array, camera,
                   device) -> wp.array:
-    """(H, W) uint8: 1 on and next to the pixels the mesh's contour edges pass through (see the
-    module docstring); ``edge_v``, ``edge_f`` of :func:`edge_adjacency` as ``vec2i`` arrays."""
+    """(H, W) uint8: 1 on the pixels the mesh's contour edges pass through (see the module
+    docstring); ``edge_v``, ``edge_f`` of :func:`edge_adjacency` as ``vec2i`` arrays."""
     from raster import parallel
 
     mark = wp.zeros((int(camera.height), int(camera.width)), dtype=wp.uint8, device=device)
