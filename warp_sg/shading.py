@@ -189,6 +189,22 @@ def fh_fraction(fh_mode: int, vis: Visibility, th: float, th_h: float, lam: floa
     return wp.clamp(a / wp.max(b, 1.0e-8), 0.0, 1.0)
 
 
+@wp.func
+def env_diffuse_sum(irr: wp.array2d(dtype=float), env: EnvSG, use_vis: int, n: wp.vec3, i0: int, i1: int, i2: int,
+                    b0: float, b1: float, b2: float) -> wp.vec3:
+    """``Σ_j μ_j ∫G_j e(n·p_j, λ_j) Σ_k b_k V[i_k, j]``: the diffuse environment sum (eq. 39)
+    without ρd at normal ``n`` (visibility interpolated from ``env.vis`` when ``use_vis``) — what
+    the shading kernel adds per pixel with ρd = kd/π and the per-vertex visibility, and what
+    ``warp_sg.vertex_visibility`` evaluates at the vertices and checks the interpolation against."""
+    acc = wp.vec3(0.0, 0.0, 0.0)
+    for j in range(env.count):
+        vr = float(1.0)
+        if use_vis != 0:
+            vr = b0 * env.vis[i0, j] + b1 * env.vis[i1, j] + b2 * env.vis[i2, j]
+        acc += env.power[j] * (sg_irradiance_norm_at(irr, wp.dot(n, env.axis[j]), env.lam[j], env.irr_row[j]) * vr)
+    return acc
+
+
 @wp.kernel(enable_backward=False)
 def _lobe_constants_kernel(irr: wp.array2d(dtype=float), lam: wp.array(dtype=float), mu: wp.array(dtype=wp.vec3),
                            power: wp.array(dtype=wp.vec3), row: wp.array(dtype=float)):
@@ -379,18 +395,19 @@ def shade_kernel(f: Features):
                             dsum = b0 * env.irr_vertex[i0] + b1 * env.irr_vertex[i1] + b2 * env.irr_vertex[i2]
                             col += wp.cw_mul(dsum, rho_d) * env.irr_scale
                             nj = 0
-                    for j in range(nj):
-                        ax = env.axis[j]
-                        E = env.power[j] * sg_irradiance_norm_at(irr, wp.dot(ns, ax), env.lam[j], env.irr_row[j])
-                        if wp.length_sq(E) > 0.0:
-                            vr = float(1.0)
-                            if wp.static(VVIS):  # the per-vertex cache, interpolated
-                                vr = b0 * env.vis[i0, j] + b1 * env.vis[i1, j] + b2 * env.vis[i2, j]
-                            if wp.static(VVIS and RHO_D_CONST):  # no product lobe needed: cache × kd/π
-                                col += wp.cw_mul(E, rho_d) * vr
-                            else:
+                    if wp.static(VVIS and RHO_D_CONST):  # no product lobe needed: the cache × kd/π
+                        if nj > 0:
+                            col += wp.cw_mul(env_diffuse_sum(irr, env, 1, ns, i0, i1, i2, b0, b1, b2), rho_d)
+                    else:
+                        for j in range(nj):
+                            ax = env.axis[j]
+                            E = env.power[j] * sg_irradiance_norm_at(irr, wp.dot(ns, ax), env.lam[j], env.irr_row[j])
+                            if wp.length_sq(E) > 0.0:
+                                vr = float(1.0)
                                 pe, le, se = sg_product(ns, CC_LAM, ax, env.lam[j])
-                                if wp.static(not VVIS):
+                                if wp.static(VVIS):  # the per-vertex cache, interpolated
+                                    vr = b0 * env.vis[i0, j] + b1 * env.vis[i1, j] + b2 * env.vis[i2, j]
+                                else:
                                     vr = vis_ratio(SHADOWS, FH, vis, q, pe, le)
                                 col += wp.cw_mul(E, diffuse_at(mat, o_l, world_to_local(pe, ts, bs, ns))) * vr
 

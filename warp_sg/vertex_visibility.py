@@ -53,7 +53,7 @@ from precompute.ssdf_wp import ssdf_at, ssdf_point
 
 from .fastmath import fast_asin
 from .lights import LightArrays, light_irradiance
-from .shading import CC_LAM, EnvSG, Visibility, lookup_skip, vis_ratio
+from .shading import CC_LAM, EnvSG, Visibility, env_diffuse_sum, lookup_skip, vis_ratio
 from .sg_irradiance import sg_irradiance_norm_at
 from .sg_wp import sg_product
 
@@ -91,20 +91,6 @@ def light_vertex_deficit_kernel(base: int, fh_mode: int, vis: Visibility, positi
     if s < 1.0:
         d = (1.0 - s) * wp.min(ssdf_at(vis.mean, vis.basis, vis.weights, q, la) - th_h, 0.0)
     out[v, j] = d
-
-
-@wp.func
-def env_diffuse_sum(irr: wp.array2d(dtype=float), env: EnvSG, use_vis: int, n: wp.vec3, i0: int, i1: int, i2: int,
-                    b0: float, b1: float, b2: float) -> wp.vec3:
-    """``Σ_j μ_j ∫G_j e(n·p_j, λ_j) Σ_k b_k V[i_k, j]``: the shading kernel's diffuse environment
-    sum without ρd at normal ``n`` (visibility interpolated from ``env.vis`` when ``use_vis``)."""
-    acc = wp.vec3(0.0, 0.0, 0.0)
-    for j in range(env.count):
-        vr = float(1.0)
-        if use_vis != 0:
-            vr = b0 * env.vis[i0, j] + b1 * env.vis[i1, j] + b2 * env.vis[i2, j]
-        acc += env.power[j] * (sg_irradiance_norm_at(irr, wp.dot(n, env.axis[j]), env.lam[j], env.irr_row[j]) * vr)
-    return acc
 
 
 @wp.kernel(enable_backward=False)
