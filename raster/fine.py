@@ -17,8 +17,8 @@ The winner's perspective-correct barycentrics (λ1/Σλ, λ2/Σλ from the recor
 with it, straight into the output buffers (cleared before the first pass); ``resolve_kernel`` turns
 1/w into depth, only when a caller asks for it. ``masked = 1``: only the tiles listed in
 ``tile_list`` are drawn (thread / block i draws the i-th), and the first pass (``clear = 1``) clears
-just those (the rest of the buffers is
-left as it was: antialiasing rasterises the sub-pixels of the few tiles it needs).
+just those (the rest of the buffers is left as it was: antialiasing rasterises the sub-pixels of
+the few tiles it needs).
 ``count_mode`` additionally counts every covering sub-triangle per pixel (depth test off) — the
 watertightness diagnostic.
 """

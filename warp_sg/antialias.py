@@ -167,11 +167,12 @@ def _group_count(tri_id: wp.array2d(dtype=int), y: int, x: int, a: int) -> int:
 def classify_kernel(base: int, idx: wp.array(dtype=int), cand: wp.array(dtype=int), tri_id: wp.array2d(dtype=int),
                     inv_depth: wp.array2d(dtype=float), tri_object: wp.array(dtype=int), a: int, resid_tol: float,
                     W: int, edge: wp.array(dtype=int), count: wp.array(dtype=int)):
-    """For listed pixel k = ``idx[i]`` (entry i of ``edge`` and ``count``), whether its a×a block (``tri_id``, ``inv_depth``: the a× raster's ids
-    and 1/z, 0 where empty) is an edge, and its second-pass sample count (:func:`gather_kernel`):
-    for an edge one per triangle its sub-pixels see plus one per sub-pixel that sees no object,
-    for a contrast pixel a², else 0 (it keeps its centre
-    sample). A block that one triangle covers is no edge (1/z is affine across a triangle)."""
+    """For listed pixel k = ``idx[i]`` (entry i of ``edge`` and ``count``), whether its a×a block
+    (``tri_id``, ``inv_depth``: the a× raster's ids and 1/z, 0 where empty) is an edge, and its
+    second-pass sample count (:func:`gather_kernel`): for an edge one per triangle its sub-pixels
+    see plus one per sub-pixel that sees no object, for a contrast pixel a², else 0 (it keeps its
+    centre sample). A block that one triangle covers is no edge (1/z is affine across a
+    triangle)."""
     i = base + wp.tid()
     k = idx[i]
     edge[i] = 0
@@ -241,8 +242,8 @@ def gather_kernel(base: int, idx: wp.array(dtype=int), tri_id: wp.array2d(dtype=
                   edge: wp.array(dtype=int), a: int, W: int, tri_s: wp.array2d(dtype=int),
                   bary_s: wp.array2d(dtype=wp.vec2), bg_s: wp.array2d(dtype=wp.vec3), weight_s: wp.array(dtype=float)):
     """Write the second-pass samples of listed pixel k = ``idx[i]`` at ``offset[i]`` (nothing for
-    ``count[i]`` = 0; ``edge[i]``: whether it is an edge), each with its
-    share of the pixel (``weight_s``, the pixel's weights sum to 1):
+    ``count[i]`` = 0; ``edge[i]``: whether it is an edge), each with its share of the pixel
+    (``weight_s``, the pixel's weights sum to 1):
 
     * an **edge** pixel: one sample per triangle its a×a sub-pixels see, at the mean of their
       barycentrics (the centroid of the points they see on it), weighted by their number / a² —
@@ -284,8 +285,9 @@ def gather_kernel(base: int, idx: wp.array(dtype=int), tri_id: wp.array2d(dtype=
 
 
 @wp.kernel(enable_backward=False)
-def resolve_kernel(base: int, idx: wp.array(dtype=int), shaded: wp.array2d(dtype=wp.vec3), weight: wp.array(dtype=float),
-                   count: wp.array(dtype=int), offset: wp.array(dtype=int), W: int, img: wp.array2d(dtype=wp.vec3)):
+def resolve_kernel(base: int, idx: wp.array(dtype=int), shaded: wp.array2d(dtype=wp.vec3),
+                   weight: wp.array(dtype=float), count: wp.array(dtype=int), offset: wp.array(dtype=int), W: int,
+                   img: wp.array2d(dtype=wp.vec3)):
     """img[pixel ``idx[i]``] = the weighted sum of its shaded samples (weights sum to 1; pixels with
     no sample in this pass keep theirs)."""
     i = base + wp.tid()
@@ -361,7 +363,6 @@ class SubpixelCache:
         self.edges = None
         self._contours = (None, None)
         self._sub = (None, None, None)  # (key, flagged tiles (numpy bool), VisibilityBuffer)
-        self.raster_seconds = 0.0
 
     def contours(self, camera) -> wp.array:
         from .silhouette import edge_adjacency, mark_contours
@@ -377,18 +378,14 @@ class SubpixelCache:
 
     def raster(self, camera, a: int, mask: wp.array):
         """The a× visibility buffer, valid at least on the tiles ``mask`` flags."""
-        import time
-
         import numpy as np
 
         import raster as R
 
-        t = time.perf_counter()
         key = (repr(camera), int(a))
         want = mask.numpy().astype(bool)
         old_key, have, vb = self._sub
         if old_key == key and not (want & ~have).any():
-            self.raster_seconds = time.perf_counter() - t
             return vb
         if old_key == key:  # draw just the new tiles into the same buffer
             draw, have = want & ~have, want | have
@@ -397,7 +394,6 @@ class SubpixelCache:
         vb = R.rasterize(self.positions, self.tris, camera, device=self.device, supersample=a, validate=False,
                          reuse=vb, tile_mask=wp.array(draw.astype(np.uint8), dtype=wp.uint8, device=self.device))
         self._sub = (key, have, vb)
-        self.raster_seconds = time.perf_counter() - t
         return vb
 
 
@@ -409,9 +405,9 @@ def render_adaptive(vb1, img, contours, raster_sub, tri_object: wp.array, backgr
     sub-pixels of the flagged tiles (``raster.rasterize(..., supersample=a, tile_mask=...)``);
     ``shade(tri_s, bary_s, bg_s, out)`` shades a 1 × N sample list; ``background``: the camera
     rays and environment of the a×a grid (:func:`warp_sg.background.background_params`). Returns
-    ``(image, stats)``: candidate, edge and contrast pixel counts, the flagged tile fraction and
-    the samples of the second pass."""
-    import numpy as np
+    ``(image, stats)``: candidate, edge and contrast pixel counts, the flagged tile fraction, the
+    samples of the second pass and the seconds ``raster_sub`` took."""
+    import time
 
     from raster import parallel, tile_grid
     from raster.fixed import TILE
@@ -424,17 +420,20 @@ def render_adaptive(vb1, img, contours, raster_sub, tri_object: wp.array, backgr
     n_c = len(idx)
     if n_c == 0:  # nothing to antialias
         return img, {"candidate_pixels": 0, "edge_pixels": 0, "contrast_pixels": 0, "tile_fraction": 0.0,
-                     "pass1_samples": n_pix, "pass2_samples": 0}
+                     "pass1_samples": n_pix, "pass2_samples": 0, "raster_seconds": 0.0}
     tiles_x, tiles_y = tile_grid(W * a, H * a)
     mask = wp.zeros(tiles_x * tiles_y, dtype=wp.uint8, device=device)
     parallel.launch(tiles_kernel, n_c, [idx, W, a, TILE, tiles_x, mask], device)
+    t = time.perf_counter()
     vb = raster_sub(mask)
+    raster_seconds = time.perf_counter() - t
     edge = wp.empty(n_c, dtype=int, device=device)
     count = wp.empty(n_c, dtype=int, device=device)
     parallel.launch(classify_kernel, n_c, [idx, cand, vb.tri_id, vb.inv_depth, tri_object, a, EDGE_DEPTH_RESIDUAL,
                                            W, edge, count], device)
     offset, n = _plan(count)
-    stats = {**_counts(idx, cand, edge, mask, device), "pass1_samples": n_pix, "pass2_samples": n}
+    stats = {**_counts(idx, cand, edge, mask, device), "pass1_samples": n_pix, "pass2_samples": n,
+             "raster_seconds": raster_seconds}
     if n > 0:
         tri_s = wp.empty((1, n), dtype=int, device=device)
         bary_s = wp.empty((1, n), dtype=wp.vec2, device=device)

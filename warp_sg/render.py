@@ -564,22 +564,21 @@ class Renderer:
         if self._subpixels is None:
             self._subpixels = SubpixelCache(self.geo_arrays.positions, self.geo_arrays.tris, d)
         sp = self._subpixels
-        sp.raster_seconds = 0.0  # (a frame with nothing to antialias does not rasterise sub-pixels)
+        shade = lambda tri, bary, bg, out: self._launch_shade(tri, bary, bg, cam.origin, out)  # noqa: E731
         t0 = _timer(d)
         vb = self.rasterize(1)
         t1 = _timer(d)
         img = wp.empty((cam.height, cam.width), dtype=wp.vec3, device=d)
-        self._launch_shade(vb.tri_id, vb.bary, self._background_image(1), cam.origin, img)
-        shade = lambda tri, bary, bg, out: self._launch_shade(tri, bary, bg, cam.origin, out)  # noqa: E731
+        shade(vb.tri_id, vb.bary, self._background_image(1), img)
         img, st = render_adaptive(vb, img, sp.contours(cam), lambda m: sp.raster(cam, a, m), self._tri_object,
                                   self._background_params(a), a, cam.height, cam.width, shade, d)
         t2 = _timer(d)
         out = img.numpy().astype(np.float32)
         t3 = time.perf_counter()
-        self.timings.update(raster=t1 - t0 + sp.raster_seconds, shade=t2 - t1 - sp.raster_seconds, resolve=t3 - t2,
-                            frame=t3 - t0, shaded_samples=st["pass1_samples"] + st["pass2_samples"],
-                            edge_pixels=st["edge_pixels"], contrast_pixels=st["contrast_pixels"],
-                            subpixel_tiles=st["tile_fraction"])
+        sub = st["raster_seconds"]  # the sub-pixel raster, inside render_adaptive
+        self.timings.update(raster=t1 - t0 + sub, shade=t2 - t1 - sub, resolve=t3 - t2, frame=t3 - t0,
+                            shaded_samples=st["pass1_samples"] + st["pass2_samples"], edge_pixels=st["edge_pixels"],
+                            contrast_pixels=st["contrast_pixels"], subpixel_tiles=st["tile_fraction"])
         return out
 
     def shade_vertices(self, eye=None) -> np.ndarray:
