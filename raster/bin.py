@@ -23,7 +23,7 @@ import warp as wp
 
 wp.set_module_options({"enable_backward": False})
 
-from .fixed import TILE, count_tiles, pixel_bbox, tile_overlaps  # noqa: F401
+from .fixed import TILE, count_tiles, pixel_bbox, sample_bbox, tile_overlaps  # noqa: F401
 from .setup import SubTri
 
 @wp.kernel
@@ -39,6 +39,7 @@ def bin_count_kernel(
     counts: wp.array(dtype=wp.int32),
     masked: int,
     tile_mask: wp.array(dtype=wp.uint8),
+    grid: int,
 ):
     j = base + wp.tid()
     s = sub_lo + j
@@ -46,8 +47,8 @@ def bin_count_kernel(
     rec = subs[s]
     if rec.tri < 0:
         return  # empty slot (culled / clipped away / no pixel centre covered)
-    bb = pixel_bbox(rec.v0, rec.v1, rec.v2, width, height)
-    count_tiles(bb, rec.v0, rec.v1, rec.v2, tiles_x, rows, row, counts, masked, tile_mask)
+    bb = sample_bbox(rec.v0, rec.v1, rec.v2, width, height, grid)
+    count_tiles(bb, rec.v0, rec.v1, rec.v2, tiles_x, rows, row, counts, masked, tile_mask, grid)
 
 
 def scan_counts(counts: wp.array, offsets: wp.array) -> int:

@@ -19,7 +19,7 @@ import warp as wp
 
 wp.set_module_options({"enable_backward": False})
 
-from .fixed import TILE_BITS, pixel_bbox, tile_drawn, tile_overlaps
+from .fixed import TILE_BITS, sample_bbox, tile_drawn, tile_overlaps
 from .setup import SubTri
 
 
@@ -39,6 +39,7 @@ def coarse_scatter_kernel(
     row_from_tri: int,
     masked: int,
     tile_mask: wp.array(dtype=wp.uint8),
+    grid: int,
 ):
     j = base + wp.tid()
     s = sub_lo + j
@@ -48,7 +49,7 @@ def coarse_scatter_kernel(
     row = j // batch
     if row_from_tri == 1:
         row = rec.tri // batch
-    bb = pixel_bbox(rec.v0, rec.v1, rec.v2, width, height)
+    bb = sample_bbox(rec.v0, rec.v1, rec.v2, width, height, grid)
     tx0 = bb[0] >> TILE_BITS
     tx1 = bb[2] >> TILE_BITS
     ty0 = bb[1] >> TILE_BITS
@@ -64,7 +65,7 @@ def coarse_scatter_kernel(
     v2 = rec.v2
     for ty in range(ty0, ty1 + 1):
         for tx in range(tx0, tx1 + 1):
-            if tile_drawn(masked, tile_mask, ty * tiles_x + tx) and (small or tile_overlaps(v0, v1, v2, bb, tx, ty)):
+            if tile_drawn(masked, tile_mask, ty * tiles_x + tx) and (small or tile_overlaps(v0, v1, v2, bb, tx, ty, grid)):
                 slot = (ty * tiles_x + tx) * rows + row
                 k = wp.atomic_add(cursor, slot, 1)
                 queue[offsets[slot] + k] = rec

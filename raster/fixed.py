@@ -62,6 +62,20 @@ def pixel_bbox(s0: wp.vec2i, s1: wp.vec2i, s2: wp.vec2i, width: int, height: int
 
 
 @wp.func
+def sample_bbox(s0: wp.vec2i, s1: wp.vec2i, s2: wp.vec2i, width: int, height: int, grid: int):
+    """Pixels that may hold a sample of the snapped triangle, clamped to the screen: ``grid`` = 1
+    those whose centre lies in its bounding box (:func:`pixel_bbox`); ``grid`` > 1 those whose
+    area meets it (any sub-sample: the triangles a raster keeps for :mod:`raster.subsample`)."""
+    if grid <= 1:
+        return pixel_bbox(s0, s1, s2, width, height)
+    bx0 = wp.max(wp.min(s0[0], wp.min(s1[0], s2[0])) >> SUBPIXEL_BITS, 0)
+    bx1 = wp.min(wp.max(s0[0], wp.max(s1[0], s2[0])) >> SUBPIXEL_BITS, width - 1)
+    by0 = wp.max(wp.min(s0[1], wp.min(s1[1], s2[1])) >> SUBPIXEL_BITS, 0)
+    by1 = wp.min(wp.max(s0[1], wp.max(s1[1], s2[1])) >> SUBPIXEL_BITS, height - 1)
+    return wp.vec4i(bx0, by0, bx1, by1)
+
+
+@wp.func
 def eval_plane(pl: wp.mat33, row: int, v0: wp.vec2i, x: int, y: int):
     """Plane ``row`` of a record at the centre of pixel (x, y)."""
     dx = float(x) + 0.5 - float(v0[0]) * (1.0 / float(SUBPIXEL))
@@ -70,28 +84,35 @@ def eval_plane(pl: wp.mat33, row: int, v0: wp.vec2i, x: int, y: int):
 
 
 @wp.func
-def edge_max(a: wp.vec2i, b: wp.vec2i, x0: int, y0: int, x1: int, y1: int):
-    """Maximum of edge a→b's function over the pixel centres of [x0,x1]×[y0,y1]."""
-    sx = wp.int64(x0) * wp.int64(SUBPIXEL) + wp.int64(HALF)
-    sy = wp.int64(y0) * wp.int64(SUBPIXEL) + wp.int64(HALF)
+def edge_max(a: wp.vec2i, b: wp.vec2i, x0: int, y0: int, x1: int, y1: int, grid: int):
+    """Maximum of edge a→b's function over the pixel centres of [x0,x1]×[y0,y1] (``grid`` = 1),
+    or over the whole pixels' area (``grid`` > 1: a bound for every sub-sample)."""
+    lo = wp.int64(HALF)
+    hi = wp.int64(HALF)
+    if grid > 1:
+        lo = wp.int64(0)
+        hi = wp.int64(SUBPIXEL)
+    sx = wp.int64(x0) * wp.int64(SUBPIXEL) + lo
+    sy = wp.int64(y0) * wp.int64(SUBPIXEL) + lo
     # dE/dx = -(b.y - a.y), dE/dy = (b.x - a.x)
     if b[1] - a[1] < 0:
-        sx = wp.int64(x1) * wp.int64(SUBPIXEL) + wp.int64(HALF)
+        sx = wp.int64(x1) * wp.int64(SUBPIXEL) + hi
     if b[0] - a[0] > 0:
-        sy = wp.int64(y1) * wp.int64(SUBPIXEL) + wp.int64(HALF)
+        sy = wp.int64(y1) * wp.int64(SUBPIXEL) + hi
     return edge_eval(a, b, sx, sy)
 
 
 @wp.func
-def tile_overlaps(v0: wp.vec2i, v1: wp.vec2i, v2: wp.vec2i, bb: wp.vec4i, tx: int, ty: int):
-    """Conservative test: may the triangle cover a pixel centre of tile (tx, ty) ∩ bbox?"""
+def tile_overlaps(v0: wp.vec2i, v1: wp.vec2i, v2: wp.vec2i, bb: wp.vec4i, tx: int, ty: int, grid: int):
+    """Conservative test: may the triangle cover a sample (``grid``: :func:`sample_bbox`) of
+    tile (tx, ty) ∩ bbox?"""
     x0 = wp.max(tx * TILE, bb[0])
     y0 = wp.max(ty * TILE, bb[1])
     x1 = wp.min(tx * TILE + TILE - 1, bb[2])
     y1 = wp.min(ty * TILE + TILE - 1, bb[3])
     z = wp.int64(0)
-    return edge_max(v0, v1, x0, y0, x1, y1) >= z and edge_max(v1, v2, x0, y0, x1, y1) >= z and edge_max(
-        v2, v0, x0, y0, x1, y1) >= z
+    return edge_max(v0, v1, x0, y0, x1, y1, grid) >= z and edge_max(v1, v2, x0, y0, x1, y1, grid) >= z and edge_max(
+        v2, v0, x0, y0, x1, y1, grid) >= z
 
 
 @wp.func
@@ -120,7 +141,7 @@ def bbox_drawn(bb: wp.vec4i, tiles_x: int, masked: int, tile_mask: wp.array(dtyp
 
 @wp.func
 def count_tiles(bb: wp.vec4i, v0: wp.vec2i, v1: wp.vec2i, v2: wp.vec2i, tiles_x: int, rows: int, row: int,
-                counts: wp.array(dtype=wp.int32), masked: int, tile_mask: wp.array(dtype=wp.uint8)):
+                counts: wp.array(dtype=wp.int32), masked: int, tile_mask: wp.array(dtype=wp.uint8), grid: int):
     """Bin raster of one triangle: +1 in ``counts[tile·rows + row]`` for every drawn tile
     (:func:`tile_drawn`) it may touch (bbox tiles; exact edge test when the bbox spans several
     tiles both ways)."""
@@ -137,5 +158,5 @@ def count_tiles(bb: wp.vec4i, v0: wp.vec2i, v1: wp.vec2i, v2: wp.vec2i, tiles_x:
     for ty in range(ty0, ty1 + 1):
         for tx in range(tx0, tx1 + 1):
             if tile_drawn(masked, tile_mask, ty * tiles_x + tx):
-                if small or tile_overlaps(v0, v1, v2, bb, tx, ty):
+                if small or tile_overlaps(v0, v1, v2, bb, tx, ty, grid):
                     wp.atomic_add(counts, (ty * tiles_x + tx) * rows + row, 1)

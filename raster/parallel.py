@@ -104,3 +104,26 @@ def launch_rows(kernel, n: int, rows: int, inputs: list, device: str):
             for b in range(0, n, step)]
     for f in futs:
         f.result()
+
+
+@wp.kernel(enable_backward=False)
+def _compact_kernel(base: int, flag: wp.array(dtype=int), offset: wp.array(dtype=int), idx: wp.array(dtype=int)):
+    k = base + wp.tid()
+    if flag[k] != 0:
+        idx[offset[k]] = k
+
+
+def compact(flag: wp.array, device) -> wp.array:
+    """The indices k with ``flag[k]`` ≠ 0 (int 0/1 flags), ascending: exclusive scan
+    (``wp.utils.array_scan``), then a scatter — stream compaction, so that later kernels run over
+    the few flagged elements instead of all of them."""
+    n = int(flag.shape[0])
+    if n == 0:
+        return wp.empty(0, dtype=int, device=device)
+    offset = wp.empty_like(flag)
+    wp.utils.array_scan(flag, offset, inclusive=False)
+    total = int(offset[n - 1: n].numpy()[0] + flag[n - 1: n].numpy()[0])
+    idx = wp.empty(total, dtype=int, device=device)
+    if total > 0:
+        launch(_compact_kernel, n, [flag, offset, idx], device)
+    return idx

@@ -121,6 +121,13 @@ class VisibilityBuffer:
     _schedule: str = "tile"
     _depth_buf: wp.array | None = None  # reused storage for depth (a previous buffer's)
     _depth: wp.array | None = None
+    #: with ``rasterize(subsamples=a)``: a and the tile queues (``raster.subsample``); offsets None:
+    #: nothing was binned
+    _subsamples: int = 1
+    _queue: wp.array | None = None
+    _offsets: wp.array | None = None
+    _rows: int = 1
+    _inv_far: float = 0.0
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -157,7 +164,8 @@ def _as_numpy_mesh(vertices, triangles):
 def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: int = 1,
               cull_backfaces: bool = False, coverage_count: bool = False, max_pairs: int | None = None,
               schedule: str = "auto", profile: bool = False, validate: bool = True,
-              reuse: VisibilityBuffer | None = None, tile_mask: wp.array | None = None) -> VisibilityBuffer:
+              reuse: VisibilityBuffer | None = None, tile_mask: wp.array | None = None,
+              subsamples: int = 1) -> VisibilityBuffer:
     """Rasterize a triangle mesh into a :class:`VisibilityBuffer` of (k·H, k·W) pixels.
 
     ``vertices`` (N, 3) float, ``triangles`` (M, 3) int (numpy or ``wp.array``); ``camera`` a
@@ -175,6 +183,11 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
     ``tile_mask``: a ``wp.array(dtype=uint8)`` of one flag per ``TILE``×``TILE`` tile of the
     (k·H, k·W) grid, row-major (:func:`tile_grid`); only the flagged tiles are drawn and the rest of
     the buffer is undefined (nothing else is cleared).
+    ``subsamples`` a > 1: also bin the triangles that cover only sub-samples of an a×a grid per
+    pixel (not just the centres) and keep the tile queues with the buffer, so that
+    :func:`raster.subsample.subsample` finds the a×a coverage of any listed pixels later without
+    another raster (adaptive antialiasing). One pass then (``max_pairs`` does not split it): the
+    queue holds 64 bytes per (triangle, tile) pair, ~10 MB for 100 k triangles at 512².
     """
     device = resolve_device(device)
     if not isinstance(camera, Camera):
@@ -256,7 +269,8 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
         extra[n_t:].zero_()
         subs = ws.get("subs", n_t, SubTri)
         bins = _Bins(W, H, device, ws, n_t)
-        bin_args = [bins.batch, bins.rows, bins.tiles_x, bins.counts, masked, mask_arg]
+        grid = max(int(subsamples), 1)
+        bin_args = [bins.batch, bins.rows, bins.tiles_x, bins.counts, masked, mask_arg, grid]
         parallel.launch_rows(setup_kernel, n_t, min(bins.rows, n_t),
                              [clip, vsnap, vcode, tris, W, H, near, gx, gy, cull, subs, extra, *bin_args], device)
         extra_off = ws.get("extra_off", n_t + 1, wp.int32)
@@ -271,17 +285,25 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
         n_sub = n_t + n_extra
         stats["sub_triangles"] = n_sub
         stats["clipped_extra"] = n_extra
+        keep = None
+        if grid > 1:  # the queues stay with the buffer (reusing a previous buffer's storage)
+            keep = {"queue": getattr(reuse, "_queue", None) if reuse is not None else None, "offsets": None,
+                    "rows": bins.rows}
         drew = _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera,
                                best_invw, tri_id, bary, cov_arg, coverage is not None, device,
                                max_pairs or DEFAULT_MAX_PAIRS, schedule, stats, ws, clock, masked, mask_arg,
-                               tile_list)
+                               tile_list, grid, keep)
     else:
         drew = False
+        keep = {"queue": None, "offsets": None, "rows": 1} if int(subsamples) > 1 else None
     if masked and not drew:  # no pass drew (nothing in the flagged tiles): empty just those
         parallel.launch(clear_tiles_kernel, len(flagged), [tiles_x, W, H, tile_list, best_invw, tri_id, bary], device,
                         min_chunk=16)
     vb = VisibilityBuffer(tri_id, bary, best_invw, coverage, W, H, k, device, stats, _schedule=schedule,
                           _depth_buf=depth_buf)
+    if keep is not None:
+        vb._subsamples, vb._queue, vb._offsets, vb._rows = int(subsamples), keep["queue"], keep["offsets"], keep["rows"]
+        vb._inv_far = 1.0 / float(camera.far)
     if profile:
         vb.depth
         clock.lap("resolve")
@@ -311,13 +333,17 @@ def tile_grid(width: int, height: int) -> tuple[int, int]:
 
 def _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera, best_invw, best_tri, best_bary,
                     coverage, count_mode, device, max_pairs, schedule, stats, ws, clock, masked, mask_arg,
-                    tile_list):
+                    tile_list, grid, keep):
     """Bin, scatter and draw in as many passes as the queue budget needs; returns whether a fine
-    pass ran (the first one clears the masked tiles)."""
+    pass ran (the first one clears the masked tiles). ``keep`` (a dict, with ``subsamples``): one
+    pass, whose queue (``keep["queue"]``: storage to reuse when large enough) and offsets are
+    returned in it."""
     n_sub = n_t + n_extra
     tiles_x, n_tiles, rows = bins.tiles_x, bins.n_tiles, bins.rows
     counts, offsets, cursor = bins.counts, bins.offsets, bins.cursor
     max_pairs = max(int(max_pairs), n_tiles)  # one triangle alone always fits
+    if keep is not None:
+        max_pairs = 1 << 62  # the kept queue must hold every pair
     inv_far = 1.0 / float(camera.far)
 
     stack = [(0, n_sub)]
@@ -331,8 +357,8 @@ def _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera, best_invw, best_tri,
         batch = (n + r - 1) // r
         if not first:  # a split pass: count its slot range (rows = contiguous slot batches)
             counts.zero_()
-            parallel.launch_rows(bin_count_kernel, n, r, [lo, batch, rows, tiles_x, W, H, subs, counts, masked, mask_arg],
-                                 device)
+            parallel.launch_rows(bin_count_kernel, n, r, [lo, batch, rows, tiles_x, W, H, subs, counts, masked, mask_arg,
+                                                          grid], device)
         total = scan_counts(counts, offsets)
         clock.lap("bin")
         if total > max_pairs and n > 1:
@@ -346,22 +372,29 @@ def _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera, best_invw, best_tri,
         if total == 0:
             first = False
             continue
-        queue = ws.get("queue", total, SubTri)
+        if keep is None:
+            queue = ws.get("queue", total, SubTri)
+        else:
+            queue = keep["queue"]
+            if queue is None or queue.shape[0] < total or str(queue.device) != device:
+                queue = wp.empty(max(total, 1) + total // 4, dtype=SubTri, device=device)  # room to grow
+            keep["queue"] = queue
+            keep["offsets"] = wp.clone(offsets)
         cursor.zero_()
         if first:
             # counted by setup: primaries per pool thread, then the clipped extra pieces (few) serially
             parallel.launch_rows(coarse_scatter_kernel, n_t, min(rows, n_t),
-                                 [0, bins.batch, rows, tiles_x, W, H, subs, offsets, cursor, queue, 0, masked, mask_arg],
-                                 device)
+                                 [0, bins.batch, rows, tiles_x, W, H, subs, offsets, cursor, queue, 0, masked, mask_arg,
+                                  grid], device)
             if n_extra > 0:
                 wp.launch(coarse_scatter_kernel, dim=n_extra,
                           inputs=[0, n_t, bins.batch, rows, tiles_x, W, H, subs, offsets, cursor, queue, 1, masked,
-                                  mask_arg],
+                                  mask_arg, grid],
                           device=device)
         else:
             parallel.launch_rows(coarse_scatter_kernel, n, r,
-                                 [lo, batch, rows, tiles_x, W, H, subs, offsets, cursor, queue, 0, masked, mask_arg],
-                                 device)
+                                 [lo, batch, rows, tiles_x, W, H, subs, offsets, cursor, queue, 0, masked, mask_arg,
+                                  grid], device)
         first = False
         clock.lap("coarse")
         args = [tiles_x, n_tiles, rows, W, H, inv_far, int(count_mode), masked, tile_list, int(masked and not drew),

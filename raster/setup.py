@@ -42,7 +42,7 @@ from __future__ import annotations
 import warp as wp
 
 from .fixed import (HALF, SUBPIXEL, SUBPIXEL_BITS, bbox_drawn, count_tiles, edge_eval, edge_topleft,  # noqa: F401
-                    eval_plane, lower_px, pixel_bbox, sample_fixed, upper_px)
+                    eval_plane, lower_px, pixel_bbox, sample_bbox, sample_fixed, upper_px)
 
 wp.set_module_options({"enable_backward": False})
 
@@ -218,8 +218,9 @@ def covers(v0: wp.vec2i, v1: wp.vec2i, v2: wp.vec2i, x: int, y: int):
 
 
 @wp.func
-def make_piece(s0: wp.vec2i, s1: wp.vec2i, s2: wp.vec2i, width: int, height: int, cull: int):
-    """Area, cull and winding of a snapped triangle and its pixel bbox; bbox[0] > bbox[2] = dropped."""
+def make_piece(s0: wp.vec2i, s1: wp.vec2i, s2: wp.vec2i, width: int, height: int, cull: int, grid: int):
+    """Area, cull and winding of a snapped triangle and its bbox of the pixels with a sample in it
+    (``grid``: :func:`fixed.sample_bbox`); bbox[0] > bbox[2] = dropped."""
     area = wp.int64(s1[0] - s0[0]) * wp.int64(s2[1] - s0[1]) - wp.int64(s1[1] - s0[1]) * wp.int64(s2[0] - s0[0])
     bb = wp.vec4i(1, 1, 0, 0)
     a = s1
@@ -232,14 +233,14 @@ def make_piece(s0: wp.vec2i, s1: wp.vec2i, s2: wp.vec2i, width: int, height: int
         if area < wp.int64(0):
             a = s2
             b = s1
-        pb = pixel_bbox(s0, a, b, width, height)
+        pb = sample_bbox(s0, a, b, width, height, grid)
         if pb[0] <= pb[2] and pb[1] <= pb[3]:
             bb = pb
             # sub-pixel triangles: a bbox of one or two pixel centres that none of them is covered
             # by is dropped here (at 4 triangles per pixel that is a third of all tile pairs)
             nx = pb[2] - pb[0]
             ny = pb[3] - pb[1]
-            if nx + ny <= 1:
+            if nx + ny <= 1 and grid <= 1:
                 if not covers(s0, a, b, pb[0], pb[1]) and not covers(s0, a, b, pb[2], pb[3]):
                     bb = wp.vec4i(1, 1, 0, 0)
     return a, b, bb
@@ -339,6 +340,7 @@ def setup_kernel(
     counts: wp.array(dtype=wp.int32),
     masked: int,
     tile_mask: wp.array(dtype=wp.uint8),
+    grid: int,
 ):
     """Triangle i → its first sub-triangle in slot i (an empty bbox when nothing survives) and
     ``extra[i]`` = number of further pieces (clipped triangles only), emitted by ``setup_extra_kernel``."""
@@ -358,7 +360,7 @@ def setup_kernel(
         if ((k0 | k1 | k2) & CLIP_MASK) == 0:
             # fast path: no clipping, vertices already snapped
             s0 = vsnap[t[0]]
-            a, b, bb = make_piece(s0, vsnap[t[1]], vsnap[t[2]], width, height, cull)
+            a, b, bb = make_piece(s0, vsnap[t[1]], vsnap[t[2]], width, height, cull, grid)
             if bb[0] <= bb[2]:
                 n_valid = 1
                 if not bbox_drawn(bb, tiles_x, masked, tile_mask):  # only tiles this raster skips
@@ -370,7 +372,7 @@ def setup_kernel(
                 q0 = polygon_snap(px, py, pw, 0, width, height)
                 for k in range(n - 2):
                     qa, qb, qbb = make_piece(q0, polygon_snap(px, py, pw, k + 1, width, height),
-                                             polygon_snap(px, py, pw, k + 2, width, height), width, height, cull)
+                                             polygon_snap(px, py, pw, k + 2, width, height), width, height, cull, grid)
                     if qbb[0] <= qbb[2]:
                         if n_valid == 0:
                             s0 = q0
@@ -394,7 +396,7 @@ def setup_kernel(
         rec.tri = -1  # empty slot
     subs[i] = rec
     if bin_batch > 0 and n_valid > 0:  # bin raster fused in: count the tiles of this piece
-        count_tiles(bb, s0, a, b, tiles_x, rows, i // bin_batch, counts, masked, tile_mask)
+        count_tiles(bb, s0, a, b, tiles_x, rows, i // bin_batch, counts, masked, tile_mask, grid)
     extra[i] = wp.max(n_valid - 1, 0)
 
 
@@ -418,6 +420,7 @@ def setup_extra_kernel(
     counts: wp.array(dtype=wp.int32),
     masked: int,
     tile_mask: wp.array(dtype=wp.uint8),
+    grid: int,
 ):
     """Second and later pieces of clipped triangles, into slots M + extra_off[i] + j."""
     i = base + wp.tid()
@@ -432,7 +435,7 @@ def setup_extra_kernel(
     o = tris.shape[0] + extra_off[i]
     for k in range(n - 2):
         qa, qb, qbb = make_piece(q0, polygon_snap(px, py, pw, k + 1, width, height),
-                                 polygon_snap(px, py, pw, k + 2, width, height), width, height, cull)
+                                 polygon_snap(px, py, pw, k + 2, width, height), width, height, cull, grid)
         if qbb[0] <= qbb[2]:
             if n_valid > 0:
                 rec = subs[i]  # first piece: same triangle, same fan apex q0, hence same planes
@@ -441,7 +444,7 @@ def setup_extra_kernel(
                 rec.v2 = qb
                 subs[o] = rec
                 if bin_batch > 0:
-                    count_tiles(qbb, q0, qa, qb, tiles_x, rows, i // bin_batch, counts, masked, tile_mask)
+                    count_tiles(qbb, q0, qa, qb, tiles_x, rows, i // bin_batch, counts, masked, tile_mask, grid)
                 o += 1
             n_valid += 1
 

@@ -92,18 +92,17 @@ def profile(path, size, repeat, visibility_sampling=None):
     for aa in (1, scene.render.antialias):
         scene.render.antialias = aa
         wall, t = _wall_new_view(r, repeat)
-        # the 1x raster, and with antialiasing the a×a sub-pixels of the tiles the frame flagged
-        parts = [(1, None)] + ([(aa, r._subpixels._sub[1])] if aa > 1 else [])
-        st = ""
-        for k, tiles in parts:
-            mask = None if tiles is None else wp.array(tiles.astype(np.uint8), dtype=wp.uint8, device="cpu")
-            vb = None
-            for _ in range(2):  # the second time into the first one's buffers, as the renderer does
-                vb = raster.rasterize(r.geo_arrays.positions, r.geo_arrays.tris, scene.camera, device="cpu",
-                                      supersample=k, profile=True, validate=False, tile_mask=mask, reuse=vb)
-            times = {n: v for n, v in vb.stats["times"].items() if n != "resolve"}  # (depth: not in a frame)
-            st += (f"; {k}× on {100 * tiles.mean():.0f} % of the tiles: " if tiles is not None else "1×: ")
-            st += ", ".join(f"{n} {1e3 * v:.1f}" for n, v in times.items())
+        # the 1x raster (with antialiasing: keeping the triangles of the a×a sub-samples and the
+        # tile queues) and the sub-pixel coverage of the frame's candidate pixels
+        vb = None
+        for _ in range(2):  # the second time into the first one's buffers, as the renderer does
+            vb = raster.rasterize(r.geo_arrays.positions, r.geo_arrays.tris, scene.camera, device="cpu",
+                                  profile=True, validate=False, reuse=vb, subsamples=aa)
+        times = {n: v for n, v in vb.stats["times"].items() if n != "resolve"}  # (depth: not in a frame)
+        st = "1×: " + ", ".join(f"{n} {1e3 * v:.1f}" for n, v in times.items())
+        if aa > 1:
+            st += (f"; {aa}×{aa} sub-pixels of {t.get('candidate_pixels')} pixels "
+                   f"({100 * t.get('subpixel_tiles', 0):.0f} % of the tiles): {1e3 * t.get('subpixel_seconds', 0):.1f}")
         print(f"| {aa} | {1e3 * wall:.1f} | {1e3 * t['raster']:.1f} | {1e3 * t['shade']:.1f} | "
               f"{1e3 * t['resolve']:.1f} | {t.get('shaded_samples')} | {st} |")
     scene.render.antialias = 1

@@ -94,7 +94,8 @@ def test_geometry_thinner_than_a_pixel_is_antialiased_where_pixel_centres_miss_i
     assert missed.sum() >= 5
     err = np.abs(adaptive - full).sum(-1)
     assert err[missed].max() < 0.02 * floor
-    assert r.timings["subpixel_tiles"] < 0.5
+    cam = r.scene.camera
+    assert r.timings["candidate_pixels"] < 0.5 * cam.width * cam.height  # sub-pixels only where needed
 
 
 @pytest.mark.parametrize("make", [lambda: _scene(antialias=4), _grazing_floor_scene, lambda: _pole_scene(antialias=4)],
@@ -116,13 +117,13 @@ def test_every_edge_of_a_full_subpixel_raster_is_a_candidate_pixel(cache_dir, ma
     every = wp.array(np.full(H * W, A.CAND_GEOMETRY, np.int32), dtype=int)
     edge, count = wp.empty(H * W, dtype=int), wp.empty(H * W, dtype=int)
     parallel.launch(A.classify_kernel, H * W, [wp.array(np.arange(H * W, dtype=np.int32), dtype=int), every,
-                                               full.tri_id, full.inv_depth, r._tri_object, a, A.EDGE_DEPTH_RESIDUAL, W,
-                                               edge, count], "cpu")
+                                               _per_pixel(full.tri_id, a, int), _per_pixel(full.inv_depth, a, float),
+                                               r._tri_object, a, A.EDGE_DEPTH_RESIDUAL, edge, count], "cpu")
     edges = edge.numpy().astype(bool)
     vb1 = r.rasterize(1)
     img = wp.zeros((H, W), dtype=wp.vec3)  # no contrast: geometry flags only
     cand, flag = wp.empty(H * W, dtype=int), wp.empty(H * W, dtype=int)
-    parallel.launch(A.candidates_kernel, H * W, [vb1.tri_id, r._tri_object, r._subpixels.contours(cam), img,
+    parallel.launch(A.candidates_kernel, H * W, [vb1.tri_id, r._tri_object, r._contours.contours(cam), img,
                                                  A.CONTRAST, cand, flag], "cpu")
     flagged = cand.numpy() != 0
     assert (flag.numpy() == flagged).all()
@@ -132,8 +133,19 @@ def test_every_edge_of_a_full_subpixel_raster_is_a_candidate_pixel(cache_dir, ma
     assert flagged.mean() < 0.5  # and far from everything
 
 
+def _per_pixel(grid, a, dtype):
+    """An (H·a, W·a) sub-pixel grid (a ``wp.array``) as the (H·W, a²) rows of ``raster.subsample``
+    (pixel-major, sub-pixel q = j·a + i)."""
+    import warp as wp
+
+    g = grid.numpy()
+    H, W = g.shape[0] // a, g.shape[1] // a
+    rows = g.reshape(H, a, W, a, *g.shape[2:]).swapaxes(1, 2).reshape(H * W, a * a, *g.shape[2:])
+    return wp.array(np.ascontiguousarray(rows), dtype=wp.vec2 if g.ndim == 3 else dtype)
+
+
 def test_the_device_reduction_of_the_frame_counts_matches_numpy():
-    """On CUDA the counts come from an atomic reduction (only four integers come back); it is
+    """On CUDA the counts come from an atomic reduction (only three integers come back); it is
     checked here by running that kernel once on the CPU (one launch: atomics are exact there)."""
     import warp as wp
 
@@ -144,14 +156,13 @@ def test_the_device_reduction_of_the_frame_counts_matches_numpy():
     listed = np.flatnonzero(c)
     cand, idx = wp.array(c, dtype=int), wp.array(listed.astype(np.int32), dtype=int)
     edge = wp.array(rng.integers(0, 2, len(listed)).astype(np.int32), dtype=int)
-    mask = wp.array(rng.integers(0, 2, 700).astype(np.uint8), dtype=wp.uint8)
-    out = wp.zeros(4, dtype=int)
-    wp.launch(A._counts_kernel, dim=len(listed), inputs=[idx, cand, edge, mask, out])
-    e, m = edge.numpy(), mask.numpy()
-    want = [np.count_nonzero(c), e.sum(), np.count_nonzero(c & A.CAND_CONTRAST), np.count_nonzero(m)]
+    out = wp.zeros(3, dtype=int)
+    wp.launch(A._counts_kernel, dim=len(listed), inputs=[idx, cand, edge, out])
+    e = edge.numpy()
+    want = [np.count_nonzero(c), e.sum(), np.count_nonzero(c & A.CAND_CONTRAST)]
     assert out.numpy().tolist() == [int(x) for x in want]
-    got = A._counts(idx, cand, edge, mask, "cpu")
-    assert got["tile_fraction"] == np.count_nonzero(m) / 700 and got["edge_pixels"] == e.sum()
+    got = A._counts(idx, cand, edge, "cpu")
+    assert [got["candidate_pixels"], got["edge_pixels"], got["contrast_pixels"]] == [int(x) for x in want]
 
 
 @pytest.mark.parametrize("a", [2, 3, 4, 8])
@@ -163,16 +174,16 @@ def test_contrast_pixels_are_shaded_at_every_sub_pixel_equally_weighted(a):
     from warp_sg import antialias as A
 
     W = 3
-    tid = wp.array(np.zeros((a, a * W), np.int32), dtype=int)
-    bary = wp.array(np.stack(np.meshgrid(np.arange(a * W), np.arange(a)), -1).astype(np.float32) / 100.0,
-                    dtype=wp.vec2)  # bary = sub-pixel (column, row) / 100: identifies the sub-pixel
+    tid = _per_pixel(wp.array(np.zeros((a, a * W), np.int32), dtype=int), a, int)
+    bary = _per_pixel(wp.array(np.stack(np.meshgrid(np.arange(a * W), np.arange(a)), -1).astype(np.float32) / 100.0,
+                               dtype=wp.vec2), a, None)  # bary = sub-pixel (column, row) / 100: identifies it
     count = wp.array(np.zeros(W, np.int32), dtype=int)
     cand = wp.array(np.full(W, A.CAND_CONTRAST, np.int32), dtype=int)
     edge = wp.empty(W, dtype=int)
-    inv_depth = wp.array(np.ones((a, a * W), np.float32), dtype=float)
+    inv_depth = wp.array(np.ones((W, a * a), np.float32), dtype=float)
     every = wp.array(np.arange(W, dtype=np.int32), dtype=int)
     wp.launch(A.classify_kernel, dim=W, inputs=[0, every, cand, tid, inv_depth, wp.zeros(1, dtype=int), a,
-                                                A.EDGE_DEPTH_RESIDUAL, W, edge, count])
+                                                A.EDGE_DEPTH_RESIDUAL, edge, count])
     n = count.numpy()
     assert n.tolist() == [a * a] * W and edge.numpy().sum() == 0
     offset = wp.array(np.concatenate([[0], np.cumsum(n)[:-1]]).astype(np.int32), dtype=int)
@@ -212,17 +223,18 @@ def test_an_edge_pixel_is_shaded_once_per_triangle_at_its_sub_pixels_mean_with_t
     bary = rng.uniform(0.0, 0.5, (a, a, 2)).astype(np.float32)
     count = wp.zeros(W, dtype=int)
     edge = wp.zeros(W, dtype=int)
-    inv_depth = wp.array(np.where(tid >= 0, 1.0, 0.0).astype(np.float32), dtype=float)
+    inv_depth = wp.array(np.where(tid >= 0, 1.0, 0.0).astype(np.float32).reshape(1, a * a), dtype=float)
     tri_object = wp.array(np.arange(12, dtype=np.int32), dtype=int)  # each triangle its own object
     one = wp.zeros(W, dtype=int)  # the list: pixel 0
     wp.launch(A.classify_kernel, dim=W, inputs=[0, one, wp.array(np.array([A.CAND_GEOMETRY], np.int32), dtype=int),
-                                                wp.array(tid, dtype=int), inv_depth, tri_object, a,
-                                                A.EDGE_DEPTH_RESIDUAL, W, edge, count])
+                                                wp.array(tid.reshape(1, a * a), dtype=int), inv_depth, tri_object, a,
+                                                A.EDGE_DEPTH_RESIDUAL, edge, count])
     assert edge.numpy()[0] == 1 and count.numpy()[0] == 2 + 4  # two triangles + four background sub-pixels
     n = 6
     tri_s, bary_s = wp.empty((1, n), dtype=int), wp.empty((1, n), dtype=wp.vec2)
     bg_s, w_s = wp.empty((1, n), dtype=wp.vec3), wp.empty(n, dtype=float)
-    wp.launch(A.gather_kernel, dim=W, inputs=[0, one, wp.array(tid, dtype=int), wp.array(bary, dtype=wp.vec2),
+    wp.launch(A.gather_kernel, dim=W, inputs=[0, one, wp.array(tid.reshape(1, a * a), dtype=int),
+                                              wp.array(bary.reshape(1, a * a, 2), dtype=wp.vec2),
                                               _background(a, W), count, wp.zeros(W, dtype=int), edge, a, W, tri_s,
                                               bary_s, bg_s, w_s])
     t, b, w = tri_s.numpy()[0], bary_s.numpy()[0], w_s.numpy()

@@ -223,6 +223,68 @@ def test_tile_mask_draws_only_the_flagged_tiles_and_they_match_the_full_raster(d
         raster.rasterize(V, F, cam, device=device, supersample=k, tile_mask=wp.zeros(3, dtype=wp.uint8, device=device))
 
 
+def _near_plane_quad():
+    """A ground quad that passes under and behind the camera: clipped at the near plane."""
+    V = np.array([[-6.0, -0.6, -6.0], [6.0, -0.6, -6.0], [6.0, -0.6, 8.0], [-6.0, -0.6, 8.0]], np.float32)
+    return V, np.array([[0, 2, 1], [0, 3, 2]], np.int32)
+
+
+@pytest.mark.parametrize("a", [2, 3, 4, 8])
+def test_subsamples_of_listed_pixels_match_a_raster_of_the_finer_grid(device, a):
+    """``raster.subsample`` on a 1× raster kept with ``subsamples=a`` against the full a× raster
+    (itself checked against ray casting above) at a shuffled third of the pixels: a fine torus whose
+    triangles mostly miss every pixel centre (kept for their sub-samples) over a ground quad clipped
+    at the near plane. The vertices are snapped to 1/256 of a pixel instead of a sub-pixel, so a
+    few sub-samples on shared edges may go to the neighbour; nothing else differs. The 1× buffer
+    itself is bit-identical to an ordinary raster."""
+    from raster.subsample import subsample
+
+    Vt, Ft = torus_mesh(192, 96)
+    Vq, Fq = _near_plane_quad()
+    V = np.concatenate([Vt, Vq])
+    F = np.concatenate([Ft, Fq + len(Vt)])
+    cam = _cam(w=40, h=30, origin=(0.2, 0.9, 2.2), near=0.3)
+    one = raster.rasterize(V, F, cam, device=device, subsamples=a)
+    plain = raster.rasterize(V, F, cam, device=device)
+    assert np.array_equal(one.tri_id.numpy(), plain.tri_id.numpy())
+    assert np.array_equal(one.bary.numpy(), plain.bary.numpy())
+    assert one.stats["passes"] == 1 and one.stats["clipped_extra"] > 0
+    full = raster.rasterize(V, F, cam, device=device, supersample=a)
+    H, W = cam.height, cam.width
+    rng = np.random.default_rng(a)
+    pix = rng.permutation(H * W)[: H * W // 3].astype(np.int32)
+    tri, bary, invw, _ = subsample(one, wp.array(pix, dtype=int, device=device))
+    tri, bary, invw = tri.numpy(), bary.numpy(), invw.numpy()
+    y, x = pix // W, pix % W
+    q = np.arange(a * a)
+    rows, cols = y[:, None] * a + q[None] // a, x[:, None] * a + q[None] % a
+    ref_t, ref_b = full.tri_id.numpy()[rows, cols], full.bary.numpy()[rows, cols]
+    ref_w = full.inv_depth.numpy()[rows, cols]
+    same = tri == ref_t
+    assert (ref_t >= len(Ft)).any() and (ref_t < 0).any() and (ref_t[ref_t >= 0] < len(Ft)).mean() > 0.3
+    assert (~same).mean() < 0.01, f"{(~same).sum()} of {same.size} sub-samples differ"
+    d = ~same & (tri >= 0) & (ref_t >= 0)  # a sample on an edge or at a vertex the two triangles share
+    shared = [len(set(F[t1]) & set(F[t2])) for t1, t2 in zip(tri[d], ref_t[d])]
+    assert all(n >= 1 for n in shared) and np.mean(np.equal(shared, 2)) > 0.8, shared
+    assert ((tri < 0) != (ref_t < 0)).mean() < 1e-3  # no holes from dropped sub-pixel triangles
+    hit = same & (tri >= 0)
+    assert np.abs(bary[hit] - ref_b[hit]).max() < 1e-4
+    assert np.abs(invw[hit] - ref_w[hit]).max() <= 1e-5 * ref_w[hit].max()
+    assert (invw[tri < 0] == 0).all() and (bary[tri < 0] == 0).all()
+
+
+def test_subsamples_where_nothing_is_drawn_are_empty(device):
+    from raster.subsample import subsample
+
+    V, F = uv_sphere(16, 8, radius=0.5)
+    cam = _cam(w=20, h=16, target=(0.0, 1.2, 9.0))  # looking away
+    one = raster.rasterize(V, F, cam, device=device, subsamples=4)
+    tri, bary, invw, _ = subsample(one, wp.array(np.arange(0, 320, 7, dtype=np.int32), dtype=int, device=device))
+    assert tri.shape == (46, 16) and (tri.numpy() == -1).all() and (invw.numpy() == 0).all()
+    with pytest.raises(ValueError, match="subsamples"):
+        subsample(raster.rasterize(V, F, cam, device=device), wp.zeros(1, dtype=int, device=device))
+
+
 @pytest.mark.parametrize("schedule", ["tile", "pixel"])
 def test_masked_redraw_of_empty_tiles_clears_only_those_tiles(device, schedule):
     """Antialiasing draws the tiles a later frame newly needs into the buffer it keeps: when no

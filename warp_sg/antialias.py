@@ -109,66 +109,43 @@ def candidates_kernel(base: int, tri_id: wp.array2d(dtype=int), tri_object: wp.a
     flag[k] = int(f != 0)
 
 
-@wp.kernel(enable_backward=False)
-def _list_kernel(base: int, flag: wp.array(dtype=int), offset: wp.array(dtype=int), idx: wp.array(dtype=int)):
-    k = base + wp.tid()
-    if flag[k] != 0:
-        idx[offset[k]] = k
-
-
 def candidate_list(flag: wp.array, device) -> wp.array:
-    """The indices k with ``flag[k]`` = 1, ascending (exclusive scan, then a scatter): the later
-    kernels run over the few candidates, not over every pixel."""
+    """The indices k with ``flag[k]`` = 1, ascending (``raster.parallel.compact``: scan, then a
+    scatter): the later kernels run over the few candidates, not over every pixel."""
     from raster import parallel
 
-    offset, n = _plan(flag)
-    idx = wp.empty(n, dtype=int, device=device)
-    if n > 0:
-        parallel.launch(_list_kernel, len(flag), [flag, offset, idx], device)
-    return idx
-
-
-@wp.kernel(enable_backward=False)
-def tiles_kernel(base: int, idx: wp.array(dtype=int), W: int, a: int, tile: int, tiles_x: int,
-                 mask: wp.array(dtype=wp.uint8)):
-    """Flag the raster tiles (``tile``² sub-pixels of the a× grid) that the a×a block of listed
-    pixel ``idx[i]`` overlaps (one to four)."""
-    k = idx[base + wp.tid()]
-    y = k / W
-    x = k - y * W
-    for ty in range((y * a) / tile, (y * a + a - 1) / tile + 1):
-        for tx in range((x * a) / tile, (x * a + a - 1) / tile + 1):
-            mask[ty * tiles_x + tx] = wp.uint8(1)
+    return parallel.compact(flag, device)
 
 
 @wp.func
-def _first_of_group(tri_id: wp.array2d(dtype=int), y0: int, x0: int, a: int, q: int) -> int:
-    """1 when sub-pixel q (row-major in the pixel's a×a block at (y0, x0)) sees the background or
-    is the first of the block's sub-pixels to see its triangle."""
-    t = tri_id[y0 + q / a, x0 + q % a]
+def _first_of_group(sub_tri: wp.array2d(dtype=int), i: int, q: int) -> int:
+    """1 when sub-pixel q of listed pixel i (row i of ``raster.subsample``) sees the background or
+    is the first of the pixel's sub-pixels to see its triangle."""
+    t = sub_tri[i, q]
     first = int(1)
     if t >= 0:
         for p in range(q):
-            if tri_id[y0 + p / a, x0 + p % a] == t:
+            if sub_tri[i, p] == t:
                 first = 0
     return first
 
 
 @wp.func
-def _group_count(tri_id: wp.array2d(dtype=int), y: int, x: int, a: int) -> int:
+def _group_count(sub_tri: wp.array2d(dtype=int), i: int, a: int) -> int:
     """Samples of an edge pixel: one per triangle its sub-pixels see, plus each background one."""
     n = int(0)
     for q in range(a * a):
-        n += _first_of_group(tri_id, y * a, x * a, a, q)
+        n += _first_of_group(sub_tri, i, q)
     return n
 
 
 @wp.kernel(enable_backward=False)
-def classify_kernel(base: int, idx: wp.array(dtype=int), cand: wp.array(dtype=int), tri_id: wp.array2d(dtype=int),
-                    inv_depth: wp.array2d(dtype=float), tri_object: wp.array(dtype=int), a: int, resid_tol: float,
-                    W: int, edge: wp.array(dtype=int), count: wp.array(dtype=int)):
+def classify_kernel(base: int, idx: wp.array(dtype=int), cand: wp.array(dtype=int), sub_tri: wp.array2d(dtype=int),
+                    sub_invw: wp.array2d(dtype=float), tri_object: wp.array(dtype=int), a: int, resid_tol: float,
+                    edge: wp.array(dtype=int), count: wp.array(dtype=int)):
     """For listed pixel k = ``idx[i]`` (entry i of ``edge`` and ``count``), whether its a×a block
-    (``tri_id``, ``inv_depth``: the a× raster's ids and 1/z, 0 where empty) is an edge, and its
+    (row i of ``sub_tri``, ``sub_invw``: the sub-samples' triangles and 1/z, 0 where empty, of
+    ``raster.subsample``) is an edge, and its
     second-pass sample count (:func:`gather_kernel`): for an edge one per triangle its sub-pixels
     see plus one per sub-pixel that sees no object, for a contrast pixel a², else 0 (it keeps its
     centre sample). A block that one triangle covers is no edge (1/z is affine across a
@@ -180,14 +157,11 @@ def classify_kernel(base: int, idx: wp.array(dtype=int), cand: wp.array(dtype=in
     f = cand[k]
     if f == 0:
         return
-    y = k / W
-    x = k - y * W
-    t0 = tri_id[y * a, x * a]
+    t0 = sub_tri[i, 0]
     one = int(1)
-    for j in range(a):
-        for u in range(a):
-            if tri_id[y * a + j, x * a + u] != t0:
-                one = 0
+    for q in range(a * a):
+        if sub_tri[i, q] != t0:
+            one = 0
     is_edge = int(0)
     if one == 0:
         o0 = _object_of(tri_object, t0)
@@ -200,9 +174,9 @@ def classify_kernel(base: int, idx: wp.array(dtype=int), cand: wp.array(dtype=in
         wmax = float(0.0)
         for j in range(a):
             for u in range(a):
-                if _object_of(tri_object, tri_id[y * a + j, x * a + u]) != o0:
+                if _object_of(tri_object, sub_tri[i, j * a + u]) != o0:
                     is_edge = 1
-                w = inv_depth[y * a + j, x * a + u]
+                w = sub_invw[i, j * a + u]
                 s += w
                 su += w * (float(u) - c)
                 sv += w * (float(j) - c)
@@ -214,31 +188,32 @@ def classify_kernel(base: int, idx: wp.array(dtype=int), cand: wp.array(dtype=in
             gv = sv / suu
             for j in range(a):
                 for u in range(a):
-                    r = inv_depth[y * a + j, x * a + u] - (m + gu * (float(u) - c) + gv * (float(j) - c))
+                    r = sub_invw[i, j * a + u] - (m + gu * (float(u) - c) + gv * (float(j) - c))
                     if wp.abs(r) > resid_tol * wmax:
                         is_edge = 1
     edge[i] = is_edge
     if is_edge == 1:
-        count[i] = _group_count(tri_id, y, x, a)
+        count[i] = _group_count(sub_tri, i, a)
     elif (f & CAND_CONTRAST) != 0:
         count[i] = a * a
 
 
 @wp.func
-def _gather_one(tri_id: wp.array2d(dtype=int), bary: wp.array2d(dtype=wp.vec2), background: Background,
-                sy: int, sx: int, q: int, tri_s: wp.array2d(dtype=int), bary_s: wp.array2d(dtype=wp.vec2),
-                bg_s: wp.array2d(dtype=wp.vec3)):
-    """Sample list entry q ← sub-pixel (sy, sx); the environment along its ray if it sees no object."""
-    t = tri_id[sy, sx]
+def _gather_one(sub_tri: wp.array2d(dtype=int), sub_bary: wp.array2d(dtype=wp.vec2), background: Background,
+                i: int, p: int, sy: int, sx: int, q: int, tri_s: wp.array2d(dtype=int),
+                bary_s: wp.array2d(dtype=wp.vec2), bg_s: wp.array2d(dtype=wp.vec3)):
+    """Sample list entry q ← sub-pixel p of listed pixel i, at (sy, sx) of the a× grid; the
+    environment along its ray if it sees no object."""
+    t = sub_tri[i, p]
     tri_s[0, q] = t
-    bary_s[0, q] = bary[sy, sx]
+    bary_s[0, q] = sub_bary[i, p]
     if t < 0:
         bg_s[0, q] = background_at(background, sy, sx)
 
 
 @wp.kernel(enable_backward=False)
-def gather_kernel(base: int, idx: wp.array(dtype=int), tri_id: wp.array2d(dtype=int), bary: wp.array2d(dtype=wp.vec2),
-                  background: Background, count: wp.array(dtype=int), offset: wp.array(dtype=int),
+def gather_kernel(base: int, idx: wp.array(dtype=int), sub_tri: wp.array2d(dtype=int),
+                  sub_bary: wp.array2d(dtype=wp.vec2), background: Background, count: wp.array(dtype=int), offset: wp.array(dtype=int),
                   edge: wp.array(dtype=int), a: int, W: int, tri_s: wp.array2d(dtype=int),
                   bary_s: wp.array2d(dtype=wp.vec2), bg_s: wp.array2d(dtype=wp.vec3), weight_s: wp.array(dtype=float)):
     """Write the second-pass samples of listed pixel k = ``idx[i]`` at ``offset[i]`` (nothing for
@@ -261,23 +236,22 @@ def gather_kernel(base: int, idx: wp.array(dtype=int), tri_id: wp.array2d(dtype=
     o = offset[i]
     if edge[i] == 0:
         for q in range(a * a):
-            _gather_one(tri_id, bary, background, y * a + q / a, x * a + q % a, o + q, tri_s, bary_s, bg_s)
+            _gather_one(sub_tri, sub_bary, background, i, q, y * a + q / a, x * a + q % a, o + q, tri_s, bary_s, bg_s)
             weight_s[o + q] = 1.0 / float(n)
         return
     m = int(0)
     for q in range(a * a):
-        if _first_of_group(tri_id, y * a, x * a, a, q) == 1:
-            sy = y * a + q / a
-            sx = x * a + q % a
-            _gather_one(tri_id, bary, background, sy, sx, o + m, tri_s, bary_s, bg_s)
-            t = tri_id[sy, sx]
+        if _first_of_group(sub_tri, i, q) == 1:
+            _gather_one(sub_tri, sub_bary, background, i, q, y * a + q / a, x * a + q % a, o + m, tri_s, bary_s,
+                        bg_s)
+            t = sub_tri[i, q]
             c = float(1.0)
             if t >= 0:  # the whole group: mean barycentrics, share of the sub-pixels
                 b = wp.vec2(0.0, 0.0)
                 c = float(0.0)
                 for p in range(q, a * a):
-                    if tri_id[y * a + p / a, x * a + p % a] == t:
-                        b += bary[y * a + p / a, x * a + p % a]
+                    if sub_tri[i, p] == t:
+                        b += sub_bary[i, p]
                         c += 1.0
                 bary_s[0, o + m] = b / c
             weight_s[o + m] = c / float(a * a)
@@ -315,54 +289,44 @@ def _plan(count: wp.array) -> tuple[wp.array, int]:
 
 @wp.kernel(enable_backward=False)
 def _counts_kernel(idx: wp.array(dtype=int), cand: wp.array(dtype=int), edge: wp.array(dtype=int),
-                   mask: wp.array(dtype=wp.uint8), out: wp.array(dtype=int)):
-    """(candidates, edges, contrast pixels, flagged tiles) of the listed pixels ``idx`` by atomics
-    (one CUDA launch)."""
+                   out: wp.array(dtype=int)):
+    """(candidates, edges, contrast pixels) of the listed pixels ``idx`` by atomics (one CUDA
+    launch)."""
     k = wp.tid()
-    if k < idx.shape[0]:
-        c = cand[idx[k]]
-        if c != 0:
-            wp.atomic_add(out, 0, 1)
-        if edge[k] != 0:
-            wp.atomic_add(out, 1, 1)
-        if (c & CAND_CONTRAST) != 0:
-            wp.atomic_add(out, 2, 1)
-    if k < mask.shape[0]:
-        if mask[k] != wp.uint8(0):
-            wp.atomic_add(out, 3, 1)
+    c = cand[idx[k]]
+    if c != 0:
+        wp.atomic_add(out, 0, 1)
+    if edge[k] != 0:
+        wp.atomic_add(out, 1, 1)
+    if (c & CAND_CONTRAST) != 0:
+        wp.atomic_add(out, 2, 1)
 
 
-def _counts(idx, cand, edge, mask, device) -> dict:
-    """The frame's pixel and tile counts (``idx``: the listed pixels, ``edge`` per list entry):
-    numpy views on the CPU; on CUDA a reduction on the device, so that only four integers come
-    back (not the per-pixel arrays)."""
+def _counts(idx, cand, edge, device) -> dict:
+    """The frame's pixel counts (``idx``: the listed pixels, ``edge`` per list entry): numpy views
+    on the CPU; on CUDA a reduction on the device, so that only three integers come back (not the
+    per-pixel arrays)."""
     import numpy as np
 
     if str(device).startswith("cpu"):
         c = cand.numpy()[idx.numpy()]
-        n = (np.count_nonzero(c), int(edge.numpy().sum()), np.count_nonzero(c & CAND_CONTRAST),
-             np.count_nonzero(mask.numpy()))
+        n = (np.count_nonzero(c), int(edge.numpy().sum()), np.count_nonzero(c & CAND_CONTRAST))
     else:
-        out = wp.zeros(4, dtype=int, device=device)
-        wp.launch(_counts_kernel, dim=max(idx.shape[0], mask.shape[0]), inputs=[idx, cand, edge, mask, out],
-                  device=device)
+        out = wp.zeros(3, dtype=int, device=device)
+        wp.launch(_counts_kernel, dim=idx.shape[0], inputs=[idx, cand, edge, out], device=device)
         n = out.numpy()
-    return {"candidate_pixels": int(n[0]), "edge_pixels": int(n[1]), "contrast_pixels": int(n[2]),
-            "tile_fraction": float(n[3]) / max(int(mask.shape[0]), 1)}
+    return {"candidate_pixels": int(n[0]), "edge_pixels": int(n[1]), "contrast_pixels": int(n[2])}
 
 
-class SubpixelCache:
+class ContourCache:
     """What antialiasing keeps between frames of one renderer (static geometry): the mesh's edge
-    adjacency (once), the contour mask of the current camera, and the sub-pixel raster of the
-    current camera with the tiles it holds — a later frame (a material, light or environment edit)
-    rasterises only the tiles it newly needs (``raster.rasterize`` leaves the other tiles of a
-    reused buffer as they are)."""
+    adjacency (once) and the contour mask of the current camera (a material, light or environment
+    edit reuses it)."""
 
     def __init__(self, positions: wp.array, tris: wp.array, device):
         self.positions, self.tris, self.device = positions, tris, device
         self.edges = None
         self._contours = (None, None)
-        self._sub = (None, None, None)  # (key, flagged tiles (numpy bool), VisibilityBuffer)
 
     def contours(self, camera) -> wp.array:
         from .silhouette import edge_adjacency, mark_contours
@@ -376,41 +340,22 @@ class SubpixelCache:
             self._contours = (key, mark_contours(self.positions, self.tris, *self.edges, camera, self.device))
         return self._contours[1]
 
-    def raster(self, camera, a: int, mask: wp.array):
-        """The a× visibility buffer, valid at least on the tiles ``mask`` flags."""
-        import numpy as np
 
-        import raster as R
-
-        key = (repr(camera), int(a))
-        want = mask.numpy().astype(bool)
-        old_key, have, vb = self._sub
-        if old_key == key and not (want & ~have).any():
-            return vb
-        if old_key == key:  # draw just the new tiles into the same buffer
-            draw, have = want & ~have, want | have
-        else:
-            draw, have = want, want
-        vb = R.rasterize(self.positions, self.tris, camera, device=self.device, supersample=a, validate=False,
-                         reuse=vb, tile_mask=wp.array(draw.astype(np.uint8), dtype=wp.uint8, device=self.device))
-        self._sub = (key, have, vb)
-        return vb
-
-
-def render_adaptive(vb1, img, contours, raster_sub, tri_object: wp.array, background: Background, a: int,
-                    H: int, W: int, shade, device):
+def render_adaptive(vb1, img, contours, tri_object: wp.array, background: Background, a: int, H: int, W: int,
+                    shade, device):
     """Antialias ``img`` (H, W) ``wp.array(dtype=vec3)``, the frame shaded once per pixel centre
-    from the 1× visibility buffer ``vb1``, in place (module docstring). ``contours``: (H, W) uint8
-    of :func:`warp_sg.silhouette.mark_contours`; ``raster_sub(tile_mask)`` rasterises the a×a
-    sub-pixels of the flagged tiles (``raster.rasterize(..., supersample=a, tile_mask=...)``);
-    ``shade(tri_s, bary_s, bg_s, out)`` shades a 1 × N sample list; ``background``: the camera
-    rays and environment of the a×a grid (:func:`warp_sg.background.background_params`). Returns
-    ``(image, stats)``: candidate, edge and contrast pixel counts, the flagged tile fraction, the
-    samples of the second pass and the seconds ``raster_sub`` took."""
+    from the 1× visibility buffer ``vb1`` (``raster.rasterize(..., subsamples=a)``: it keeps the
+    tile queues that :func:`raster.subsample.subsample` reads the candidates' sub-pixels from), in
+    place (module docstring). ``contours``: (H, W) uint8 of
+    :func:`warp_sg.silhouette.mark_contours`; ``shade(tri_s, bary_s, bg_s, out)`` shades a 1 × N
+    sample list; ``background``: the camera rays and environment of the a×a grid
+    (:func:`warp_sg.background.background_params`). Returns ``(image, stats)``: candidate, edge and
+    contrast pixel counts, the fraction of raster tiles that hold candidates, the samples of the
+    second pass and the seconds the sub-pixel coverage took."""
     import time
 
-    from raster import parallel, tile_grid
-    from raster.fixed import TILE
+    from raster import parallel
+    from raster.subsample import subsample
 
     n_pix = H * W
     cand = wp.empty(n_pix, dtype=int, device=device)
@@ -421,25 +366,25 @@ def render_adaptive(vb1, img, contours, raster_sub, tri_object: wp.array, backgr
     if n_c == 0:  # nothing to antialias
         return img, {"candidate_pixels": 0, "edge_pixels": 0, "contrast_pixels": 0, "tile_fraction": 0.0,
                      "pass1_samples": n_pix, "pass2_samples": 0, "raster_seconds": 0.0}
-    tiles_x, tiles_y = tile_grid(W * a, H * a)
-    mask = wp.zeros(tiles_x * tiles_y, dtype=wp.uint8, device=device)
-    parallel.launch(tiles_kernel, n_c, [idx, W, a, TILE, tiles_x, mask], device)
     t = time.perf_counter()
-    vb = raster_sub(mask)
+    sub_tri, sub_bary, sub_invw, n_tiles = subsample(vb1, idx)
     raster_seconds = time.perf_counter() - t
     edge = wp.empty(n_c, dtype=int, device=device)
     count = wp.empty(n_c, dtype=int, device=device)
-    parallel.launch(classify_kernel, n_c, [idx, cand, vb.tri_id, vb.inv_depth, tri_object, a, EDGE_DEPTH_RESIDUAL,
-                                           W, edge, count], device)
+    parallel.launch(classify_kernel, n_c, [idx, cand, sub_tri, sub_invw, tri_object, a, EDGE_DEPTH_RESIDUAL, edge,
+                                           count], device)
     offset, n = _plan(count)
-    stats = {**_counts(idx, cand, edge, mask, device), "pass1_samples": n_pix, "pass2_samples": n,
-             "raster_seconds": raster_seconds}
+    from raster import tile_grid
+
+    tx, ty = tile_grid(W, H)
+    stats = {**_counts(idx, cand, edge, device), "tile_fraction": n_tiles / (tx * ty), "pass1_samples": n_pix,
+             "pass2_samples": n, "raster_seconds": raster_seconds}
     if n > 0:
         tri_s = wp.empty((1, n), dtype=int, device=device)
         bary_s = wp.empty((1, n), dtype=wp.vec2, device=device)
         bg_s = wp.empty((1, n), dtype=wp.vec3, device=device)
         weight_s = wp.empty(n, dtype=float, device=device)
-        parallel.launch(gather_kernel, n_c, [idx, vb.tri_id, vb.bary, background, count, offset, edge, a, W, tri_s,
+        parallel.launch(gather_kernel, n_c, [idx, sub_tri, sub_bary, background, count, offset, edge, a, W, tri_s,
                                              bary_s, bg_s, weight_s], device)
         out = wp.empty((1, n), dtype=wp.vec3, device=device)
         shade(tri_s, bary_s, bg_s, out)
@@ -447,4 +392,4 @@ def render_adaptive(vb1, img, contours, raster_sub, tri_object: wp.array, backgr
     return img, stats
 
 
-__all__ = ["render_adaptive", "SubpixelCache", "EDGE_DEPTH_RESIDUAL", "CONTRAST", "CAND_GEOMETRY", "CAND_CONTRAST"]
+__all__ = ["render_adaptive", "ContourCache", "EDGE_DEPTH_RESIDUAL", "CONTRAST", "CAND_GEOMETRY", "CAND_CONTRAST"]

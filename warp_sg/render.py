@@ -113,7 +113,7 @@ class Renderer:
         self.timings["precompute"] = time.perf_counter() - t0
         self._background_key = None
         self._background = self._background_vb = None
-        self._subpixels = None  # antialiasing's per-camera caches (warp_sg.antialias.SubpixelCache)
+        self._contours = None  # antialiasing's per-camera contour marks (warp_sg.antialias.ContourCache)
         self._vb_key = None
         self._vb = None
 
@@ -503,19 +503,21 @@ class Renderer:
             self._background_key, self._background_vb = key, self._vb
         return self._background
 
-    def rasterize(self, k: int | None = None):
-        """The visibility buffer of the current camera at k×k sub-pixels. The geometry is static
-        and was validated once (``_setup_geometry``): it is rasterised from its device arrays, and
-        the buffer is reused while the camera and k stay the same (material, light and environment
-        edits re-shade only)."""
+    def rasterize(self, k: int | None = None, subsamples: int = 1):
+        """The visibility buffer of the current camera at k×k sub-pixels (``subsamples`` a > 1: with
+        the tile queues antialiasing reads a×a sub-pixels from, ``raster.subsample``). The geometry
+        is static and was validated once (``_setup_geometry``): it is rasterised from its device
+        arrays, and the buffer is reused while the camera and k stay the same (material, light and
+        environment edits re-shade only)."""
         import raster
 
         k = self.scene.render.supersampling if k is None else k
-        key = (repr(self.scene.camera), int(k))
+        key = (repr(self.scene.camera), int(k), int(subsamples))
         if self._vb_key != key:  # the old buffer's arrays are overwritten when the size matches
             old, self._vb = self._vb, None
             self._vb = raster.rasterize(self.geo_arrays.positions, self.geo_arrays.tris, self.scene.camera,
-                                        device=self.device, supersample=k, validate=False, reuse=old)
+                                        device=self.device, supersample=k, validate=False, reuse=old,
+                                        subsamples=subsamples)
             self._vb_key = key
             self.timings["raster_reused"] = False
         else:
@@ -558,27 +560,27 @@ class Renderer:
     def _render_adaptive(self, a: int) -> np.ndarray:
         """Edge- and contrast-adaptive antialiasing on the device (:mod:`warp_sg.antialias`): the
         1× frame, then a×a sub-pixels where it needs them."""
-        from .antialias import SubpixelCache, render_adaptive
+        from .antialias import ContourCache, render_adaptive
 
         d, cam = self.device, self.scene.camera
-        if self._subpixels is None:
-            self._subpixels = SubpixelCache(self.geo_arrays.positions, self.geo_arrays.tris, d)
-        sp = self._subpixels
+        if self._contours is None:
+            self._contours = ContourCache(self.geo_arrays.positions, self.geo_arrays.tris, d)
         shade = lambda tri, bary, bg, out: self._launch_shade(tri, bary, bg, cam.origin, out)  # noqa: E731
         t0 = _timer(d)
-        vb = self.rasterize(1)
+        vb = self.rasterize(1, subsamples=a)
         t1 = _timer(d)
         img = wp.empty((cam.height, cam.width), dtype=wp.vec3, device=d)
         shade(vb.tri_id, vb.bary, self._background_image(1), img)
-        img, st = render_adaptive(vb, img, sp.contours(cam), lambda m: sp.raster(cam, a, m), self._tri_object,
-                                  self._background_params(a), a, cam.height, cam.width, shade, d)
+        img, st = render_adaptive(vb, img, self._contours.contours(cam), self._tri_object, self._background_params(a),
+                                  a, cam.height, cam.width, shade, d)
         t2 = _timer(d)
         out = img.numpy().astype(np.float32)
         t3 = time.perf_counter()
-        sub = st["raster_seconds"]  # the sub-pixel raster, inside render_adaptive
+        sub = st["raster_seconds"]  # the sub-pixel coverage, inside render_adaptive
         self.timings.update(raster=t1 - t0 + sub, shade=t2 - t1 - sub, resolve=t3 - t2, frame=t3 - t0,
                             shaded_samples=st["pass1_samples"] + st["pass2_samples"], edge_pixels=st["edge_pixels"],
-                            contrast_pixels=st["contrast_pixels"], subpixel_tiles=st["tile_fraction"])
+                            contrast_pixels=st["contrast_pixels"], candidate_pixels=st["candidate_pixels"],
+                            subpixel_tiles=st["tile_fraction"], subpixel_seconds=sub)
         return out
 
     def shade_vertices(self, eye=None) -> np.ndarray:

@@ -1,0 +1,212 @@
+"""Sub-sample coverage of listed pixels, from the tile queues of a kept 1× raster.
+
+``rasterize(..., subsamples=a)`` bins every (sub-)triangle that may cover any of a pixel's a×a
+sub-samples — not only those that cover a pixel centre — and keeps the per-tile queues with the
+buffer. :func:`subsample` then finds what each sub-sample of a few listed pixels sees (adaptive
+antialiasing: the pixels on contours and shadow edges), without a second raster of the a×-sized
+grid: one thread per tile that holds listed pixels walks that tile's queue once and tests, for
+each record, the a×a sub-samples of the listed pixels in its bounding box.
+
+The tests are the fine raster's (``fine.py``), at the sub-sample positions
+``(x + (2i+1)/(2a), y + (2j+1)/(2a))`` instead of the centre: coverage by the exact int64 edge
+functions of the same snapped vertices with the top-left rule (evaluated in units of
+1/(2a·SUBPIXEL) px, where every sub-sample position is an integer: watertight, each sub-sample on
+a shared edge covered once), the depth test on the record's 1/w plane (nearest wins, ties to the
+lower triangle id, nothing beyond the far plane), and perspective-correct barycentrics from its
+planes. Sub-samples are therefore those of a raster of the a×-sized grid whose vertices are
+snapped to 1/SUBPIXEL of a *pixel* (not of a sub-pixel): the same image up to ≤ 1/512 px of vertex
+position.
+"""
+from __future__ import annotations
+
+import warp as wp
+
+wp.set_module_options({"enable_backward": False})
+
+from . import parallel  # noqa: E402
+from .fine import closer  # noqa: E402
+from .fixed import SUBPIXEL, TILE, TILE_BITS, edge_topleft, sample_bbox  # noqa: E402
+from .setup import SubTri  # noqa: E402
+
+
+@wp.func
+def _edge(ax: wp.int64, ay: wp.int64, bx: wp.int64, by: wp.int64, sx: wp.int64, sy: wp.int64):
+    """Edge function (b−a)×(s−a) (as ``fixed.edge_eval``) on int64 coordinates."""
+    return (bx - ax) * (sy - ay) - (by - ay) * (sx - ax)
+
+
+@wp.func
+def _grid_max(e: wp.int64, dx: wp.int64, dy: wp.int64, span: wp.int64):
+    """Largest value of an edge function over an a×a sample grid: e at sample (0, 0), steps dx, dy,
+    span = a − 1."""
+    m = e
+    if dx > wp.int64(0):
+        m += dx * span
+    if dy > wp.int64(0):
+        m += dy * span
+    return m
+
+
+@wp.func
+def _plane(pl: wp.mat33, row: int, v0: wp.vec2i, px: float, py: float):
+    """Plane ``row`` of a record at pixel-space point (px, py) (``fixed.eval_plane`` off-centre)."""
+    dx = px - float(v0[0]) * (1.0 / float(SUBPIXEL))
+    dy = py - float(v0[1]) * (1.0 / float(SUBPIXEL))
+    return pl[row, 0] * dx + pl[row, 1] * dy + pl[row, 2]
+
+
+vec16i = wp.types.vector(length=16, dtype=wp.int32)  # one bit row per tile row (TILE = 16)
+
+
+@wp.kernel
+def subsample_tiles_kernel(base: int, tiles: wp.array(dtype=int), tiles_x: int, rows: int, width: int, height: int,
+                           a: int, inv_far: float, slot: wp.array2d(dtype=int), offsets: wp.array(dtype=wp.int32),
+                           queue: wp.array(dtype=SubTri), sub_tri: wp.array2d(dtype=int),
+                           sub_bary: wp.array2d(dtype=wp.vec2), sub_invw: wp.array2d(dtype=float)):
+    """Tile ``tiles[base + tid]``: the a×a sub-samples of its listed pixels (``slot[y, x]`` ≥ 0:
+    row of the outputs; sub-sample q = j·a + i) — the winning triangle (-1: none), its
+    barycentrics (b1, b2) and 1/w (0: none)."""
+    t = tiles[base + wp.tid()]
+    tx = t % tiles_x
+    ty = t / tiles_x
+    X0 = tx * TILE
+    Y0 = ty * TILE
+    X1 = wp.min(X0 + TILE, width) - 1
+    Y1 = wp.min(Y0 + TILE, height) - 1
+    rowbits = vec16i()  # listed pixels of the tile, a bit per column: records that miss them are skipped
+    for y in range(Y0, Y1 + 1):
+        for x in range(X0, X1 + 1):
+            s = slot[y, x]
+            if s >= 0:
+                rowbits[y - Y0] = rowbits[y - Y0] | (1 << (x - X0))
+                for q in range(a * a):
+                    sub_tri[s, q] = -1
+                    sub_bary[s, q] = wp.vec2(0.0, 0.0)
+                    sub_invw[s, q] = 0.0
+    m = wp.int64(2 * a)  # sub-sample coordinates in units of 1/(2a·SUBPIXEL) px
+    o = wp.int64(SUBPIXEL)  # half a sub-pixel
+    d = m * o  # one pixel
+    z = wp.int64(0)
+    inv_a = 1.0 / float(a)
+    for qi in range(offsets[t * rows], offsets[(t + 1) * rows]):
+        rec = queue[qi]
+        bb = sample_bbox(rec.v0, rec.v1, rec.v2, width, height, a)
+        x0 = wp.max(bb[0], X0)
+        y0 = wp.max(bb[1], Y0)
+        x1 = wp.min(bb[2], X1)
+        y1 = wp.min(bb[3], Y1)
+        if x0 > x1 or y0 > y1:
+            continue
+        cols = ((1 << (x1 - X0 + 1)) - 1) & ~((1 << (x0 - X0)) - 1)
+        hit = int(0)
+        for y in range(y0, y1 + 1):
+            hit = hit | (rowbits[y - Y0] & cols)
+        if hit == 0:
+            continue
+        ax = wp.int64(rec.v0[0]) * m
+        ay = wp.int64(rec.v0[1]) * m
+        bx = wp.int64(rec.v1[0]) * m
+        by = wp.int64(rec.v1[1]) * m
+        cx = wp.int64(rec.v2[0]) * m
+        cy = wp.int64(rec.v2[1]) * m
+        t0 = wp.int64(edge_topleft(rec.v0, rec.v1))
+        t1 = wp.int64(edge_topleft(rec.v1, rec.v2))
+        t2 = wp.int64(edge_topleft(rec.v2, rec.v0))
+        # edge functions at sub-sample (0, 0) of a pixel, and their steps to the next sub-sample
+        # along x and y (the fine raster's incremental form, exact in int64)
+        dx0 = -(by - ay) * (o + o)
+        dx1 = -(cy - by) * (o + o)
+        dx2 = -(ay - cy) * (o + o)
+        dy0 = (bx - ax) * (o + o)
+        dy1 = (cx - bx) * (o + o)
+        dy2 = (ax - cx) * (o + o)
+        span = wp.int64(a - 1)
+        for y in range(y0, y1 + 1):
+            for x in range(x0, x1 + 1):
+                if (rowbits[y - Y0] & (1 << (x - X0))) == 0:
+                    continue
+                sx = wp.int64(x) * d + o
+                sy = wp.int64(y) * d + o
+                r0 = _edge(ax, ay, bx, by, sx, sy) + t0
+                r1 = _edge(bx, by, cx, cy, sx, sy) + t1
+                r2 = _edge(cx, cy, ax, ay, sx, sy) + t2
+                # the pixel's sub-samples all outside one edge: nothing to test
+                if (_grid_max(r0, dx0, dy0, span) <= z or _grid_max(r1, dx1, dy1, span) <= z
+                        or _grid_max(r2, dx2, dy2, span) <= z):
+                    continue
+                s = slot[y, x]
+                for j in range(a):
+                    e0 = r0
+                    e1 = r1
+                    e2 = r2
+                    for i in range(a):
+                        if e0 > z and e1 > z and e2 > z:
+                            fx = float(x) + (float(i) + 0.5) * inv_a
+                            fy = float(y) + (float(j) + 0.5) * inv_a
+                            invw = _plane(rec.p, 0, rec.v0, fx, fy)
+                            q = j * a + i
+                            if invw >= inv_far and closer(invw, rec.tri, sub_invw[s, q], sub_tri[s, q]):
+                                b1 = wp.clamp(_plane(rec.p, 1, rec.v0, fx, fy) / invw, 0.0, 1.0)
+                                b2 = wp.clamp(_plane(rec.p, 2, rec.v0, fx, fy) / invw, 0.0, 1.0)
+                                tot = b1 + b2
+                                if tot > 1.0:
+                                    b1 = b1 / tot
+                                    b2 = b2 / tot
+                                sub_invw[s, q] = invw
+                                sub_tri[s, q] = rec.tri
+                                sub_bary[s, q] = wp.vec2(b1, b2)
+                        e0 += dx0
+                        e1 += dx1
+                        e2 += dx2
+                    r0 += dy0
+                    r1 += dy1
+                    r2 += dy2
+
+
+@wp.kernel
+def _slots_kernel(base: int, pixels: wp.array(dtype=int), width: int, tiles_x: int, slot: wp.array2d(dtype=int),
+                  tile_flag: wp.array(dtype=int)):
+    """slot[pixel] = its row i; flag the pixel's tile (plain stores of one value: no race)."""
+    i = base + wp.tid()
+    k = pixels[i]
+    y = k / width
+    x = k - y * width
+    slot[y, x] = i
+    tile_flag[(y >> TILE_BITS) * tiles_x + (x >> TILE_BITS)] = 1
+
+
+def subsample(vb, pixels: wp.array):
+    """What the a×a sub-samples of the listed pixels see, for a buffer of
+    ``rasterize(..., subsamples=a)``: ``(tri, bary, inv_depth, tiles)`` — ``wp.array2d`` of shape
+    (n, a²) (int, vec2, float; sub-sample q = j·a + i of pixel ``pixels[r]`` (row-major index
+    y·W + x, distinct) in row r; tri -1 and inv_depth 0 where it sees nothing) and the number of
+    tiles visited."""
+    a = int(getattr(vb, "_subsamples", 1))
+    if a < 2:
+        raise ValueError("subsample() needs a buffer rasterised with subsamples > 1")
+    device = vb.device
+    n = int(pixels.shape[0])
+    W, H = vb.width, vb.height
+    tri = wp.empty((max(n, 1), a * a), dtype=int, device=device)
+    bary = wp.empty((max(n, 1), a * a), dtype=wp.vec2, device=device)
+    invw = wp.empty((max(n, 1), a * a), dtype=float, device=device)
+    if n == 0:
+        return tri[:0], bary[:0], invw[:0], 0
+    tiles_x = (W + TILE - 1) // TILE
+    n_tiles = tiles_x * ((H + TILE - 1) // TILE)
+    slot = wp.full((H, W), -1, dtype=int, device=device)
+    flag = wp.zeros(n_tiles, dtype=int, device=device)
+    parallel.launch(_slots_kernel, n, [pixels, W, tiles_x, slot, flag], device)
+    tiles = parallel.compact(flag, device)
+    if vb._offsets is None:  # nothing was binned: every sub-sample sees nothing
+        tri.fill_(-1)
+        bary.zero_()
+        invw.zero_()
+        return tri, bary, invw, int(tiles.shape[0])
+    parallel.launch(subsample_tiles_kernel, int(tiles.shape[0]),
+                    [tiles, tiles_x, vb._rows, W, H, a, float(vb._inv_far), slot, vb._offsets,
+                     vb._queue, tri, bary, invw], device, chunks=8 * parallel.cpu_workers(), min_chunk=1)
+    return tri, bary, invw, int(tiles.shape[0])
+
+
+__all__ = ["subsample", "subsample_tiles_kernel"]
