@@ -162,7 +162,7 @@ def _as_numpy_mesh(vertices, triangles):
 
 
 def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: int = 1,
-              cull_backfaces: bool = False, coverage_count: bool = False, max_pairs: int | None = None,
+              cull_backfaces=False, coverage_count: bool = False, max_pairs: int | None = None,
               schedule: str = "auto", profile: bool = False, validate: bool = True,
               reuse: VisibilityBuffer | None = None, tile_mask: wp.array | None = None,
               subsamples: int = 1) -> VisibilityBuffer:
@@ -170,7 +170,9 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
 
     ``vertices`` (N, 3) float, ``triangles`` (M, 3) int (numpy or ``wp.array``); ``camera`` a
     :class:`Camera` (or any object with its fields); ``supersample`` k ≥ 1; ``cull_backfaces``
-    drops triangles whose front (counter-clockwise) side faces away; ``coverage_count`` also
+    drops triangles whose front (counter-clockwise) side faces away — all of them (True), or
+    those with a set flag (one per triangle: a renderer culls the closed objects it sees from
+    outside); ``coverage_count`` also
     returns per-pixel coverage counts (depth test off); ``max_pairs`` bounds the tile-queue
     memory (64-byte (triangle, tile) entries per pass; more passes when exceeded); ``schedule`` =
     "tile" | "pixel" | "auto" picks the fine raster kernel (auto: tiles on CPU, pixels on CUDA); ``profile`` records per-stage wall
@@ -264,7 +266,7 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
         clock.lap("vertex")
 
         # triangle setup: slot i = first piece of triangle i; clipped triangles' further pieces after M
-        cull = int(bool(cull_backfaces))
+        cull, cull_tri = _cull_args(cull_backfaces, n_t, device, ws)
         extra = ws.get("extra", n_t + 1, wp.int32)
         extra[n_t:].zero_()
         subs = ws.get("subs", n_t, SubTri)
@@ -272,7 +274,7 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
         grid = max(int(subsamples), 1)
         bin_args = [bins.batch, bins.rows, bins.tiles_x, bins.counts, masked, mask_arg, grid]
         parallel.launch_rows(setup_kernel, n_t, min(bins.rows, n_t),
-                             [clip, vsnap, vcode, tris, W, H, near, gx, gy, cull, subs, extra, *bin_args], device)
+                             [clip, vsnap, vcode, tris, W, H, near, gx, gy, cull, cull_tri, subs, extra, *bin_args], device)
         extra_off = ws.get("extra_off", n_t + 1, wp.int32)
         n_extra = scan_counts(extra, extra_off)
         if n_extra > 0:
@@ -280,7 +282,8 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
             wp.copy(grown, subs, count=n_t)
             subs = grown
             parallel.launch_rows(setup_extra_kernel, n_t, min(bins.rows, n_t),
-                                 [clip, tris, W, H, near, gx, gy, cull, extra, extra_off, subs, *bin_args], device)
+                                 [clip, tris, W, H, near, gx, gy, cull, cull_tri, extra, extra_off, subs, *bin_args],
+                                 device)
         clock.lap("setup")
         n_sub = n_t + n_extra
         stats["sub_triangles"] = n_sub
@@ -308,6 +311,21 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
         vb.depth
         clock.lap("resolve")
     return vb
+
+
+def _cull_args(cull_backfaces, n_t: int, device: str, ws) -> tuple:
+    """(mode, per-triangle flags) of ``rasterize(cull_backfaces=...)``: a bool (0 / 1, flags
+    unused) or one flag per triangle (mode 2; a ``wp.array(uint8)`` on the device or array-like)."""
+    if isinstance(cull_backfaces, (bool, int, np.bool_)) or cull_backfaces is None:
+        return int(bool(cull_backfaces)), ws.get("no_cull", 1, wp.uint8)
+    if isinstance(cull_backfaces, wp.array) and cull_backfaces.dtype == wp.uint8 and str(cull_backfaces.device) == device:
+        flags = cull_backfaces
+    else:
+        flags = wp.array(np.ascontiguousarray(np.asarray(cull_backfaces).astype(np.uint8).reshape(-1)), dtype=wp.uint8,
+                         device=device)
+    if flags.shape[0] != n_t:
+        raise InputError(f"cull_backfaces has {flags.shape[0]} flags for {n_t} triangles", where="cull_backfaces")
+    return 2, flags
 
 
 class _Bins:

@@ -316,6 +316,16 @@ def invertible(m: wp.mat33d):
     return det != wp.float64(0.0) and wp.isfinite(det)
 
 
+@wp.func
+def _culls(cull: int, cull_tri: wp.array(dtype=wp.uint8), i: int):
+    """Whether triangle i drops its back face: ``cull`` 0 none, 1 every triangle, 2 where
+    ``cull_tri[i]`` is set (the closed objects the camera sees from outside)."""
+    c = cull
+    if cull == 2:
+        c = int(cull_tri[i] != wp.uint8(0))
+    return c
+
+
 # ---------------------------------------------------------------------------------------------
 # the setup kernels
 # ---------------------------------------------------------------------------------------------
@@ -332,6 +342,7 @@ def setup_kernel(
     gx: wp.float64,
     gy: wp.float64,
     cull: int,
+    cull_tri: wp.array(dtype=wp.uint8),
     subs: wp.array(dtype=SubTri),
     extra: wp.array(dtype=wp.int32),
     bin_batch: int,
@@ -348,6 +359,7 @@ def setup_kernel(
     if i >= tris.shape[0]:
         return
     t = tris[i]
+    c = _culls(cull, cull_tri, i)
     k0 = vcode[t[0]]
     k1 = vcode[t[1]]
     k2 = vcode[t[2]]
@@ -360,7 +372,7 @@ def setup_kernel(
         if ((k0 | k1 | k2) & CLIP_MASK) == 0:
             # fast path: no clipping, vertices already snapped
             s0 = vsnap[t[0]]
-            a, b, bb = make_piece(s0, vsnap[t[1]], vsnap[t[2]], width, height, cull, grid)
+            a, b, bb = make_piece(s0, vsnap[t[1]], vsnap[t[2]], width, height, c, grid)
             if bb[0] <= bb[2]:
                 n_valid = 1
                 if not bbox_drawn(bb, tiles_x, masked, tile_mask):  # only tiles this raster skips
@@ -372,7 +384,7 @@ def setup_kernel(
                 q0 = polygon_snap(px, py, pw, 0, width, height)
                 for k in range(n - 2):
                     qa, qb, qbb = make_piece(q0, polygon_snap(px, py, pw, k + 1, width, height),
-                                             polygon_snap(px, py, pw, k + 2, width, height), width, height, cull, grid)
+                                             polygon_snap(px, py, pw, k + 2, width, height), width, height, c, grid)
                     if qbb[0] <= qbb[2]:
                         if n_valid == 0:
                             s0 = q0
@@ -411,6 +423,7 @@ def setup_extra_kernel(
     gx: wp.float64,
     gy: wp.float64,
     cull: int,
+    cull_tri: wp.array(dtype=wp.uint8),
     extra: wp.array(dtype=wp.int32),
     extra_off: wp.array(dtype=wp.int32),
     subs: wp.array(dtype=SubTri),
@@ -429,13 +442,14 @@ def setup_extra_kernel(
     if extra[i] == 0:
         return
     t = tris[i]
+    c = _culls(cull, cull_tri, i)
     px, py, pw, n = clip_triangle(clip[t[0]], clip[t[1]], clip[t[2]], near, gx, gy)
     q0 = polygon_snap(px, py, pw, 0, width, height)
     n_valid = int(0)
     o = tris.shape[0] + extra_off[i]
     for k in range(n - 2):
         qa, qb, qbb = make_piece(q0, polygon_snap(px, py, pw, k + 1, width, height),
-                                 polygon_snap(px, py, pw, k + 2, width, height), width, height, cull, grid)
+                                 polygon_snap(px, py, pw, k + 2, width, height), width, height, c, grid)
         if qbb[0] <= qbb[2]:
             if n_valid > 0:
                 rec = subs[i]  # first piece: same triangle, same fan apex q0, hence same planes

@@ -40,7 +40,7 @@ LAYERS = (
               "warp_sg.sg_irradiance", "warp_sg.ssdf_product", "warp_sg.anisotropy", "warp_sg.pca",
               "warp_sg.brdf", "warp_sg.brdf.*")),
     ("scene", ("warp_sg.scene", "warp_sg.scene_model", "warp_sg.scene_toml", "warp_sg.scene_schema",
-               "warp_sg.scene_values", "warp_sg.geometry", "warp_sg.camera",
+               "warp_sg.scene_values", "warp_sg.geometry", "warp_sg.camera", "warp_sg.culling",
                "warp_sg.envmap", "warp_sg.primitives", "warp_sg.textures", "warp_sg.lights",
                "warp_sg.plain_scenes", "warp_sg.gltf", "warp_sg.asset_scene")),
     # the public facade ``warp_sg`` (``ws.render``, ``ws.reference``: lazy) sits on top with the tools

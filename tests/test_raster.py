@@ -157,6 +157,25 @@ def test_backface_culling_keeps_outside_view_and_empties_inside_view(device):
     assert (raster.rasterize(V, F, inside, device=device).tri_id.numpy() >= 0).all()
 
 
+def test_per_triangle_culling_drops_only_the_flagged_back_faces(device):
+    """``cull_backfaces`` as one flag per triangle: seen from inside the sphere every face is a back
+    face and each ray meets one; the pixels of flagged triangles see nothing, the others are as
+    drawn without culling. A wrong count is an input error."""
+    from warp_sg.errors import InputError
+
+    V, F = uv_sphere(48, 24)
+    inside = _cam(w=32, h=32, origin=(0.0, 0.1, 0.0), target=(0.0, 0.0, -1.0))
+    full = raster.rasterize(V, F, inside, device=device).tri_id.numpy()
+    flags = (np.arange(len(F)) % 2).astype(np.uint8)
+    for given in (flags, wp.array(flags, dtype=wp.uint8, device=device)):
+        got = raster.rasterize(V, F, inside, device=device, cull_backfaces=given).tri_id.numpy()
+        kept = flags[full] == 0
+        assert kept.sum() > 100 and (got[kept] == full[kept]).all()
+        assert (got[~kept] == -1).all()
+    with pytest.raises(InputError, match="cull_backfaces"):
+        raster.rasterize(V, F, inside, device=device, cull_backfaces=flags[:-1])
+
+
 def test_interpolated_positions_equal_raycast_hit_points(device):
     V, F = torus_mesh(64, 32)
     cam = _cam(w=64, h=48, origin=(0.0, 2.0, 2.0))

@@ -39,6 +39,22 @@ class Geometry:
     dropped_triangles: int = 0
 
 
+def vertex_samples(triangles: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
+    """For every vertex a triangle that contains it and the barycentrics (b1, b2) that select it
+    there: ``(tri_id (V,) int32, bary (V, 2) float32)``, -1 and (0, 0) for unreferenced vertices
+    (a "visibility buffer" of the vertices: ``Renderer.shade_vertices``)."""
+    T = np.asarray(triangles)
+    owner = np.full(n_vertices, -1, np.int32)
+    corner = np.zeros(n_vertices, np.int32)
+    for k in range(3):
+        owner[T[:, k]] = np.arange(len(T), dtype=np.int32)
+        corner[T[:, k]] = k
+    bary = np.zeros((n_vertices, 2), np.float32)
+    bary[corner == 1, 0] = 1.0
+    bary[corner == 2, 1] = 1.0
+    return owner, bary
+
+
 # --------------------------------------------------------------------------------------------
 # meshes
 # --------------------------------------------------------------------------------------------
@@ -242,4 +258,4 @@ def build_geometry(scene) -> Geometry:
     )
 
 
-__all__ = ["Geometry", "validate_mesh", "vertex_normals", "uv_tangents", "object_mesh", "build_geometry"]
+__all__ = ["Geometry", "validate_mesh", "vertex_normals", "uv_tangents", "object_mesh", "build_geometry", "vertex_samples"]

@@ -114,8 +114,7 @@ class Renderer:
         self._background_key = None
         self._background = self._background_vb = None
         self._contours = None  # antialiasing's per-camera contour marks (warp_sg.antialias.ContourCache)
-        self._vb_key = None
-        self._vb = None
+        self._vb_key = self._vb = self._culling = None
 
     def precomputed(self) -> dict:
         """The mesh refinement and SSDFs of this renderer (plain numpy data, picklable), for
@@ -517,7 +516,7 @@ class Renderer:
             old, self._vb = self._vb, None
             self._vb = raster.rasterize(self.geo_arrays.positions, self.geo_arrays.tris, self.scene.camera,
                                         device=self.device, supersample=k, validate=False, reuse=old,
-                                        subsamples=subsamples)
+                                        subsamples=subsamples, cull_backfaces=self._cull_flags())
             self._vb_key = key
             self.timings["raster_reused"] = False
         else:
@@ -583,22 +582,23 @@ class Renderer:
                             subpixel_tiles=st["tile_fraction"], subpixel_seconds=sub)
         return out
 
+    def _cull_flags(self):
+        """The back faces the raster may drop (``warp_sg.culling``: closed objects seen from outside)."""
+        from .culling import BackfaceCulling
+
+        if self._culling is None:
+            self._culling = BackfaceCulling(self.geometry, self.device)
+        return self._culling.flags(self.scene.camera)
+
     def shade_vertices(self, eye=None) -> np.ndarray:
         """The renderer's shading evaluated at every mesh vertex (V, 3) float32, seen from ``eye``
         (default: the camera origin). Uses the same kernel as :meth:`render` on a one-row
         "visibility buffer" whose entries select each vertex of a triangle that contains it
         (used by the pyvista preview). Unreferenced vertices get 0."""
-        g = self.geometry
-        d = self.device
-        nv, nt = len(g.vertices), len(g.triangles)
-        owner = np.full(nv, -1, np.int32)
-        corner = np.zeros(nv, np.int32)
-        for k in range(3):
-            owner[g.triangles[:, k]] = np.arange(nt, dtype=np.int32)
-            corner[g.triangles[:, k]] = k
-        bary = np.zeros((nv, 2), np.float32)
-        bary[corner == 1, 0] = 1.0
-        bary[corner == 2, 1] = 1.0
+        from .geometry import vertex_samples
+
+        d, nv = self.device, len(self.geometry.vertices)
+        owner, bary = vertex_samples(self.geometry.triangles, nv)
         tri_id = wp.array(owner.reshape(1, nv), dtype=int, device=d)
         bary_w = wp.array(bary.reshape(1, nv, 2), dtype=wp.vec2, device=d)
         bg = wp.zeros((1, nv), dtype=wp.vec3, device=d)
