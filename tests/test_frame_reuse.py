@@ -123,3 +123,21 @@ def test_a_new_view_overwrites_the_old_buffer_and_equals_a_fresh_rasterisation(r
     # a buffer of another size is not reused
     c = raster.rasterize(ga.positions, ga.tris, moved, device="cpu", supersample=1, validate=False, reuse=a)
     assert c.tri_id.ptr != a.tri_id.ptr and c.tri_id.shape == (cam.height, cam.width)
+
+
+@pytest.mark.parametrize("render", [{"antialias": 2}, {"supersampling": 2, "antialias": 1}])
+def test_the_background_of_a_new_view_and_of_a_reshade_are_the_same(render):
+    """A new view reads the environment along the camera rays inside the shading kernel; a re-shade
+    (same camera) builds the background image once (``background_image``, checked against numpy
+    above) and reads it: the frames are bit-identical, under a sky that varies with direction."""
+    scene = replace(_scene(), lights=[EnvironmentLight(procedural="sky", options={"width": 64, "height": 32})])
+    scene = replace(scene, render=replace(scene.render, **render))
+    r = Renderer(scene, device="cpu")
+    new_view = r.render()
+    assert r.timings["raster_reused"] is False and r._bg._image is None
+    r.set_material("floor", kd=[0.5, 0.5, 0.5])
+    reshade = r.render()
+    assert r.timings["raster_reused"] is True and r._bg._image is not None
+    np.testing.assert_array_equal(new_view, reshade)
+    sky = new_view[0].sum(-1)  # the top row sees only the sky
+    assert sky.std() > 1e-3 * sky.mean()

@@ -93,4 +93,65 @@ def background_image(bg: Background, device, tri_id: wp.array | None = None) -> 
     return out
 
 
-__all__ = ["Background", "background_at", "background_kernel", "background_params", "background_image"]
+class BackgroundCache:
+    """What a renderer's (sub)pixels that see no object show, frame by frame: the environment map
+    on the device (uploaded once) and, for a camera that stays put, the (k·H, k·W) image.
+
+    :meth:`for_frame`: a new view gets the camera rays (a :class:`Background`; the shading kernel
+    reads the environment along them for its background pixels, no separate pass over the
+    image); a re-shade (a material, light or environment edit: the same camera and visibility
+    buffer as the frame before) builds the image once and reuses it."""
+
+    def __init__(self, device):
+        self.device = device
+        self._radiance = None
+        self._key = self._vb = self._image = None
+        self._placeholders = None
+
+    def params(self, camera, k: int, env_light, env_base, show: bool) -> Background:
+        """The :class:`Background` of ``camera`` at k×k sub-pixels (black without an environment
+        or with ``show`` off)."""
+        radiance = None
+        if env_light is not None and show:
+            if self._radiance is None:
+                self._radiance = wp.array(np.ascontiguousarray(env_base, np.float32), dtype=wp.vec3, device=self.device)
+            radiance = self._radiance
+        return background_params(camera, k, radiance, None if env_light is None else env_light.rotation_matrix(),
+                                 1.0 if env_light is None else env_light.scale, self.device)
+
+    def for_frame(self, camera, k: int, env_light, env_base, show: bool, vb, reused: bool):
+        """The cached image when it is this frame's (``vb``: the visibility buffer it was masked
+        with), else the rays of a new view, or the image built now for a re-shade (``reused``)."""
+        key = (repr(camera), k, None if env_light is None else (env_light.rotation, env_light.scale), show)
+        if key != self._key or self._vb is not vb:
+            if not reused:
+                return self.params(camera, k, env_light, env_base, show)
+            self._image = None  # only where the visibility buffer sees no object
+            self._image = background_image(self.params(camera, k, env_light, env_base, show), self.device, vb.tri_id)
+            self._key, self._vb = key, vb
+        return self._image
+
+    def kernel_args(self, bg) -> list:
+        """The shading kernel's ``(background, rays, use_rays)`` for ``bg``: an image or gathered
+        samples (``wp.array``), or the camera rays (:class:`Background`)."""
+        if self._placeholders is None:
+            self._placeholders = (wp.zeros((1, 1), dtype=wp.vec3, device=self.device),
+                                  background_params(_Unit(), 1, None, None, 1.0, self.device))
+        if isinstance(bg, wp.array):
+            return [bg, self._placeholders[1], 0]
+        return [self._placeholders[0], bg, 1]
+
+
+class _Unit:
+    """A 1×1 camera for the placeholder :class:`Background` (never read)."""
+
+    width = height = 1
+    fov = 90.0
+    aspect = 1.0
+
+    @staticmethod
+    def basis():
+        return (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, -1.0)
+
+
+__all__ = ["Background", "BackgroundCache", "background_at", "background_kernel", "background_params", "background_image"]

@@ -30,6 +30,7 @@ from dataclasses import replace
 import numpy as np
 import warp as wp
 
+from .background import BackgroundCache
 from .device import resolve_device
 from .errors import InputError, SceneError
 from .lights import DirectionalLight, EnvironmentLight, PointLight, light_arrays
@@ -100,7 +101,6 @@ class Renderer:
         self._env_arrays_key = ()  # (see _env_arrays; () = not built yet)
         self._env_sg_arrays = None
         self.env_vis_cache, self.light_vis_cache, self.env_irr_cache = caches()  # (_vertex_visibility)
-        self._env_base_wp = None  # the environment map on the device (background), uploaded once
         t0 = time.perf_counter()
         with wp.ScopedDevice(self.device):
             self._setup_geometry()
@@ -111,8 +111,7 @@ class Renderer:
             self._setup_lights()
         wp.synchronize_device(self.device)
         self.timings["precompute"] = time.perf_counter() - t0
-        self._background_key = None
-        self._background = self._background_vb = None
+        self._bg = BackgroundCache(self.device)  # what pixels that see no object show
         self._contours = None  # antialiasing's per-camera contour marks (warp_sg.antialias.ContourCache)
         self._vb_key = self._vb = self._culling = None
 
@@ -453,7 +452,6 @@ class Renderer:
         if self.env_light is None:
             raise SceneError("the scene has no environment light", where="set_environment_rotation")
         self.env_light.rotation = float(degrees)
-        self._background_key = None
         self._setup_lights()
 
     def set_environment_scale(self, scale: float) -> None:
@@ -462,7 +460,6 @@ class Renderer:
         if not (scale >= 0 and math.isfinite(scale)):
             raise SceneError(f"must be >= 0, got {scale}", where="environment scale")
         self.env_light.scale = float(scale)
-        self._background_key = None
         self._setup_lights()
 
     def set_camera(self, **fields) -> None:
@@ -473,34 +470,13 @@ class Renderer:
                **fields})
 
     # ------------------------------------------------------------------ frame
-    def _background_params(self, k: int):
-        """The camera rays and environment behind the objects at k×k sub-pixels
-        (:class:`warp_sg.background.Background`; the environment map is uploaded once)."""
-        from .background import background_params
-
-        env = self.env_light
-        radiance = None
-        if env is not None and self.scene.render.background:
-            if self._env_base_wp is None:
-                self._env_base_wp = wp.array(np.ascontiguousarray(self.env_base, np.float32), dtype=wp.vec3,
-                                             device=self.device)
-            radiance = self._env_base_wp
-        return background_params(self.scene.camera, k, radiance, None if env is None else env.rotation_matrix(),
-                                 1.0 if env is None else env.scale, self.device)
-
-    def _background_image(self, k: int):
-        """(k·H, k·W) vec3 on the device: what each (sub)pixel that sees no object shows (cached;
-        the supersampling path; :mod:`warp_sg.background`)."""
-        cam = self.scene.camera
-        env = self.env_light
-        key = (repr(cam), k, None if env is None else (env.rotation, env.scale), self.scene.render.background)
-        if key != self._background_key or self._background_vb is not self._vb:
-            from .background import background_image
-
-            self._background = None  # only where the visibility buffer sees no object
-            self._background = background_image(self._background_params(k), self.device, self._vb.tri_id)
-            self._background_key, self._background_vb = key, self._vb
-        return self._background
+    def _background(self, k: int, rays: bool = False):
+        """What the (sub)pixels of the k× grid that see no object show
+        (:class:`warp_sg.background.BackgroundCache`): the camera rays, or this frame's image."""
+        args = (self.scene.camera, k, self.env_light, getattr(self, "env_base", None), self.scene.render.background)
+        if rays:
+            return self._bg.params(*args)
+        return self._bg.for_frame(*args, self._vb, bool(self.timings.get("raster_reused")))
 
     def rasterize(self, k: int | None = None, subsamples: int = 1):
         """The visibility buffer of the current camera at k×k sub-pixels (``subsamples`` a > 1: with
@@ -542,7 +518,7 @@ class Renderer:
         t0 = _timer(d)
         vb = self.rasterize()
         t1 = _timer(d)
-        bg = self._background_image(k)
+        bg = self._background(k)
         hs, ws_ = cam.height * k, cam.width * k
         out = wp.empty((hs, ws_), dtype=wp.vec3, device=d)
         self._launch_shade(vb.tri_id, vb.bary, bg, cam.origin, out)
@@ -569,8 +545,8 @@ class Renderer:
         vb = self.rasterize(1, subsamples=a)
         t1 = _timer(d)
         img = wp.empty((cam.height, cam.width), dtype=wp.vec3, device=d)
-        shade(vb.tri_id, vb.bary, self._background_image(1), img)
-        img, st = render_adaptive(vb, img, self._contours.contours(cam), self._tri_object, self._background_params(a),
+        shade(vb.tri_id, vb.bary, self._background(1), img)
+        img, st = render_adaptive(vb, img, self._contours.contours(cam), self._tri_object, self._background(a, rays=True),
                                   a, cam.height, cam.width, shade, d)
         t2 = _timer(d)
         out = img.numpy().astype(np.float32)
@@ -621,8 +597,9 @@ class Renderer:
         from raster import parallel
 
         n = int(tri_id.shape[0]) * int(tri_id.shape[1])
-        args = [tri_id, bary, bg, wp.vec3(*np.asarray(eye, np.float32)), self.geo_arrays, self.material_table.materials,
-                self.material_textures, self.irr_table, self.light_arrays, es, gamma, self.vis, out]
+        args = [tri_id, bary, *self._bg.kernel_args(bg), wp.vec3(*np.asarray(eye, np.float32)), self.geo_arrays,
+                self.material_table.materials, self.material_textures, self.irr_table, self.light_arrays, es, gamma,
+                self.vis, out]
         parallel.launch(kern, n, args, d, min_chunk=2048, per_thread=S.PIXELS_PER_THREAD)
 
 

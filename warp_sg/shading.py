@@ -60,6 +60,7 @@ from dataclasses import dataclass
 
 import warp as wp
 
+from .background import Background, background_at
 from .brdf.material_wp import ALL_MODELS, Material, above, material_funcs
 from .fastmath import fast_asin
 from .fh import fh_ratio_table_pair, fh_theta_max_wp
@@ -308,7 +309,7 @@ def shade_kernel(f: Features):
         GammaT, gamma_lookup = EnvSG, None  # placeholder type (unused argument)
 
     def shade(base: int, per: int, tri_id: wp.array2d(dtype=int), bary: wp.array2d(dtype=wp.vec2), background: wp.array2d(dtype=wp.vec3),
-              cam: wp.vec3, geo: GeometryArrays, mats: wp.array(dtype=Material), tex: MaterialTextures,
+              rays: Background, use_rays: int, cam: wp.vec3, geo: GeometryArrays, mats: wp.array(dtype=Material), tex: MaterialTextures,
               irr: wp.array2d(dtype=float), lights: LightArrays, env: EnvSG, gamma: GammaT, vis: Visibility,
               out: wp.array2d(dtype=wp.vec3)):
         n_pix = tri_id.shape[0] * tri_id.shape[1]
@@ -319,8 +320,11 @@ def shade_kernel(f: Features):
             y = pix // tri_id.shape[1]
             x = pix - y * tri_id.shape[1]
             t = tri_id[y, x]
-            if t < 0:
-                out[y, x] = background[y, x]
+            if t < 0:  # the environment along the (sub)pixel's ray, or what the caller gathered
+                if use_rays != 0:
+                    out[y, x] = background_at(rays, y, x)
+                else:
+                    out[y, x] = background[y, x]
                 continue
             bc = bary[y, x]
             b1 = bc[0]
