@@ -107,17 +107,25 @@ class BackgroundCache:
         self._radiance = None
         self._key = self._vb = self._image = None
         self._placeholders = None
+        self._params = {}  # (camera, k, environment, show) -> Background, the last few
 
     def params(self, camera, k: int, env_light, env_base, show: bool) -> Background:
         """The :class:`Background` of ``camera`` at k×k sub-pixels (black without an environment
         or with ``show`` off)."""
-        radiance = None
-        if env_light is not None and show:
-            if self._radiance is None:
-                self._radiance = wp.array(np.ascontiguousarray(env_base, np.float32), dtype=wp.vec3, device=self.device)
-            radiance = self._radiance
-        return background_params(camera, k, radiance, None if env_light is None else env_light.rotation_matrix(),
-                                 1.0 if env_light is None else env_light.scale, self.device)
+        key = (repr(camera), k, None if env_light is None else (env_light.rotation, env_light.scale), show)
+        if key not in self._params:
+            radiance = None
+            if env_light is not None and show:
+                if self._radiance is None:
+                    self._radiance = wp.array(np.ascontiguousarray(env_base, np.float32), dtype=wp.vec3,
+                                              device=self.device)
+                radiance = self._radiance
+            if len(self._params) > 8:
+                self._params.clear()
+            self._params[key] = background_params(camera, k, radiance, None if env_light is None else
+                                                  env_light.rotation_matrix(), 1.0 if env_light is None else
+                                                  env_light.scale, self.device)
+        return self._params[key]
 
     def for_frame(self, camera, k: int, env_light, env_base, show: bool, vb, reused: bool):
         """The cached image when it is this frame's (``vb``: the visibility buffer it was masked
