@@ -97,7 +97,8 @@ def profile(path, size, repeat, visibility_sampling=None):
         vb = None
         for _ in range(2):  # the second time into the first one's buffers, as the renderer does
             vb = raster.rasterize(r.geo_arrays.positions, r.geo_arrays.tris, scene.camera, device="cpu",
-                                  profile=True, validate=False, reuse=vb, subsamples=aa)
+                                  profile=True, validate=False, reuse=vb, subsamples=aa,
+                                  cull_backfaces=r._cull_flags())
         times = {n: v for n, v in vb.stats["times"].items() if n != "resolve"}  # (depth: not in a frame)
         st = "1×: " + ", ".join(f"{n} {1e3 * v:.1f}" for n, v in times.items())
         if aa > 1:

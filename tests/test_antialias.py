@@ -123,7 +123,7 @@ def test_every_edge_of_a_full_subpixel_raster_is_a_candidate_pixel(cache_dir, ma
     vb1 = r.rasterize(1)
     img = wp.zeros((H, W), dtype=wp.vec3)  # no contrast: geometry flags only
     cand, flag = wp.empty(H * W, dtype=int), wp.empty(H * W, dtype=int)
-    parallel.launch(A.candidates_kernel, H * W, [vb1.tri_id, r._tri_object, r._contours.contours(cam), img,
+    parallel.launch(A.candidates_kernel, H * W, [vb1.tri_id, r._tri_object, r._aa.contours(cam), img,
                                                  A.CONTRAST, cand, flag], "cpu")
     flagged = cand.numpy() != 0
     assert (flag.numpy() == flagged).all()

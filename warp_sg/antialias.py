@@ -46,6 +46,7 @@ samples' (triangle, barycentrics, background, weight) into a 1 × N list that th
 kernel shades → :func:`resolve_kernel` sums each pixel's weighted samples back into the image.
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the kernel annotations.
+import numpy as np
 import warp as wp
 
 from .background import Background, background_at
@@ -306,8 +307,6 @@ def _counts(idx, cand, edge, device) -> dict:
     """The frame's pixel counts (``idx``: the listed pixels, ``edge`` per list entry): numpy views
     on the CPU; on CUDA a reduction on the device, so that only three integers come back (not the
     per-pixel arrays)."""
-    import numpy as np
-
     if str(device).startswith("cpu"):
         c = cand.numpy()[idx.numpy()]
         n = (np.count_nonzero(c), int(edge.numpy().sum()), np.count_nonzero(c & CAND_CONTRAST))
@@ -318,15 +317,17 @@ def _counts(idx, cand, edge, device) -> dict:
     return {"candidate_pixels": int(n[0]), "edge_pixels": int(n[1]), "contrast_pixels": int(n[2])}
 
 
-class ContourCache:
+class AntialiasCache:
     """What antialiasing keeps between frames of one renderer (static geometry): the mesh's edge
-    adjacency (once) and the contour mask of the current camera (a material, light or environment
-    edit reuses it)."""
+    adjacency (once), the contour mask of the current camera, and the sub-pixel coverage of the
+    last frame's candidate pixels — a re-shade (a material, light or environment edit: the same
+    visibility buffer) whose candidates did not change reuses it."""
 
     def __init__(self, positions: wp.array, tris: wp.array, device):
         self.positions, self.tris, self.device = positions, tris, device
         self.edges = None
         self._contours = (None, None)
+        self._sub = (None, None, None)  # (visibility buffer, candidate list (numpy), coverage)
 
     def contours(self, camera) -> wp.array:
         from .silhouette import edge_adjacency, mark_contours
@@ -340,14 +341,28 @@ class ContourCache:
             self._contours = (key, mark_contours(self.positions, self.tris, *self.edges, camera, self.device))
         return self._contours[1]
 
+    def subsamples(self, vb, idx: wp.array):
+        """``raster.subsample.subsample(vb, idx)``, reused when ``vb`` and the list are the last
+        frame's."""
+        from raster.subsample import subsample
 
-def render_adaptive(vb1, img, contours, tri_object: wp.array, background: Background, a: int, H: int, W: int,
-                    shade, device):
+        listed = idx.numpy()
+        old_vb, old_idx, sub = self._sub
+        if old_vb is vb and old_idx is not None and np.array_equal(old_idx, listed):
+            return sub
+        sub = subsample(vb, idx)
+        self._sub = (vb, listed, sub)
+        return sub
+
+
+def render_adaptive(vb1, img, cache: AntialiasCache, camera, tri_object: wp.array, background: Background, a: int,
+                    H: int, W: int, shade, device):
     """Antialias ``img`` (H, W) ``wp.array(dtype=vec3)``, the frame shaded once per pixel centre
     from the 1× visibility buffer ``vb1`` (``raster.rasterize(..., subsamples=a)``: it keeps the
     tile queues that :func:`raster.subsample.subsample` reads the candidates' sub-pixels from), in
-    place (module docstring). ``contours``: (H, W) uint8 of
-    :func:`warp_sg.silhouette.mark_contours`; ``shade(tri_s, bary_s, bg_s, out)`` shades a 1 × N
+    place (module docstring). ``cache``: the renderer's :class:`AntialiasCache` (the contours of
+    ``camera``, :func:`warp_sg.silhouette.mark_contours`, and the last sub-pixel coverage);
+    ``shade(tri_s, bary_s, bg_s, out)`` shades a 1 × N
     sample list; ``background``: the camera rays and environment of the a×a grid
     (:func:`warp_sg.background.background_params`). Returns ``(image, stats)``: candidate, edge and
     contrast pixel counts, the fraction of raster tiles that hold candidates, the samples of the
@@ -355,9 +370,9 @@ def render_adaptive(vb1, img, contours, tri_object: wp.array, background: Backgr
     import time
 
     from raster import parallel
-    from raster.subsample import subsample
 
     n_pix = H * W
+    contours = cache.contours(camera)
     cand = wp.empty(n_pix, dtype=int, device=device)
     flag = wp.empty(n_pix, dtype=int, device=device)
     parallel.launch(candidates_kernel, n_pix, [vb1.tri_id, tri_object, contours, img, CONTRAST, cand, flag], device)
@@ -367,7 +382,7 @@ def render_adaptive(vb1, img, contours, tri_object: wp.array, background: Backgr
         return img, {"candidate_pixels": 0, "edge_pixels": 0, "contrast_pixels": 0, "tile_fraction": 0.0,
                      "pass1_samples": n_pix, "pass2_samples": 0, "raster_seconds": 0.0}
     t = time.perf_counter()
-    sub_tri, sub_bary, sub_invw, n_tiles = subsample(vb1, idx)
+    sub_tri, sub_bary, sub_invw, n_tiles = cache.subsamples(vb1, idx)
     raster_seconds = time.perf_counter() - t
     edge = wp.empty(n_c, dtype=int, device=device)
     count = wp.empty(n_c, dtype=int, device=device)
@@ -392,4 +407,4 @@ def render_adaptive(vb1, img, contours, tri_object: wp.array, background: Backgr
     return img, stats
 
 
-__all__ = ["render_adaptive", "ContourCache", "EDGE_DEPTH_RESIDUAL", "CONTRAST", "CAND_GEOMETRY", "CAND_CONTRAST"]
+__all__ = ["render_adaptive", "AntialiasCache", "EDGE_DEPTH_RESIDUAL", "CONTRAST", "CAND_GEOMETRY", "CAND_CONTRAST"]

@@ -112,7 +112,7 @@ class Renderer:
         wp.synchronize_device(self.device)
         self.timings["precompute"] = time.perf_counter() - t0
         self._bg = BackgroundCache(self.device)  # what pixels that see no object show
-        self._contours = None  # antialiasing's per-camera contour marks (warp_sg.antialias.ContourCache)
+        self._aa = None  # antialiasing's caches between frames (warp_sg.antialias.AntialiasCache)
         self._vb_key = self._vb = self._culling = None
 
     def precomputed(self) -> dict:
@@ -535,19 +535,19 @@ class Renderer:
     def _render_adaptive(self, a: int) -> np.ndarray:
         """Edge- and contrast-adaptive antialiasing on the device (:mod:`warp_sg.antialias`): the
         1× frame, then a×a sub-pixels where it needs them."""
-        from .antialias import ContourCache, render_adaptive
+        from .antialias import AntialiasCache, render_adaptive
 
         d, cam = self.device, self.scene.camera
-        if self._contours is None:
-            self._contours = ContourCache(self.geo_arrays.positions, self.geo_arrays.tris, d)
+        if self._aa is None:
+            self._aa = AntialiasCache(self.geo_arrays.positions, self.geo_arrays.tris, d)
         shade = lambda tri, bary, bg, out: self._launch_shade(tri, bary, bg, cam.origin, out)  # noqa: E731
         t0 = _timer(d)
         vb = self.rasterize(1, subsamples=a)
         t1 = _timer(d)
         img = wp.empty((cam.height, cam.width), dtype=wp.vec3, device=d)
         shade(vb.tri_id, vb.bary, self._background(1), img)
-        img, st = render_adaptive(vb, img, self._contours.contours(cam), self._tri_object, self._background(a, rays=True),
-                                  a, cam.height, cam.width, shade, d)
+        img, st = render_adaptive(vb, img, self._aa, cam, self._tri_object, self._background(a, rays=True), a,
+                                  cam.height, cam.width, shade, d)
         t2 = _timer(d)
         out = img.numpy().astype(np.float32)
         t3 = time.perf_counter()
