@@ -123,7 +123,7 @@ def test_every_edge_of_a_full_subpixel_raster_is_a_candidate_pixel(cache_dir, ma
     vb1 = r.rasterize(1)
     img = wp.zeros((H, W), dtype=wp.vec3)  # no contrast: geometry flags only
     cand, flag = wp.empty(H * W, dtype=int), wp.empty(H * W, dtype=int)
-    parallel.launch(A.candidates_kernel, H * W, [vb1.tri_id, r._tri_object, r._aa.contours(cam), img,
+    parallel.launch(A.candidates_kernel, H * W, [vb1.tri_id, r._tri_object, r._aa.contours(cam, vb1), img,
                                                  A.CONTRAST, cand, flag], "cpu")
     flagged = cand.numpy() != 0
     assert (flag.numpy() == flagged).all()
@@ -291,3 +291,32 @@ def test_contour_marks_are_the_pixels_the_projected_edges_cross():
     assert crossed.sum() > 40
     assert not (crossed & (mark == 0)).any()  # every crossed pixel is marked
     assert not ((mark != 0) & ~near).any()    # and nothing else (a 3×3 dilation would fail here)
+
+
+def test_contours_hidden_behind_a_nearer_surface_are_not_marked():
+    """A triangle behind a larger quad: with the 1× buffer its contour edges are hidden everywhere
+    (no mark), without it they are marked; the quad's own border, seen against the background, is
+    marked the same with and without."""
+    import warp as wp
+
+    import raster
+    from warp_sg import silhouette as SIL
+    from warp_sg.scene import Camera
+
+    cam = Camera(origin=(0.0, 0.0, 3.0), target=(0.0, 0.0, 0.0), fov=50.0, width=48, height=40)
+    quad = np.array([[-1.0, -0.8, 0.0], [1.0, -0.8, 0.0], [1.0, 0.8, 0.0], [-1.0, 0.8, 0.0]], np.float32)
+    tri = np.array([[-0.5, -0.4, -1.0], [0.6, -0.3, -1.0], [0.0, 0.5, -1.0]], np.float32)
+    V = np.concatenate([quad, tri])
+    F = np.array([[0, 1, 2], [0, 2, 3], [4, 5, 6]], np.int32)
+    vb = raster.rasterize(V, F, cam)
+    assert (vb.tri_id.numpy() == 2).sum() == 0  # the triangle is hidden
+
+    def marks(tris, inv_depth):
+        ev, ef = SIL.edge_adjacency(V, F[tris])
+        return SIL.mark_contours(wp.array(V, dtype=wp.vec3), wp.array(F[tris], dtype=wp.vec3i),
+                                 wp.array(ev, dtype=wp.vec2i), wp.array(ef, dtype=wp.vec2i), cam, "cpu",
+                                 inv_depth=inv_depth).numpy()
+
+    assert marks([2], None).sum() > 30 and marks([2], vb.inv_depth).sum() == 0
+    border = marks([0, 1], None)
+    assert border.sum() > 60 and np.array_equal(marks([0, 1], vb.inv_depth), border)

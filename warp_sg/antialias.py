@@ -330,10 +330,11 @@ class AntialiasCache:
     def __init__(self, positions: wp.array, tris: wp.array, device):
         self.positions, self.tris, self.device = positions, tris, device
         self.edges = None
-        self._contours = (None, None)
+        self._contours = (None, None, None)  # (camera, 1× buffer, marks)
         self._sub = (None, None, None)  # (visibility buffer, candidate list (numpy), coverage)
 
-    def contours(self, camera) -> wp.array:
+    def contours(self, camera, vb1) -> wp.array:
+        """The contour marks of ``camera``, without the edges its 1× buffer ``vb1`` shows hidden."""
         from .silhouette import edge_adjacency, mark_contours
 
         if self.edges is None:
@@ -341,9 +342,10 @@ class AntialiasCache:
             self.edges = (wp.array(ev, dtype=wp.vec2i, device=self.device),
                           wp.array(ef, dtype=wp.vec2i, device=self.device))
         key = repr(camera)
-        if self._contours[0] != key:
-            self._contours = (key, mark_contours(self.positions, self.tris, *self.edges, camera, self.device))
-        return self._contours[1]
+        if self._contours[0] != key or self._contours[1] is not vb1:
+            self._contours = (key, vb1, mark_contours(self.positions, self.tris, *self.edges, camera, self.device,
+                                                      inv_depth=vb1.inv_depth))
+        return self._contours[2]
 
     def subsamples(self, vb, idx: wp.array):
         """``raster.subsample.subsample(vb, idx)``, reused when ``vb`` and the list are the last
@@ -376,7 +378,7 @@ def render_adaptive(vb1, img, cache: AntialiasCache, camera, tri_object: wp.arra
     from raster import parallel
 
     n_pix = H * W
-    contours = cache.contours(camera)
+    contours = cache.contours(camera, vb1)
     cand = wp.empty(n_pix, dtype=int, device=device)
     flag = wp.empty(n_pix, dtype=int, device=device)
     parallel.launch(candidates_kernel, n_pix, [vb1.tri_id, tri_object, contours, img, CONTRAST, cand, flag], device)

@@ -21,6 +21,12 @@ sub-pixels on one side of every occlusion boundary that lies on an edge. (Markin
 neighbours too, as first written, doubled the candidates on the frame-scaling scene, 3.9 k → 7.8 k
 pixels, for the same image.)
 
+With the 1× visibility buffer of the same camera (``inv_depth``), an edge is not marked at a pixel
+where the surface seen at that pixel's and its 8 neighbours' centres lies in front of the edge's
+nearest point (a contour behind a floor, the far side of a torus): one surface covers the pixel in
+front of the edge, and its own boundaries are contours or object changes of their own. On the
+frame-scaling scene this drops the torus's contour under the floor and its far rim.
+
 Boundaries that lie on no edge: where two objects intersect, where one mesh passes through itself,
 and where the near or far plane cuts the geometry. Antialiasing finds the first from the 1× buffer
 (neighbouring pixels that see different objects), the others only where that test or its contrast
@@ -61,8 +67,11 @@ def edge_adjacency(vertices, triangles) -> tuple:
 
 
 #: pixels a contour edge passes within this distance of are marked too (float32 projection here,
-#: vertices snapped to 1/256 of a sub-pixel by the raster)
+#: vertices snapped to 1/256 of a pixel by the raster)
 MARK_EPS = wp.constant(0.02)
+#: an edge is hidden at a pixel when the 3×3 samples around it are nearer than its nearest point
+#: by more than this fraction of 1/depth (:func:`_hidden`)
+OCCLUSION_MARGIN = wp.constant(1.0e-3)
 
 
 @wp.struct
@@ -114,9 +123,10 @@ def facing_kernel(base: int, pos: wp.array(dtype=wp.vec3), tris: wp.array(dtype=
 @wp.kernel(enable_backward=False)
 def mark_contours_kernel(base: int, pos: wp.array(dtype=wp.vec3), side: wp.array(dtype=wp.int8),
                          edge_v: wp.array(dtype=wp.vec2i), edge_f: wp.array(dtype=wp.vec2i), cam: ContourCamera,
-                         mark: wp.array2d(dtype=wp.uint8)):
+                         inv_depth: wp.array2d(dtype=float), occlusion: int, mark: wp.array2d(dtype=wp.uint8)):
     """Mark the pixels that edge ``base + tid`` passes through (within ``MARK_EPS``) if it is a
-    contour (``side``: :func:`facing_kernel`)."""
+    contour (``side``: :func:`facing_kernel`) — with ``occlusion``, not where it is hidden
+    (:func:`_hidden`)."""
     e = base + wp.tid()
     ef = edge_f[e]
     if ef[1] >= 0:
@@ -135,6 +145,7 @@ def mark_contours_kernel(base: int, pos: wp.array(dtype=wp.vec3), side: wp.array
         b = b + (a - b) * ((cam.near - zb) / (za - zb))
     pa = _to_pixel(cam, a)
     pb = _to_pixel(cam, b)
+    inv_near = 1.0 / wp.max(wp.min(wp.dot(a - cam.eye, cam.fwd), wp.dot(b - cam.eye, cam.fwd)), cam.near)
     # Liang–Barsky clip of the 2-D segment to the image grown by one pixel
     t0 = float(0.0)
     t1 = float(1.0)
@@ -176,7 +187,28 @@ def mark_contours_kernel(base: int, pos: wp.array(dtype=wp.vec3), side: wp.array
         c0 = wp.max(int(wp.floor(wp.min(xa, xb) - MARK_EPS)), 0)
         c1 = wp.min(int(wp.floor(wp.max(xa, xb) + MARK_EPS)), W - 1)
         for c in range(c0, c1 + 1):
-            mark[r, c] = wp.uint8(1)
+            if occlusion == 0:
+                mark[r, c] = wp.uint8(1)
+            elif not _hidden(inv_depth, r, c, inv_near):
+                mark[r, c] = wp.uint8(1)
+
+
+@wp.func
+def _hidden(inv_depth: wp.array2d(dtype=float), r: int, c: int, inv_edge: float) -> bool:
+    """Whether the 1× samples of pixel (r, c) and of its 8 neighbours all see a surface nearer
+    than the edge's nearest point (1/depth ``inv_edge``) by more than ``OCCLUSION_MARGIN``: one
+    surface then covers the pixel in front of the edge (a boundary of that surface inside the
+    pixel is a contour or an object change of its own, marked or flagged for itself)."""
+    H = inv_depth.shape[0]
+    W = inv_depth.shape[1]
+    hidden = bool(True)
+    for dy in range(-1, 2):
+        for dx in range(-1, 2):
+            yy = wp.clamp(r + dy, 0, H - 1)
+            xx = wp.clamp(c + dx, 0, W - 1)
+            if inv_depth[yy, xx] <= inv_edge * (1.0 + OCCLUSION_MARGIN):
+                hidden = False
+    return hidden
 
 
 def contour_camera(camera) -> ContourCamera:
@@ -193,16 +225,20 @@ def contour_camera(camera) -> ContourCamera:
 
 
 def mark_contours(positions: wp.array, tris: wp.array, edge_v: wp.array, edge_f: wp.array, camera,
-                  device) -> wp.array:
+                  device, inv_depth: wp.array | None = None) -> wp.array:
     """(H, W) uint8: 1 on the pixels the mesh's contour edges pass through (see the module
-    docstring); ``edge_v``, ``edge_f`` of :func:`edge_adjacency` as ``vec2i`` arrays."""
+    docstring); ``edge_v``, ``edge_f`` of :func:`edge_adjacency` as ``vec2i`` arrays.
+    ``inv_depth``: the camera's 1× visibility buffer's 1/depth (``VisibilityBuffer.inv_depth``, 0
+    where empty): then not where a nearer surface hides the edge (:func:`_hidden`)."""
     from raster import parallel
 
     mark = wp.zeros((int(camera.height), int(camera.width)), dtype=wp.uint8, device=device)
     cam = contour_camera(camera)
     side = wp.empty(max(int(tris.shape[0]), 1), dtype=wp.int8, device=device)
     parallel.launch(facing_kernel, int(tris.shape[0]), [positions, tris, cam.eye, side], device, min_chunk=4096)
-    parallel.launch(mark_contours_kernel, int(edge_v.shape[0]), [positions, side, edge_v, edge_f, cam, mark], device,
+    occ = inv_depth if inv_depth is not None else wp.zeros((1, 1), dtype=float, device=device)
+    parallel.launch(mark_contours_kernel, int(edge_v.shape[0]),
+                    [positions, side, edge_v, edge_f, cam, occ, int(inv_depth is not None), mark], device,
                     min_chunk=4096)
     return mark
 
