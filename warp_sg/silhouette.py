@@ -22,7 +22,7 @@ neighbours too, as first written, doubled the candidates on the frame-scaling sc
 pixels, for the same image.)
 
 With the 1× visibility buffer of the same camera (``inv_depth``), an edge is not marked at a pixel
-where the surface seen at that pixel's and its 8 neighbours' centres lies in front of the edge's
+where the surface seen at that pixel's and its 4 neighbours' centres lies in front of the edge's
 nearest point (a contour behind a floor, the far side of a torus): one surface covers the pixel in
 front of the edge, and its own boundaries are contours or object changes of their own. On the
 frame-scaling scene this drops the torus's contour under the floor and its far rim.
@@ -195,20 +195,17 @@ def mark_contours_kernel(base: int, pos: wp.array(dtype=wp.vec3), side: wp.array
 
 @wp.func
 def _hidden(inv_depth: wp.array2d(dtype=float), r: int, c: int, inv_edge: float) -> bool:
-    """Whether the 1× samples of pixel (r, c) and of its 8 neighbours all see a surface nearer
+    """Whether the 1× samples of pixel (r, c) and of its 4 neighbours all see a surface nearer
     than the edge's nearest point (1/depth ``inv_edge``) by more than ``OCCLUSION_MARGIN``: one
     surface then covers the pixel in front of the edge (a boundary of that surface inside the
     pixel is a contour or an object change of its own, marked or flagged for itself)."""
     H = inv_depth.shape[0]
     W = inv_depth.shape[1]
-    hidden = bool(True)
-    for dy in range(-1, 2):
-        for dx in range(-1, 2):
-            yy = wp.clamp(r + dy, 0, H - 1)
-            xx = wp.clamp(c + dx, 0, W - 1)
-            if inv_depth[yy, xx] <= inv_edge * (1.0 + OCCLUSION_MARGIN):
-                hidden = False
-    return hidden
+    t = inv_edge * (1.0 + OCCLUSION_MARGIN)
+    m = wp.min(inv_depth[r, c], inv_depth[wp.max(r - 1, 0), c])
+    m = wp.min(m, wp.min(inv_depth[wp.min(r + 1, H - 1), c], inv_depth[r, wp.max(c - 1, 0)]))
+    m = wp.min(m, inv_depth[r, wp.min(c + 1, W - 1)])
+    return m > t
 
 
 def contour_camera(camera) -> ContourCamera:
