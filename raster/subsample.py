@@ -56,6 +56,7 @@ def _plane(pl: wp.mat33, row: int, v0: wp.vec2i, px: float, py: float):
 
 
 vec16i = wp.types.vector(length=16, dtype=wp.int32)  # one bit row per tile row (TILE = 16)
+assert TILE == 16, "subsample_tiles_kernel keeps one 16-bit row mask per tile row"
 
 
 @wp.kernel
