@@ -113,17 +113,23 @@ def _compact_kernel(base: int, flag: wp.array(dtype=int), offset: wp.array(dtype
         idx[offset[k]] = k
 
 
-def compact(flag: wp.array, device) -> wp.array:
-    """The indices k with ``flag[k]`` ≠ 0 (int 0/1 flags), ascending: exclusive scan
-    (``wp.utils.array_scan``), then a scatter — stream compaction, so that later kernels run over
-    the few flagged elements instead of all of them."""
-    n = int(flag.shape[0])
+def exclusive_scan(values: wp.array) -> tuple[wp.array, int]:
+    """``(offset, total)``: the exclusive prefix sum of the int ``values`` (``wp.utils.array_scan``)
+    and their sum (offset of one past the last)."""
+    offset = wp.empty_like(values)
+    n = int(values.shape[0])
     if n == 0:
-        return wp.empty(0, dtype=int, device=device)
-    offset = wp.empty_like(flag)
-    wp.utils.array_scan(flag, offset, inclusive=False)
-    total = int(offset[n - 1: n].numpy()[0] + flag[n - 1: n].numpy()[0])
+        return offset, 0
+    wp.utils.array_scan(values, offset, inclusive=False)
+    return offset, int(offset[n - 1: n].numpy()[0] + values[n - 1: n].numpy()[0])
+
+
+def compact(flag: wp.array, device) -> wp.array:
+    """The indices k with ``flag[k]`` ≠ 0 (int 0/1 flags), ascending: :func:`exclusive_scan`, then
+    a scatter — stream compaction, so that later kernels run over the few flagged elements instead
+    of all of them."""
+    offset, total = exclusive_scan(flag)
     idx = wp.empty(total, dtype=int, device=device)
     if total > 0:
-        launch(_compact_kernel, n, [flag, offset, idx], device)
+        launch(_compact_kernel, int(flag.shape[0]), [flag, offset, idx], device)
     return idx

@@ -282,16 +282,6 @@ def resolve_kernel(base: int, idx: wp.array(dtype=int), shaded: wp.array2d(dtype
     img[y, x] = acc
 
 
-def _plan(count: wp.array) -> tuple[wp.array, int]:
-    """Exclusive scan of the per-pixel counts and the total number of samples."""
-    offset = wp.empty_like(count)
-    n = len(count)
-    if n == 0:
-        return offset, 0
-    wp.utils.array_scan(count, offset, inclusive=False)
-    return offset, int(offset[n - 1: n].numpy()[0] + count[n - 1: n].numpy()[0])
-
-
 @wp.kernel(enable_backward=False)
 def _counts_kernel(idx: wp.array(dtype=int), cand: wp.array(dtype=int), edge: wp.array(dtype=int),
                    out: wp.array(dtype=int)):
@@ -394,7 +384,7 @@ def render_adaptive(vb1, img, cache: AntialiasCache, camera, tri_object: wp.arra
     count = wp.empty(n_c, dtype=int, device=device)
     parallel.launch(classify_kernel, n_c, [idx, cand, sub_tri, sub_invw, tri_object, a, EDGE_DEPTH_RESIDUAL, edge,
                                            count], device)
-    offset, n = _plan(count)
+    offset, n = parallel.exclusive_scan(count)  # per-candidate sample counts → list offsets
     from raster import tile_grid
 
     tx, ty = tile_grid(W, H)
