@@ -105,14 +105,18 @@ class BackgroundCache:
     def __init__(self, device):
         self.device = device
         self._radiance = None
-        self._key = self._vb = self._image = None
+        self._image_key = self._vb = self._image = None
         self._placeholders = None
         self._params = {}  # (camera, k, environment, show) -> Background, the last few
+
+    @staticmethod
+    def _key(camera, k: int, env_light, show: bool) -> tuple:
+        return repr(camera), k, None if env_light is None else (env_light.rotation, env_light.scale), show
 
     def params(self, camera, k: int, env_light, env_base, show: bool) -> Background:
         """The :class:`Background` of ``camera`` at k×k sub-pixels (black without an environment
         or with ``show`` off)."""
-        key = (repr(camera), k, None if env_light is None else (env_light.rotation, env_light.scale), show)
+        key = self._key(camera, k, env_light, show)
         if key not in self._params:
             radiance = None
             if env_light is not None and show:
@@ -130,36 +134,27 @@ class BackgroundCache:
     def for_frame(self, camera, k: int, env_light, env_base, show: bool, vb, reused: bool):
         """The cached image when it is this frame's (``vb``: the visibility buffer it was masked
         with), else the rays of a new view, or the image built now for a re-shade (``reused``)."""
-        key = (repr(camera), k, None if env_light is None else (env_light.rotation, env_light.scale), show)
-        if key != self._key or self._vb is not vb:
+        key = self._key(camera, k, env_light, show)
+        if key != self._image_key or self._vb is not vb:
+            rays = self.params(camera, k, env_light, env_base, show)
             if not reused:
-                return self.params(camera, k, env_light, env_base, show)
+                return rays
             self._image = None  # only where the visibility buffer sees no object
-            self._image = background_image(self.params(camera, k, env_light, env_base, show), self.device, vb.tri_id)
-            self._key, self._vb = key, vb
+            self._image = background_image(rays, self.device, vb.tri_id)
+            self._image_key, self._vb = key, vb
         return self._image
 
     def kernel_args(self, bg) -> list:
         """The shading kernel's ``(background, rays, use_rays)`` for ``bg``: an image or gathered
         samples (``wp.array``), or the camera rays (:class:`Background`)."""
         if self._placeholders is None:
-            self._placeholders = (wp.zeros((1, 1), dtype=wp.vec3, device=self.device),
-                                  background_params(_Unit(), 1, None, None, 1.0, self.device))
+            none = wp.zeros((1, 1), dtype=wp.vec3, device=self.device)
+            rays = Background()  # disabled: never read (use_rays = 0)
+            rays.radiance = none
+            self._placeholders = (none, rays)
         if isinstance(bg, wp.array):
             return [bg, self._placeholders[1], 0]
         return [self._placeholders[0], bg, 1]
-
-
-class _Unit:
-    """A 1×1 camera for the placeholder :class:`Background` (never read)."""
-
-    width = height = 1
-    fov = 90.0
-    aspect = 1.0
-
-    @staticmethod
-    def basis():
-        return (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, -1.0)
 
 
 __all__ = ["Background", "BackgroundCache", "background_at", "background_kernel", "background_params", "background_image"]

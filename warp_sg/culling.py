@@ -22,7 +22,7 @@ import numpy as np
 class BackfaceCulling:
     """Per-object culling decisions for a flattened scene mesh (``warp_sg.geometry.Geometry``):
     which objects are closed (once), and per camera which triangles may drop their back face
-    (:meth:`flags`: on ``device``, rebuilt only when the set of culled objects changes)."""
+    (:meth:`flags`)."""
 
     def __init__(self, geometry, device: str = "cpu"):
         import trimesh
@@ -48,23 +48,17 @@ class BackfaceCulling:
         depth = (self.corners - np.asarray(camera.origin, np.float64)) @ f  # (objects, 8)
         return self.closed & (depth.min(1) >= float(camera.near))
 
-    def triangles(self, camera):
-        """``cull_backfaces`` for ``raster.rasterize``: False when no object may cull, else one
-        uint8 flag per triangle."""
-        obj = self.objects(camera)
-        if not obj.any():
-            return False
-        return obj[self.tri_object].astype(np.uint8)
-
     def flags(self, camera):
-        """:meth:`triangles` as a ``wp.array`` on the device (False: none)."""
+        """``cull_backfaces`` for ``raster.rasterize``: False when no object may cull, else one
+        uint8 flag per triangle, a ``wp.array`` on the device (rebuilt only when the set of culled
+        objects changes)."""
         import warp as wp
 
         obj = self.objects(camera)
         key, flags = self._cached
         if key is None or not np.array_equal(obj, key):
-            t = self.triangles(camera)
-            flags = t if t is False else wp.array(t, dtype=wp.uint8, device=self.device)
+            flags = wp.array(obj[self.tri_object].astype(np.uint8), dtype=wp.uint8, device=self.device) \
+                if obj.any() else False
             self._cached = (obj, flags)
         return flags
 
