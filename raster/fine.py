@@ -28,7 +28,7 @@ import warp as wp
 
 wp.set_module_options({"enable_backward": False})
 
-from .fixed import SUBPIXEL, TILE, edge_eval, edge_topleft, eval_plane, pixel_bbox, sample_fixed
+from .fixed import SUBPIXEL, TILE, edge_eval, edge_topleft, eval_plane, eval_plane_at, pixel_bbox, sample_fixed
 from .setup import SubTri
 
 
@@ -38,15 +38,22 @@ def closer(invw: float, tri: int, best_invw: float, best_tri: int):
 
 
 @wp.func
-def barycentrics(pl: wp.mat33, v0: wp.vec2i, x: int, y: int, invw: float):
-    """Perspective-correct (b1, b2) = (λ1, λ2) / (1/w), clamped into the triangle."""
-    b1 = wp.clamp(eval_plane(pl, 1, v0, x, y) / invw, 0.0, 1.0)
-    b2 = wp.clamp(eval_plane(pl, 2, v0, x, y) / invw, 0.0, 1.0)
+def barycentrics_at(pl: wp.mat33, v0: wp.vec2i, px: float, py: float, invw: float):
+    """Perspective-correct (b1, b2) = (λ1, λ2) / (1/w) at pixel-space point (px, py), clamped into
+    the triangle."""
+    b1 = wp.clamp(eval_plane_at(pl, 1, v0, px, py) / invw, 0.0, 1.0)
+    b2 = wp.clamp(eval_plane_at(pl, 2, v0, px, py) / invw, 0.0, 1.0)
     tot = b1 + b2
     if tot > 1.0:
         b1 = b1 / tot
         b2 = b2 / tot
     return wp.vec2(b1, b2)
+
+
+@wp.func
+def barycentrics(pl: wp.mat33, v0: wp.vec2i, x: int, y: int, invw: float):
+    """:func:`barycentrics_at` the centre of pixel (x, y)."""
+    return barycentrics_at(pl, v0, float(x) + 0.5, float(y) + 0.5, invw)
 
 
 @wp.func

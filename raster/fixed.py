@@ -76,11 +76,17 @@ def sample_bbox(s0: wp.vec2i, s1: wp.vec2i, s2: wp.vec2i, width: int, height: in
 
 
 @wp.func
+def eval_plane_at(pl: wp.mat33, row: int, v0: wp.vec2i, px: float, py: float):
+    """Plane ``row`` of a record at the pixel-space point (px, py)."""
+    dx = px - float(v0[0]) * (1.0 / float(SUBPIXEL))
+    dy = py - float(v0[1]) * (1.0 / float(SUBPIXEL))
+    return pl[row, 0] * dx + pl[row, 1] * dy + pl[row, 2]
+
+
+@wp.func
 def eval_plane(pl: wp.mat33, row: int, v0: wp.vec2i, x: int, y: int):
     """Plane ``row`` of a record at the centre of pixel (x, y)."""
-    dx = float(x) + 0.5 - float(v0[0]) * (1.0 / float(SUBPIXEL))
-    dy = float(y) + 0.5 - float(v0[1]) * (1.0 / float(SUBPIXEL))
-    return pl[row, 0] * dx + pl[row, 1] * dy + pl[row, 2]
+    return eval_plane_at(pl, row, v0, float(x) + 0.5, float(y) + 0.5)
 
 
 @wp.func

@@ -36,6 +36,9 @@ from .coarse import coarse_scatter_kernel
 from .fine import clear_tiles_kernel, fine_pixel_kernel, fine_tile_kernel, resolve_kernel, resolve_pixel_kernel
 from .setup import MAX_RESOLUTION, SubTri, guard_factors, setup_extra_kernel, setup_kernel, vertex_kernel
 
+#: largest ``subsamples``: raster.subsample's edge functions take vertices in units of
+#: 1/(2a·256) px as int32 (|coordinates| ≤ 2a·32000·256 < 2³¹)
+MAX_SUBSAMPLES = 16
 DEFAULT_MAX_PAIRS = 1 << 21  # triangle/tile pairs per pass: 128 MiB of 64-byte queue records
 
 
@@ -201,6 +204,9 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
         k = 0
     if k < 1 or k != supersample:
         raise InputError(f"supersample must be a positive integer, got {supersample!r}", where="supersample")
+    if not (isinstance(subsamples, (int, np.integer)) and 1 <= subsamples <= MAX_SUBSAMPLES):
+        raise InputError(f"subsamples must be an integer in 1..{MAX_SUBSAMPLES}, got {subsamples!r}",
+                         where="subsamples")
     W, H = camera.width * k, camera.height * k
     if W > MAX_RESOLUTION or H > MAX_RESOLUTION:
         raise InputError(f"{W}x{H} exceeds the rasterizer's {MAX_RESOLUTION}px limit per axis", where="camera")

@@ -24,15 +24,9 @@ import warp as wp
 wp.set_module_options({"enable_backward": False})
 
 from . import parallel  # noqa: E402
-from .fine import closer  # noqa: E402
-from .fixed import SUBPIXEL, TILE, TILE_BITS, edge_topleft, sample_bbox  # noqa: E402
+from .fine import barycentrics_at, closer  # noqa: E402
+from .fixed import SUBPIXEL, TILE, TILE_BITS, edge_eval, edge_topleft, eval_plane_at, sample_bbox  # noqa: E402
 from .setup import SubTri  # noqa: E402
-
-
-@wp.func
-def _edge(ax: wp.int64, ay: wp.int64, bx: wp.int64, by: wp.int64, sx: wp.int64, sy: wp.int64):
-    """Edge function (b−a)×(s−a) (as ``fixed.edge_eval``) on int64 coordinates."""
-    return (bx - ax) * (sy - ay) - (by - ay) * (sx - ax)
 
 
 @wp.func
@@ -45,14 +39,6 @@ def _grid_max(e: wp.int64, dx: wp.int64, dy: wp.int64, span: wp.int64):
     if dy > wp.int64(0):
         m += dy * span
     return m
-
-
-@wp.func
-def _plane(pl: wp.mat33, row: int, v0: wp.vec2i, px: float, py: float):
-    """Plane ``row`` of a record at pixel-space point (px, py) (``fixed.eval_plane`` off-centre)."""
-    dx = px - float(v0[0]) * (1.0 / float(SUBPIXEL))
-    dy = py - float(v0[1]) * (1.0 / float(SUBPIXEL))
-    return pl[row, 0] * dx + pl[row, 1] * dy + pl[row, 2]
 
 
 vec16i = wp.types.vector(length=16, dtype=wp.int32)  # one bit row per tile row (TILE = 16)
@@ -84,9 +70,9 @@ def subsample_tiles_kernel(base: int, tiles: wp.array(dtype=int), tiles_x: int, 
                     sub_tri[s, q] = -1
                     sub_bary[s, q] = wp.vec2(0.0, 0.0)
                     sub_invw[s, q] = 0.0
-    m = wp.int64(2 * a)  # sub-sample coordinates in units of 1/(2a·SUBPIXEL) px
+    g = 2 * a  # sub-sample coordinates in units of 1/(2a·SUBPIXEL) px
     o = wp.int64(SUBPIXEL)  # half a sub-pixel
-    d = m * o  # one pixel
+    d = wp.int64(g) * o  # one pixel
     z = wp.int64(0)
     inv_a = 1.0 / float(a)
     for qi in range(offsets[t * rows], offsets[(t + 1) * rows]):
@@ -104,23 +90,21 @@ def subsample_tiles_kernel(base: int, tiles: wp.array(dtype=int), tiles_x: int, 
             hit = hit | (rowbits[y - Y0] & cols)
         if hit == 0:
             continue
-        ax = wp.int64(rec.v0[0]) * m
-        ay = wp.int64(rec.v0[1]) * m
-        bx = wp.int64(rec.v1[0]) * m
-        by = wp.int64(rec.v1[1]) * m
-        cx = wp.int64(rec.v2[0]) * m
-        cy = wp.int64(rec.v2[1]) * m
+        # the vertices in those units (|coordinates| < 2·16·32000·256 < 2³¹ for a ≤ 16)
+        p0 = wp.vec2i(rec.v0[0] * g, rec.v0[1] * g)
+        p1 = wp.vec2i(rec.v1[0] * g, rec.v1[1] * g)
+        p2 = wp.vec2i(rec.v2[0] * g, rec.v2[1] * g)
         t0 = wp.int64(edge_topleft(rec.v0, rec.v1))
         t1 = wp.int64(edge_topleft(rec.v1, rec.v2))
         t2 = wp.int64(edge_topleft(rec.v2, rec.v0))
         # edge functions at sub-sample (0, 0) of a pixel, and their steps to the next sub-sample
         # along x and y (the fine raster's incremental form, exact in int64)
-        dx0 = -(by - ay) * (o + o)
-        dx1 = -(cy - by) * (o + o)
-        dx2 = -(ay - cy) * (o + o)
-        dy0 = (bx - ax) * (o + o)
-        dy1 = (cx - bx) * (o + o)
-        dy2 = (ax - cx) * (o + o)
+        dx0 = -wp.int64(p1[1] - p0[1]) * (o + o)
+        dx1 = -wp.int64(p2[1] - p1[1]) * (o + o)
+        dx2 = -wp.int64(p0[1] - p2[1]) * (o + o)
+        dy0 = wp.int64(p1[0] - p0[0]) * (o + o)
+        dy1 = wp.int64(p2[0] - p1[0]) * (o + o)
+        dy2 = wp.int64(p0[0] - p2[0]) * (o + o)
         span = wp.int64(a - 1)
         for y in range(y0, y1 + 1):
             for x in range(x0, x1 + 1):
@@ -128,9 +112,9 @@ def subsample_tiles_kernel(base: int, tiles: wp.array(dtype=int), tiles_x: int, 
                     continue
                 sx = wp.int64(x) * d + o
                 sy = wp.int64(y) * d + o
-                r0 = _edge(ax, ay, bx, by, sx, sy) + t0
-                r1 = _edge(bx, by, cx, cy, sx, sy) + t1
-                r2 = _edge(cx, cy, ax, ay, sx, sy) + t2
+                r0 = edge_eval(p0, p1, sx, sy) + t0
+                r1 = edge_eval(p1, p2, sx, sy) + t1
+                r2 = edge_eval(p2, p0, sx, sy) + t2
                 # the pixel's sub-samples all outside one edge: nothing to test
                 if (_grid_max(r0, dx0, dy0, span) <= z or _grid_max(r1, dx1, dy1, span) <= z
                         or _grid_max(r2, dx2, dy2, span) <= z):
@@ -144,18 +128,12 @@ def subsample_tiles_kernel(base: int, tiles: wp.array(dtype=int), tiles_x: int, 
                         if e0 > z and e1 > z and e2 > z:
                             fx = float(x) + (float(i) + 0.5) * inv_a
                             fy = float(y) + (float(j) + 0.5) * inv_a
-                            invw = _plane(rec.p, 0, rec.v0, fx, fy)
+                            invw = eval_plane_at(rec.p, 0, rec.v0, fx, fy)
                             q = j * a + i
                             if invw >= inv_far and closer(invw, rec.tri, sub_invw[s, q], sub_tri[s, q]):
-                                b1 = wp.clamp(_plane(rec.p, 1, rec.v0, fx, fy) / invw, 0.0, 1.0)
-                                b2 = wp.clamp(_plane(rec.p, 2, rec.v0, fx, fy) / invw, 0.0, 1.0)
-                                tot = b1 + b2
-                                if tot > 1.0:
-                                    b1 = b1 / tot
-                                    b2 = b2 / tot
                                 sub_invw[s, q] = invw
                                 sub_tri[s, q] = rec.tri
-                                sub_bary[s, q] = wp.vec2(b1, b2)
+                                sub_bary[s, q] = barycentrics_at(rec.p, rec.v0, fx, fy, invw)
                         e0 += dx0
                         e1 += dx1
                         e2 += dx2

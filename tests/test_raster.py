@@ -302,6 +302,11 @@ def test_subsamples_where_nothing_is_drawn_are_empty(device):
     assert tri.shape == (46, 16) and (tri.numpy() == -1).all() and (invw.numpy() == 0).all()
     with pytest.raises(ValueError, match="subsamples"):
         subsample(raster.rasterize(V, F, cam, device=device), wp.zeros(1, dtype=int, device=device))
+    from warp_sg.errors import InputError
+
+    for bad in (0, 17, 2.5):
+        with pytest.raises(InputError, match="subsamples"):
+            raster.rasterize(V, F, cam, device=device, subsamples=bad)
 
 
 @pytest.mark.parametrize("schedule", ["tile", "pixel"])
