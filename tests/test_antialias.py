@@ -40,6 +40,8 @@ def test_adaptive_antialiasing_matches_shading_every_subpixel(cache_dir):
     # and it shades far fewer samples than full supersampling (16 per pixel)
     assert t["shaded_samples"] < 0.5 * 16 * 40 * 32
     assert t["edge_pixels"] > 0
+    # contrast pixels whose probes disagree (the glints) were shaded at every sub-pixel, not all
+    assert 0 < t["refined_pixels"] < t["contrast_pixels"]
 
 
 def _grazing_floor_scene():
@@ -165,18 +167,34 @@ def test_the_device_reduction_of_the_frame_counts_matches_numpy():
     assert [got["candidate_pixels"], got["edge_pixels"], got["contrast_pixels"]] == [int(x) for x in want]
 
 
+#: Direct3D's standard 4-sample MSAA pattern, in 1/16 pixel from the pixel centre
+D3D_4X = [(-2, -6), (6, -2), (-6, 2), (2, 6)]
+
+
 @pytest.mark.parametrize("a", [2, 3, 4, 8])
-def test_contrast_pixels_are_shaded_at_every_sub_pixel_equally_weighted(a):
-    """A contrast pixel (no edge) is shaded at all a² sub-pixels, each weighted 1/a²: a glint
-    smaller than a pixel needs them all (half of them, tried, was 30× off on sun glints)."""
+def test_contrast_pixels_are_probed_then_refined_at_every_sub_pixel_where_the_probes_disagree(a):
+    """A contrast pixel (no edge) is first shaded at 4 probes, the sub-pixels holding the points of
+    Direct3D's 4× MSAA pattern (for a = 2: all four sub-pixels), each weighted 1/4. Where the
+    probes and the centre sample differ by more than ``PROBE_CONTRAST`` it is shaded at its other
+    a² − 4 sub-pixels too and the pixel is the plain mean of all a² (a glint that a probe sees);
+    else the probes' mean stands (a flat pixel, a gentle gradient). Checked against numpy means of
+    a given colour per sub-pixel, through classify → gather → refine → resolve → gather_rest →
+    resolve as ``render_adaptive`` runs them."""
     import warp as wp
 
     from warp_sg import antialias as A
 
-    W = 3
+    W = 3  # pixel 0 flat, pixel 1 a glint on its first probe, pixel 2 a gentle gradient
+    cols, rows = np.meshgrid(np.arange(a * W), np.arange(a), indexing="xy")
+    colour = np.full((a, a * W, 3), 0.5, np.float32)
+    probes = sorted({(int((8 + dy) * a // 16), int((8 + dx) * a // 16)) for dx, dy in D3D_4X})  # (row, col)
+    py, px = probes[0]
+    colour[py, a + px] = 10.0  # the glint, on a probe of pixel 1
+    colour[:, 2 * a:] = (0.5 + 0.05 * (cols[:, 2 * a:] - 2 * a) / a)[..., None]  # < PROBE_CONTRAST across
+    centre = np.full((W, 3), 0.5, np.float32)  # the pixels' 1× samples
     tid = _per_pixel(wp.array(np.zeros((a, a * W), np.int32), dtype=int), a, int)
-    bary = _per_pixel(wp.array(np.stack(np.meshgrid(np.arange(a * W), np.arange(a)), -1).astype(np.float32) / 100.0,
-                               dtype=wp.vec2), a, None)  # bary = sub-pixel (column, row) / 100: identifies it
+    code = np.stack([cols, rows], -1).astype(np.float32) / 100.0  # bary = sub-pixel (column, row) / 100
+    bary = _per_pixel(wp.array(code, dtype=wp.vec2), a, None)
     count = wp.array(np.zeros(W, np.int32), dtype=int)
     cand = wp.array(np.full(W, A.CAND_CONTRAST, np.int32), dtype=int)
     edge = wp.empty(W, dtype=int)
@@ -184,19 +202,46 @@ def test_contrast_pixels_are_shaded_at_every_sub_pixel_equally_weighted(a):
     every = wp.array(np.arange(W, dtype=np.int32), dtype=int)
     wp.launch(A.classify_kernel, dim=W, inputs=[0, every, cand, tid, inv_depth, wp.zeros(1, dtype=int), a,
                                                 A.EDGE_DEPTH_RESIDUAL, edge, count])
-    n = count.numpy()
-    assert n.tolist() == [a * a] * W and edge.numpy().sum() == 0
-    offset = wp.array(np.concatenate([[0], np.cumsum(n)[:-1]]).astype(np.int32), dtype=int)
-    m = int(n.sum())
-    tri_s, bary_s = wp.empty((1, m), dtype=int), wp.empty((1, m), dtype=wp.vec2)
-    bg_s, w_s = wp.empty((1, m), dtype=wp.vec3), wp.empty(m, dtype=float)
-    wp.launch(A.gather_kernel, dim=W, inputs=[0, every, tid, bary, _background(a, W), count, offset, edge, a, W,
-                                              tri_s, bary_s, bg_s, w_s])
+    n_probe = 4 if a >= 3 else a * a
+    assert count.numpy().tolist() == [n_probe] * W and edge.numpy().sum() == 0
+
+    def gather(kernel, counts, extra):
+        n = counts.numpy()
+        offset = wp.array(np.concatenate([[0], np.cumsum(n)[:-1]]).astype(np.int32), dtype=int)
+        m = int(n.sum())
+        tri_s, bary_s = wp.empty((1, m), dtype=int), wp.empty((1, m), dtype=wp.vec2)
+        bg_s, w_s = wp.empty((1, m), dtype=wp.vec3), wp.empty(m, dtype=float)
+        wp.launch(kernel, dim=W, inputs=[0, every, tid, bary, _background(a, W), counts, offset, *extra, a, W,
+                                         tri_s, bary_s, bg_s, w_s])
+        sub = np.rint(bary_s.numpy()[0] * 100.0).astype(int)  # (column, row) of each sample
+        shaded = wp.array(colour[sub[:, 1], sub[:, 0]][None], dtype=wp.vec3)
+        return offset, sub, w_s.numpy(), shaded, wp.array(w_s.numpy(), dtype=float)
+
+    offset, sub, w, shaded, w_s = gather(A.gather_kernel, count, [edge])
     for k in range(W):
-        s = slice(k * a * a, (k + 1) * a * a)
-        sub = np.rint(bary_s.numpy()[0, s] * 100.0).astype(int)  # (column, row)
-        assert sorted(zip(sub[:, 1], sub[:, 0] - k * a)) == [(j, i) for j in range(a) for i in range(a)]
-        assert np.allclose(w_s.numpy()[s], 1.0 / (a * a))
+        s = slice(k * n_probe, (k + 1) * n_probe)
+        got = sorted(zip(sub[s, 1], sub[s, 0] - k * a))
+        assert got == (probes if a >= 3 else [(j, i) for j in range(a) for i in range(a)])
+        assert np.allclose(w[s], 1.0 / n_probe)
+    img = wp.array(centre[None], dtype=wp.vec3)
+    rest = wp.empty(W, dtype=int)
+    wp.launch(A.refine_kernel, dim=W, inputs=[0, every, edge, count, offset, shaded, img, a, A.PROBE_CONTRAST, W,
+                                              rest])
+    refined = [0, a * a - 4, 0] if a >= 3 else [0, 0, 0]
+    assert rest.numpy().tolist() == refined
+    wp.launch(A.resolve_kernel, dim=W, inputs=[0, every, shaded, w_s, count, offset, W, 0.0, img])
+    if a >= 3:
+        offset3, sub3, w3, shaded3, w3_s = gather(A.gather_rest_kernel, rest, [])
+        assert sorted(zip(sub3[:, 1], sub3[:, 0] - a)) == [(j, i) for j in range(a) for i in range(a)
+                                                          if (j, i) not in probes]
+        assert np.allclose(w3, 1.0 / (a * a))
+        wp.launch(A.resolve_kernel, dim=W, inputs=[0, every, shaded3, w3_s, rest, offset3, W, 4.0 / (a * a), img])
+    got = img.numpy()[0]
+    block = [colour[:, k * a:(k + 1) * a] for k in range(W)]
+    probe_mean = [np.mean([b[j, i] for j, i in probes], 0) if a >= 3 else b.mean((0, 1)) for b in block]
+    assert np.allclose(got[0], 0.5, atol=1e-6)
+    assert np.allclose(got[1], block[1].mean((0, 1)), atol=1e-5)  # refined: all a² sub-pixels
+    assert np.allclose(got[2], probe_mean[2], atol=1e-6)  # the probes' mean stands
 
 
 def _background(a, W):
@@ -245,9 +290,9 @@ def test_an_edge_pixel_is_shaded_once_per_triangle_at_its_sub_pixels_mean_with_t
     assert np.allclose(w[t < 0], 1.0 / 16.0) and (t < 0).sum() == 4
     assert np.isclose(w.sum(), 1.0)
     colours = rng.uniform(0.0, 1.0, (1, n, 3)).astype(np.float32)
-    img = wp.zeros((1, 1), dtype=wp.vec3)
+    img = wp.array(np.full((1, 1, 3), 7.0, np.float32), dtype=wp.vec3)  # the centre sample: replaced (keep 0)
     wp.launch(A.resolve_kernel, dim=W, inputs=[0, one, wp.array(colours, dtype=wp.vec3), w_s, count,
-                                               wp.zeros(W, dtype=int), W, img])
+                                               wp.zeros(W, dtype=int), W, 0.0, img])
     assert np.allclose(img.numpy()[0, 0], (colours[0] * w[:, None]).sum(0), atol=1e-6)
 
 

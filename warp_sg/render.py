@@ -554,7 +554,8 @@ class Renderer:
         sub = st["raster_seconds"]  # the sub-pixel coverage, inside render_adaptive
         self.timings.update(raster=t1 - t0 + sub, shade=t2 - t1 - sub, resolve=t3 - t2, frame=t3 - t0,
                             shaded_samples=st["pass1_samples"] + st["pass2_samples"], edge_pixels=st["edge_pixels"],
-                            contrast_pixels=st["contrast_pixels"], candidate_pixels=st["candidate_pixels"],
+                            contrast_pixels=st["contrast_pixels"], refined_pixels=st["refined_pixels"],
+                            candidate_pixels=st["candidate_pixels"],
                             subpixel_tiles=st["tile_fraction"], subpixel_seconds=sub)
         return out
 

@@ -43,7 +43,9 @@ i.e. e ≈ 1.8e-35), rows uniform in ``log10 λ ∈ [−2, 3]`` (32 per decade, 
 in ``c ∈ [−1, 1]`` (513); the lookup is ``exp`` of the bilinear interpolant in ``(log10 λ, c)``.
 A lobe entirely above the horizon (``λ (1 − √(1 − c²)) ≥ 24``, :data:`ABOVE_HORIZON`: its value
 on the horizon is e^{−24}) has ``e = c (coth λ − 1/λ) = c (1 − 1/λ)`` for λ ≥ 24, exactly, and is
-not looked up (most lit points of a small light: no log, no exp). Below λ = 1e-2 the first row is
+not looked up (most lit points of a small light: no log, no exp); one entirely below it (the same
+test with c < 0) has e < 1e-11 σ (σ = √(1 − c²)/√λ; the sharp form's bound at z = −√48) and is 0
+(the far side of a small light: the shading kernel then skips its BRDF). Below λ = 1e-2 the first row is
 used (flat, see above: ≤ 0.67 % off); above the switch λ = 1e3
 (:data:`IRR_LAM_SWITCH`, the last row) the sharp-lobe form is used (the step there is ≤ 2.5e-5 in
 ``e``). ``ln e`` rather than ``e`` is tabulated because near c = −1 ``e`` decays like ``e^{−2λ}``
@@ -189,10 +191,10 @@ def sg_irradiance_norm_np(c, lam, table: np.ndarray | None = None):
     v1 = tab[r0 + 1, x0] * (1.0 - fx) + tab[r0 + 1, x0 + 1] * fx
     v = np.exp(v0 * (1.0 - fr) + v1 * fr)
     v = np.where(lam > IRR_LAM_SWITCH, e_sharp_np(c, lam), v)
-    # the whole lobe above the horizon: its mean cosine (as _above_horizon)
-    up = (lam >= ABOVE_HORIZON) & (c > 0) & (lam * (1.0 - np.sqrt(np.maximum((1.0 - c) * (1.0 + c), 0.0)))
-                                             >= ABOVE_HORIZON)
-    return np.where(up, c * (1.0 - 1.0 / lam), v)
+    # the whole lobe above the horizon: its mean cosine (as _above_horizon); below it: 0 (_below_horizon)
+    clear = (lam >= ABOVE_HORIZON) & (lam * (1.0 - np.sqrt(np.maximum((1.0 - c) * (1.0 + c), 0.0))) >= ABOVE_HORIZON)
+    v = np.where(clear & (c < 0), 0.0, v)
+    return np.where(clear & (c > 0), c * (1.0 - 1.0 / lam), v)
 
 
 def sg_irradiance_np(n, p, lam, mu=1.0, table: np.ndarray | None = None):
@@ -261,6 +263,17 @@ def _above_horizon(c: float, lam: float) -> float:
 
 
 @wp.func
+def _below_horizon(c: float, lam: float) -> bool:
+    """Whether the whole lobe lies below the horizon (the mirror image of :func:`_above_horizon`:
+    its value on the horizon is under e^{−24}, so e < σ φ(√48) ≈ 1e-11 σ, σ = √(1 − c²)/√λ, the
+    sharp form's bound): then e is 0 (no table, no log or exp, and the caller skips the BRDF)."""
+    if lam >= _ABOVE and c < 0.0:
+        if lam * (1.0 - wp.sqrt(wp.max((1.0 - c) * (1.0 + c), 0.0))) >= _ABOVE:
+            return True
+    return False
+
+
+@wp.func
 def sg_irradiance_row(table: wp.array2d(dtype=float), lam: float) -> float:
     """The (fractional) row of λ in :func:`irradiance_table_array`, clamped to the table: a
     per-lobe constant, computed once per lobe where many points share the lobe."""
@@ -294,6 +307,8 @@ def sg_irradiance_norm_at(table: wp.array2d(dtype=float), c: float, lam: float, 
     up = _above_horizon(cc, l)
     if up >= 0.0:
         return up
+    if _below_horizon(cc, l):
+        return 0.0
     return _norm_below(table, cc, l, r)
 
 
@@ -308,6 +323,8 @@ def sg_irradiance_norm(table: wp.array2d(dtype=float), c: float, lam: float) -> 
     up = _above_horizon(cc, l)
     if up >= 0.0:
         return up
+    if _below_horizon(cc, l):
+        return 0.0
     r = float(0.0)
     if l <= _LAM_SWITCH:  # no table row (no log) for the sharp-lobe form
         r = sg_irradiance_row(table, l)
