@@ -238,3 +238,22 @@ def test_a_lobe_entirely_above_the_horizon_gets_its_exact_mean_cosine(device):
     e_in, _ = _run(device, edge * 1.0001, lam)
     e_out, _ = _run(device, edge * 0.9999, lam)
     np.testing.assert_allclose(e_in, e_out, rtol=1e-3)
+
+
+def test_a_lobe_entirely_below_the_horizon_is_exactly_zero_and_the_quadrature_agrees(device):
+    """The mirror image: where c < 0 and λ(1 − √(1 − c²)) ≥ 24 the kernel (and its numpy twin)
+    return exactly 0, with no table lookup; the brute-force quadrature there is below the bound
+    e^{−24} λ/2 (the lobe's value above the horizon times the hemisphere's ∫ n·i, over ∫G) and
+    below 1e-9, and just inside the threshold the table's value is as small."""
+    lam = np.array([24.0, 60.0, 300.0, 999.0])
+    s_min = 1.0 - si.ABOVE_HORIZON / lam
+    c = -np.sqrt(1.0 - s_min ** 2)[:, None] * np.array([1.0001, 1.2, 2.0])[None, :]
+    c = np.maximum(c, -1.0)
+    L = np.broadcast_to(lam[:, None], c.shape)
+    e, _ = _run(device, c, L)
+    assert np.all(e == 0.0)
+    assert np.all(si.sg_irradiance_norm_np(c, L) == 0.0)
+    ref = np.stack([_brute_e(c[i], lam[i]) for i in range(len(lam))])
+    assert np.all(ref <= np.exp(-si.ABOVE_HORIZON) * L / 2.0) and np.all(ref < 1e-9)
+    e_in, _ = _run(device, -np.sqrt(1.0 - s_min ** 2) * 0.9999, lam)  # the table, just above
+    assert np.all(e_in < 1e-9)

@@ -44,8 +44,8 @@ in ``c ∈ [−1, 1]`` (513); the lookup is ``exp`` of the bilinear interpolant 
 A lobe entirely above the horizon (``λ (1 − √(1 − c²)) ≥ 24``, :data:`ABOVE_HORIZON`: its value
 on the horizon is e^{−24}) has ``e = c (coth λ − 1/λ) = c (1 − 1/λ)`` for λ ≥ 24, exactly, and is
 not looked up (most lit points of a small light: no log, no exp); one entirely below it (the same
-test with c < 0) has e < 1e-11 σ (σ = √(1 − c²)/√λ; the sharp form's bound at z = −√48) and is 0
-(the far side of a small light: the shading kernel then skips its BRDF). Below λ = 1e-2 the first row is
+test with c < 0) has e ≤ e^{−24} λ/2, far below the budget's floor, and is 0 (the far side of a
+small light: the shading kernel then skips its BRDF). Below λ = 1e-2 the first row is
 used (flat, see above: ≤ 0.67 % off); above the switch λ = 1e3
 (:data:`IRR_LAM_SWITCH`, the last row) the sharp-lobe form is used (the step there is ≤ 2.5e-5 in
 ``e``). ``ln e`` rather than ``e`` is tabulated because near c = −1 ``e`` decays like ``e^{−2λ}``
@@ -264,9 +264,10 @@ def _above_horizon(c: float, lam: float) -> float:
 
 @wp.func
 def _below_horizon(c: float, lam: float) -> bool:
-    """Whether the whole lobe lies below the horizon (the mirror image of :func:`_above_horizon`:
-    its value on the horizon is under e^{−24}, so e < σ φ(√48) ≈ 1e-11 σ, σ = √(1 − c²)/√λ, the
-    sharp form's bound): then e is 0 (no table, no log or exp, and the caller skips the BRDF)."""
+    """Whether the whole lobe lies below the horizon (the mirror image of :func:`_above_horizon`):
+    its value above the horizon is under e^{−24} of its peak, so e ≤ e^{−24} λ/2 (2e-8 at λ = 1e3,
+    far below the error budget's 1e-4 floor; sharper lobes: the sharp form at z ≤ −√48, under
+    1e-11 σ). Then e is 0: no table, no log or exp, and the caller skips the BRDF."""
     if lam >= _ABOVE and c < 0.0:
         if lam * (1.0 - wp.sqrt(wp.max((1.0 - c) * (1.0 + c), 0.0))) >= _ABOVE:
             return True
