@@ -92,9 +92,12 @@ def _vertex_clearance(cone: wp.vec4, n: wp.vec3, p: wp.vec3, th_h: float, tmax: 
     pixel's and the vertex's horizon angle: conservative for both the blended and the own-frame reads)."""
     if cone[3] < 0.0:
         return 1.0
-    m = wp.clamp(wp.min(wp.max(th_h, fast_asin(wp.clamp(wp.dot(p, n), -1.0, 1.0))), tmax), 0.0, _HALF_PI)
     c = wp.clamp(p[0] * cone[0] + p[1] * cone[1] + p[2] * cone[2], -1.0, 1.0)
-    return wp.smoothstep(0.0, band, _HALF_PI - fast_asin(c) - cone[3] - m)
+    g = _HALF_PI - fast_asin(c) - cone[3]  # ∠(p, c) − α
+    if g <= 0.0:  # p inside the cone: 0 whatever m ≥ 0 (no second asin)
+        return 0.0
+    m = wp.clamp(wp.min(wp.max(th_h, fast_asin(wp.clamp(wp.dot(p, n), -1.0, 1.0))), tmax), 0.0, _HALF_PI)
+    return wp.smoothstep(0.0, band, g - m)
 
 
 @wp.func

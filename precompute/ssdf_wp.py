@@ -51,7 +51,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from warp_sg.fastmath import fast_asin, fast_atan2
+from warp_sg.fastmath import fast_asin, fast_atan_unit
 from warp_sg.frames import frame_bitangent, frame_tangent, world_to_local
 
 _PI_4 = np.pi / 4.0
@@ -199,7 +199,6 @@ def ssdf_eval_world_np(mean, basis, weights, normals, tris, bary, p_world, ng):
 
 _WP_PI_4 = wp.constant(_PI_4)
 _WP_PI_2 = wp.constant(_PI_2)
-_WP_PI = wp.constant(np.pi)
 _WP_4_PI = wp.constant(4.0 / np.pi)
 
 
@@ -225,32 +224,23 @@ def concentric_to_dir_wp(a: float, b: float) -> wp.vec3:
 
 @wp.func
 def dir_to_concentric_wp(d: wp.vec3) -> wp.vec2:
-    """Unit direction → square (a, b) ∈ [−1,1]²; z < 0 is clamped to the horizon."""
-    z = wp.clamp(d[2], 0.0, 1.0)
-    h = wp.sqrt(d[0] * d[0] + d[1] * d[1])
-    if h <= 0.0:
+    """Unit direction → square (a, b) ∈ [−1,1]²; z < 0 is clamped to the horizon.
+
+    The disk point is ``(d_x, d_y)·√(1 − z)/h`` (h = |(d_x, d_y)|), so its radius is ``√(1 − z)``
+    and its slope ``d_y/d_x``: where ``|d_x| ≥ |d_y|``, ``a = ±√(1 − z)`` (the sign of d_x) and
+    ``b = a (4/π) atan(d_y/d_x)``; else ``b = ±√(1 − z)`` and ``a = b (4/π) atan(d_x/d_y)`` (the
+    inverse of both branches of :func:`concentric_to_dir_wp`). One square root, one division and
+    one polynomial ``atan`` on [−1, 1] (``warp_sg.fastmath``, ≈2e-6 rad)."""
+    ax = wp.abs(d[0])
+    ay = wp.abs(d[1])
+    if ax <= 0.0 and ay <= 0.0:
         return wp.vec2(0.0, 0.0)
-    r = wp.sqrt(1.0 - z)
-    x = d[0] * r / h
-    y = d[1] * r / h
-    phi = fast_atan2(y, x)  # polynomial, ≈2e-6 rad (warp_sg.fastmath)
-    if phi < -_WP_PI_4:
-        phi = phi + 2.0 * _WP_PI
-    a = float(0.0)
-    b = float(0.0)
-    if phi < _WP_PI_4:
-        a = r
-        b = phi * _WP_4_PI * r
-    elif phi < 3.0 * _WP_PI_4:
-        a = -(phi - _WP_PI_2) * _WP_4_PI * r
-        b = r
-    elif phi < 5.0 * _WP_PI_4:
-        a = -r
-        b = -(phi - _WP_PI) * _WP_4_PI * r
-    else:
-        a = (phi - 3.0 * _WP_PI_2) * _WP_4_PI * r
-        b = -r
-    return wp.vec2(a, b)
+    r = wp.sqrt(1.0 - wp.clamp(d[2], 0.0, 1.0))
+    if ax >= ay:
+        a = wp.where(d[0] >= 0.0, r, -r)
+        return wp.vec2(a, a * _WP_4_PI * fast_atan_unit(d[1] / d[0]))
+    b = wp.where(d[1] >= 0.0, r, -r)
+    return wp.vec2(b * _WP_4_PI * fast_atan_unit(d[0] / d[1]), b)
 
 
 @wp.func

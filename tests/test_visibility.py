@@ -49,6 +49,26 @@ def test_concentric_map_warp_matches_numpy(device):
     np.testing.assert_allclose(back.numpy(), ab, atol=2e-5)
 
 
+@wp.kernel
+def _to_square_kernel(d: wp.array(dtype=wp.vec3), ab_out: wp.array(dtype=wp.vec2)):
+    k = wp.tid()
+    ab_out[k] = ssdf_wp.dir_to_concentric_wp(d[k])
+
+
+def test_direction_to_square_matches_numpy_on_the_whole_sphere(device):
+    """Every direction, below the horizon too (clamped to the horizon point of its azimuth), on
+    the axes and the region diagonals |x| = |y|, against the numpy map (arctan2 branches)."""
+    rng = np.random.default_rng(2)
+    d = rng.normal(size=(4000, 3))
+    d[:12] = [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1],
+              [1, 1, 0.5], [-1, 1, 0.5], [1, -1, -0.5], [-1, -1, 2.0], [1e-9, 0, 1], [0, -1e-9, 1]]
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    out = wp.zeros(len(d), dtype=wp.vec2, device=device)
+    wp.launch(_to_square_kernel, dim=len(d), device=device, inputs=[wp.array(d, dtype=wp.vec3, device=device), out])
+    a, b = ssdf_wp.dir_to_concentric(d)
+    np.testing.assert_allclose(out.numpy(), np.stack([a, b], -1), atol=1e-5)
+
+
 def _box_hit(o, d, lo, hi):
     """numpy slab test: does the ray o + t d (t > 0) hit the axis-aligned box [lo, hi]?"""
     with np.errstate(divide="ignore", invalid="ignore"):

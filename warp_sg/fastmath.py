@@ -7,7 +7,8 @@ maps the direction to the concentric square (an ``atan2``) and compares it with 
 single-precision polynomial forms with errors of ≈ 2e-6 rad or less are exact for the purpose:
 
 * ``fast_atan2(y, x)``: range reduction to |t| ≤ 1 and the odd minimax polynomial of degree 11
-  for ``atan(t)`` (max error ≈ 2e-6 rad over [−1, 1], checked against ``numpy.arctan2`` in ``tests/test_fastmath.py``);
+  for ``atan(t)``, ``fast_atan_unit(t)`` (max error ≈ 2e-6 rad over [−1, 1], checked against
+  ``numpy.arctan2`` in ``tests/test_fastmath.py``);
 * ``fast_asin(x)``: Abramowitz & Stegun 4.4.46, ``asin x = π/2 − √(1−x) Σ_{k=0..7} a_k x^k`` for
   0 ≤ x ≤ 1 (|ε| ≤ 2e-8 in exact arithmetic), odd extension for x < 0.
 """
@@ -19,7 +20,7 @@ _PI = wp.constant(3.141592653589793)
 
 
 @wp.func
-def _atan_unit(t: float) -> float:
+def fast_atan_unit(t: float) -> float:
     """atan(t) for |t| ≤ 1 (odd minimax polynomial, degree 11)."""
     t2 = t * t
     p = -0.01172120
@@ -40,9 +41,9 @@ def fast_atan2(y: float, x: float) -> float:
         return 0.0
     r = float(0.0)
     if ay <= ax:
-        r = _atan_unit(ay / ax)
+        r = fast_atan_unit(ay / ax)
     else:
-        r = _HALF_PI - _atan_unit(ax / ay)
+        r = _HALF_PI - fast_atan_unit(ax / ay)
     if x < 0.0:
         r = _PI - r
     if y < 0.0:
@@ -68,4 +69,4 @@ def fast_asin(x: float) -> float:
     return r
 
 
-__all__ = ["fast_atan2", "fast_asin"]
+__all__ = ["fast_atan2", "fast_atan_unit", "fast_asin"]
