@@ -79,7 +79,7 @@ from warp_sg.workers import cpu_workers
 
 # the cube-map geometry and the kernel side (build kernel, table struct, lookups), re-exported here
 from .cubemap import cube_dir, cube_dir_numpy, cube_face_of, cube_face_of_numpy
-from .prefilter_wp import GammaTable, _prefilter_level_kernel, erf_filtered, gamma_lookup, gamma_normalized
+from .prefilter_wp import GammaTable, _prefilter_level_kernel, erf_filtered, gamma_lookup, gamma_mean, gamma_normalized
 
 #: Cap of the quadrature window: texels with λ (1 − p·d) > CUTOFF are skipped (mass e^{−14}).
 CUTOFF = 14.0
@@ -555,6 +555,7 @@ __all__ = [
     "prefilter_environment",
     "default_ladder",
     "gamma_lookup",
+    "gamma_mean",
     "gamma_normalized",
     "gamma_lookup_numpy",
     "gamma_normalized_numpy",

@@ -309,4 +309,11 @@ def gamma_lookup(tab: GammaTable, p: wp.vec3, lam: float) -> wp.vec3:
     return gamma_normalized(tab, d, lam) * (tab.scale * sg_integral(wp.max(lam, 1.0e-6)))
 
 
-__all__ = ["GammaTable", "gamma_lookup", "gamma_normalized", "erf_filtered"]
+@wp.func
+def gamma_mean(tab: GammaTable, p: wp.vec3, lam: float) -> wp.vec3:
+    """``scale · ΓL(p, λ)/∫G(λ)``: the mean radiance under the lobe (eq. 35 over the lobe's
+    integral), :func:`gamma_lookup` without multiplying by ∫G that the caller divides out again."""
+    return gamma_normalized(tab, wp.normalize(tab.to_env * p), lam) * tab.scale
+
+
+__all__ = ["GammaTable", "gamma_lookup", "gamma_mean", "gamma_normalized", "erf_filtered"]

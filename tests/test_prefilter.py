@@ -9,7 +9,7 @@ import warp as wp
 
 from precompute import envmap as em
 from precompute import prefilter as pf
-from precompute.prefilter import GammaTable, gamma_lookup
+from precompute.prefilter import GammaTable, gamma_lookup, gamma_mean
 from warp_sg import sg
 
 SUN = np.array([0.45, 0.55, -0.70]) / np.linalg.norm([0.45, 0.55, -0.70])
@@ -17,9 +17,10 @@ SUN = np.array([0.45, 0.55, -0.70]) / np.linalg.norm([0.45, 0.55, -0.70])
 
 @wp.kernel
 def _lookup_kernel(tab: GammaTable, p: wp.array(dtype=wp.vec3), lam: wp.array(dtype=float),
-                   out: wp.array(dtype=wp.vec3)):
+                   out: wp.array(dtype=wp.vec3), mean: wp.array(dtype=wp.vec3)):
     i = wp.tid()
     out[i] = gamma_lookup(tab, p[i], lam[i])
+    mean[i] = gamma_mean(tab, p[i], lam[i])
 
 
 @wp.kernel
@@ -30,13 +31,15 @@ def _face_kernel(d: wp.array(dtype=wp.vec3), out: wp.array(dtype=wp.vec3), back:
     back[i] = wp.normalize(pf.cube_dir(int(f[0]), f[1], f[2]))
 
 
-def _lookup_wp(pre, p, lam, device, rotation=None, scale=1.0):
+def _lookup_wp(pre, p, lam, device, rotation=None, scale=1.0, mean=False):
+    """``gamma_lookup`` (ΓL) of the table on ``device``, or with ``mean`` its ``gamma_mean`` (ΓL/∫G)."""
     out = wp.zeros(len(p), dtype=wp.vec3, device=device)
+    avg = wp.zeros(len(p), dtype=wp.vec3, device=device)
     wp.launch(_lookup_kernel, dim=len(p), device=device,
               inputs=[pre.table(rotation=rotation, scale=scale, device=device),
                       wp.array(np.asarray(p, np.float32), dtype=wp.vec3, device=device),
-                      wp.array(np.asarray(lam, np.float32), dtype=float, device=device), out])
-    return out.numpy().astype(np.float64)
+                      wp.array(np.asarray(lam, np.float32), dtype=float, device=device), out, avg])
+    return (avg if mean else out).numpy().astype(np.float64)
 
 
 def _unit(rng, n):
@@ -99,6 +102,8 @@ def test_constant_map_gives_exactly_L_times_sg_integral(device):
     expect = sg.integral(lam)[:, None] * L
     assert np.allclose(pf.gamma_lookup_numpy(pre, p, lam), expect, rtol=2e-6)
     assert np.allclose(_lookup_wp(pre, p, lam, device), expect, rtol=2e-5)
+    # the mean radiance under any lobe of a constant map is the constant
+    assert np.allclose(_lookup_wp(pre, p, lam, device, mean=True), np.broadcast_to(L, (len(p), 3)), rtol=2e-5)
 
 
 def test_broad_lobes_tend_to_the_sphere_integral(sky, pre):
@@ -120,6 +125,9 @@ def test_warp_lookup_matches_numpy_twin_with_rotation_and_scale(pre, device):
     want = pf.gamma_lookup_numpy(pre, p, lam, rotation=R, scale=2.5)
     rel = np.abs(got - want).max(1) / np.abs(want).max(1)
     assert np.percentile(rel, 99) < 1e-4 and rel.max() < 2e-3  # float32, texel-boundary rounding
+    mean = _lookup_wp(pre, p, lam, device, rotation=R, scale=2.5, mean=True)  # ΓL/∫G
+    rel = np.abs(mean * sg.integral(lam)[:, None] - want).max(1) / np.abs(want).max(1)
+    assert np.percentile(rel, 99) < 1e-4 and rel.max() < 2e-3
     # rotating the environment by R equals looking up Rᵀ p in the unrotated table
     assert np.allclose(want, 2.5 * pf.gamma_lookup_numpy(pre, p @ R, lam), rtol=1e-9)
 

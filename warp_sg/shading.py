@@ -68,7 +68,7 @@ from .frames import local_to_world, world_to_local
 from .lights import LightArrays, light_irradiance
 from .sg import CLAMPED_COSINE_SHARPNESS
 from .sg_irradiance import sg_irradiance_norm, sg_irradiance_norm_at, sg_irradiance_row, sg_power
-from .sg_wp import sg_integral, sg_product
+from .sg_wp import sg_integral, sg_product_lobe
 from .surface import (  # noqa: F401  (re-exported: slot constants, MaterialTextures)
     N_SLOTS, SLOT_KD, SLOT_KS, SLOT_NORMAL, SLOT_P0, SLOT_P1, SLOT_TANGENT, MaterialTextures,
     apply_shading_maps, tangent_in_plane, textured_material,
@@ -274,10 +274,10 @@ def diffuse_sum_per_vertex_ok(env_diffuse: int, models, normal_maps: bool) -> bo
 
 
 def _gamma_parts():
-    """(struct type, @wp.func gamma_lookup(struct, p, lam) -> vec3) of the prefiltered ΓL pyramid."""
+    """(struct type, @wp.func gamma_mean(struct, p, lam) -> vec3: ΓL/∫G) of the prefiltered ΓL pyramid."""
     from precompute import prefilter as P
 
-    return P.GammaTable, P.gamma_lookup
+    return P.GammaTable, P.gamma_mean
 
 
 def shade_kernel(f: Features):
@@ -304,9 +304,9 @@ def shade_kernel(f: Features):
     shading_slice_lobe = MF.shading_slice_lobe
     USE_GAMMA = ENV_S == ENV_PREFILTERED
     if USE_GAMMA:
-        GammaT, gamma_lookup = _gamma_parts()
+        GammaT, gamma_mean = _gamma_parts()
     else:
-        GammaT, gamma_lookup = EnvSG, None  # placeholder type (unused argument)
+        GammaT, gamma_mean = EnvSG, None  # placeholder type (unused argument)
 
     def shade(base: int, per: int, tri_id: wp.array2d(dtype=int), bary: wp.array2d(dtype=wp.vec2), background: wp.array2d(dtype=wp.vec3),
               rays: Background, use_rays: int, cam: wp.vec3, geo: GeometryArrays, mats: wp.array(dtype=Material), tex: MaterialTextures,
@@ -408,7 +408,7 @@ def shade_kernel(f: Features):
                             E = env.power[j] * sg_irradiance_norm_at(irr, wp.dot(ns, ax), env.lam[j], env.irr_row[j])
                             if wp.length_sq(E) > 0.0:
                                 vr = float(1.0)
-                                pe, le, se = sg_product(ns, CC_LAM, ax, env.lam[j])
+                                pe, le = sg_product_lobe(ns, CC_LAM, ax, env.lam[j])
                                 if wp.static(VVIS):  # the per-vertex cache, interpolated
                                     vr = b0 * env.vis[i0, j] + b1 * env.vis[i1, j] + b2 * env.vis[i2, j]
                                 else:
@@ -432,8 +432,8 @@ def shade_kernel(f: Features):
                         e = sg_irradiance_norm(irr, pw_l[2], lw) * sg_integral(lw)
                         if e > 0.0:
                             pw = local_to_world(pw_l, ts, bs, ns)
-                            pa, lam, sc = sg_product(ns, CC_LAM, pw, lw)
-                            g = gamma_lookup(gamma, pa, lam) / sg_integral(lam)
+                            pa, lam = sg_product_lobe(ns, CC_LAM, pw, lw)
+                            g = gamma_mean(gamma, pa, lam)  # L̄ = ΓL(p, λ)/∫G(λ)
                             vr = vis_ratio(SHADOWS, FH, vis, q, pa, lam)
                             col += wp.cw_mul(mw, g) * (e * vr)
             out[y, x] = wp.vec3(wp.max(col[0], 0.0), wp.max(col[1], 0.0), wp.max(col[2], 0.0))

@@ -55,7 +55,7 @@ from .fastmath import fast_asin
 from .lights import LightArrays, light_irradiance
 from .shading import CC_LAM, EnvSG, Visibility, env_diffuse_sum, lookup_skip, vis_ratio
 from .sg_irradiance import sg_irradiance_norm_at
-from .sg_wp import sg_product
+from .sg_wp import sg_product_lobe
 
 
 @wp.kernel(enable_backward=False)
@@ -68,7 +68,7 @@ def env_vertex_visibility_kernel(base: int, fh_mode: int, vis: Visibility, env: 
     j = e - v * nj
     n = wp.normalize(vis.normals[v])
     q = ssdf_point(vis.normals, v, v, v, 1.0, 0.0, 0.0, n)
-    pe, le, se = sg_product(n, CC_LAM, env.axis[j], env.lam[j])
+    pe, le = sg_product_lobe(n, CC_LAM, env.axis[j], env.lam[j])
     out[v, j] = vis_ratio(1, fh_mode, vis, q, pe, le)
 
 
