@@ -124,9 +124,7 @@ def test_every_edge_of_a_full_subpixel_raster_is_a_candidate_pixel(cache_dir, ma
     edges = edge.numpy().astype(bool)
     vb1 = r.rasterize(1)
     img = wp.zeros((H, W), dtype=wp.vec3)  # no contrast: geometry flags only
-    cand, flag = wp.empty(H * W, dtype=int), wp.empty(H * W, dtype=int)
-    parallel.launch(A.candidates_kernel, H * W, [vb1.tri_id, r._tri_object, r._aa.contours(cam, vb1), img,
-                                                 A.CONTRAST, cand, flag], "cpu")
+    cand, flag = A.candidate_flags(vb1.tri_id, r._tri_object, r._aa.contours(cam, vb1), img, "cpu")
     flagged = cand.numpy() != 0
     assert (flag.numpy() == flagged).all()
     assert A.candidate_list(flag, "cpu").numpy().tolist() == np.flatnonzero(flagged).tolist()
@@ -365,3 +363,40 @@ def test_contours_hidden_behind_a_nearer_surface_are_not_marked():
     assert marks([2], None).sum() > 30 and marks([2], vb.inv_depth).sum() == 0
     border = marks([0, 1], None)
     assert border.sum() > 60 and np.array_equal(marks([0, 1], vb.inv_depth), border)
+
+
+@pytest.mark.parametrize("W", [1, 63, 64, 150])
+def test_candidate_flags_match_their_definition_in_numpy(W):
+    """Every pixel's flags (rows tested in runs of ``CANDIDATES_PER_THREAD`` on the CPU, the last
+    run of a row shorter) against the definition evaluated with numpy shifts: a contour mark, a
+    4-neighbour on another object, a 4-neighbour whose luminance differs by more than
+    ``CONTRAST`` of the larger."""
+    import warp as wp
+
+    from warp_sg import antialias as A
+
+    H = 9
+    rng = np.random.default_rng(W)
+    tid = rng.integers(-1, 40, (H, W)).astype(np.int32)
+    tid[:, : W // 2] = 5  # a flat region: one triangle
+    obj = rng.integers(0, 3, 40).astype(np.int32)
+    contours = (rng.random((H, W)) < 0.05).astype(np.uint8)
+    img = rng.uniform(0.5, 1.0, (H, W, 3)).astype(np.float32)
+    img[:, : W // 3] = 0.8  # no contrast there
+    cand, flag = A.candidate_flags(wp.array(tid, dtype=int), wp.array(obj, dtype=int),
+                                   wp.array(contours, dtype=wp.uint8), wp.array(img, dtype=wp.vec3), "cpu")
+    o = np.where(tid >= 0, obj[np.maximum(tid, 0)], -1)
+    lum = img.astype(np.float64) @ np.array([0.2126, 0.7152, 0.0722])
+    geo = contours != 0
+    con = np.zeros((H, W), bool)
+    for dy, dx in ((0, 1), (0, -1), (1, 0), (-1, 0)):
+        ys, xs = np.mgrid[0:H, 0:W]
+        yy, xx = ys + dy, xs + dx
+        ok = (yy >= 0) & (yy < H) & (xx >= 0) & (xx < W)
+        yy, xx = np.clip(yy, 0, H - 1), np.clip(xx, 0, W - 1)
+        geo |= ok & (o[yy, xx] != o)
+        con |= ok & (np.abs(lum - lum[yy, xx]) > A.CONTRAST * np.maximum(lum, lum[yy, xx]))
+    want = np.where(geo, A.CAND_GEOMETRY, 0) | np.where(con, A.CAND_CONTRAST, 0)
+    assert cand.numpy().reshape(H, W).tolist() == want.tolist()
+    assert flag.numpy().reshape(H, W).tolist() == (want != 0).astype(int).tolist()
+    assert con.any() and geo.any() or W == 1

@@ -91,44 +91,74 @@ def _object_of(tri_object: wp.array(dtype=int), t: int) -> int:
     return o
 
 
+@wp.func
+def _neighbour_flags(tri_id: wp.array2d(dtype=int), tri_object: wp.array(dtype=int), img: wp.array2d(dtype=wp.vec3),
+                     contrast: float, t0: int, o0: int, l0: float, yy: int, xx: int) -> int:
+    """The candidate flags that neighbour (yy, xx) raises for a pixel seeing triangle ``t0`` of
+    object ``o0`` with luminance ``l0`` (the same triangle is the same object: no lookup)."""
+    f = int(0)
+    t1 = tri_id[yy, xx]
+    if t1 != t0:
+        if _object_of(tri_object, t1) != o0:
+            f = CAND_GEOMETRY
+    l1 = wp.dot(img[yy, xx], wp.vec3(0.2126, 0.7152, 0.0722))
+    if wp.abs(l0 - l1) > contrast * wp.max(wp.max(l0, l1), 1.0e-30):
+        f = f | CAND_CONTRAST
+    return f
+
+
+#: pixels of a row one CPU thread tests in :func:`candidates_kernel` (one integer division per
+#: thread, not per pixel, and a plain loop along the row: −28 % of its time on the frame-scaling
+#: frame); 1 on CUDA (a thread per pixel)
+CANDIDATES_PER_THREAD = 64
+
+
 @wp.kernel(enable_backward=False)
-def candidates_kernel(base: int, tri_id: wp.array2d(dtype=int), tri_object: wp.array(dtype=int),
+def candidates_kernel(base: int, seg: int, tri_id: wp.array2d(dtype=int), tri_object: wp.array(dtype=int),
                       contours: wp.array2d(dtype=wp.uint8), img: wp.array2d(dtype=wp.vec3), contrast: float,
                       cand: wp.array(dtype=int), flag: wp.array(dtype=int)):
     """``cand[k]``: ``CAND_GEOMETRY`` where the pixel is on a contour or a 4-neighbour sees another
     object (1× buffer), plus ``CAND_CONTRAST`` where the 1× image's luminance differs from a
     4-neighbour's by more than ``contrast`` of the larger one; ``flag[k]`` = 1 where either (for
-    the scan that lists the candidates, :func:`candidate_list`)."""
+    the scan that lists the candidates, :func:`candidate_list`). Element ``base + tid`` is the
+    run of ``seg`` pixels of one row (the last of a row shorter): ``⌈W/seg⌉`` runs per row."""
     H = img.shape[0]
     W = img.shape[1]
-    k = base + wp.tid()
-    y = k / W
-    x = k - y * W
-    o0 = _object_of(tri_object, tri_id[y, x])
-    lum = wp.vec3(0.2126, 0.7152, 0.0722)
-    l0 = wp.dot(img[y, x], lum)
-    f = int(0)
-    if contours[y, x] != wp.uint8(0):
-        f = CAND_GEOMETRY
-    for d in range(4):
-        yy = y
-        xx = x
-        if d == 0:
-            xx = x - 1
-        elif d == 1:
-            xx = x + 1
-        elif d == 2:
-            yy = y - 1
-        else:
-            yy = y + 1
-        if yy >= 0 and yy < H and xx >= 0 and xx < W:
-            if _object_of(tri_object, tri_id[yy, xx]) != o0:
-                f = f | CAND_GEOMETRY
-            l1 = wp.dot(img[yy, xx], lum)
-            if wp.abs(l0 - l1) > contrast * wp.max(wp.max(l0, l1), 1.0e-30):
-                f = f | CAND_CONTRAST
-    cand[k] = f
-    flag[k] = int(f != 0)
+    runs = (W + seg - 1) / seg
+    r = base + wp.tid()
+    y = r / runs
+    x0 = (r - y * runs) * seg
+    for x in range(x0, wp.min(x0 + seg, W)):
+        t0 = tri_id[y, x]
+        o0 = _object_of(tri_object, t0)
+        l0 = wp.dot(img[y, x], wp.vec3(0.2126, 0.7152, 0.0722))
+        f = int(0)
+        if contours[y, x] != wp.uint8(0):
+            f = CAND_GEOMETRY
+        if x > 0:
+            f = f | _neighbour_flags(tri_id, tri_object, img, contrast, t0, o0, l0, y, x - 1)
+        if x + 1 < W:
+            f = f | _neighbour_flags(tri_id, tri_object, img, contrast, t0, o0, l0, y, x + 1)
+        if y > 0:
+            f = f | _neighbour_flags(tri_id, tri_object, img, contrast, t0, o0, l0, y - 1, x)
+        if y + 1 < H:
+            f = f | _neighbour_flags(tri_id, tri_object, img, contrast, t0, o0, l0, y + 1, x)
+        cand[y * W + x] = f
+        flag[y * W + x] = int(f != 0)
+
+
+def candidate_flags(tri_id: wp.array, tri_object: wp.array, contours: wp.array, img: wp.array, device):
+    """(cand, flag) of every pixel (:func:`candidates_kernel`, rows in runs of
+    ``CANDIDATES_PER_THREAD`` pixels on the CPU, one pixel per thread on CUDA)."""
+    from raster import parallel
+
+    H, W = int(img.shape[0]), int(img.shape[1])
+    seg = CANDIDATES_PER_THREAD if str(device).startswith("cpu") else 1
+    cand = wp.empty(H * W, dtype=int, device=device)
+    flag = wp.empty(H * W, dtype=int, device=device)
+    parallel.launch(candidates_kernel, H * (-(-W // seg)), [seg, tri_id, tri_object, contours, img, CONTRAST, cand,
+                                                           flag], device, min_chunk=max(4096 // seg, 1))
+    return cand, flag
 
 
 def candidate_list(flag: wp.array, device) -> wp.array:
@@ -463,9 +493,7 @@ def render_adaptive(vb1, img, cache: AntialiasCache, camera, tri_object: wp.arra
 
     n_pix = H * W
     contours = cache.contours(camera, vb1)
-    cand = wp.empty(n_pix, dtype=int, device=device)
-    flag = wp.empty(n_pix, dtype=int, device=device)
-    parallel.launch(candidates_kernel, n_pix, [vb1.tri_id, tri_object, contours, img, CONTRAST, cand, flag], device)
+    cand, flag = candidate_flags(vb1.tri_id, tri_object, contours, img, device)
     idx = candidate_list(flag, device)
     n_c = len(idx)
     if n_c == 0:  # nothing to antialias
