@@ -175,7 +175,7 @@ def subsample(vb, pixels: wp.array):
     n_tiles = tiles_x * ((H + TILE - 1) // TILE)
     slot = wp.full((H, W), -1, dtype=int, device=device)
     flag = wp.zeros(n_tiles, dtype=int, device=device)
-    parallel.launch(_slots_kernel, n, [pixels, W, tiles_x, slot, flag], device)
+    parallel.launch(_slots_kernel, n, [pixels, W, tiles_x, slot, flag], device, min_chunk=16384)  # trivial: one range
     tiles = parallel.compact(flag, device)
     if vb._offsets is None:  # nothing was binned: every sub-sample sees nothing
         tri.fill_(-1)

@@ -78,6 +78,11 @@ PROBES_X = wp.constant(wp.vec4i(3, 7, 1, 5))
 PROBES_Y = wp.constant(wp.vec4i(1, 3, 5, 7))
 
 
+#: a kernel over the candidate list whose elements cost well under a µs (the refinement, the
+#: resolves): below this many candidates it runs as one launch on the calling thread, where the
+#: CPU pool's hand-off (~90 µs per range) would cost more than the work
+LIST_MIN_CHUNK = 16384
+
 #: candidate flags (bits of ``cand``)
 CAND_GEOMETRY = wp.constant(1)
 CAND_CONTRAST = wp.constant(2)
@@ -524,19 +529,22 @@ def render_adaptive(vb1, img, cache: AntialiasCache, camera, tri_object: wp.arra
         n3, rest, offset3 = 0, None, None
         if a >= 3 and stats["contrast_pixels"] > 0:  # contrast pixels whose probes disagree: the rest
             rest = wp.empty(n_c, dtype=int, device=device)
-            parallel.launch(refine_kernel, n_c, [idx, edge, count, offset, out, img, a, PROBE_CONTRAST, W, rest], device)
+            parallel.launch(refine_kernel, n_c, [idx, edge, count, offset, out, img, a, PROBE_CONTRAST, W, rest], device,
+                            min_chunk=LIST_MIN_CHUNK)
             offset3, n3 = parallel.exclusive_scan(rest)
-        parallel.launch(resolve_kernel, n_c, [idx, out, weight_s, count, offset, W, 0.0, img], device)
+        parallel.launch(resolve_kernel, n_c, [idx, out, weight_s, count, offset, W, 0.0, img], device,
+                        min_chunk=LIST_MIN_CHUNK)
         if n3 > 0:
             tri_s = wp.empty((1, n3), dtype=int, device=device)
             bary_s = wp.empty((1, n3), dtype=wp.vec2, device=device)
             bg_s = wp.empty((1, n3), dtype=wp.vec3, device=device)
             weight_s = wp.empty(n3, dtype=float, device=device)
             parallel.launch(gather_rest_kernel, n_c, [idx, sub_tri, sub_bary, background, rest, offset3, a, W, tri_s,
-                                                      bary_s, bg_s, weight_s], device)
+                                                      bary_s, bg_s, weight_s], device, min_chunk=LIST_MIN_CHUNK)
             out = wp.empty((1, n3), dtype=wp.vec3, device=device)
             shade(tri_s, bary_s, bg_s, out)
-            parallel.launch(resolve_kernel, n_c, [idx, out, weight_s, rest, offset3, W, 4.0 / (a * a), img], device)
+            parallel.launch(resolve_kernel, n_c, [idx, out, weight_s, rest, offset3, W, 4.0 / (a * a), img], device,
+                            min_chunk=LIST_MIN_CHUNK)
         stats.update(pass2_samples=n + n3, refined_pixels=n3 // max(a * a - 4, 1))
     return img, stats
 

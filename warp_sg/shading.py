@@ -312,13 +312,19 @@ def shade_kernel(f: Features):
               rays: Background, use_rays: int, cam: wp.vec3, geo: GeometryArrays, mats: wp.array(dtype=Material), tex: MaterialTextures,
               irr: wp.array2d(dtype=float), lights: LightArrays, env: EnvSG, gamma: GammaT, vis: Visibility,
               out: wp.array2d(dtype=wp.vec3)):
-        n_pix = tri_id.shape[0] * tri_id.shape[1]
+        W = tri_id.shape[1]
+        p0 = base + wp.tid() * per  # the thread's first row-major pixel index
+        ny = p0 // W  # (row, column) of the next pixel: one division per thread, then steps
+        nx = p0 - ny * W
         for s in range(per):  # per pixels per thread on the CPU (raster.parallel.launch), 1 on CUDA
-            pix = base + wp.tid() * per + s  # row-major pixel index
-            if pix >= n_pix:
+            if ny >= tri_id.shape[0]:
                 break
-            y = pix // tri_id.shape[1]
-            x = pix - y * tri_id.shape[1]
+            y = ny
+            x = nx
+            nx += 1
+            if nx == W:
+                nx = 0
+                ny += 1
             t = tri_id[y, x]
             if t < 0:  # the environment along the (sub)pixel's ray, or what the caller gathered
                 if use_rays != 0:
