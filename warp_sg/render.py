@@ -506,8 +506,8 @@ class Renderer:
         filtered. Otherwise, with ``antialias`` a > 1 (the default, 4), coverage is rasterised at
         a×a sub-pixels and shading is edge-adaptive: a pixel whose sub-pixels all see the same
         object at similar depth is shaded once (at its centre), an edge pixel once per triangle its
-        sub-pixels see, weighted by coverage, a contrasting one at every sub-pixel
-        (:mod:`warp_sg.antialias`) — antialiased silhouettes at a fraction of the cost of shading
+        sub-pixels see, weighted by coverage, a contrasting one at 4 probes and, where they
+        disagree, at every sub-pixel (:mod:`warp_sg.antialias`) — antialiased silhouettes at a fraction of the cost of shading
         every sub-pixel."""
         rs = self.scene.render
         if rs.supersampling == 1 and rs.antialias > 1:
@@ -527,7 +527,7 @@ class Renderer:
             res = wp.empty((cam.height, cam.width), dtype=wp.vec3, device=d)
             wp.launch(S.resolve_box, dim=(cam.height, cam.width), inputs=[out, k], outputs=[res], device=d)
             out = res
-        img = out.numpy().reshape(cam.height, cam.width, 3).astype(np.float32)
+        img = out.numpy().reshape(cam.height, cam.width, 3)  # float32; on the CPU a view of this frame's own buffer
         t3 = time.perf_counter()
         self.timings.update(raster=t1 - t0, shade=t2 - t1, resolve=t3 - t2, frame=t3 - t0, shaded_samples=hs * ws_)
         return img
@@ -549,7 +549,7 @@ class Renderer:
         img, st = render_adaptive(vb, img, self._aa, cam, self._tri_object, self._background(a, rays=True), a,
                                   cam.height, cam.width, shade, d)
         t2 = _timer(d)
-        out = img.numpy().astype(np.float32)
+        out = img.numpy()  # float32; on the CPU a view of this frame's own buffer (not reused)
         t3 = time.perf_counter()
         sub = st["raster_seconds"]  # the sub-pixel coverage, inside render_adaptive
         self.timings.update(raster=t1 - t0 + sub, shade=t2 - t1 - sub, resolve=t3 - t2, frame=t3 - t0,
