@@ -400,3 +400,23 @@ def test_candidate_flags_match_their_definition_in_numpy(W):
     assert cand.numpy().reshape(H, W).tolist() == want.tolist()
     assert flag.numpy().reshape(H, W).tolist() == (want != 0).astype(int).tolist()
     assert con.any() and geo.any() or W == 1
+
+
+def test_candidate_lists_are_compared_on_their_device():
+    """``same_list`` (a re-shade reuses the sub-pixel coverage when its candidate list is the last
+    frame's): equal, one element changed, another length; the device comparison kernel (the CUDA
+    path, one integer back) run here on the CPU against numpy."""
+    import warp as wp
+
+    from warp_sg import antialias as A
+
+    x = np.arange(0, 5000, 7, dtype=np.int32)
+    y = x.copy()
+    y[333] += 1
+    a, b, c = (wp.array(v, dtype=int) for v in (x, y, x[:-1]))
+    assert A.same_list(a, wp.array(x.copy(), dtype=int))
+    assert not A.same_list(a, b) and not A.same_list(a, c)
+    for other, want in ((x.copy(), 0), (y, 1)):
+        out = wp.zeros(1, dtype=int)
+        wp.launch(A._differs_kernel, dim=len(x), inputs=[a, wp.array(other, dtype=int), out])
+        assert out.numpy()[0] == want

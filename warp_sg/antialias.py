@@ -468,16 +468,34 @@ class AntialiasCache:
 
     def subsamples(self, vb, idx: wp.array):
         """``raster.subsample.subsample(vb, idx)``, reused when ``vb`` and the list are the last
-        frame's."""
+        frame's (compared where they are: :func:`same_list`)."""
         from raster.subsample import subsample
 
-        listed = idx.numpy()
         old_vb, old_idx, sub = self._sub
-        if old_vb is vb and old_idx is not None and np.array_equal(old_idx, listed):
+        if old_vb is vb and old_idx is not None and same_list(old_idx, idx):
             return sub
         sub = subsample(vb, idx)
-        self._sub = (vb, listed, sub)
+        self._sub = (vb, idx, sub)
         return sub
+
+
+@wp.kernel(enable_backward=False)
+def _differs_kernel(a: wp.array(dtype=int), b: wp.array(dtype=int), out: wp.array(dtype=int)):
+    i = wp.tid()
+    if a[i] != b[i]:
+        out[0] = 1  # (every writer writes the same value)
+
+
+def same_list(a: wp.array, b: wp.array) -> bool:
+    """Whether two int arrays on one device hold the same values: numpy views on the CPU, a
+    comparison on the device elsewhere (one integer comes back, not the lists)."""
+    if a.shape != b.shape:
+        return False
+    if str(a.device).startswith("cpu"):
+        return bool(np.array_equal(a.numpy(), b.numpy()))
+    out = wp.zeros(1, dtype=int, device=a.device)
+    wp.launch(_differs_kernel, dim=a.shape[0], inputs=[a, b, out], device=a.device)
+    return int(out.numpy()[0]) == 0
 
 
 def render_adaptive(vb1, img, cache: AntialiasCache, camera, tri_object: wp.array, background: Background, a: int,
