@@ -37,8 +37,6 @@ def bin_count_kernel(
     height: int,
     subs: wp.array(dtype=SubTri),
     counts: wp.array(dtype=wp.int32),
-    masked: int,
-    tile_mask: wp.array(dtype=wp.uint8),
     grid: int,
 ):
     j = base + wp.tid()
@@ -48,7 +46,7 @@ def bin_count_kernel(
     if rec.tri < 0:
         return  # empty slot (culled / clipped away / no pixel centre covered)
     bb = sample_bbox(rec.v0, rec.v1, rec.v2, width, height, grid)
-    count_tiles(bb, rec.v0, rec.v1, rec.v2, tiles_x, rows, row, counts, masked, tile_mask, grid)
+    count_tiles(bb, rec.v0, rec.v1, rec.v2, tiles_x, rows, row, counts, grid)
 
 
 def scan_counts(counts: wp.array, offsets: wp.array) -> int:

@@ -19,7 +19,7 @@ import warp as wp
 
 wp.set_module_options({"enable_backward": False})
 
-from .fixed import TILE_BITS, sample_bbox, tile_drawn, tile_overlaps
+from .fixed import TILE_BITS, sample_bbox, tile_overlaps
 from .setup import SubTri
 
 
@@ -37,8 +37,6 @@ def coarse_scatter_kernel(
     cursor: wp.array(dtype=wp.int32),
     queue: wp.array(dtype=SubTri),
     row_from_tri: int,
-    masked: int,
-    tile_mask: wp.array(dtype=wp.uint8),
     grid: int,
 ):
     j = base + wp.tid()
@@ -55,9 +53,8 @@ def coarse_scatter_kernel(
     ty0 = bb[1] >> TILE_BITS
     ty1 = bb[3] >> TILE_BITS
     if tx0 == tx1 and ty0 == ty1:  # the common case: one tile
-        if tile_drawn(masked, tile_mask, ty0 * tiles_x + tx0):
-            slot1 = (ty0 * tiles_x + tx0) * rows + row
-            queue[offsets[slot1] + wp.atomic_add(cursor, slot1, 1)] = rec
+        slot1 = (ty0 * tiles_x + tx0) * rows + row
+        queue[offsets[slot1] + wp.atomic_add(cursor, slot1, 1)] = rec
         return
     small = (tx1 - tx0) < 1 or (ty1 - ty0) < 1
     v0 = rec.v0
@@ -65,7 +62,7 @@ def coarse_scatter_kernel(
     v2 = rec.v2
     for ty in range(ty0, ty1 + 1):
         for tx in range(tx0, tx1 + 1):
-            if tile_drawn(masked, tile_mask, ty * tiles_x + tx) and (small or tile_overlaps(v0, v1, v2, bb, tx, ty, grid)):
+            if small or tile_overlaps(v0, v1, v2, bb, tx, ty, grid):
                 slot = (ty * tiles_x + tx) * rows + row
                 k = wp.atomic_add(cursor, slot, 1)
                 queue[offsets[slot] + k] = rec

@@ -15,10 +15,7 @@ top-left edge. Depth: the 1/w plane of the original triangle (larger = nearer), 
 [1/far, 1/near]; ties go to the lower triangle id so the result does not depend on queue order.
 The winner's perspective-correct barycentrics (λ1/Σλ, λ2/Σλ from the record's planes) are written
 with it, straight into the output buffers (cleared before the first pass); ``resolve_kernel`` turns
-1/w into depth, only when a caller asks for it. ``masked = 1``: only the tiles listed in
-``tile_list`` are drawn (thread / block i draws the i-th), and the first pass (``clear = 1``) clears
-just those (the rest of the buffers is left as it was: antialiasing rasterises the sub-pixels of
-the few tiles it needs).
+1/w into depth, only when a caller asks for it.
 ``count_mode`` additionally counts every covering sub-triangle per pixel (depth test off) — the
 watertightness diagnostic.
 """
@@ -56,17 +53,6 @@ def barycentrics(pl: wp.mat33, v0: wp.vec2i, x: int, y: int, invw: float):
     return barycentrics_at(pl, v0, float(x) + 0.5, float(y) + 0.5, invw)
 
 
-@wp.func
-def clear_tile(best_invw: wp.array2d(dtype=wp.float32), best_tri: wp.array2d(dtype=wp.int32),
-               best_bary: wp.array2d(dtype=wp.vec2), X0: int, Y0: int, X1: int, Y1: int):
-    """Pixels [X0, X1] × [Y0, Y1] empty: 1/w 0, tri -1, bary (0, 0)."""
-    for cy in range(Y0, Y1 + 1):
-        for cx in range(X0, X1 + 1):
-            best_invw[cy, cx] = 0.0
-            best_tri[cy, cx] = -1
-            best_bary[cy, cx] = wp.vec2(0.0, 0.0)
-
-
 @wp.kernel
 def fine_tile_kernel(
     base: int,
@@ -77,9 +63,6 @@ def fine_tile_kernel(
     height: int,
     inv_far: float,
     count_mode: int,
-    masked: int,
-    tile_list: wp.array(dtype=wp.int32),
-    clear: int,
     offsets: wp.array(dtype=wp.int32),
     queue: wp.array(dtype=SubTri),
     best_invw: wp.array2d(dtype=wp.float32),
@@ -88,10 +71,6 @@ def fine_tile_kernel(
     coverage: wp.array2d(dtype=wp.int32),
 ):
     t = base + wp.tid()
-    if masked == 1:  # thread i draws the i-th flagged tile
-        if t >= tile_list.shape[0]:
-            return
-        t = tile_list[t]
     if t >= n_tiles:
         return
     tx = t % tiles_x
@@ -100,8 +79,6 @@ def fine_tile_kernel(
     Y0 = ty * TILE
     X1 = wp.min(X0 + TILE, width) - 1
     Y1 = wp.min(Y0 + TILE, height) - 1
-    if clear == 1:  # first pass of a masked raster: only the tiles drawn are cleared
-        clear_tile(best_invw, best_tri, best_bary, X0, Y0, X1, Y1)
     start = offsets[t * rows]
     end = offsets[(t + 1) * rows]
     step = wp.int64(SUBPIXEL)
@@ -168,9 +145,6 @@ def fine_pixel_kernel(
     height: int,
     inv_far: float,
     count_mode: int,
-    masked: int,
-    tile_list: wp.array(dtype=wp.int32),
-    clear: int,
     offsets: wp.array(dtype=wp.int32),
     queue: wp.array(dtype=SubTri),
     best_invw: wp.array2d(dtype=wp.float32),
@@ -181,21 +155,14 @@ def fine_pixel_kernel(
     g = base + wp.tid()
     t = g // (TILE * TILE)
     local = g - t * (TILE * TILE)
-    if masked == 1:  # block i draws the i-th flagged tile
-        if t >= tile_list.shape[0]:
-            return
-        t = tile_list[t]
     if t >= n_tiles:
         return
     x = (t % tiles_x) * TILE + local % TILE
     y = (t // tiles_x) * TILE + local // TILE
     if x >= width or y >= height:
         return
-    bi = float(0.0)
-    bt = int(-1)
-    if clear == 0:  # (clear = 1: the first pass of a masked raster starts the pixel empty)
-        bi = best_invw[y, x]
-        bt = best_tri[y, x]
+    bi = best_invw[y, x]
+    bt = best_tri[y, x]
     bq = int(-1)
     cnt = int(0)
     sx = sample_fixed(x)
@@ -221,33 +188,8 @@ def fine_pixel_kernel(
         best_invw[y, x] = bi
         best_tri[y, x] = bt
         best_bary[y, x] = barycentrics(rec.p, rec.v0, x, y, bi)
-    elif clear == 1:
-        best_invw[y, x] = 0.0
-        best_tri[y, x] = -1
-        best_bary[y, x] = wp.vec2(0.0, 0.0)
     if count_mode == 1:
         coverage[y, x] = coverage[y, x] + cnt
-
-
-@wp.kernel
-def clear_tiles_kernel(
-    base: int,
-    tiles_x: int,
-    width: int,
-    height: int,
-    tile_list: wp.array(dtype=wp.int32),
-    best_invw: wp.array2d(dtype=wp.float32),
-    best_tri: wp.array2d(dtype=wp.int32),
-    best_bary: wp.array2d(dtype=wp.vec2),
-):
-    """Empty the listed tiles (a masked raster in which no pass drew: nothing covers them)."""
-    i = base + wp.tid()
-    if i >= tile_list.shape[0]:
-        return
-    t = tile_list[i]
-    X0 = (t % tiles_x) * TILE
-    Y0 = (t // tiles_x) * TILE
-    clear_tile(best_invw, best_tri, best_bary, X0, Y0, wp.min(X0 + TILE, width) - 1, wp.min(Y0 + TILE, height) - 1)
 
 
 @wp.kernel

@@ -122,47 +122,19 @@ def tile_overlaps(v0: wp.vec2i, v1: wp.vec2i, v2: wp.vec2i, bb: wp.vec4i, tx: in
 
 
 @wp.func
-def tile_drawn(masked: int, tile_mask: wp.array(dtype=wp.uint8), t: int):
-    """Whether tile t is drawn: always, or (``masked = 1``) where ``tile_mask[t]`` is set (nested:
-    the mask is a 1-element placeholder when unmasked, and not every Warp short-circuits ``or``)."""
-    if masked == 0:
-        return True
-    return tile_mask[t] != wp.uint8(0)
-
-
-@wp.func
-def bbox_drawn(bb: wp.vec4i, tiles_x: int, masked: int, tile_mask: wp.array(dtype=wp.uint8)):
-    """Whether any tile the pixel bbox ``bb`` touches is drawn (:func:`tile_drawn`); a masked
-    raster skips the rest of a triangle's setup (its float64 interpolation planes) when not."""
-    hit = bool(False)
-    if masked == 0:
-        hit = True
-    else:
-        for ty in range(bb[1] >> TILE_BITS, (bb[3] >> TILE_BITS) + 1):
-            for tx in range(bb[0] >> TILE_BITS, (bb[2] >> TILE_BITS) + 1):
-                if tile_mask[ty * tiles_x + tx] != wp.uint8(0):
-                    hit = True
-    return hit
-
-
-@wp.func
 def count_tiles(bb: wp.vec4i, v0: wp.vec2i, v1: wp.vec2i, v2: wp.vec2i, tiles_x: int, rows: int, row: int,
-                counts: wp.array(dtype=wp.int32), masked: int, tile_mask: wp.array(dtype=wp.uint8), grid: int):
-    """Bin raster of one triangle: +1 in ``counts[tile·rows + row]`` for every drawn tile
-    (:func:`tile_drawn`) it may touch (bbox tiles; exact edge test when the bbox spans several
-    tiles both ways)."""
+                counts: wp.array(dtype=wp.int32), grid: int):
+    """Bin raster of one triangle: +1 in ``counts[tile·rows + row]`` for every tile it may touch
+    (bbox tiles; exact edge test when the bbox spans several tiles both ways)."""
     tx0 = bb[0] >> TILE_BITS  # bbox is clamped to the screen: non-negative
     tx1 = bb[2] >> TILE_BITS
     ty0 = bb[1] >> TILE_BITS
     ty1 = bb[3] >> TILE_BITS
     if tx0 == tx1 and ty0 == ty1:  # the common case: one tile
-        t1 = ty0 * tiles_x + tx0
-        if tile_drawn(masked, tile_mask, t1):
-            wp.atomic_add(counts, t1 * rows + row, 1)
+        wp.atomic_add(counts, (ty0 * tiles_x + tx0) * rows + row, 1)
         return
     small = (tx1 - tx0) < 1 or (ty1 - ty0) < 1
     for ty in range(ty0, ty1 + 1):
         for tx in range(tx0, tx1 + 1):
-            if tile_drawn(masked, tile_mask, ty * tiles_x + tx):
-                if small or tile_overlaps(v0, v1, v2, bb, tx, ty, grid):
-                    wp.atomic_add(counts, (ty * tiles_x + tx) * rows + row, 1)
+            if small or tile_overlaps(v0, v1, v2, bb, tx, ty, grid):
+                wp.atomic_add(counts, (ty * tiles_x + tx) * rows + row, 1)

@@ -33,7 +33,7 @@ from . import parallel
 from .bin import TILE, bin_count_kernel, scan_counts
 from .camera import Camera
 from .coarse import coarse_scatter_kernel
-from .fine import clear_tiles_kernel, fine_pixel_kernel, fine_tile_kernel, resolve_kernel, resolve_pixel_kernel
+from .fine import fine_pixel_kernel, fine_tile_kernel, resolve_kernel, resolve_pixel_kernel
 from .setup import MAX_RESOLUTION, SubTri, guard_factors, setup_extra_kernel, setup_kernel, vertex_kernel
 
 #: largest ``subsamples``: raster.subsample's edge functions take vertices in units of
@@ -167,8 +167,7 @@ def _as_numpy_mesh(vertices, triangles):
 def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: int = 1,
               cull_backfaces=False, coverage_count: bool = False, max_pairs: int | None = None,
               schedule: str = "auto", profile: bool = False, validate: bool = True,
-              reuse: VisibilityBuffer | None = None, tile_mask: wp.array | None = None,
-              subsamples: int = 1) -> VisibilityBuffer:
+              reuse: VisibilityBuffer | None = None, subsamples: int = 1) -> VisibilityBuffer:
     """Rasterize a triangle mesh into a :class:`VisibilityBuffer` of (k·H, k·W) pixels.
 
     ``vertices`` (N, 3) float, ``triangles`` (M, 3) int (numpy or ``wp.array``); ``camera`` a
@@ -185,9 +184,6 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
     validation and no host↔device copies. ``reuse``: a buffer the caller is done with; when its size
     and device match, its arrays are overwritten instead of allocating new ones (no page faults on
     the first touch of 16 bytes per sub-pixel every frame); ``reuse`` is invalid afterwards.
-    ``tile_mask``: a ``wp.array(dtype=uint8)`` of one flag per ``TILE``×``TILE`` tile of the
-    (k·H, k·W) grid, row-major (:func:`tile_grid`); only the flagged tiles are drawn and the rest of
-    the buffer is undefined (nothing else is cleared).
     ``subsamples`` a > 1: also bin the triangles that cover only sub-samples of an a×a grid per
     pixel (not just the centres) and keep the tile queues with the buffer, so that
     :func:`raster.subsample.subsample` finds the a×a coverage of any listed pixels later without
@@ -236,20 +232,9 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
         tri_id = wp.empty((H, W), dtype=wp.int32, device=device)
         bary = wp.empty((H, W), dtype=wp.vec2, device=device)
         best_invw = wp.empty((H, W), dtype=wp.float32, device=device)
-    tiles_x, tiles_y = tile_grid(W, H)
-    if tile_mask is not None and (tile_mask.dtype != wp.uint8 or tile_mask.shape[0] != tiles_x * tiles_y
-                                  or str(tile_mask.device) != device):
-        raise InputError(f"tile_mask must be a uint8 array of {tiles_x * tiles_y} tiles on {device}", where="tile_mask")
-    masked = int(tile_mask is not None)
-    mask_arg = tile_mask if tile_mask is not None else ws.get("no_mask", 1, wp.uint8)
-    if masked:  # the flagged tiles as a list: threads draw only those, evenly spread over the pool
-        flagged = np.flatnonzero(tile_mask.numpy()).astype(np.int32)
-        tile_list = wp.array(flagged if len(flagged) else np.zeros(0, np.int32), dtype=wp.int32, device=device)
-    else:
-        best_invw.zero_()  # (memsets: on the CPU faster than clearing in the fine kernel's tiles)
-        tri_id.fill_(-1)
-        bary.zero_()
-        tile_list = ws.get("no_tiles", 1, wp.int32)
+    best_invw.zero_()  # (memsets: on the CPU faster than clearing in the fine kernel's tiles)
+    tri_id.fill_(-1)
+    bary.zero_()
     clock.lap("clear")
     coverage = wp.zeros((H, W), dtype=wp.int32, device=device) if coverage_count else None
     cov_arg = coverage if coverage is not None else wp.zeros((1, 1), dtype=wp.int32, device=device)
@@ -278,7 +263,7 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
         subs = ws.get("subs", n_t, SubTri)
         bins = _Bins(W, H, device, ws, n_t)
         grid = max(int(subsamples), 1)
-        bin_args = [bins.batch, bins.rows, bins.tiles_x, bins.counts, masked, mask_arg, grid]
+        bin_args = [bins.batch, bins.rows, bins.tiles_x, bins.counts, grid]
         parallel.launch_rows(setup_kernel, n_t, min(bins.rows, n_t),
                              [clip, vsnap, vcode, tris, W, H, near, gx, gy, cull, cull_tri, subs, extra, *bin_args], device)
         extra_off = ws.get("extra_off", n_t + 1, wp.int32)
@@ -298,16 +283,11 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
         if grid > 1:  # the queues stay with the buffer (reusing a previous buffer's storage)
             keep = {"queue": getattr(reuse, "_queue", None) if reuse is not None else None, "offsets": None,
                     "rows": bins.rows}
-        drew = _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera,
-                               best_invw, tri_id, bary, cov_arg, coverage is not None, device,
-                               max_pairs or DEFAULT_MAX_PAIRS, schedule, stats, ws, clock, masked, mask_arg,
-                               tile_list, grid, keep)
+        _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera, best_invw, tri_id, bary, cov_arg,
+                        coverage is not None, device, max_pairs or DEFAULT_MAX_PAIRS, schedule, stats, ws, clock,
+                        grid, keep)
     else:
-        drew = False
         keep = {"queue": None, "offsets": None, "rows": 1} if int(subsamples) > 1 else None
-    if masked and not drew:  # no pass drew (nothing in the flagged tiles): empty just those
-        parallel.launch(clear_tiles_kernel, len(flagged), [tiles_x, W, H, tile_list, best_invw, tri_id, bary], device,
-                        min_chunk=16)
     vb = VisibilityBuffer(tri_id, bary, best_invw, coverage, W, H, k, device, stats, _schedule=schedule,
                           _depth_buf=depth_buf)
     if keep is not None:
@@ -356,12 +336,10 @@ def tile_grid(width: int, height: int) -> tuple[int, int]:
 
 
 def _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera, best_invw, best_tri, best_bary,
-                    coverage, count_mode, device, max_pairs, schedule, stats, ws, clock, masked, mask_arg,
-                    tile_list, grid, keep):
-    """Bin, scatter and draw in as many passes as the queue budget needs; returns whether a fine
-    pass ran (the first one clears the masked tiles). ``keep`` (a dict, with ``subsamples``): one
-    pass, whose queue (``keep["queue"]``: storage to reuse when large enough) and offsets are
-    returned in it."""
+                    coverage, count_mode, device, max_pairs, schedule, stats, ws, clock, grid, keep):
+    """Bin, scatter and draw in as many passes as the queue budget needs. ``keep`` (a dict, with
+    ``subsamples``): one pass, whose queue (``keep["queue"]``: storage to reuse when large enough)
+    and offsets are returned in it."""
     n_sub = n_t + n_extra
     tiles_x, n_tiles, rows = bins.tiles_x, bins.n_tiles, bins.rows
     counts, offsets, cursor = bins.counts, bins.offsets, bins.cursor
@@ -372,8 +350,6 @@ def _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera, best_invw, best_tri,
 
     stack = [(0, n_sub)]
     first = True
-    drew = False
-    n_draw = int(tile_list.shape[0]) if masked else n_tiles
     while stack:
         lo, hi = stack.pop()
         n = hi - lo
@@ -381,8 +357,7 @@ def _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera, best_invw, best_tri,
         batch = (n + r - 1) // r
         if not first:  # a split pass: count its slot range (rows = contiguous slot batches)
             counts.zero_()
-            parallel.launch_rows(bin_count_kernel, n, r, [lo, batch, rows, tiles_x, W, H, subs, counts, masked, mask_arg,
-                                                          grid], device)
+            parallel.launch_rows(bin_count_kernel, n, r, [lo, batch, rows, tiles_x, W, H, subs, counts, grid], device)
         total = scan_counts(counts, offsets)
         clock.lap("bin")
         if total > max_pairs and n > 1:
@@ -408,28 +383,23 @@ def _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera, best_invw, best_tri,
         if first:
             # counted by setup: primaries per pool thread, then the clipped extra pieces (few) serially
             parallel.launch_rows(coarse_scatter_kernel, n_t, min(rows, n_t),
-                                 [0, bins.batch, rows, tiles_x, W, H, subs, offsets, cursor, queue, 0, masked, mask_arg,
-                                  grid], device)
+                                 [0, bins.batch, rows, tiles_x, W, H, subs, offsets, cursor, queue, 0, grid], device)
             if n_extra > 0:
                 wp.launch(coarse_scatter_kernel, dim=n_extra,
-                          inputs=[0, n_t, bins.batch, rows, tiles_x, W, H, subs, offsets, cursor, queue, 1, masked,
-                                  mask_arg, grid],
+                          inputs=[0, n_t, bins.batch, rows, tiles_x, W, H, subs, offsets, cursor, queue, 1, grid],
                           device=device)
         else:
             parallel.launch_rows(coarse_scatter_kernel, n, r,
-                                 [lo, batch, rows, tiles_x, W, H, subs, offsets, cursor, queue, 0, masked, mask_arg,
-                                  grid], device)
+                                 [lo, batch, rows, tiles_x, W, H, subs, offsets, cursor, queue, 0, grid], device)
         first = False
         clock.lap("coarse")
-        args = [tiles_x, n_tiles, rows, W, H, inv_far, int(count_mode), masked, tile_list, int(masked and not drew),
-                offsets, queue, best_invw, best_tri, best_bary, coverage]
+        args = [tiles_x, n_tiles, rows, W, H, inv_far, int(count_mode), offsets, queue, best_invw, best_tri,
+                best_bary, coverage]
         if schedule == "tile":
-            parallel.launch(fine_tile_kernel, n_draw, args, device, chunks=8 * parallel.cpu_workers(), min_chunk=1)
+            parallel.launch(fine_tile_kernel, n_tiles, args, device, chunks=8 * parallel.cpu_workers(), min_chunk=1)
         else:
-            parallel.launch(fine_pixel_kernel, n_draw * TILE * TILE, args, device, min_chunk=TILE * TILE)
-        drew = True
+            parallel.launch(fine_pixel_kernel, n_tiles * TILE * TILE, args, device, min_chunk=TILE * TILE)
         clock.lap("fine")
-    return drew
 
 
 __all__ = ["VisibilityBuffer", "rasterize", "tile_grid", "clear_workspace", "DEFAULT_MAX_PAIRS"]

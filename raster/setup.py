@@ -18,9 +18,7 @@
   3. int64 signed area of the snapped triangle: zero → dropped (degenerate), back-facing →
      dropped when culling; the winding is normalised so edge functions are positive inside;
   4. the bounding box of the covered pixel centres (empty → dropped, so sub-pixel triangles that
-     miss every centre cost nothing more; with a tile mask, an unclipped triangle whose bbox
-     touches no drawn tile is dropped too — antialiasing's sub-pixel raster draws a few percent of
-     the tiles, and the planes below are the float64 part of setup);
+     miss every centre cost nothing more);
   5. **interpolation planes** of the *original* triangle in 2D homogeneous form (Olano & Greer
      1997): with ``M = [X·w; Y·w; w]`` (pixel-space homogeneous vertices, float64), the rows of
      ``M⁻¹`` are linear in the pixel position and give ``λ_i = b_i / w``; ``Σλ = 1/w`` is the depth
@@ -41,7 +39,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from .fixed import (HALF, SUBPIXEL, SUBPIXEL_BITS, bbox_drawn, count_tiles, edge_eval, edge_topleft,  # noqa: F401
+from .fixed import (HALF, SUBPIXEL, SUBPIXEL_BITS, count_tiles, edge_eval, edge_topleft,  # noqa: F401
                     eval_plane, lower_px, pixel_bbox, sample_bbox, sample_fixed, upper_px)
 
 wp.set_module_options({"enable_backward": False})
@@ -349,8 +347,6 @@ def setup_kernel(
     rows: int,
     tiles_x: int,
     counts: wp.array(dtype=wp.int32),
-    masked: int,
-    tile_mask: wp.array(dtype=wp.uint8),
     grid: int,
 ):
     """Triangle i → its first sub-triangle in slot i (an empty bbox when nothing survives) and
@@ -375,9 +371,6 @@ def setup_kernel(
             a, b, bb = make_piece(s0, vsnap[t[1]], vsnap[t[2]], width, height, c, grid)
             if bb[0] <= bb[2]:
                 n_valid = 1
-                if not bbox_drawn(bb, tiles_x, masked, tile_mask):  # only tiles this raster skips
-                    n_valid = 0
-                    bb = wp.vec4i(1, 1, 0, 0)
         else:
             px, py, pw, n = clip_triangle(clip[t[0]], clip[t[1]], clip[t[2]], near, gx, gy)
             if n >= 3:
@@ -408,7 +401,7 @@ def setup_kernel(
         rec.tri = -1  # empty slot
     subs[i] = rec
     if bin_batch > 0 and n_valid > 0:  # bin raster fused in: count the tiles of this piece
-        count_tiles(bb, s0, a, b, tiles_x, rows, i // bin_batch, counts, masked, tile_mask, grid)
+        count_tiles(bb, s0, a, b, tiles_x, rows, i // bin_batch, counts, grid)
     extra[i] = wp.max(n_valid - 1, 0)
 
 
@@ -431,8 +424,6 @@ def setup_extra_kernel(
     rows: int,
     tiles_x: int,
     counts: wp.array(dtype=wp.int32),
-    masked: int,
-    tile_mask: wp.array(dtype=wp.uint8),
     grid: int,
 ):
     """Second and later pieces of clipped triangles, into slots M + extra_off[i] + j."""
@@ -458,7 +449,7 @@ def setup_extra_kernel(
                 rec.v2 = qb
                 subs[o] = rec
                 if bin_batch > 0:
-                    count_tiles(qbb, q0, qa, qb, tiles_x, rows, i // bin_batch, counts, masked, tile_mask, grid)
+                    count_tiles(qbb, q0, qa, qb, tiles_x, rows, i // bin_batch, counts, grid)
                 o += 1
             n_valid += 1
 

@@ -209,39 +209,6 @@ def test_small_queue_budget_gives_identical_buffers_in_several_passes(device):
     assert np.array_equal(a.depth.numpy(), b.depth.numpy())
 
 
-@pytest.mark.parametrize("schedule, max_pairs", [("tile", None), ("pixel", None), ("tile", 400)])
-def test_tile_mask_draws_only_the_flagged_tiles_and_they_match_the_full_raster(device, schedule, max_pairs):
-    """A masked raster (antialiasing's sub-pixels near edges) equals the full one, itself checked
-    against ray casting above, on the flagged tiles (several queue passes included), and leaves the
-    other tiles of a reused buffer untouched."""
-    import warp as wp
-
-    V, F = torus_mesh(64, 32)
-    cam = _cam(w=64, h=48)
-    k = 2
-    full = raster.rasterize(V, F, cam, device=device, supersample=k)
-    tx, ty = raster.tile_grid(64 * k, 48 * k)
-    flags = (np.random.default_rng(3).random(tx * ty) < 0.4).astype(np.uint8)
-    old = raster.rasterize(V, F[:1], cam, device=device, supersample=k)  # a buffer to reuse
-    old.tri_id.fill_(-7)
-    m = raster.rasterize(V, F, cam, device=device, supersample=k, schedule=schedule, max_pairs=max_pairs, reuse=old,
-                         tile_mask=wp.array(flags, dtype=wp.uint8, device=device))
-    if max_pairs:
-        assert m.stats["passes"] > 2
-    from raster.fixed import TILE as T
-    from warp_sg.errors import InputError
-
-    on = np.repeat(np.repeat(flags.reshape(ty, tx), T, 0), T, 1)[:48 * k, :64 * k].astype(bool)
-    assert 0.2 < on.mean() < 0.6
-    t_full, t_m = full.tri_id.numpy(), m.tri_id.numpy()
-    assert (t_m[on] == t_full[on]).all() and (t_full[on] >= 0).any() and (t_full[on] < 0).any()
-    assert np.array_equal(m.bary.numpy()[on], full.bary.numpy()[on])
-    assert np.array_equal(m.inv_depth.numpy()[on], full.inv_depth.numpy()[on])
-    assert (t_m[~on] == -7).all()  # not drawn, not cleared
-    with pytest.raises(InputError, match="tile_mask"):
-        raster.rasterize(V, F, cam, device=device, supersample=k, tile_mask=wp.zeros(3, dtype=wp.uint8, device=device))
-
-
 def _near_plane_quad():
     """A ground quad that passes under and behind the camera: clipped at the near plane."""
     V = np.array([[-6.0, -0.6, -6.0], [6.0, -0.6, -6.0], [6.0, -0.6, 8.0], [-6.0, -0.6, 8.0]], np.float32)
@@ -307,32 +274,6 @@ def test_subsamples_where_nothing_is_drawn_are_empty(device):
     for bad in (0, 17, 2.5):
         with pytest.raises(InputError, match="subsamples"):
             raster.rasterize(V, F, cam, device=device, subsamples=bad)
-
-
-@pytest.mark.parametrize("schedule", ["tile", "pixel"])
-def test_masked_redraw_of_empty_tiles_clears_only_those_tiles(device, schedule):
-    """Antialiasing draws the tiles a later frame newly needs into the buffer it keeps: when no
-    triangle reaches them, they are emptied and every other tile keeps its contents."""
-    import warp as wp
-
-    from raster.fixed import TILE
-
-    V, F = torus_mesh(32, 16)
-    cam = _cam(w=64, h=48)
-    tx, ty = raster.tile_grid(128, 96)
-    full = raster.rasterize(V, F, cam, device=device, supersample=2)
-    before = full.tri_id.numpy().copy()
-    assert before[:TILE, :TILE].max() < 0  # tile 0 (a corner) sees only background
-    full.tri_id[:TILE, :TILE].fill_(5)  # stale contents in it
-    flags = np.zeros(tx * ty, np.uint8)
-    flags[0] = 1
-    m = raster.rasterize(V, F, cam, device=device, supersample=2, schedule=schedule, reuse=full,
-                         tile_mask=wp.array(flags, dtype=wp.uint8, device=device))
-    after = m.tri_id.numpy()
-    assert (after[:TILE, :TILE] == -1).all()
-    np.testing.assert_array_equal(after[TILE:], before[TILE:])
-    np.testing.assert_array_equal(after[:TILE, TILE:], before[:TILE, TILE:])
-    assert (before >= 0).sum() > 500
 
 
 def test_tile_and_pixel_schedules_agree_and_are_deterministic(device):
