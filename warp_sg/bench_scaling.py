@@ -69,7 +69,7 @@ def scaling_section(device="cpu", quick=False, frames=None, pixels=None, triangl
     """Rows: frame time by pixel count (fixed triangles) and by triangle count (fixed pixels)."""
     from .render import Renderer
 
-    n = frames or (1 if quick else 3)
+    n = frames or (1 if quick else 7)  # medians of 7: this shared machine swings a single frame by ±10 %
     cuda = not str(device).startswith("cpu")
     pixels = pixels or ((32, 64) if quick else (128, 256, 512, 1024))
     triangles = triangles or ((2_000, 8_000) if quick else
