@@ -4,14 +4,16 @@ Warp runs a CPU launch serially on one core. Every data-parallel raster kernel t
 offset ``base`` as its first argument (element ``i = base + wp.tid()``, or ``base + wp.tid()·per +
 s`` for a kernel launched with ``per_thread``), so disjoint index ranges
 of the *same* compiled kernel can be launched from a small Python thread pool (Warp releases the
-GIL while a CPU kernel runs; measured ≈1.9× on 2 cores). On CUDA a single launch covers the
-whole range.
+GIL while a CPU kernel runs; measured ≈1.9× on 2 cores). The calling thread takes ranges too, with
+one pool thread fewer than the workers (it would otherwise wait idle, and every range handed to a
+pool thread costs a wake-up). On CUDA a single launch covers the whole range.
 
 Kernels launched this way must not rely on atomics between ranges: Warp's CPU atomics are
 plain read-modify-writes, which are only safe when one range owns each written element.
 """
 from __future__ import annotations
 
+import threading
 from concurrent.futures import ThreadPoolExecutor
 
 import warp as wp
@@ -38,10 +40,35 @@ def cpu_workers() -> int:
 
 
 def _pool() -> ThreadPoolExecutor:
+    """The helper threads: one fewer than the workers, because the calling thread works too."""
     global _POOL
     if _POOL is None:
-        _POOL = ThreadPoolExecutor(max_workers=max(cpu_workers(), 1), thread_name_prefix="raster")
+        _POOL = ThreadPoolExecutor(max_workers=max(cpu_workers() - 1, 1), thread_name_prefix="raster")
     return _POOL
+
+
+def _run_ranges(run, ranges: list, workers: int) -> None:
+    """``run(base, count)`` for every range, shared between the calling thread and ``workers − 1``
+    pool threads that take the next range as they finish one (the calling thread would otherwise
+    sit idle waiting, and each hand-off to a pool thread costs a wake-up)."""
+    it = iter(ranges)
+    lock = threading.Lock()
+
+    def work():
+        while True:
+            with lock:
+                r = next(it, None)
+            if r is None:
+                return
+            run(*r)
+
+    futs = [_pool().submit(work) for _ in range(min(workers, len(ranges)) - 1)]
+    try:
+        work()
+    finally:
+        for f in futs:  # a helper that has not started has nothing left to do (nor can it, when
+            if not f.cancel():  # the caller is itself a pool thread): only running ones are awaited
+                f.result()
 
 
 def launch(kernel, n: int, inputs: list, device: str, chunks: int | None = None, min_chunk: int = 4096,
@@ -84,9 +111,7 @@ def launch(kernel, n: int, inputs: list, device: str, chunks: int | None = None,
         one(0, n)
         return
     step = -(-((n + chunks - 1) // chunks) // per) * per  # a multiple of per: ranges never overlap
-    futs = [_pool().submit(one, b, min(step, n - b)) for b in range(0, n, step)]
-    for f in futs:
-        f.result()
+    _run_ranges(one, [(b, min(step, n - b)) for b in range(0, n, step)], workers)
 
 
 def launch_rows(kernel, n: int, rows: int, inputs: list, device: str):
@@ -100,10 +125,8 @@ def launch_rows(kernel, n: int, rows: int, inputs: list, device: str):
         wp.launch(kernel, dim=n, inputs=[0, *inputs], device=device)
         return
     step = (n + rows - 1) // rows
-    futs = [_pool().submit(wp.launch, kernel, dim=min(step, n - b), inputs=[b, *inputs], device=device)
-            for b in range(0, n, step)]
-    for f in futs:
-        f.result()
+    _run_ranges(lambda b, m: wp.launch(kernel, dim=m, inputs=[b, *inputs], device=device),
+                [(b, min(step, n - b)) for b in range(0, n, step)], cpu_workers())
 
 
 @wp.kernel(enable_backward=False)

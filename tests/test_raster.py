@@ -346,3 +346,22 @@ def test_a_launch_with_several_elements_per_thread_touches_every_element_exactly
     hits = wp.zeros(n, dtype=int)
     parallel.launch(_stamp_kernel, n, [n, hits], "cpu", chunks=chunks, min_chunk=1, per_thread=per)
     assert (hits.numpy() == 1).all()
+
+
+def test_a_launch_from_a_pool_thread_completes_and_touches_every_element_once():
+    """The calling thread shares the ranges with the pool (``parallel._run_ranges``): a launch made
+    from inside a pool thread (every pool thread busy) still finishes, by itself, instead of
+    waiting on helpers that cannot start; plain and per-row launches cover every element once."""
+    from raster import parallel
+
+    n = 5000
+    hits = wp.zeros(n, dtype=int)
+
+    def nested():
+        parallel.launch(_stamp_kernel, n, [1, n, hits], "cpu", chunks=8, min_chunk=1)
+
+    parallel._pool().submit(nested).result(timeout=60)
+    assert (hits.numpy() == 1).all()
+    rows = wp.zeros(n, dtype=int)
+    parallel.launch_rows(_stamp_kernel, n, 7, [1, n, rows], "cpu")
+    assert (rows.numpy() == 1).all()
