@@ -124,10 +124,9 @@ def test_every_edge_of_a_full_subpixel_raster_is_a_candidate_pixel(cache_dir, ma
     edges = edge.numpy().astype(bool)
     vb1 = r.rasterize(1)
     img = wp.zeros((H, W), dtype=wp.vec3)  # no contrast: geometry flags only
-    cand, flag = A.candidate_flags(vb1.tri_id, r._tri_object, r._aa.contours(cam, vb1), img, "cpu")
-    flagged = cand.numpy() != 0
-    assert (flag.numpy() == flagged).all()
-    assert A.candidate_list(flag, "cpu").numpy().tolist() == np.flatnonzero(flagged).tolist()
+    c = A.Candidates(vb1.tri_id, r._tri_object, r._aa.contours(cam, vb1), img, "cpu")
+    flagged = c.cand.numpy() != 0
+    assert c.indices().numpy().tolist() == np.flatnonzero(flagged).tolist()
     assert edges.sum() > 20
     assert not (edges & ~flagged).any()
     assert flagged.mean() < 0.5  # and far from everything
@@ -366,11 +365,11 @@ def test_contours_hidden_behind_a_nearer_surface_are_not_marked():
 
 
 @pytest.mark.parametrize("W", [1, 63, 64, 150])
-def test_candidate_flags_match_their_definition_in_numpy(W):
+def test_candidate_flags_and_list_match_their_definition_in_numpy(W):
     """Every pixel's flags (rows tested in runs of ``CANDIDATES_PER_THREAD`` on the CPU, the last
     run of a row shorter) against the definition evaluated with numpy shifts: a contour mark, a
     4-neighbour on another object, a 4-neighbour whose luminance differs by more than
-    ``CONTRAST`` of the larger."""
+    ``CONTRAST`` of the larger; and the candidate list against ``numpy.flatnonzero``."""
     import warp as wp
 
     from warp_sg import antialias as A
@@ -383,8 +382,8 @@ def test_candidate_flags_match_their_definition_in_numpy(W):
     contours = (rng.random((H, W)) < 0.05).astype(np.uint8)
     img = rng.uniform(0.5, 1.0, (H, W, 3)).astype(np.float32)
     img[:, : W // 3] = 0.8  # no contrast there
-    cand, flag = A.candidate_flags(wp.array(tid, dtype=int), wp.array(obj, dtype=int),
-                                   wp.array(contours, dtype=wp.uint8), wp.array(img, dtype=wp.vec3), "cpu")
+    c = A.Candidates(wp.array(tid, dtype=int), wp.array(obj, dtype=int), wp.array(contours, dtype=wp.uint8),
+                     wp.array(img, dtype=wp.vec3), "cpu")
     o = np.where(tid >= 0, obj[np.maximum(tid, 0)], -1)
     lum = img.astype(np.float64) @ np.array([0.2126, 0.7152, 0.0722])
     geo = contours != 0
@@ -397,8 +396,9 @@ def test_candidate_flags_match_their_definition_in_numpy(W):
         geo |= ok & (o[yy, xx] != o)
         con |= ok & (np.abs(lum - lum[yy, xx]) > A.CONTRAST * np.maximum(lum, lum[yy, xx]))
     want = np.where(geo, A.CAND_GEOMETRY, 0) | np.where(con, A.CAND_CONTRAST, 0)
-    assert cand.numpy().reshape(H, W).tolist() == want.tolist()
-    assert flag.numpy().reshape(H, W).tolist() == (want != 0).astype(int).tolist()
+    assert c.cand.numpy().reshape(H, W).tolist() == want.tolist()
+    # the list: a scan of the runs' counts, then each run writes its own
+    assert c.indices().numpy().tolist() == np.flatnonzero(want.ravel()).tolist()
     assert con.any() and geo.any() or W == 1
 
 

@@ -51,7 +51,7 @@ trip, and no a²-sized buffer at all):
 
 Every kernel is 1-D with a leading ``base`` offset and is launched through
 ``raster.parallel.launch`` (CPU launches are split over a thread pool): the candidate test over
-every pixel (row-major), the rest over the list of candidates (:func:`candidate_list`). The second
+every pixel (row-major), the rest over the list of candidates (:meth:`Candidates.indices`). The second
 pass: per-candidate sample counts → exclusive scan (``wp.utils.array_scan``) → a gather of the
 samples' (triangle, barycentrics, background, weight) into a 1 × N list that the ordinary shading
 kernel shades → :func:`resolve_kernel` sums each pixel's weighted samples back into the image;
@@ -121,18 +121,20 @@ CANDIDATES_PER_THREAD = 64
 @wp.kernel(enable_backward=False)
 def candidates_kernel(base: int, seg: int, tri_id: wp.array2d(dtype=int), tri_object: wp.array(dtype=int),
                       contours: wp.array2d(dtype=wp.uint8), img: wp.array2d(dtype=wp.vec3), contrast: float,
-                      cand: wp.array(dtype=int), flag: wp.array(dtype=int)):
+                      cand: wp.array(dtype=int), run_count: wp.array(dtype=int), run_list: wp.array(dtype=int)):
     """``cand[k]``: ``CAND_GEOMETRY`` where the pixel is on a contour or a 4-neighbour sees another
     object (1× buffer), plus ``CAND_CONTRAST`` where the 1× image's luminance differs from a
-    4-neighbour's by more than ``contrast`` of the larger one; ``flag[k]`` = 1 where either (for
-    the scan that lists the candidates, :func:`candidate_list`). Element ``base + tid`` is the
-    run of ``seg`` pixels of one row (the last of a row shorter): ``⌈W/seg⌉`` runs per row."""
+    4-neighbour's by more than ``contrast`` of the larger one (0: not a candidate). Element
+    ``base + tid`` is the run of ``seg`` pixels of one row (the last of a row shorter): ``⌈W/seg⌉``
+    runs per row; ``run_count[r]``: its candidates, whose indices it writes at ``run_list[r·seg]``
+    on (for the list, :meth:`Candidates.indices`)."""
     H = img.shape[0]
     W = img.shape[1]
     runs = (W + seg - 1) / seg
     r = base + wp.tid()
     y = r / runs
     x0 = (r - y * runs) * seg
+    n = int(0)
     for x in range(x0, wp.min(x0 + seg, W)):
         t0 = tri_id[y, x]
         o0 = _object_of(tri_object, t0)
@@ -149,35 +151,53 @@ def candidates_kernel(base: int, seg: int, tri_id: wp.array2d(dtype=int), tri_ob
         if y + 1 < H:
             f = f | _neighbour_flags(tri_id, tri_object, img, contrast, t0, o0, l0, y + 1, x)
         cand[y * W + x] = f
-        flag[y * W + x] = int(f != 0)
+        if f != 0:
+            run_list[r * seg + n] = y * W + x
+            n += 1
+    run_count[r] = n
 
 
-def candidate_flags(tri_id: wp.array, tri_object: wp.array, contours: wp.array, img: wp.array, device):
-    """(cand, flag) of every pixel (:func:`candidates_kernel`, rows in runs of
-    ``CANDIDATES_PER_THREAD`` pixels on the CPU, one pixel per thread on CUDA)."""
-    from raster import parallel
-
-    H, W = int(img.shape[0]), int(img.shape[1])
-    seg = CANDIDATES_PER_THREAD if str(device).startswith("cpu") else 1
-    cand = wp.empty(H * W, dtype=int, device=device)
-    flag = wp.empty(H * W, dtype=int, device=device)
-    parallel.launch(candidates_kernel, H * (-(-W // seg)), [seg, tri_id, tri_object, contours, img, CONTRAST, cand,
-                                                           flag], device, min_chunk=max(4096 // seg, 1))
-    return cand, flag
+@wp.kernel(enable_backward=False)
+def _list_runs_kernel(base: int, seg: int, run_count: wp.array(dtype=int), run_list: wp.array(dtype=int),
+                      offset: wp.array(dtype=int), idx: wp.array(dtype=int)):
+    """The candidates of run ``r = base + tid`` (``run_list[r·seg]`` on, :func:`candidates_kernel`)
+    at ``idx[offset[r]]`` on."""
+    r = base + wp.tid()
+    for j in range(run_count[r]):
+        idx[offset[r] + j] = run_list[r * seg + j]
 
 
-def candidate_list(flag: wp.array, device) -> wp.array:
-    """The indices k with ``flag[k]`` = 1, ascending (``raster.parallel.compact``: scan, then a
-    scatter): the later kernels run over the few candidates, not over every pixel."""
-    from raster import parallel
+class Candidates:
+    """Every pixel's candidate flags ``cand`` (H·W,) (:func:`candidates_kernel`), and per run of
+    ``seg`` pixels of a row its number of candidates, ``run_count``."""
 
-    return parallel.compact(flag, device)
+    def __init__(self, tri_id: wp.array, tri_object: wp.array, contours: wp.array, img: wp.array, device):
+        from raster import parallel
 
+        H, W = int(img.shape[0]), int(img.shape[1])
+        self.seg = CANDIDATES_PER_THREAD if str(device).startswith("cpu") else 1
+        self.device = device
+        self.cand = wp.empty(H * W, dtype=int, device=device)
+        n_runs = H * (-(-W // self.seg))
+        self.run_count = wp.empty(n_runs, dtype=int, device=device)
+        self.run_list = wp.empty(n_runs * self.seg, dtype=int, device=device)
+        parallel.launch(candidates_kernel, n_runs, [self.seg, tri_id, tri_object, contours, img, CONTRAST, self.cand,
+                                                    self.run_count, self.run_list], device,
+                        min_chunk=max(4096 // self.seg, 1))
 
-def probe_count(a: int) -> int:
-    """Sub-pixels a contrast pixel is shaded at first: the 4 probes where a ≥ 3 (for a = 2 they
-    are all four)."""
-    return 4 if a >= 3 else a * a
+    def indices(self) -> wp.array:
+        """The indices k with ``cand[k]`` ≠ 0, ascending: a scan of the runs' counts, then each run
+        copies the indices it listed (on the CPU 4 k runs of 64 pixels at 512², instead of a scan
+        and a scatter over every pixel): the later kernels run over the few candidates."""
+        from raster import parallel
+
+        offset, total = parallel.exclusive_scan(self.run_count)
+        idx = wp.empty(total, dtype=int, device=self.device)
+        if total > 0:
+            parallel.launch(_list_runs_kernel, int(self.run_count.shape[0]),
+                            [self.seg, self.run_count, self.run_list, offset, idx], self.device,
+                            min_chunk=LIST_MIN_CHUNK)
+        return idx
 
 
 @wp.func
@@ -516,8 +536,8 @@ def render_adaptive(vb1, img, cache: AntialiasCache, camera, tri_object: wp.arra
 
     n_pix = H * W
     contours = cache.contours(camera, vb1)
-    cand, flag = candidate_flags(vb1.tri_id, tri_object, contours, img, device)
-    idx = candidate_list(flag, device)
+    flags = Candidates(vb1.tri_id, tri_object, contours, img, device)
+    cand, idx = flags.cand, flags.indices()
     n_c = len(idx)
     if n_c == 0:  # nothing to antialias
         return img, {"candidate_pixels": 0, "edge_pixels": 0, "contrast_pixels": 0, "tile_fraction": 0.0,
