@@ -191,7 +191,7 @@ def sg_irradiance_norm_np(c, lam, table: np.ndarray | None = None):
     v1 = tab[r0 + 1, x0] * (1.0 - fx) + tab[r0 + 1, x0 + 1] * fx
     v = np.exp(v0 * (1.0 - fr) + v1 * fr)
     v = np.where(lam > IRR_LAM_SWITCH, e_sharp_np(c, lam), v)
-    # the whole lobe above the horizon: its mean cosine (as _above_horizon); below it: 0 (_below_horizon)
+    # the whole lobe on one side of the horizon (as _clear_of_horizon): its mean cosine above, 0 below
     clear = (lam >= ABOVE_HORIZON) & (lam * (1.0 - np.sqrt(np.maximum((1.0 - c) * (1.0 + c), 0.0))) >= ABOVE_HORIZON)
     v = np.where(clear & (c < 0), 0.0, v)
     return np.where(clear & (c > 0), c * (1.0 - 1.0 / lam), v)
@@ -252,26 +252,21 @@ _ABOVE = wp.constant(ABOVE_HORIZON)
 
 
 @wp.func
-def _above_horizon(c: float, lam: float) -> float:
-    """``c (1 − 1/λ)`` — the lobe's mean cosine, ``c (coth λ − 1/λ)`` with coth λ = 1 to e^{−48} —
-    where the whole lobe lies above the horizon (then e is exactly that: no table, no log or exp);
-    −1 otherwise."""
-    if lam >= _ABOVE and c > 0.0:
+def _clear_of_horizon(c: float, lam: float) -> float:
+    """e(c, λ) where the whole lobe lies on one side of the horizon (``λ (1 − √(1 − c²)) ≥ 24``: its
+    value on the horizon is under e^{−24} of its peak), else −1 — no table, no log or exp:
+
+    * above it (c > 0): ``c (1 − 1/λ)``, the lobe's mean cosine ``c (coth λ − 1/λ)`` with
+      coth λ = 1 to e^{−48}, exactly;
+    * below it (c < 0): 0, since e ≤ e^{−24} λ/2 (2e-8 at λ = 1e3, far below the error budget's
+      1e-4 floor; sharper lobes: the sharp form at z ≤ −√48, under 1e-11 σ) — the shading kernel
+      then skips the light's BRDF."""
+    if lam >= _ABOVE and c != 0.0:
         if lam * (1.0 - wp.sqrt(wp.max((1.0 - c) * (1.0 + c), 0.0))) >= _ABOVE:
-            return c * (1.0 - 1.0 / lam)
+            if c > 0.0:
+                return c * (1.0 - 1.0 / lam)
+            return 0.0
     return -1.0
-
-
-@wp.func
-def _below_horizon(c: float, lam: float) -> bool:
-    """Whether the whole lobe lies below the horizon (the mirror image of :func:`_above_horizon`):
-    its value above the horizon is under e^{−24} of its peak, so e ≤ e^{−24} λ/2 (2e-8 at λ = 1e3,
-    far below the error budget's 1e-4 floor; sharper lobes: the sharp form at z ≤ −√48, under
-    1e-11 σ). Then e is 0: no table, no log or exp, and the caller skips the BRDF."""
-    if lam >= _ABOVE and c < 0.0:
-        if lam * (1.0 - wp.sqrt(wp.max((1.0 - c) * (1.0 + c), 0.0))) >= _ABOVE:
-            return True
-    return False
 
 
 @wp.func
@@ -284,7 +279,7 @@ def sg_irradiance_row(table: wp.array2d(dtype=float), lam: float) -> float:
 
 @wp.func
 def _norm_below(table: wp.array2d(dtype=float), cc: float, l: float, r: float) -> float:
-    """e(c, λ) for a lobe not entirely above the horizon (``cc`` clamped, ``l`` ≥ the tiny λ):
+    """e(c, λ) for a lobe that straddles the horizon (``cc`` clamped, ``l`` ≥ the tiny λ):
     the sharp-lobe form above the switch, else the table at row ``r``."""
     if l > _LAM_SWITCH:
         return sg_irradiance_sharp(cc, l)
@@ -305,11 +300,9 @@ def sg_irradiance_norm_at(table: wp.array2d(dtype=float), c: float, lam: float, 
     """:func:`sg_irradiance_norm` with the row ``r = sg_irradiance_row(table, λ)`` given."""
     cc = wp.clamp(c, -1.0, 1.0)
     l = wp.max(lam, _LAM_TINY)
-    up = _above_horizon(cc, l)
-    if up >= 0.0:
-        return up
-    if _below_horizon(cc, l):
-        return 0.0
+    e = _clear_of_horizon(cc, l)
+    if e >= 0.0:
+        return e
     return _norm_below(table, cc, l, r)
 
 
@@ -318,14 +311,12 @@ def sg_irradiance_norm(table: wp.array2d(dtype=float), c: float, lam: float) -> 
     """e(c, λ) = E / (μ ∫G): exp of the bilinear interpolant in (log10 λ, c) of the ln e table
     (:func:`irradiance_table_array`); λ < 1e-2 uses the first row (flat there), λ > 1e3 the
     sharp-lobe form :func:`sg_irradiance_sharp`; a lobe entirely above the horizon its exact mean
-    cosine (no row, no log)."""
+    cosine, one entirely below it 0 (:func:`_clear_of_horizon`: no row, no log)."""
     cc = wp.clamp(c, -1.0, 1.0)
     l = wp.max(lam, _LAM_TINY)
-    up = _above_horizon(cc, l)
-    if up >= 0.0:
-        return up
-    if _below_horizon(cc, l):
-        return 0.0
+    e = _clear_of_horizon(cc, l)
+    if e >= 0.0:
+        return e
     r = float(0.0)
     if l <= _LAM_SWITCH:  # no table row (no log) for the sharp-lobe form
         r = sg_irradiance_row(table, l)
