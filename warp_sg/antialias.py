@@ -64,6 +64,7 @@ import numpy as np
 import warp as wp
 
 from .background import Background, background_at
+from .brdf.material_wp import lum
 
 #: relative residual of a block's 1/depth off its fitted plane that makes it an edge
 EDGE_DEPTH_RESIDUAL = 0.01
@@ -106,7 +107,7 @@ def _neighbour_flags(tri_id: wp.array2d(dtype=int), tri_object: wp.array(dtype=i
     if t1 != t0:
         if _object_of(tri_object, t1) != o0:
             f = CAND_GEOMETRY
-    l1 = wp.dot(img[yy, xx], wp.vec3(0.2126, 0.7152, 0.0722))
+    l1 = lum(img[yy, xx])
     if wp.abs(l0 - l1) > contrast * wp.max(wp.max(l0, l1), 1.0e-30):
         f = f | CAND_CONTRAST
     return f
@@ -138,7 +139,7 @@ def candidates_kernel(base: int, seg: int, tri_id: wp.array2d(dtype=int), tri_ob
     for x in range(x0, wp.min(x0 + seg, W)):
         t0 = tri_id[y, x]
         o0 = _object_of(tri_object, t0)
-        l0 = wp.dot(img[y, x], wp.vec3(0.2126, 0.7152, 0.0722))
+        l0 = lum(img[y, x])
         f = int(0)
         if contours[y, x] != wp.uint8(0):
             f = CAND_GEOMETRY
@@ -377,11 +378,10 @@ def refine_kernel(base: int, idx: wp.array(dtype=int), edge: wp.array(dtype=int)
     k = idx[i]
     y = k / W
     x = k - y * W
-    lum = wp.vec3(0.2126, 0.7152, 0.0722)
-    lo = wp.dot(img[y, x], lum)
+    lo = lum(img[y, x])
     hi = lo
     for j in range(4):
-        l = wp.dot(shaded[0, offset[i] + j], lum)
+        l = lum(shaded[0, offset[i] + j])
         lo = wp.min(lo, l)
         hi = wp.max(hi, l)
     if hi - lo > tol * wp.max(hi, 1.0e-30):
@@ -518,6 +518,13 @@ def same_list(a: wp.array, b: wp.array) -> bool:
     return int(out.numpy()[0]) == 0
 
 
+def _sample_list(n: int, device):
+    """Storage of a 1 × n sample list for the shading kernel: (triangle, barycentrics, background)
+    per sample, and its weight in its pixel."""
+    return (wp.empty((1, n), dtype=int, device=device), wp.empty((1, n), dtype=wp.vec2, device=device),
+            wp.empty((1, n), dtype=wp.vec3, device=device), wp.empty(n, dtype=float, device=device))
+
+
 def render_adaptive(vb1, img, cache: AntialiasCache, camera, tri_object: wp.array, background: Background, a: int,
                     H: int, W: int, shade, device):
     """Antialias ``img`` (H, W) ``wp.array(dtype=vec3)``, the frame shaded once per pixel centre
@@ -556,10 +563,7 @@ def render_adaptive(vb1, img, cache: AntialiasCache, camera, tri_object: wp.arra
     stats = {**_counts(idx, cand, edge, device), "tile_fraction": n_tiles / (tx * ty), "pass1_samples": n_pix,
              "pass2_samples": n, "refined_pixels": 0, "raster_seconds": raster_seconds}
     if n > 0:
-        tri_s = wp.empty((1, n), dtype=int, device=device)
-        bary_s = wp.empty((1, n), dtype=wp.vec2, device=device)
-        bg_s = wp.empty((1, n), dtype=wp.vec3, device=device)
-        weight_s = wp.empty(n, dtype=float, device=device)
+        tri_s, bary_s, bg_s, weight_s = _sample_list(n, device)
         parallel.launch(gather_kernel, n_c, [idx, sub_tri, sub_bary, background, count, offset, edge, a, W, tri_s,
                                              bary_s, bg_s, weight_s], device)
         out = wp.empty((1, n), dtype=wp.vec3, device=device)
@@ -573,10 +577,7 @@ def render_adaptive(vb1, img, cache: AntialiasCache, camera, tri_object: wp.arra
         parallel.launch(resolve_kernel, n_c, [idx, out, weight_s, count, offset, W, 0.0, img], device,
                         min_chunk=LIST_MIN_CHUNK)
         if n3 > 0:
-            tri_s = wp.empty((1, n3), dtype=int, device=device)
-            bary_s = wp.empty((1, n3), dtype=wp.vec2, device=device)
-            bg_s = wp.empty((1, n3), dtype=wp.vec3, device=device)
-            weight_s = wp.empty(n3, dtype=float, device=device)
+            tri_s, bary_s, bg_s, weight_s = _sample_list(n3, device)
             parallel.launch(gather_rest_kernel, n_c, [idx, sub_tri, sub_bary, background, rest, offset3, a, W, tri_s,
                                                       bary_s, bg_s, weight_s], device, min_chunk=LIST_MIN_CHUNK)
             out = wp.empty((1, n3), dtype=wp.vec3, device=device)

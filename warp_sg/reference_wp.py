@@ -43,11 +43,6 @@ class Geometry:
 
 
 @wp.func
-def _lum(c: wp.vec3) -> float:
-    return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
-
-
-@wp.func
 def _occluded(geo: Geometry, p: wp.vec3, ng: wp.vec3, d: wp.vec3, max_t: float) -> bool:
     """True when the segment from ``p`` along ``d`` (length ``max_t``) hits the mesh.
 
@@ -74,8 +69,8 @@ def _trace(geo: Geometry, p: wp.vec3, ng: wp.vec3, d: wp.vec3) -> float:
 @wp.func
 def _mix_prob(mat: M.Material) -> float:
     """Probability of choosing the cosine (diffuse) strategy for the BRDF sample."""
-    ld = _lum(mat.kd)
-    ls = _lum(mat.ks)
+    ld = M.lum(mat.kd)
+    ls = M.lum(mat.ks)
     if ls <= 0.0:
         return 1.0
     if ld <= 0.0:

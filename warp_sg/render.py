@@ -507,8 +507,8 @@ class Renderer:
         a×a sub-pixels and shading is edge-adaptive: a pixel whose sub-pixels all see the same
         object at similar depth is shaded once (at its centre), an edge pixel once per triangle its
         sub-pixels see, weighted by coverage, a contrasting one at 4 probes and, where they
-        disagree, at every sub-pixel (:mod:`warp_sg.antialias`) — antialiased silhouettes at a fraction of the cost of shading
-        every sub-pixel."""
+        disagree, at every sub-pixel (:mod:`warp_sg.antialias`) — antialiased silhouettes at a
+        fraction of the cost of shading every sub-pixel."""
         rs = self.scene.render
         if rs.supersampling == 1 and rs.antialias > 1:
             return self._render_adaptive(int(rs.antialias))

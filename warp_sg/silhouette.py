@@ -69,8 +69,8 @@ def edge_adjacency(vertices, triangles) -> tuple:
 #: pixels a contour edge passes within this distance of are marked too (float32 projection here,
 #: vertices snapped to 1/256 of a pixel by the raster)
 MARK_EPS = wp.constant(0.02)
-#: an edge is hidden at a pixel when the 3×3 samples around it are nearer than its nearest point
-#: by more than this fraction of 1/depth (:func:`_hidden`)
+#: an edge is hidden at a pixel when the samples of the pixel and its 4 neighbours are all nearer
+#: than its nearest point by more than this fraction of 1/depth (:func:`_hidden`)
 OCCLUSION_MARGIN = wp.constant(1.0e-3)
 
 
