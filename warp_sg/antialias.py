@@ -247,7 +247,8 @@ def classify_kernel(base: int, idx: wp.array(dtype=int), cand: wp.array(dtype=in
     (row i of ``sub_tri``, ``sub_invw``: the sub-samples' triangles and 1/z, 0 where empty, of
     ``raster.subsample``) is an edge, and its
     second-pass sample count (:func:`gather_kernel`): for an edge one per triangle its sub-pixels
-    see plus one per sub-pixel that sees no object, for a contrast pixel a², else 0 (it keeps its
+    see plus one per sub-pixel that sees no object, for a contrast pixel its 4 probes (a² for
+    a = 2), else 0 (it keeps its
     centre sample). A block that one triangle covers is no edge (1/z is affine across a
     triangle)."""
     i = base + wp.tid()
@@ -326,8 +327,9 @@ def gather_kernel(base: int, idx: wp.array(dtype=int), sub_tri: wp.array2d(dtype
       barycentrics (the centroid of the points they see on it), weighted by their number / a² —
       coverage from all a² sub-pixels, shading once per triangle as in MSAA; each sub-pixel that
       sees no object is its own sample (the environment along its ray, computed here);
-    * a **contrast** pixel (one surface, shading that varies): every sub-pixel, equally weighted
-      (a glint smaller than a pixel needs them all)."""
+    * a **contrast** pixel (one surface, shading that varies): its ``count[i]`` probes (a ≥ 3:
+      :func:`probe_subpixel`; a = 2: its 4 sub-pixels), equally weighted; where they disagree,
+      :func:`gather_rest_kernel` adds the other sub-pixels later."""
     i = base + wp.tid()
     n = count[i]
     if n == 0:
