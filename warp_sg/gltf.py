@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import io
 import json
+import logging
 import struct
 import warnings
 from dataclasses import dataclass, field
@@ -48,7 +49,7 @@ from .textures import Texture, sample_bilinear_np, srgb_to_linear
 
 GLTF_SUFFIXES = (".glb", ".gltf")
 #: glTF extensions whose meaning the importer renders (everything else is reported and ignored)
-SUPPORTED_EXTENSIONS: frozenset = frozenset()
+SUPPORTED_EXTENSIONS: frozenset = frozenset({"KHR_draco_mesh_compression", "KHR_mesh_quantization"})
 #: smallest GGX α the importer emits (glTF roughness 0 is a perfect mirror)
 ALPHA_MIN = 1e-2
 #: F0 of glTF dielectrics (index of refraction 1.5)
@@ -126,15 +127,53 @@ def _read_header(path: Path) -> tuple[dict, bytes]:
     return header, raw
 
 
+#: glTF 2.0 §3.6.2.1 (``normalized`` accessors, KHR_mesh_quantization): integer code c → float,
+#: ``max(c / (2^(b−1) − 1), −1)`` for signed and ``c / (2^b − 1)`` for unsigned b-bit components
+_NORMALIZED = {5120: 127.0, 5121: 255.0, 5122: 32767.0, 5123: 65535.0, 5125: 4294967295.0}
+#: the private primitive extension that carries the dequantisation plan to :func:`_dequantize`
+_DEQUANTIZE = "WARP_SG_dequantize"
+
+
+def _dequantize(context) -> None:
+    """trimesh ``primitive_preprocess`` handler: the primitive's ``normalized`` integer accessors
+    (listed by :func:`_retagged`, each in one primitive only) become floats in place."""
+    acc = context["accessors"]
+    for idx, div in context["data"].items():
+        a = acc[int(idx)]
+        acc[int(idx)] = np.maximum(np.asarray(a, np.float64) / float(div), -1.0).astype(np.float32)
+
+
+def _register_dequantize() -> None:
+    from trimesh.exchange.gltf.extensions import register_handler
+
+    register_handler(_DEQUANTIZE, scope="primitive_preprocess")(_dequantize)
+
+
 def _retagged(path: Path, header: dict, raw: bytes) -> bytes:
-    """The file with ``TANGENT`` attributes renamed ``_TANGENT`` (trimesh keeps ``_`` attributes)
-    and every material named by its index (to find the header entry behind trimesh's material)."""
+    """The file with ``TANGENT`` and ``COLOR_0`` attributes renamed ``_TANGENT`` and ``_COLOR_0``
+    (trimesh keeps ``_`` attributes, aligned with the vertices), every material named by its index
+    (to find the header entry behind trimesh's material) and the ``normalized`` integer accessors of
+    the primitives' attributes (KHR_mesh_quantization) listed for :func:`_dequantize` in the first
+    primitive that reads each (Draco primitives decode to floats: none of theirs)."""
     h = json.loads(json.dumps(header))
+    accessors = h.get("accessors", [])
+    planned = set()
     for mesh in h.get("meshes", []):
         for prim in mesh.get("primitives", []):
             attr = prim.get("attributes", {})
-            if "TANGENT" in attr:
-                attr["_TANGENT"] = attr.pop("TANGENT")
+            for name in ("TANGENT", "COLOR_0"):
+                if name in attr:
+                    attr["_" + name] = attr.pop(name)
+            if "KHR_draco_mesh_compression" in prim.get("extensions", {}):
+                continue
+            plan = {}
+            for idx in attr.values():
+                a = accessors[idx] if isinstance(idx, int) and 0 <= idx < len(accessors) else {}
+                if a.get("normalized") and a.get("componentType") in _NORMALIZED and idx not in planned:
+                    plan[str(idx)] = _NORMALIZED[a["componentType"]]
+                    planned.add(idx)
+            if plan:
+                prim.setdefault("extensions", {})[_DEQUANTIZE] = plan
     for i, mat in enumerate(h.get("materials", [])):
         mat["name"] = f"{_TAG}{i}"
     text = json.dumps(h).encode("utf-8")
@@ -187,12 +226,22 @@ def load_gltf(path, *, images: bool = True) -> GltfAsset:
         raise MeshError("glTF file not found", where=str(path))
     header, raw = _read_header(path)
     data = _retagged(path, header, raw)
+    _register_dequantize()
+    if "KHR_draco_mesh_compression" in header.get("extensionsUsed", []):
+        try:
+            import DracoPy  # noqa: F401  (trimesh decodes KHR_draco_mesh_compression with it)
+        except ImportError as e:
+            raise MeshError(f"Draco-compressed meshes need DracoPy ({e})", where=str(path)) from None
+    failed = _TrimeshFailures()
     try:
         resolver = trimesh.resolvers.FilePathResolver(str(path))
-        sc = trimesh.load(io.BytesIO(data), file_type=path.suffix.lower()[1:], resolver=resolver, force="scene",
-                          skip_materials=not images)
+        with failed:
+            sc = trimesh.load(io.BytesIO(data), file_type=path.suffix.lower()[1:], resolver=resolver,
+                              force="scene", skip_materials=not images)
     except Exception as e:  # noqa: BLE001 - trimesh raises many types for broken files
         raise MeshError(f"cannot read glTF file ({type(e).__name__}: {e})", where=str(path)) from None
+    if failed.messages:  # e.g. a Draco blob that does not decode: trimesh would go on with zeros
+        raise MeshError(f"cannot read glTF file ({failed.messages[0]})", where=str(path))
     parts, imgs = [], {}
     for node in sc.graph.nodes_geometry:
         M, gname = sc.graph[node]
@@ -208,6 +257,28 @@ def load_gltf(path, *, images: bool = True) -> GltfAsset:
     if not parts:
         raise MeshError("glTF file contains no triangles", where=str(path))
     return GltfAsset(path=path, parts=parts, header=header, images=imgs, notes=_notes(path, header))
+
+
+class _TrimeshFailures(logging.Handler):
+    """Collects trimesh's "failed to process extension" log records while it loads a file (its
+    handlers log and go on with placeholder zeros, which would render as an empty mesh)."""
+
+    def __init__(self):
+        super().__init__(logging.WARNING)
+        self.messages = []
+
+    def emit(self, record):
+        msg = record.getMessage()
+        if "failed to process extension" in msg:
+            self.messages.append(msg)
+
+    def __enter__(self):
+        logging.getLogger("trimesh").addHandler(self)
+        return self
+
+    def __exit__(self, *exc):
+        logging.getLogger("trimesh").removeHandler(self)
+        return False
 
 
 def _material_index(mat) -> int | None:
