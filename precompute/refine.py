@@ -323,7 +323,7 @@ def _signature_difference(sig, normals, i, j, R):
 
 def refine_for_visibility(vertices, triangles, normals, *, budget: int = 20000, device="cpu",
                           base_edge: float | None = None, levels: int = 4, signature_resolution: int = 12,
-                          threshold: float = 0.03, progress=False) -> Refinement:
+                          threshold: float = 0.03, progress=False, cutouts=None) -> Refinement:
     """Refine a mesh so per-vertex visibility can hold its shadows (see module docstring).
 
     ``vertices`` (N, 3), ``triangles`` (M, 3), ``normals`` (N, 3) unit (the merged scene mesh;
@@ -332,7 +332,8 @@ def refine_for_visibility(vertices, triangles, normals, *, budget: int = 20000, 
     (default diagonal / 24; ``float("inf")`` skips the pre-split).
     ``levels``: adaptive levels (0: pre-split only). ``signature_resolution``: R of the R×R
     binary hemisphere maps compared across edges; ``threshold``: fraction of differing
-    directions that marks an edge. ``progress``: tqdm bar over the vertex budget.
+    directions that marks an edge. ``progress``: tqdm bar over the vertex budget. ``cutouts``:
+    the mesh's alpha cut-outs (:class:`warp_sg.cutout.CutoutData`; signature rays pass through holes).
     """
     t0 = time.perf_counter()
     v, f, n = validate_mesh(vertices, triangles, normals)
@@ -389,7 +390,8 @@ def refine_for_visibility(vertices, triangles, normals, *, budget: int = 20000, 
 
         def signatures(ids):
             if len(ids):
-                maps = hemisphere_visibility(st.V, f, st.N, resolution=R, device=device, vertex_ids=ids)
+                maps = hemisphere_visibility(st.V, f, st.N, resolution=R, device=device, vertex_ids=ids,
+                                             cutouts=cutouts)
                 sig[ids] = maps.reshape(len(ids), -1).astype(bool)
 
         signatures(np.flatnonzero(used))
@@ -435,8 +437,12 @@ def refine_cached(vertices, triangles, normals, *, budget: int = 20000, device="
     mesh's content and the parameters, so a renderer built twice on one scene refines once."""
     from warp_sg.cache import content_key, load_or_build
 
+    cut = kwargs.get("cutouts")
+    params = {k: x for k, x in kwargs.items() if k != "cutouts"}
+    if cut is not None:
+        params.update(cut.key())
     key = content_key(np.asarray(vertices, np.float64), np.asarray(triangles, np.int64),
-                      np.asarray(normals, np.float64), dict(v=_VERSION, budget=int(budget), **kwargs))
+                      np.asarray(normals, np.float64), dict(v=_VERSION, budget=int(budget), **params))
 
     def build():
         r = refine_for_visibility(vertices, triangles, normals, budget=budget, device=device, progress=progress,

@@ -39,7 +39,7 @@ from warp_sg.pca import pca
 
 from .occluder_cone import occluder_cones
 from .ssdf_wp import texel_directions
-from .visibility import OFFSET_SCALE, _MeshContext, _tqdm, _visibility_kernel, run_batches, validate_mesh
+from .visibility import OFFSET_SCALE, _MeshContext, _tqdm, launch_visibility, run_batches, validate_mesh
 
 #: Defaults (see docs/precompute.md for the error/time trade-off).
 DEFAULT_RESOLUTION = 32
@@ -174,8 +174,7 @@ def _ssdf_batch(ctx, dirs, Rr, R, points, normals, s, e, device, out_vis=None):
     B = e - s
     N = Rr * Rr
     vis = wp.empty((B, N), dtype=wp.uint8, device=device)
-    wp.launch(_visibility_kernel, dim=(B, N), device=device,
-              inputs=[ctx.mesh.id, points, normals, s, dirs, ctx.offset, ctx.max_t, vis])
+    launch_visibility(ctx, points, normals, s, dirs, vis)
     a = wp.empty((B, N), dtype=wp.vec3, device=device)
     b = wp.empty((B, N), dtype=wp.vec3, device=device)
     wp.launch(_seed_kernel, dim=(B, N), device=device, inputs=[vis, dirs, Rr, a])
@@ -195,10 +194,11 @@ def _ssdf_batch(ctx, dirs, Rr, R, points, normals, s, e, device, out_vis=None):
 
 def compute_ssdf(vertices, triangles, normals, *, resolution: int = DEFAULT_RESOLUTION,
                  ray_resolution: int = DEFAULT_RAY_RESOLUTION, device="cpu", vertex_ids=None,
-                 progress: bool = True, batch: int = 256, return_visibility: bool = False):
+                 progress: bool = True, batch: int = 256, return_visibility: bool = False, cutouts=None):
     """Uncompressed SSDFs ``(n, R, R)`` float32 (radians) of the selected vertices (default all).
 
     With ``return_visibility`` also returns the binary maps ``(n, Rr, Rr)`` uint8 at ray resolution.
+    ``cutouts``: the mesh's alpha cut-outs (:class:`warp_sg.cutout.CutoutData`; rays pass through holes).
     """
     device = resolve_device(device)
     _check_resolutions(resolution, ray_resolution)
@@ -206,7 +206,7 @@ def compute_ssdf(vertices, triangles, normals, *, resolution: int = DEFAULT_RESO
     if n is None:
         raise InputError("compute_ssdf needs per-vertex normals")
     ids = np.arange(len(v)) if vertex_ids is None else np.asarray(vertex_ids, np.int64)
-    ctx = _MeshContext(v, f, n, device)
+    ctx = _MeshContext(v, f, n, device, cutouts)
     R, Rr = int(resolution), int(ray_resolution)
     dirs = wp.array(texel_directions(Rr).reshape(-1, 3).astype(np.float32), dtype=wp.vec3, device=device)
     pts = wp.array(v[ids].astype(np.float32), dtype=wp.vec3, device=device)
@@ -296,20 +296,23 @@ def decompress_budget() -> int:
     return max(int(mb * (1 << 20)), 0)
 
 
-def _ssdf_params(resolution, ray_resolution, pca_terms):
+def _ssdf_params(resolution, ray_resolution, pca_terms, cutouts=None):
     if ray_resolution is None:
         ray_resolution = 2 * int(resolution)
     _check_resolutions(resolution, ray_resolution)
     if int(pca_terms) != pca_terms or pca_terms < 1:
         raise InputError(f"pca_terms must be a positive integer, got {pca_terms}", where="pca_terms")
-    return {"kind": "ssdf", "version": SSDF_VERSION, "resolution": int(resolution),
-            "ray_resolution": int(ray_resolution), "pca_terms": int(pca_terms), "offset": OFFSET_SCALE}
+    params = {"kind": "ssdf", "version": SSDF_VERSION, "resolution": int(resolution),
+              "ray_resolution": int(ray_resolution), "pca_terms": int(pca_terms), "offset": OFFSET_SCALE}
+    if cutouts is not None:  # (the key of a mesh without cut-outs is unchanged)
+        params.update(cutouts.key())
+    return params
 
 
 def ssdf_key(vertices, triangles, normals, *, resolution: int = DEFAULT_RESOLUTION, ray_resolution: int | None = None,
-             pca_terms: int = DEFAULT_PCA_TERMS) -> str:
+             pca_terms: int = DEFAULT_PCA_TERMS, cutouts=None) -> str:
     """The cache key of :func:`ssdf_for_mesh` for these arguments (a content hash; no SSDF is computed)."""
-    params = _ssdf_params(resolution, ray_resolution, pca_terms)
+    params = _ssdf_params(resolution, ray_resolution, pca_terms, cutouts)
     v, f, n = validate_mesh(vertices, triangles, normals)
     if n is None:
         raise InputError("ssdf_for_mesh needs per-vertex normals")
@@ -318,7 +321,7 @@ def ssdf_key(vertices, triangles, normals, *, resolution: int = DEFAULT_RESOLUTI
 
 def ssdf_for_mesh(vertices, triangles, normals, *, resolution: int = DEFAULT_RESOLUTION,
                   ray_resolution: int | None = None, pca_terms: int = DEFAULT_PCA_TERMS,
-                  device="cpu", progress: bool = True, use_cache: bool = True, compute=None) -> SSDFData:
+                  device="cpu", progress: bool = True, use_cache: bool = True, compute=None, cutouts=None) -> SSDFData:
     """Per-vertex SSDFs of a (merged) mesh, PCA-compressed (eq. 23–24), cached on disk.
 
     ``ray_resolution`` defaults to ``2 × resolution`` (paper: 4×, 512 → 128). The cache key is a
@@ -327,8 +330,10 @@ def ssdf_for_mesh(vertices, triangles, normals, *, resolution: int = DEFAULT_RES
     ``ray_resolution``, ``device``, ``progress``), e.g. the Dask version of
     :mod:`warp_sg.distributed_precompute`; it must return the same per-vertex SSDFs, so a
     distributed result and a local one are the same cache entry. PCA and the cache write run here.
+    ``cutouts``: the mesh's alpha cut-outs (:class:`warp_sg.cutout.CutoutData`; the SSDF's rays pass
+    through holes; passed on to ``compute`` as ``cutouts=`` when given).
     """
-    params = _ssdf_params(resolution, ray_resolution, pca_terms)
+    params = _ssdf_params(resolution, ray_resolution, pca_terms, cutouts)
     ray_resolution = params["ray_resolution"]
     v, f, n = validate_mesh(vertices, triangles, normals)
     if n is None:
@@ -337,8 +342,9 @@ def ssdf_for_mesh(vertices, triangles, normals, *, resolution: int = DEFAULT_RES
     compute = compute_ssdf if compute is None else compute
 
     def build():
+        cut = {} if cutouts is None else {"cutouts": cutouts}
         X = compute(v, f, n, resolution=resolution, ray_resolution=ray_resolution, device=device,
-                    progress=progress).reshape(len(v), -1)
+                    progress=progress, **cut).reshape(len(v), -1)
         p = pca(X, int(pca_terms))
         R = int(resolution)
         return {"mean": p.mean.reshape(R, R), "basis": p.basis.reshape(-1, R, R), "weights": p.weights,

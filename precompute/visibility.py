@@ -8,7 +8,9 @@ texel ``(j, i)`` of an ``R×R`` Shirley–Chiu concentric map (:mod:`precompute.
 with ``d_world = to_world(concentric_to_dir(a_i, b_j), n)``. The queries use ``wp.Mesh`` BVH
 any-hit ray casts (``wp.mesh_query_ray_anyhit``) in one Warp kernel over (vertex, texel).
 The self-intersection offset ``ε = offset_scale · (bbox diagonal)`` (default ``1e-4``) scales with
-the mesh. A multi-object scene passes its merged mesh. On the CPU disjoint vertex batches run in a
+the mesh. A multi-object scene passes its merged mesh. With alpha cut-outs (``cutouts``, a
+:class:`warp_sg.cutout.CutoutData` of the mesh) a ray passes through holes: the nearest-hit
+queries of :func:`warp_sg.cutout.blocked` replace the any-hit query (``_visibility_cutout_kernel``). On the CPU disjoint vertex batches run in a
 small thread pool (Warp CPU launches are serial per call; several launches scale over cores).
 """
 from __future__ import annotations
@@ -24,6 +26,8 @@ from warp_sg.errors import InputError, MeshError
 from warp_sg.meshcheck import check_mesh
 from warp_sg.workers import cpu_workers as _cpu_workers
 from warp_sg.frames import frame_bitangent, frame_tangent, local_to_world
+
+from warp_sg.cutout import Cutouts, blocked
 
 from .ssdf_wp import texel_directions
 
@@ -82,10 +86,55 @@ def _visibility_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals
     out[k, tex] = wp.where(hit, wp.uint8(0), wp.uint8(1))
 
 
-class _MeshContext:
-    """wp.Mesh + per-vertex arrays on a device, shared by the batch workers."""
+# ---------------------------------------------------------------------------------------------
+# alpha cut-outs: the same queries through holes (warp_sg.cutout)
+# ---------------------------------------------------------------------------------------------
 
-    def __init__(self, vertices, triangles, normals, device):
+@wp.kernel
+def _visibility_cutout_kernel(mesh: wp.uint64, cut: Cutouts, points: wp.array(dtype=wp.vec3),
+                              normals: wp.array(dtype=wp.vec3), first: int, dirs: wp.array(dtype=wp.vec3),
+                              offset: float, max_t: float, out: wp.array2d(dtype=wp.uint8)):
+    """``_visibility_kernel`` whose rays pass through the holes of alpha cut-outs."""
+    k, tex = wp.tid()
+    vi = first + k
+    n = normals[vi]
+    d = local_to_world(dirs[tex], frame_tangent(n), frame_bitangent(n), n)
+    hit = blocked(mesh, cut, points[vi] + offset * n, d, max_t)
+    out[k, tex] = wp.where(hit, wp.uint8(0), wp.uint8(1))
+
+
+@wp.kernel
+def _ray_cutout_kernel(mesh: wp.uint64, cut: Cutouts, origins: wp.array(dtype=wp.vec3),
+                       normals: wp.array(dtype=wp.vec3), dirs: wp.array(dtype=wp.vec3), offset: float, max_t: float,
+                       out: wp.array(dtype=wp.uint8)):
+    """``_ray_kernel`` whose rays pass through the holes of alpha cut-outs."""
+    k = wp.tid()
+    n = normals[k]
+    d = dirs[k]
+    vis = wp.uint8(0)
+    if wp.dot(d, n) > 0.0:
+        if not blocked(mesh, cut, origins[k] + offset * n, d, max_t):
+            vis = wp.uint8(1)
+    out[k] = vis
+
+
+def launch_visibility(ctx, points, normals, first: int, dirs, out) -> None:
+    """``out[k, texel]`` = 1 where the ray from vertex ``first + k`` along ``dirs[texel]`` escapes:
+    the any-hit kernel, or with the context's cut-outs the one that sees through holes."""
+    n_v, n_d = out.shape
+    if ctx.cutouts is None:
+        wp.launch(_visibility_kernel, dim=(n_v, n_d), device=ctx.device,
+                  inputs=[ctx.mesh.id, points, normals, first, dirs, ctx.offset, ctx.max_t, out])
+    else:
+        wp.launch(_visibility_cutout_kernel, dim=(n_v, n_d), device=ctx.device,
+                  inputs=[ctx.mesh.id, ctx.cutouts, points, normals, first, dirs, ctx.offset, ctx.max_t, out])
+
+
+class _MeshContext:
+    """wp.Mesh + per-vertex arrays on a device, shared by the batch workers; ``cutouts`` (a
+    :class:`warp_sg.cutout.CutoutData` of the mesh, or None): its alpha cut-outs on the device."""
+
+    def __init__(self, vertices, triangles, normals, device, cutouts=None):
         self.device = device
         self.points = wp.array(vertices.astype(np.float32), dtype=wp.vec3, device=device)
         self.normals = wp.array(normals.astype(np.float32), dtype=wp.vec3, device=device)
@@ -96,6 +145,7 @@ class _MeshContext:
         diag = bbox_diagonal(vertices)
         self.offset = OFFSET_SCALE * max(diag, 1e-12)
         self.max_t = 1e3 * max(diag, 1e-12)
+        self.cutouts = None if cutouts is None else cutouts.device(triangles, device)
 
 
 def cpu_workers(device: str) -> int:
@@ -138,11 +188,12 @@ def _tqdm(total, desc, enabled):
 
 
 def hemisphere_visibility(vertices, triangles, normals, resolution: int = 64, *, device="cpu",
-                          vertex_ids=None, progress: bool = False, batch: int = 512) -> np.ndarray:
+                          vertex_ids=None, progress: bool = False, batch: int = 512, cutouts=None) -> np.ndarray:
     """Binary visibility maps ``(n, R, R)`` uint8 (1 = visible) of the upper hemisphere at each vertex.
 
     ``vertex_ids`` selects vertices (default: all). Texel ``[j, i]`` is the concentric-map texel
     with ``b`` from row ``j`` and ``a`` from column ``i`` (see :mod:`precompute.ssdf_wp`).
+    ``cutouts``: the mesh's alpha cut-outs (:class:`warp_sg.cutout.CutoutData`; rays pass through holes).
     """
     device = resolve_device(device)
     v, f, n = validate_mesh(vertices, triangles, normals)
@@ -154,7 +205,7 @@ def hemisphere_visibility(vertices, triangles, normals, resolution: int = 64, *,
     if ids.size and (ids.min() < 0 or ids.max() >= len(v)):
         bad = int(ids[(ids < 0) | (ids >= len(v))][0])
         raise InputError(f"vertex id {bad} out of range (mesh has {len(v)} vertices)")
-    ctx = _MeshContext(v, f, n, device)
+    ctx = _MeshContext(v, f, n, device, cutouts)
     R = int(resolution)
     dirs = wp.array(texel_directions(R).reshape(-1, 3).astype(np.float32), dtype=wp.vec3, device=device)
     sel_p = wp.array(v[ids].astype(np.float32), dtype=wp.vec3, device=device)
@@ -164,8 +215,7 @@ def hemisphere_visibility(vertices, triangles, normals, resolution: int = 64, *,
 
     def work(s, e):
         buf = wp.empty((e - s, R * R), dtype=wp.uint8, device=device)
-        wp.launch(_visibility_kernel, dim=(e - s, R * R), device=device,
-                  inputs=[ctx.mesh.id, sel_p, sel_n, s, dirs, ctx.offset, ctx.max_t, buf])
+        launch_visibility(ctx, sel_p, sel_n, s, dirs, buf)
         out[s:e] = buf.numpy()
 
     run_batches(len(ids), batch, work, device, bar)
@@ -187,20 +237,22 @@ def _ray_kernel(mesh: wp.uint64, origins: wp.array(dtype=wp.vec3), normals: wp.a
     out[k] = vis
 
 
-def ray_visibility(vertices, triangles, origins, normals, directions, *, device="cpu") -> np.ndarray:
+def ray_visibility(vertices, triangles, origins, normals, directions, *, device="cpu", cutouts=None) -> np.ndarray:
     """Exact visibility (uint8, 1 = escapes) of arbitrary rays ``origins + ε normals + s·directions``
     (all (N, 3), world space); directions below the surface (``d·n ≤ 0``) are invisible.
-    Used as the brute-force reference of the SSDF product (tests, bench)."""
+    Used as the brute-force reference of the SSDF product (tests, bench). ``cutouts``: the mesh's
+    alpha cut-outs (:class:`warp_sg.cutout.CutoutData`; rays pass through holes)."""
     device = resolve_device(device)
     v, f, _ = validate_mesh(vertices, triangles)
     o = np.asarray(origins, np.float32).reshape(-1, 3)
     nn = np.broadcast_to(np.asarray(normals, np.float32), o.shape)
     d = np.broadcast_to(np.asarray(directions, np.float32), o.shape)
-    ctx = _MeshContext(v, f, np.tile([0.0, 0.0, 1.0], (len(v), 1)), device)
+    ctx = _MeshContext(v, f, np.tile([0.0, 0.0, 1.0], (len(v), 1)), device, cutouts)
     out = wp.empty(len(o), dtype=wp.uint8, device=device)
-    wp.launch(_ray_kernel, dim=len(o), device=device,
-              inputs=[ctx.mesh.id, wp.array(o, dtype=wp.vec3, device=device),
-                      wp.array(np.ascontiguousarray(nn), dtype=wp.vec3, device=device),
-                      wp.array(np.ascontiguousarray(d), dtype=wp.vec3, device=device),
-                      ctx.offset, ctx.max_t, out])
+    rays = [wp.array(o, dtype=wp.vec3, device=device), wp.array(np.ascontiguousarray(nn), dtype=wp.vec3, device=device),
+            wp.array(np.ascontiguousarray(d), dtype=wp.vec3, device=device), ctx.offset, ctx.max_t, out]
+    if ctx.cutouts is None:
+        wp.launch(_ray_kernel, dim=len(o), device=device, inputs=[ctx.mesh.id, *rays])
+    else:
+        wp.launch(_ray_cutout_kernel, dim=len(o), device=device, inputs=[ctx.mesh.id, ctx.cutouts, *rays])
     return out.numpy()

@@ -48,6 +48,15 @@ def background_at(bg: Background, j: int, i: int) -> wp.vec3:
     return env_lookup(bg.radiance, bg.to_env, d) * bg.scale
 
 
+@wp.func
+def background_along(bg: Background, d: wp.vec3) -> wp.vec3:
+    """scale · L(Rᵀ d) along the unit world direction ``d`` (a camera ray that passed through a
+    cut-out, :mod:`warp_sg.cutout`); 0 if disabled."""
+    if bg.enabled == 0:
+        return wp.vec3(0.0, 0.0, 0.0)
+    return env_lookup(bg.radiance, bg.to_env, d) * bg.scale
+
+
 @wp.kernel(enable_backward=False)
 def background_kernel(base: int, bg: Background, masked: int, tri_id: wp.array2d(dtype=int),
                       out: wp.array2d(dtype=wp.vec3)):
@@ -157,4 +166,4 @@ class BackgroundCache:
         return [self._placeholders[0], bg, 1]
 
 
-__all__ = ["Background", "BackgroundCache", "background_at", "background_kernel", "background_params", "background_image"]
+__all__ = ["Background", "BackgroundCache", "background_at", "background_along", "background_kernel", "background_params", "background_image"]

@@ -107,13 +107,16 @@ class DaskSSDF:
         self.stats: dict = {}
 
     def __call__(self, vertices, triangles, normals, *, resolution, ray_resolution, device="cpu", progress=True,
-                 vertex_ids=None):
+                 vertex_ids=None, cutouts=None):
         from precompute.ssdf import _check_resolutions
         from precompute.visibility import _tqdm, validate_mesh
 
         from .cache import content_key
         from .cluster import gather_in_order, project_version
 
+        if cutouts is not None:
+            raise InputError("the distributed SSDF precompute does not see through alpha cut-outs (glTF alphaMode "
+                             "MASK); compute it without --cluster", where="cutouts")
         t0 = time.perf_counter()
         _check_resolutions(resolution, ray_resolution)
         v, f, n = validate_mesh(vertices, triangles, normals)

@@ -37,6 +37,10 @@ class Geometry:
     material_names: list
     object_names: list
     dropped_triangles: int = 0
+    #: (N, 4) linear RGBA vertex colours (kd and cut-out alpha factors) and (N, 3) their ks factor;
+    #: None when no object has vertex colours (``SceneObject.colors``)
+    colors: np.ndarray | None = None
+    specular_colors: np.ndarray | None = None
 
 
 def vertex_samples(triangles: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
@@ -64,7 +68,10 @@ def refined_geometry(g: Geometry, ref) -> Geometry:
     attributes from the parent triangle, vertex objects from the nearest input vertex."""
     tang = ref.interpolate(np.asarray(g.tangents, np.float64))
     tang /= np.maximum(np.linalg.norm(tang, axis=1, keepdims=True), 1e-30)
-    return replace(g, vertices=np.asarray(ref.vertices, np.float32), normals=np.asarray(ref.normals, np.float32),
+    cols = {} if g.colors is None else {
+        "colors": ref.interpolate(np.asarray(g.colors, np.float64)).astype(np.float32),
+        "specular_colors": ref.interpolate(np.asarray(g.specular_colors, np.float64)).astype(np.float32)}
+    return replace(g, **cols, vertices=np.asarray(ref.vertices, np.float32), normals=np.asarray(ref.normals, np.float32),
                    uvs=ref.interpolate(np.asarray(g.uvs, np.float64)).astype(np.float32),
                    tangents=tang.astype(np.float32), triangles=np.asarray(ref.triangles, np.int32),
                    tri_material=g.tri_material[ref.parent_tri], tri_object=g.tri_object[ref.parent_tri],
@@ -224,10 +231,22 @@ def object_mesh(ob, index: int, base: Path | None) -> MeshData:
     return mesh
 
 
+def _vertex_colours(ob, n: int, where: str):
+    """(colors (n, 4), specular_colors (n, 3)) of an object, ones where it has none."""
+    c = np.ones((n, 4), np.float32) if ob.colors is None else np.asarray(ob.colors, np.float32)
+    ks = np.ones((n, 3), np.float32) if ob.specular_colors is None else np.asarray(ob.specular_colors, np.float32)
+    for a, k, name in ((c, 4, "colors"), (ks, 3, "specular_colors")):
+        if a.shape != (n, k) or not np.all(np.isfinite(a)):
+            raise MeshError(f"vertex {name} must have shape ({n}, {k}) and be finite, got {a.shape}", where=where)
+    return c, ks
+
+
 def build_geometry(scene) -> Geometry:
     """Every object of ``scene`` (a :class:`~warp_sg.scene.Scene`) flattened into one :class:`Geometry`."""
     names = scene.material_names
     vs, ns, uvs, ts, tris, tm, to, vo, labels = [], [], [], [], [], [], [], [], []
+    coloured = any(getattr(ob, "colors", None) is not None for ob in scene.objects)
+    cs, kss = [], []
     base = 0
     dropped = 0
     for i, ob in enumerate(scene.objects):
@@ -241,6 +260,10 @@ def build_geometry(scene) -> Geometry:
         to.append(np.full(len(m.triangles), i, np.int32))
         vo.append(np.full(len(m.vertices), i, np.int32))
         labels.append(ob.label(i))
+        if coloured:
+            c, ks = _vertex_colours(ob, len(m.vertices), f"{scene.path or 'scene'}: [[objects]] #{i + 1} ({ob.label(i)})")
+            cs.append(c)
+            kss.append(ks)
         dropped += getattr(m, "dropped", 0)
         base += len(m.vertices)
     return Geometry(
@@ -255,6 +278,8 @@ def build_geometry(scene) -> Geometry:
         material_names=names,
         object_names=labels,
         dropped_triangles=dropped,
+        colors=np.ascontiguousarray(np.concatenate(cs), np.float32) if coloured else None,
+        specular_colors=np.ascontiguousarray(np.concatenate(kss), np.float32) if coloured else None,
     )
 
 

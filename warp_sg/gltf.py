@@ -12,25 +12,17 @@ graph). The JSON header is read first, for what trimesh drops: exact float facto
 ``baseColorFactor`` as 8-bit), ``normalTexture.scale``, ``TANGENT`` attributes (renamed
 ``_TANGENT`` so that trimesh keeps them as a vertex attribute) and the extension lists.
 
-PBR metallic-roughness → ``ggx`` (glTF 2.0 Appendix B, "BRDF implementation"), per texel::
+Materials (metallic-roughness, KHR_materials_ior / specular / clearcoat /
+emissive_strength, emission, occlusion, alpha modes) are converted by :mod:`warp_sg.gltf_material`;
+tangents come from the file or are generated from the UVs (:func:`warp_sg.geometry.uv_tangents`).
+Geometry: Draco-compressed primitives (KHR_draco_mesh_compression) are decoded by trimesh with
+DracoPy; ``normalized`` integer attributes (KHR_mesh_quantization) are dequantised
+(:func:`_dequantize`); ``COLOR_0`` (linear RGBA) multiplies the base colour and its alpha;
+KHR_texture_transform is applied to the texture coordinates.
 
-    base  = baseColorFactor · sRGB⁻¹(baseColorTexture)          (linear RGB)
-    metal = metallicFactor · metallicRoughnessTexture.B
-    rough = roughnessFactor · metallicRoughnessTexture.G
-    kd    = base · (1 − metal)                                   (Lambert, kd/π)
-    F0    = 0.04 · (1 − metal) + base · metal                    (Schlick)
-    α     = max(rough², ALPHA_MIN)                              (Trowbridge–Reitz)
-
-``fresnel = {schlick = F0}`` is a per-material constant in the renderer; when F0 varies over the
-texture, the material gets ``f0 = mean F0`` and a ``ks`` texture ``F0(x) / mean F0``, which is
-exact at normal incidence (the Schlick rise towards grazing is that of the mean F0).
-Normal textures (tangent space, +Y = ``n × t`` for ``tangent.w = +1``) are rescaled by
-``normalTexture.scale`` in x and y and stored as the material's ``normal_map``; tangents come from
-the file or are generated from the UVs (:func:`warp_sg.geometry.uv_tangents`).
-
-Extensions, occlusion and emissive textures, alpha modes, vertex colours, second UV sets and
-animations are not rendered: each is reported once as an :class:`AssetWarning` (one line) and
-ignored. An unreadable file raises :class:`~warp_sg.errors.MeshError` naming it.
+Whatever else a file uses (other extensions, second UV sets, animations, point and line
+primitives, alpha blending) is reported once per file and feature as an :class:`AssetWarning`
+(one line). An unreadable file raises :class:`~warp_sg.errors.MeshError` naming it.
 """
 from __future__ import annotations
 
@@ -45,15 +37,17 @@ from pathlib import Path
 import numpy as np
 
 from .errors import MeshError
-from .textures import Texture, sample_bilinear_np, srgb_to_linear
+from .gltf_material import (ALPHA_MIN, DIELECTRIC_F0, TEXTURE_SLOTS, gltf_material, material_uv_transform,  # noqa: F401
+                            pbr_to_ggx, texture_infos, uv_transform, vertex_colour_factors)
 
 GLTF_SUFFIXES = (".glb", ".gltf")
 #: glTF extensions whose meaning the importer renders (everything else is reported and ignored)
-SUPPORTED_EXTENSIONS: frozenset = frozenset({"KHR_draco_mesh_compression", "KHR_mesh_quantization"})
-#: smallest GGX α the importer emits (glTF roughness 0 is a perfect mirror)
-ALPHA_MIN = 1e-2
-#: F0 of glTF dielectrics (index of refraction 1.5)
-DIELECTRIC_F0 = 0.04
+SUPPORTED_EXTENSIONS: frozenset = frozenset({
+    "KHR_draco_mesh_compression", "KHR_mesh_quantization", "KHR_texture_transform", "KHR_materials_emissive_strength",
+    "KHR_materials_ior", "KHR_materials_specular", "KHR_materials_clearcoat"})
+#: the texture slots trimesh reads (the others, of extensions, are read by :func:`_extension_images`)
+_TRIMESH_SLOTS = ("baseColorTexture", "metallicRoughnessTexture", "normalTexture", "emissiveTexture",
+                  "occlusionTexture")
 
 _GLB_MAGIC, _JSON_CHUNK = 0x46546C67, 0x4E4F534A
 _TAG = "warp_sg_material_"
@@ -74,6 +68,8 @@ class GltfPart:
     uvs: np.ndarray | None
     tangents: np.ndarray | None
     material: int | str | None  # file material index (None: glTF default), or the scene's key
+    colors: np.ndarray | None = None  # COLOR_0 (V, 4) linear RGBA
+    specular_colors: np.ndarray | None = None  # (V, 3) the ks factor of COLOR_0 (gltf_material)
 
 
 @dataclass
@@ -193,27 +189,33 @@ def _notes(path: Path, header: dict) -> list[str]:
     for ext in used:
         if ext not in SUPPORTED_EXTENSIONS:
             out.append(f"{path.name}: glTF extension '{ext}' is not supported; ignored")
-    mats = header.get("materials", [])
-    checks = (("occlusionTexture", "occlusion textures"), ("emissiveTexture", "emissive textures"))
-    for key, what in checks:
-        if any(key in m for m in mats):
-            out.append(f"{path.name}: {what} are not rendered; ignored")
-    if any(any(float(x) > 0 for x in m.get("emissiveFactor", [])) for m in mats):
-        out.append(f"{path.name}: emission (emissiveFactor) is not rendered; ignored")
-    if any(m.get("alphaMode", "OPAQUE") != "OPAQUE" for m in mats):
-        out.append(f"{path.name}: alpha modes MASK/BLEND are not rendered; surfaces are opaque")
-    texs = [t for m in mats for t in [m.get("normalTexture", {}), *m.get("pbrMetallicRoughness", {}).values()]
-            if isinstance(t, dict)]
-    if any(t.get("texCoord", 0) != 0 for t in texs):
+    mats = [m for m in header.get("materials", []) if isinstance(m, dict)]
+    blend = [m.get("name") or f"material{i}" for i, m in enumerate(mats) if m.get("alphaMode") == "BLEND"
+             and (float(m.get("pbrMetallicRoughness", {}).get("baseColorFactor", [1, 1, 1, 1])[3]) < 1.0
+                  or "baseColorTexture" in m.get("pbrMetallicRoughness", {}))]
+    if blend:
+        out.append(f"{path.name}: alphaMode BLEND is rendered as MASK with alphaCutoff 0.5 (no blending): "
+                   f"{_names(blend)}")
+    mixed = [m.get("name") or f"material{i}" for i, m in enumerate(mats) if material_uv_transform(m)[1]]
+    if mixed:
+        out.append(f"{path.name}: textures of one material with different KHR_texture_transforms all use the "
+                   f"first one's: {_names(mixed)}")
+    infos = [i for m in mats for i in texture_infos(m).values()]
+    if any(i.get("extensions", {}).get("KHR_texture_transform", {}).get("texCoord", i.get("texCoord", 0)) != 0
+           for i in infos):
         out.append(f"{path.name}: textures on a second UV set (texCoord > 0) read TEXCOORD_0")
     prims = [p for m in header.get("meshes", []) for p in m.get("primitives", [])]
-    if any("COLOR_0" in p.get("attributes", {}) for p in prims):
-        out.append(f"{path.name}: vertex colours (COLOR_0) are not rendered; ignored")
     if any(p.get("mode", 4) not in (4, 5) for p in prims):
         out.append(f"{path.name}: point, line and fan primitives are not rendered; skipped")
     if header.get("animations") or header.get("skins"):
         out.append(f"{path.name}: animations and skins are not rendered; the rest pose is used")
     return out
+
+
+def _names(names: list, n: int = 3) -> str:
+    """The first ``n`` names, quoted, and how many more."""
+    shown = ", ".join(f"'{x}'" for x in names[:n])
+    return shown + (f" and {len(names) - n} more" if len(names) > n else "")
 
 
 def load_gltf(path, *, images: bool = True) -> GltfAsset:
@@ -252,11 +254,68 @@ def load_gltf(path, *, images: bool = True) -> GltfAsset:
         mat = getattr(getattr(g, "visual", None), "material", None)
         idx = parts[-1].material = _material_index(mat)
         if idx is not None and idx not in imgs:
-            imgs[idx] = {k: getattr(mat, k, None) for k in ("baseColorTexture", "metallicRoughnessTexture",
-                                                               "normalTexture")}
+            imgs[idx] = {k: getattr(mat, k, None) for k in _TRIMESH_SLOTS}
     if not parts:
         raise MeshError("glTF file contains no triangles", where=str(path))
-    return GltfAsset(path=path, parts=parts, header=header, images=imgs, notes=_notes(path, header))
+    notes = _notes(path, header)
+    if images:
+        notes += _extension_images(path, header, raw, imgs)
+    return GltfAsset(path=path, parts=parts, header=header, images=imgs, notes=notes)
+
+
+def _buffer_bytes(path: Path, header: dict, raw: bytes, i: int) -> bytes:
+    """Buffer ``i``: the GLB's BIN chunk (no ``uri``), a base64 ``data:`` URI or a file next to ``path``."""
+    import base64
+    from urllib.parse import unquote
+
+    uri = header["buffers"][i].get("uri")
+    if uri is None:
+        n = struct.unpack_from("<I", raw, 12)[0]
+        off = 20 + n + (-n % 4)
+        length = struct.unpack_from("<I", raw, off)[0]
+        return raw[off + 8:off + 8 + length]
+    if uri.startswith("data:"):
+        return base64.b64decode(uri.split(",", 1)[1])
+    return (path.parent / unquote(uri)).read_bytes()
+
+
+def _texture_image(path: Path, header: dict, raw: bytes, tex: int):
+    """The PIL image of texture ``tex`` (its ``source`` image: a buffer view or a URI)."""
+    import base64
+    from urllib.parse import unquote
+
+    from PIL import Image
+
+    img = header["images"][header["textures"][tex]["source"]]
+    if "bufferView" in img:
+        bv = header["bufferViews"][img["bufferView"]]
+        buf = _buffer_bytes(path, header, raw, bv.get("buffer", 0))
+        data = buf[bv.get("byteOffset", 0):bv.get("byteOffset", 0) + bv["byteLength"]]
+    elif img["uri"].startswith("data:"):
+        data = base64.b64decode(img["uri"].split(",", 1)[1])
+    else:
+        data = (path.parent / unquote(img["uri"])).read_bytes()
+    im = Image.open(io.BytesIO(data))
+    im.load()
+    return im
+
+
+def _extension_images(path: Path, header: dict, raw: bytes, imgs: dict) -> list[str]:
+    """Add the images of the extension texture slots (which trimesh does not read) to ``imgs``
+    ({material index: {slot: PIL image}}); one note per file for those that cannot be read."""
+    mats = header.get("materials", [])
+    bad = []
+    for idx, slots in imgs.items():
+        entry = mats[idx] if 0 <= idx < len(mats) else {}
+        for name, info in texture_infos(entry).items():
+            if name in _TRIMESH_SLOTS:
+                continue
+            try:
+                slots[name] = _texture_image(path, header, raw, int(info["index"]))
+            except Exception as e:  # noqa: BLE001 - missing keys, files, bad image data
+                slots[name] = None
+                bad.append(f"{name} of '{entry.get('name') or f'material{idx}'}' ({type(e).__name__})")
+    return [f"{path.name}: textures that cannot be read are not rendered: {_names(bad)}"] if bad else []
 
 
 class _TrimeshFailures(logging.Handler):
@@ -298,6 +357,12 @@ def _part(path: Path, node: str, g, M: np.ndarray) -> GltfPart:
     uv = None if uv is None or len(uv) != len(v) else np.asarray(uv, np.float32)
     tan = g.vertex_attributes.get("_TANGENT") if hasattr(g, "vertex_attributes") else None
     tan = None if tan is None or len(tan) != len(v) else np.asarray(tan, np.float64)[:, :3]
+    col = g.vertex_attributes.get("_COLOR_0") if hasattr(g, "vertex_attributes") else None
+    if col is not None and len(col) == len(v):  # COLOR_0: linear RGB(A), alpha 1 for RGB
+        col = np.asarray(col, np.float64).reshape(len(v), -1)
+        col = np.c_[col[:, :3], col[:, 3] if col.shape[1] > 3 else np.ones(len(v))].astype(np.float32)
+    else:
+        col = None
     det = np.linalg.det(A)
     if abs(det) < 1e-30:
         raise MeshError(f"node '{node}' has a singular transform", where=str(path))
@@ -310,89 +375,7 @@ def _part(path: Path, node: str, g, M: np.ndarray) -> GltfPart:
     if det < 0:
         f = f[:, [0, 2, 1]]
     return GltfPart(name=str(node), vertices=vw, triangles=f, normals=nw.astype(np.float32), uvs=uv,
-                    tangents=None if tan is None else tan.astype(np.float32), material=None)
-
-
-# --------------------------------------------------------------------------------------------
-# materials
-# --------------------------------------------------------------------------------------------
-def _image(img, where: str) -> np.ndarray:
-    """A PIL image as float32 (H, W, 4) code values in [0, 1]."""
-    from .textures import to_rgba
-
-    if img.mode in ("I;16", "I;16B", "I;16L", "I"):
-        a = np.asarray(img, np.float32) / 65535.0
-    else:
-        a = np.asarray(img.convert("RGBA") if img.mode not in ("L", "LA", "RGB", "RGBA") else img,
-                       np.float32) / 255.0
-    return to_rgba(a, where)
-
-
-def _on_grid(a: np.ndarray | None, shape) -> np.ndarray | None:
-    """Resample an (H, W, 4) texture bilinearly at the texel centres of an (h, w) grid."""
-    if a is None or a.shape[:2] == tuple(shape):
-        return a
-    h, w = shape
-    u = (np.arange(w) + 0.5) / w
-    v = 1.0 - (np.arange(h) + 0.5) / h
-    uv = np.stack(np.meshgrid(u, v), -1)
-    return sample_bilinear_np(a, uv)
-
-
-def pbr_to_ggx(base, metal, rough) -> dict:
-    """glTF metallic-roughness → GGX values (arrays broadcast): ``kd``, ``f0``, ``alpha``
-    (module docstring)."""
-    base = np.asarray(base, np.float64)
-    metal = np.asarray(metal, np.float64)[..., None]
-    rough = np.asarray(rough, np.float64)
-    return {"kd": base * (1.0 - metal), "f0": DIELECTRIC_F0 * (1.0 - metal) + base * metal,
-            "alpha": np.maximum(rough * rough, ALPHA_MIN)}
-
-
-def gltf_material(entry: dict | None, images: dict | None, where: str = "glTF") -> dict:
-    """The ``ggx`` material of one glTF material entry as :class:`warp_sg.scene.Material` keyword
-    arguments (``model``, ``params``, ``textures``, ``normal_map``); ``None``: the glTF default
-    material (base colour 1, metallic 1, roughness 1)."""
-    entry = entry or {}
-    images = images or {}
-    pbr = entry.get("pbrMetallicRoughness", {})
-    bcf = np.asarray(pbr.get("baseColorFactor", [1.0, 1.0, 1.0, 1.0]), np.float64)[:3]
-    mf = float(pbr.get("metallicFactor", 1.0))
-    rf = float(pbr.get("roughnessFactor", 1.0))
-    bt = images.get("baseColorTexture") if "baseColorTexture" in pbr else None
-    mrt = images.get("metallicRoughnessTexture") if "metallicRoughnessTexture" in pbr else None
-    bt = None if bt is None else _image(bt, f"{where}: baseColorTexture")
-    mrt = None if mrt is None else _image(mrt, f"{where}: metallicRoughnessTexture")
-    params, textures = {}, {}
-    if bt is None and mrt is None:
-        g = pbr_to_ggx(bcf, mf, rf)
-        params.update(kd=g["kd"].tolist(), alpha=float(g["alpha"]), fresnel={"schlick": g["f0"].tolist()})
-    else:
-        shape = max((a.shape[:2] for a in (bt, mrt) if a is not None), key=lambda s: s[0] * s[1])
-        bt, mrt = _on_grid(bt, shape), _on_grid(mrt, shape)
-        base = bcf * (srgb_to_linear(bt[..., :3]) if bt is not None else np.ones(shape + (3,)))
-        metal = mf * (mrt[..., 2] if mrt is not None else np.ones(shape))
-        rough = rf * (mrt[..., 1] if mrt is not None else np.ones(shape))
-        g = pbr_to_ggx(base, metal, rough)
-        textures["kd"] = Texture(data=g["kd"].astype(np.float32))
-        if mrt is not None:
-            textures["alpha"] = Texture(data=g["alpha"].astype(np.float32))
-        else:
-            params["alpha"] = float(pbr_to_ggx(1.0, 0.0, rf)["alpha"])
-        f0 = g["f0"].reshape(-1, 3)
-        f0_ref = np.clip(f0.mean(0), 1e-4, 1.0)
-        params["fresnel"] = {"schlick": f0_ref.tolist()}
-        if np.ptp(f0, axis=0).max() > 1e-6:
-            textures["ks"] = Texture(data=(g["f0"] / f0_ref).astype(np.float32))
-    nt = images.get("normalTexture") if "normalTexture" in entry else None
-    normal_map = None
-    if nt is not None:
-        s = float(entry["normalTexture"].get("scale", 1.0))
-        n = 2.0 * _image(nt, f"{where}: normalTexture")[..., :3] - 1.0
-        n[..., :2] *= s
-        n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-12)
-        normal_map = Texture(data=((n + 1.0) / 2.0).astype(np.float32))
-    return {"model": "ggx", "params": params, "textures": textures, "normal_map": normal_map}
+                    tangents=None if tan is None else tan.astype(np.float32), material=None, colors=col)
 
 
 # --------------------------------------------------------------------------------------------
@@ -416,8 +399,21 @@ def gltf_object_parts(path, label: str, *, materials: bool = True) -> tuple[list
         keys[idx] = key
         if materials:
             specs[key] = gltf_material(entry, asset.images.get(idx), where=str(asset.path))
-    parts = [GltfPart(name=f"{label}/{p.name}", vertices=p.vertices, triangles=p.triangles, normals=p.normals,
-                      uvs=p.uvs, tangents=p.tangents, material=keys[p.material]) for p in asset.parts]
+    parts = []
+    for p in asset.parts:
+        entry = entries[p.material] if p.material is not None and p.material < len(entries) else None
+        uvs, tangents, colors, spec = p.uvs, p.tangents, None, None
+        if materials:
+            M, _ = material_uv_transform(entry or {})
+            if M is not None and uvs is not None:  # KHR_texture_transform (affine: exact per vertex)
+                uvs = uv_transform(uvs, M)
+                if not np.allclose(M[:2, :2] / np.linalg.norm(M[:2, 0]), np.eye(2), atol=1e-6):
+                    tangents = None  # a rotated UV frame: tangents come from the transformed UVs
+            if p.colors is not None:
+                colors, spec = vertex_colour_factors(entry, p.colors)
+        parts.append(GltfPart(name=f"{label}/{p.name}", vertices=p.vertices, triangles=p.triangles,
+                              normals=p.normals, uvs=uvs, tangents=tangents, material=keys[p.material],
+                              colors=colors, specular_colors=spec))
     return parts, specs
 
 

@@ -53,7 +53,9 @@ from .lights import DirectionalLight, PointLight
 # the kernel side (structs, MIS estimator, the pass kernel), re-exported here
 from .reference_wp import (LIGHT_DIRECTIONAL, LIGHT_POINT, Geometry, LightTable, _reference_pass,  # noqa: F401
                            _shade_sample)
-from .surface import MaterialTextures
+from .cutout import no_cutouts
+from .surface import N_SLOTS, MaterialTextures
+from .surface_layers import coat_models, layer_arrays
 from .textures import build_atlas
 from .workers import cpu_workers
 
@@ -93,9 +95,15 @@ class ReferenceInputs:
     background: bool = True
     uvs: np.ndarray | None = None  # (V, 2)
     tangents: np.ndarray | None = None  # (V, 3) shading-frame x axis (anisotropic materials)
-    texture_slots: np.ndarray | None = None  # (n_materials, 6) int: atlas index per slot, -1 = constant
+    texture_slots: np.ndarray | None = None  # (n_materials, N_SLOTS) int: atlas index per slot, -1 = constant
     texture_images: list | None = None  # [(h, w, 4) float32] the atlas (same order as the slots)
     background_image: np.ndarray | None = None  # (kH, kW, 3): what misses show (default: env lookup)
+    #: per material its layers (warp_sg.material_layers.MaterialLayers or None): emission, coat
+    #: (occlusion and coat maps come with the texture slots)
+    layers: list | None = None
+    colors: np.ndarray | None = None  # (V, 4) vertex colours (kd, alpha) and (V, 3) their ks factor
+    specular_colors: np.ndarray | None = None
+    cutouts: object = None  # warp_sg.cutout.CutoutData of the mesh (alpha cut-outs), or None
 
 
 @dataclass
@@ -176,17 +184,24 @@ class _Prepared:
         if slots is not None and np.any(np.asarray(slots) >= 0):
             if inp.uvs is None:
                 raise InputError("textured materials need uvs", where="reference inputs")
+            slots = np.asarray(slots, np.int32).reshape(len(slots), -1)
+            if slots.shape[1] < N_SLOTS:  # (older six-slot layouts: no layer maps)
+                slots = np.pad(slots, ((0, 0), (0, N_SLOTS - slots.shape[1])), constant_values=-1)
             tex.slots = wp.array(np.ascontiguousarray(slots, np.int32), dtype=int, device=device)
             tex.atlas = build_atlas(list(inp.texture_images or []), device)
         else:
-            tex.slots = wp.full((max(len(inp.materials), 1), 6), -1, dtype=int, device=device)
+            tex.slots = wp.full((max(len(inp.materials), 1), N_SLOTS), -1, dtype=int, device=device)
             tex.atlas = build_atlas([], device)
         self.tex = tex
         extent = float(np.max(np.ptp(v, axis=0))) if len(v) else 1.0
         scale = max(extent, float(np.max(np.abs(v))) if len(v) else 1.0, 1e-30)
         geo.eps = RAY_EPS * scale
+        geo.cut = no_cutouts(device) if inp.cutouts is None else inp.cutouts.device(tri, device)
         self.geo = geo
-        table = M.pack_materials(inp.materials, 1, device)
+        lays = list(inp.layers or [None] * len(inp.materials))
+        coats, coat_index = coat_models(lays)
+        table = M.pack_materials(list(inp.materials) + coats, 1, device)
+        self.layers = layer_arrays(lays, coat_index, len(inp.materials), inp.colors, inp.specular_colors, 0, device)
         self.material_table = table
         self.materials = table.materials
         self.env = S.make_env_sampler(inp.environment, 1.0, device)
@@ -213,7 +228,7 @@ class _Prepared:
         wp.load_module(_reference_pass.module, device=device)  # compile once, before any thread launches
 
     def launch_pass(self, spp: int, seed: int, sample_offset: int, threads: int):
-        args = [self.geo, self.materials, self.tex, self.env, self.lights, self.origins, self.dirs, self.background,
+        args = [self.geo, self.materials, self.tex, self.layers, self.env, self.lights, self.origins, self.dirs, self.background,
                 self.bg_image, spp, seed, sample_offset]
         n = self.n
         if self.device == "cpu" and threads > 1 and n >= 2 * threads:
@@ -310,8 +325,8 @@ def render_reference_inputs(
 # Scene adapter
 # --------------------------------------------------------------------------------------------
 def texture_tables(scene, material_names):
-    """(slots (n_materials, 6) int, images [(h, w, 4)]) for the scene's textured parameters and
-    normal/tangent maps, with the renderer's slot layout (``warp_sg.surface``)."""
+    """(slots (n_materials, N_SLOTS) int, images [(h, w, 4)]) for the scene's textured parameters,
+    normal/tangent maps and layer maps, with the renderer's slot layout (``warp_sg.surface``)."""
     from .scene import COLOUR_PARAMS
     from .surface import material_texture_slots
 
@@ -324,6 +339,8 @@ def inputs_from_scene(scene, device="cpu") -> ReferenceInputs:
     materials (``Material.brdf``) plus the same textures / normal maps, the point and directional
     lights, the world-space environment (scale and rotation applied), and the renderer's
     background (bilinear environment lookup) for pixels that see no object."""
+    from .cutout import cutout_data
+
     g = scene.geometry()
     k = scene.render.supersampling
     dirs = np.asarray(scene.camera.ray_directions(supersample=k), np.float32)
@@ -334,7 +351,9 @@ def inputs_from_scene(scene, device="cpu") -> ReferenceInputs:
         materials=[scene.materials[n].brdf for n in g.material_names],
         ray_origins=origins, ray_directions=dirs, supersample=k, normals=g.normals,
         lights=list(scene.local_lights), environment=None if env is None else env.radiance(),
-        background=scene.render.background, uvs=g.uvs, tangents=g.tangents)
+        background=scene.render.background, uvs=g.uvs, tangents=g.tangents,
+        layers=[scene.materials[n].layers for n in g.material_names], colors=g.colors,
+        specular_colors=g.specular_colors, cutouts=cutout_data(g, scene.materials))
     slots, images = texture_tables(scene, g.material_names)
     if np.any(slots >= 0):
         inp.texture_slots, inp.texture_images = slots, images

@@ -5,12 +5,14 @@ splits a scene's pixels into
 
 * ``object`` — pixels whose every sub-sample sees an object other than the floor;
 * ``lit_floor`` / ``shadow`` — pixels whose every sub-sample sees the floor, split by an exact
-  ``wp.Mesh`` shadow ray from the pixel centre's surface point towards the scene's key light
+  ``wp.Mesh`` shadow ray (through the holes of alpha cut-outs, :mod:`warp_sg.cutout`) from the
+  pixel centre's surface point towards the scene's key light
   (the brightest point/directional light, else the environment's brightest texel);
 * ``silhouette`` — pixels whose sub-samples see different objects or the background (the band
   where antialiasing and grazing shading matter);
 
-from a 4×4-supersampled rasterisation of the scene's own geometry. "The floor" is the object
+from a 4×4-supersampled rasterisation of the scene's own geometry (samples that see the hole of an
+alpha cut-out see what is behind it, :func:`warp_sg.cutout.see_through`). "The floor" is the object
 named ``floor`` (else none: every object pixel is ``object``).
 
 :func:`image_errors` gives the image-wide errors (relative MSE, PSNR of the tone-mapped images,
@@ -67,7 +69,12 @@ def scene_regions(scene, supersample: int = 4, device: str = "cpu") -> dict[str,
     g = scene.geometry()
     cam = scene.camera
     k = int(supersample)
+    from .cutout import cutout_data, see_through
+
+    cut = cutout_data(g, scene.materials)
     vb = raster.rasterize(g.vertices, g.triangles, cam, device=device, supersample=k)
+    if cut is not None:  # samples that see a hole see what is behind it
+        see_through(vb, g.vertices, g.triangles, cut, cam.origin, device)
     tri = vb.tri_id.numpy()
     H, W = cam.height, cam.width
     floor_ids = [i for i, n in enumerate(g.object_names) if str(n).lower() == "floor"]
@@ -95,7 +102,7 @@ def scene_regions(scene, supersample: int = 4, device: str = "cpu") -> dict[str,
         else:
             D = key[1][None, :] - P
             D = D / np.linalg.norm(D, axis=-1, keepdims=True)
-        vis = ray_visibility(g.vertices, g.triangles, P, N, D, device=device).astype(bool)
+        vis = ray_visibility(g.vertices, g.triangles, P, N, D, device=device, cutouts=cut).astype(bool)
         lit[sel] = vis
     else:
         lit = sel

@@ -141,6 +141,8 @@ class Renderer:
         self.input_geometry = g
         self.refinement = None
         self._refined = None
+        from .cutout import cutout_data
+
         if self.shadows and rs.visibility_budget > len(g.vertices):
             from precompute.refine import refine_cached
 
@@ -153,7 +155,7 @@ class Renderer:
                 ref = pre["refinement"]
             else:
                 ref = refine_cached(g.vertices, g.triangles, g.normals, budget=rs.visibility_budget, device=d,
-                                    progress=self.progress)
+                                    progress=self.progress, cutouts=cutout_data(g, self.scene.materials))
             self._refined = ref
             self.timings["precompute_parts"]["refine"] = time.perf_counter() - t
             if len(ref.vertices) > len(g.vertices):
@@ -169,6 +171,21 @@ class Renderer:
         ga.tri_material = wp.array(g.tri_material, dtype=int, device=d)
         self.geo_arrays = ga
         self._tri_object = wp.array(np.asarray(g.tri_object, np.int32), dtype=int, device=d)
+        self._setup_cutouts()
+
+    def _setup_cutouts(self):
+        """Alpha cut-outs (:mod:`warp_sg.cutout`) of the (refined) geometry: the shading kernel's
+        camera rays continue through holes in a ``wp.Mesh`` of it; placeholders without cut-outs."""
+        from .cutout import cutout_data, no_cutouts
+
+        g, d = self.geometry, self.device
+        self.cutouts = cutout_data(g, self.scene.materials)
+        self._cut_mesh = None
+        if self.cutouts is None:
+            self._cut_arrays = no_cutouts(d)
+            return
+        self._cut_arrays = self.cutouts.device(g.triangles, d)
+        self._cut_mesh = wp.Mesh(points=self.geo_arrays.positions, indices=self._cut_arrays.indices)
 
     def _setup_visibility(self):
         rs = self.scene.render
@@ -191,14 +208,16 @@ class Renderer:
 
                 self.ssdf = pre["ssdf"]
                 want = ssdf_key(g.vertices, g.triangles, g.normals, resolution=rs.ssdf_resolution,
-                                ray_resolution=self.ssdf.ray_resolution, pca_terms=rs.pca_terms)
+                                ray_resolution=self.ssdf.ray_resolution, pca_terms=rs.pca_terms,
+                                cutouts=self.cutouts)
                 if want != self.ssdf.key:
                     raise InputError("precomputed SSDFs are for a different mesh or SSDF settings",
                                      where="precomputed")
             else:
+                cut = {} if self.cutouts is None else {"cutouts": self.cutouts}
                 self.ssdf = precompute.ssdf_for_mesh(g.vertices, g.triangles, g.normals,
                                                      resolution=rs.ssdf_resolution, pca_terms=rs.pca_terms, device=d,
-                                                     progress=self.progress, compute=self._ssdf_compute)
+                                                     progress=self.progress, compute=self._ssdf_compute, **cut)
             vis.mean, vis.basis, vis.weights = self.ssdf.device_arrays(d, precompute.ssdf.decompress_budget())
             cones = self.ssdf.cones if len(self.ssdf.cones) == len(g.vertices) else no_cones(len(g.vertices))
             vis.cones = wp.array(cones, dtype=wp.vec4, device=d)
@@ -329,12 +348,14 @@ class Renderer:
 
     def _setup_materials(self):
         from .brdf.material_wp import pack_materials
+        from .surface_layers import coat_models
 
         scene = self.scene
         rs = scene.render
         names = self.geometry.material_names
         mats = [scene.materials[n] for n in names]
-        models = [m.brdf for m in mats]
+        coats, self._coat_index = coat_models([m.layers for m in mats])  # the clear coats, after the materials
+        models = [m.brdf for m in mats] + coats
         if not (self.show_diffuse and self.show_specular):
             models = [_TermMask(b, self.show_diffuse, self.show_specular) for b in models]
         try:
@@ -345,7 +366,11 @@ class Renderer:
         # textures (atlas layout shared with the reference: warp_sg.surface)
         slots, images = material_texture_slots(mats, COLOUR_PARAMS)
         self.has_textures = bool(np.any(slots[:, :S.SLOT_NORMAL] >= 0))
-        self.has_normal_maps = bool(np.any(slots[:, S.SLOT_NORMAL:] >= 0))
+        self.has_normal_maps = bool(np.any(slots[:, [S.SLOT_NORMAL, S.SLOT_TANGENT]] >= 0))
+        lays = [m.layers for m in mats if m.layers is not None]
+        self.has_emission = any(lay.emissive for lay in lays)
+        self.has_occlusion = bool(np.any(slots[:, S.SLOT_OCCLUSION] >= 0)) and self.scene.environment is not None
+        self.has_coat = bool(coats)
         # hidden terms unbind their textures after the variant is chosen (set_terms: same kernel)
         slots[:, S.SLOT_KD] = np.where(self.show_diffuse, slots[:, S.SLOT_KD], -1)
         slots[:, S.SLOT_KS] = np.where(self.show_specular, slots[:, S.SLOT_KS], -1)
@@ -353,6 +378,19 @@ class Renderer:
         mt.slots = wp.array(slots, dtype=int, device=self.device)
         mt.atlas = build_atlas(images, self.device)
         self.material_textures = mt
+
+    def _layer_arrays(self):
+        """The :class:`warp_sg.surface_layers.Layers` of this frame (lights ``[0, n_local)`` local)."""
+        from .surface_layers import layer_arrays
+
+        mats = [self.scene.materials[n] for n in self.geometry.material_names]
+        key = (id(self.material_table), len(self.scene.local_lights))
+        if getattr(self, "_layers_key", None) != key:
+            g = self.geometry
+            self._layers = layer_arrays([m.layers for m in mats], self._coat_index, len(mats), g.colors,
+                                        g.specular_colors, key[1], self.device)
+            self._layers_key = key
+        return self._layers
 
     def peak_lights(self) -> list:
         """The environment's sharp peaks as world-space directional lights (rotation and scale
@@ -386,6 +424,11 @@ class Renderer:
             light_vis_vertex=self._vertex_sampled() and len(self.shading_lights) > 0,
             env_irradiance_vertex=self._env_irradiance_vertex(),
             models=self.material_table.models,
+            emission=self.has_emission,
+            occlusion=self.has_occlusion,
+            coat=self.has_coat,
+            vertex_colors=self.geometry.colors is not None,
+            cutouts=self.cutouts is not None,
         )
 
     # ------------------------------------------------------------------ dynamic changes
@@ -598,9 +641,12 @@ class Renderer:
         from raster import parallel
 
         n = int(tri_id.shape[0]) * int(tri_id.shape[1])
+        cam = self.scene.camera
+        env_bg = self._bg.params(cam, 1, self.env_light, getattr(self, "env_base", None), self.scene.render.background)
         args = [tri_id, bary, *self._bg.kernel_args(bg), wp.vec3(*np.asarray(eye, np.float32)), self.geo_arrays,
                 self.material_table.materials, self.material_textures, self.irr_table, self.light_arrays, es, gamma,
-                self.vis, out]
+                self.vis, self._layer_arrays(), self._cut_arrays,
+                wp.uint64(0) if self._cut_mesh is None else self._cut_mesh.id, env_bg, out]
         parallel.launch(kern, n, args, d, min_chunk=2048, per_thread=S.PIXELS_PER_THREAD)
 
 

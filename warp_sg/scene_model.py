@@ -17,6 +17,7 @@ from .camera import Camera
 from .errors import SceneError
 from .geometry import Geometry, build_geometry
 from .lights import DirectionalLight, EnvironmentLight, PointLight
+from .material_layers import MaterialLayers
 from .primitives import MeshData
 from .textures import Texture
 
@@ -81,6 +82,10 @@ class SceneObject:
     normals: np.ndarray | None = None
     uvs: np.ndarray | None = None
     tangents: np.ndarray | None = None
+    #: per-vertex colour (V, 4) linear RGBA multiplying kd (RGB) and the cut-out alpha (A), and the
+    #: (V, 3) factor it puts on ks (glTF COLOR_0, :func:`warp_sg.gltf_material.vertex_colour_factors`)
+    colors: np.ndarray | None = None
+    specular_colors: np.ndarray | None = None
 
     def label(self, index: int) -> str:
         return self.name or (Path(self.mesh).name if self.mesh is not None else self.primitive) or f"objects[{index}]"
@@ -101,6 +106,8 @@ class Material:
     normal_map: Texture | None = None
     tangent_map: Texture | None = None
     name: str | None = None
+    #: emission, occlusion, alpha cut-out and clear coat (:mod:`warp_sg.material_layers`; glTF)
+    layers: MaterialLayers | None = None
     _brdf: object = field(default=None, repr=False, compare=False)
 
     @classmethod
@@ -294,7 +301,8 @@ def _expand_assets(objects: list, materials: dict, where: str) -> tuple[list, di
             mats[key] = Material(name=key, **spec)
         out.extend(SceneObject(material=ob.material or p.material, transform=ob.transform, name=p.name,
                                vertices=p.vertices, triangles=p.triangles, normals=p.normals, uvs=p.uvs,
-                               tangents=p.tangents) for p in parts)
+                               tangents=p.tangents, colors=p.colors, specular_colors=p.specular_colors)
+                   for p in parts)
     return out, mats
 
 

@@ -60,7 +60,8 @@ from dataclasses import dataclass
 
 import warp as wp
 
-from .background import Background, background_at
+from .background import Background, background_along, background_at
+from .cutout import Cutouts, first_opaque_hit, is_hole
 from .brdf.material_wp import ALL_MODELS, Material, above, material_funcs
 from .fastmath import fast_asin
 from .fh import fh_ratio_table_pair, fh_theta_max_wp
@@ -70,10 +71,11 @@ from .sg import CLAMPED_COSINE_SHARPNESS
 from .sg_irradiance import sg_irradiance_norm, sg_irradiance_norm_at, sg_irradiance_row, sg_power
 from .sg_wp import sg_integral, sg_product_lobe
 from .surface import (  # noqa: F401  (re-exported: slot constants, MaterialTextures)
-    N_SLOTS, SLOT_KD, SLOT_KS, SLOT_NORMAL, SLOT_P0, SLOT_P1, SLOT_TANGENT, MaterialTextures,
-    apply_shading_maps, tangent_in_plane, textured_material,
+    N_SLOTS, SLOT_COAT, SLOT_COAT_NORMAL, SLOT_EMISSION, SLOT_KD, SLOT_KS, SLOT_NORMAL, SLOT_OCCLUSION, SLOT_P0,
+    SLOT_P1, SLOT_TANGENT, MaterialTextures, apply_shading_maps, tangent_in_plane, textured_material,
 )
 from .ssdf_product import sg_visibility_scale_sigmoid
+from .surface_layers import Layers, coat_at, coat_attenuation, coat_frame, emission_at, occlusion_at, vertex_coloured
 
 
 from precompute.occluder_cone import occluder_clearance  # noqa: E402
@@ -251,6 +253,14 @@ class Features:
     #: sorted material model codes of the scene (``MaterialTable.models``); the material
     #: functions are specialised to them (``material_funcs``); default: every model
     models: tuple = tuple(sorted(ALL_MODELS))
+    #: a material's layers (:mod:`warp_sg.surface_layers`), each compiled in only where a scene has it:
+    #: emission, occlusion of the environment's diffuse term, a clear coat, vertex colours, and
+    #: alpha cut-outs (camera rays continue through holes, :mod:`warp_sg.cutout`)
+    emission: bool = False
+    occlusion: bool = False
+    coat: bool = False
+    vertex_colors: bool = False
+    cutouts: bool = False
 
     def __post_init__(self):
         object.__setattr__(self, "models", tuple(sorted({int(m) for m in self.models})))
@@ -303,6 +313,9 @@ def shade_kernel(f: Features):
     brdf_eval, diffuse_at, slice_lobe_count = MF.brdf_eval, MF.diffuse_at, MF.slice_lobe_count
     shading_slice_lobe = MF.shading_slice_lobe
     USE_GAMMA = ENV_S == ENV_PREFILTERED
+    EMIT, OCC, COAT, VCOL, CUT = (bool(f.emission), bool(f.occlusion), bool(f.coat), bool(f.vertex_colors),
+                                  bool(f.cutouts))
+    brdf_diffuse = MF.brdf_diffuse
     if USE_GAMMA:
         GammaT, gamma_mean = _gamma_parts()
     else:
@@ -311,7 +324,7 @@ def shade_kernel(f: Features):
     def shade(base: int, per: int, tri_id: wp.array2d(dtype=int), bary: wp.array2d(dtype=wp.vec2), background: wp.array2d(dtype=wp.vec3),
               rays: Background, use_rays: int, cam: wp.vec3, geo: GeometryArrays, mats: wp.array(dtype=Material), tex: MaterialTextures,
               irr: wp.array2d(dtype=float), lights: LightArrays, env: EnvSG, gamma: GammaT, vis: Visibility,
-              out: wp.array2d(dtype=wp.vec3)):
+              lay: Layers, cut: Cutouts, mesh: wp.uint64, env_bg: Background, out: wp.array2d(dtype=wp.vec3)):
         W = tri_id.shape[1]
         p0 = base + wp.tid() * per  # the thread's first row-major pixel index
         ny = p0 // W  # (row, column) of the next pixel: one division per thread, then steps
@@ -336,6 +349,19 @@ def shade_kernel(f: Features):
             b1 = bc[0]
             b2 = bc[1]
             b0 = 1.0 - b1 - b2
+            if wp.static(CUT):  # alpha cut-out: the camera ray goes on behind the hole
+                if is_hole(cut, t, b0, b1, b2):
+                    tr = geo.tris[t]
+                    ph = geo.positions[tr[0]] * b0 + geo.positions[tr[1]] * b1 + geo.positions[tr[2]] * b2
+                    dv = wp.normalize(ph - cam)
+                    hit, sh, face, hu, hv, hn = first_opaque_hit(mesh, cut, ph + dv * cut.step, dv, 1.0e30)
+                    if not hit:
+                        out[y, x] = background_along(env_bg, dv)
+                        continue
+                    t = face
+                    b0 = hu
+                    b1 = hv
+                    b2 = 1.0 - hu - hv
             tri = geo.tris[t]
             i0 = tri[0]
             i1 = tri[1]
@@ -347,18 +373,40 @@ def shade_kernel(f: Features):
             mi = geo.tri_material[t]
             mat = mats[mi]
             uv = wp.vec2(0.0, 0.0)
-            if wp.static(TEX or NMAP):
+            if wp.static(TEX or NMAP or EMIT or OCC or COAT):
                 uv = geo.uvs[i0] * b0 + geo.uvs[i1] * b1 + geo.uvs[i2] * b2
             if wp.static(TEX):
                 mat = textured_material(mat, tex, mi, uv)
+            if wp.static(VCOL):
+                mat = vertex_coloured(mat, lay, i0, i1, i2, b0, b1, b2)
 
             # shading frame: mesh tangent made orthogonal to the normal, then normal/tangent maps
-            ts = tangent_in_plane(geo.tangents[i0] * b0 + geo.tangents[i1] * b1 + geo.tangents[i2] * b2, ng)
+            tg = tangent_in_plane(geo.tangents[i0] * b0 + geo.tangents[i1] * b1 + geo.tangents[i2] * b2, ng)
+            ts = tg
             ns = ng
             if wp.static(NMAP):
                 ns, ts = apply_shading_maps(tex, mi, uv, ng, ts)
             bs = wp.cross(ns, ts)
             o_l = above(world_to_local(o, ts, bs, ns))
+            # the clear coat: its lobe in its own frame, and what it lets through, a(o)
+            has_coat = False
+            cm = mat
+            atten = float(1.0)
+            ns_c = ng
+            ts_c = tg
+            bs_c = bs
+            oc_l = o_l
+            if wp.static(COAT):
+                has_coat, cm = coat_at(mats, lay, tex, mi, uv)
+                if has_coat:
+                    ns_c, ts_c = coat_frame(tex, mi, uv, ng, tg)
+                    bs_c = wp.cross(ns_c, ts_c)
+                    oc_l = above(world_to_local(o, ts_c, bs_c, ns_c))
+                    atten = coat_attenuation(cm.ks[0], oc_l[2])
+            ccol = wp.vec3(0.0, 0.0, 0.0)
+            occ = float(1.0)
+            if wp.static(OCC):
+                occ = occlusion_at(tex, mi, uv)
             # the point's SSDF frames, once for every light and lobe that reads the SSDF: at once when
             # lights or diffuse lobes read it per pixel, else only where a specular lobe does
             q = SSDFPoint()
@@ -379,8 +427,13 @@ def shade_kernel(f: Features):
                     la, ll, E = light_irradiance(lights, j, P)
                     li = world_to_local(la, ts, bs, ns)
                     e = sg_irradiance_norm(irr, li[2], ll)
-                    if e > 0.0:
-                        f = brdf_eval(mat, o_l, above(li))
+                    ec = float(0.0)
+                    lc = li
+                    if wp.static(COAT):
+                        if has_coat:
+                            lc = world_to_local(la, ts_c, bs_c, ns_c)
+                            ec = sg_irradiance_norm(irr, lc[2], ll)
+                    if e > 0.0 or ec > 0.0:
                         vr = float(1.0)
                         if wp.static(LVIS):  # θd = θh + the vertices' interpolated deficit (per-vertex cache)
                             dd = (b0 * vis.light_deficit[i0, j] + b1 * vis.light_deficit[i1, j]
@@ -390,12 +443,21 @@ def shade_kernel(f: Features):
                                 vr = fh_fraction(FH, vis, th_h + dd, th_h, ll)
                         else:
                             vr = vis_ratio(SHADOWS, FH, vis, q, la, ll)
-                        col += wp.cw_mul(f, E) * (e * vr)
+                        if e > 0.0:
+                            f = brdf_eval(mat, o_l, above(li))
+                            if wp.static(OCC):  # the environment's peaks: occlusion on their diffuse part
+                                if j >= lay.n_local:
+                                    f = f - brdf_diffuse(mat, o_l, above(li)) * (1.0 - occ)
+                            col += wp.cw_mul(f, E) * (e * vr)
+                        if wp.static(COAT):
+                            if ec > 0.0:
+                                ccol += wp.cw_mul(brdf_eval(cm, oc_l, above(lc)), E) * (ec * vr)
 
             # ---------------- environment, diffuse (eq. 39) ----------------
             # Σ_j ρd μ_j ∫G_j e(n·p_j, λ_j): the exact irradiance of each SG of the environment's
             # mixture (sg_irradiance: within 2 % for every λ, where eq. 40's single clamped-cosine lobe
             # is 17 % low at 54°), times the visible fraction of the product lobe C* ⊗ G_j.
+            cd = wp.vec3(0.0, 0.0, 0.0)  # the environment's diffuse term (times the occlusion)
             if wp.static(ENV_D == 1):
                 if has_kd:
                     rho_d = diffuse_at(mat, o_l, wp.vec3(0.0, 0.0, 1.0))  # ρd itself where it is constant
@@ -403,11 +465,11 @@ def shade_kernel(f: Features):
                     if wp.static(EVTX):  # the per-vertex sum, where the triangle's check allows it
                         if env.gouraud[t] != wp.uint8(0):
                             dsum = b0 * env.irr_vertex[i0] + b1 * env.irr_vertex[i1] + b2 * env.irr_vertex[i2]
-                            col += wp.cw_mul(dsum, rho_d) * env.irr_scale
+                            cd += wp.cw_mul(dsum, rho_d) * env.irr_scale
                             nj = 0
                     if wp.static(VVIS and RHO_D_CONST):  # no product lobe needed: the cache × kd/π
                         if nj > 0:
-                            col += wp.cw_mul(env_diffuse_sum(irr, env, 1, ns, i0, i1, i2, b0, b1, b2), rho_d)
+                            cd += wp.cw_mul(env_diffuse_sum(irr, env, 1, ns, i0, i1, i2, b0, b1, b2), rho_d)
                     else:
                         for j in range(nj):
                             ax = env.axis[j]
@@ -419,7 +481,8 @@ def shade_kernel(f: Features):
                                     vr = b0 * env.vis[i0, j] + b1 * env.vis[i1, j] + b2 * env.vis[i2, j]
                                 else:
                                     vr = vis_ratio(SHADOWS, FH, vis, q, pe, le)
-                                col += wp.cw_mul(E, diffuse_at(mat, o_l, world_to_local(pe, ts, bs, ns))) * vr
+                                cd += wp.cw_mul(E, diffuse_at(mat, o_l, world_to_local(pe, ts, bs, ns))) * vr
+            col += cd * occ
 
             # ---------------- environment, specular (eq. 41) ----------------
             # For each slice lobe G_k (axis pW, λW, amplitude μ_k ∝ Mo): ∫ G_k(i) max(n·i, 0) L(i) di ≈
@@ -429,8 +492,12 @@ def shade_kernel(f: Features):
             # paper's C* ⊗ ρ*_k (0.14 of its peak at the horizon times Mo ∝ 1/(n·i)) grows as 1/(n·o).
             if wp.static(SPEC and ENV_S == 2):
                 nspec = slice_lobe_count(mat)
+                ncoat = int(0)
+                if wp.static(COAT):
+                    if has_coat:
+                        ncoat = slice_lobe_count(cm)
                 if wp.static(SHADOWS == 1 and not Q_EARLY):
-                    if nspec > 0:
+                    if nspec > 0 or ncoat > 0:
                         q = ssdf_point(vis.normals, i0, i1, i2, b0, b1, b2, ng)
                 for k in range(nspec):
                     pw_l, lw, mw = shading_slice_lobe(mat, o_l, k)
@@ -442,10 +509,25 @@ def shade_kernel(f: Features):
                             g = gamma_mean(gamma, pa, lam)  # L̄ = ΓL(p, λ)/∫G(λ)
                             vr = vis_ratio(SHADOWS, FH, vis, q, pa, lam)
                             col += wp.cw_mul(mw, g) * (e * vr)
+                if wp.static(COAT):
+                    for k in range(ncoat):  # the coat's lobes, the same way in the coat's frame
+                        pw_l, lw, mw = shading_slice_lobe(cm, oc_l, k)
+                        if wp.length_sq(mw) > 0.0:
+                            e = sg_irradiance_norm(irr, pw_l[2], lw) * sg_integral(lw)
+                            if e > 0.0:
+                                pw = local_to_world(pw_l, ts_c, bs_c, ns_c)
+                                pa, lam = sg_product_lobe(ns_c, CC_LAM, pw, lw)
+                                g = gamma_mean(gamma, pa, lam)
+                                vr = vis_ratio(SHADOWS, FH, vis, q, pa, lam)
+                                ccol += wp.cw_mul(mw, g) * (e * vr)
+            if wp.static(EMIT):
+                col += emission_at(lay, tex, mi, uv)
+            if wp.static(COAT):
+                col = col * atten + ccol
             out[y, x] = wp.vec3(wp.max(col[0], 0.0), wp.max(col[1], 0.0), wp.max(col[2], 0.0))
 
     key = "shade_" + "_".join(str(int(v)) for v in (ENV_D, ENV_S, LIGHTS, SPEC, SHADOWS, TEX, NMAP, FH, VVIS, LVIS,
-                                                      EVTX)) + MF.tag
+                                                      EVTX, EMIT, OCC, COAT, VCOL, CUT)) + MF.tag
     shade.__name__ = key
     shade.__qualname__ = key
     k = wp.kernel(shade, enable_backward=False, module="unique")
@@ -465,5 +547,6 @@ def resolve_box(src: wp.array2d(dtype=wp.vec3), k: int, out: wp.array2d(dtype=wp
 
 
 __all__ = ["Features", "shade_kernel", "resolve_box", "GeometryArrays", "MaterialTextures", "Visibility", "EnvSG",
-           "SLOT_KD", "SLOT_KS", "SLOT_P0", "SLOT_P1", "SLOT_NORMAL", "SLOT_TANGENT", "N_SLOTS",
+           "SLOT_KD", "SLOT_KS", "SLOT_P0", "SLOT_P1", "SLOT_NORMAL", "SLOT_TANGENT", "SLOT_EMISSION", "SLOT_OCCLUSION",
+           "SLOT_COAT", "SLOT_COAT_NORMAL", "N_SLOTS",
            "ENV_NONE", "ENV_SG", "ENV_PREFILTERED"]

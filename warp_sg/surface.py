@@ -13,9 +13,11 @@ from .errors import SceneError
 from .frames import frame_tangent, local_to_world
 from .textures import TextureAtlas, tex_sample
 
-#: texture slots per material (columns of ``MaterialTextures.slots``)
+#: texture slots per material (columns of ``MaterialTextures.slots``): the BRDF's parameters, the
+#: normal and tangent maps, and the maps of the material's layers (:mod:`warp_sg.material_layers`)
 SLOT_KD, SLOT_KS, SLOT_P0, SLOT_P1, SLOT_NORMAL, SLOT_TANGENT = range(6)
-N_SLOTS = 6
+SLOT_EMISSION, SLOT_OCCLUSION, SLOT_COAT, SLOT_COAT_NORMAL = range(6, 10)
+N_SLOTS = 10
 
 
 @wp.struct
@@ -80,12 +82,12 @@ def tangent_in_plane(tg: wp.vec3, n: wp.vec3) -> wp.vec3:
 
 
 @wp.func
-def apply_shading_maps(tex: MaterialTextures, mi: int, uv: wp.vec2, n: wp.vec3, t: wp.vec3):
-    """Normal map (tangent-space RGB → normal, the tangent rotated along with it) then tangent map
-    (RG → in-plane tangent direction). Returns the shading (normal, tangent)."""
+def apply_normal_map(tex: MaterialTextures, mi: int, slot: int, uv: wp.vec2, n: wp.vec3, t: wp.vec3):
+    """The normal map in ``slot`` (tangent-space RGB → normal, the tangent rotated along with it by
+    the minimal rotation); (n, t) unchanged without one. Returns the (normal, tangent)."""
     ns = n
     ts = t
-    s = tex.slots[mi, SLOT_NORMAL]
+    s = tex.slots[mi, slot]
     if s >= 0:
         c = tex_sample(tex.atlas, s, uv)
         nt = wp.vec3(2.0 * c[0] - 1.0, 2.0 * c[1] - 1.0, 2.0 * c[2] - 1.0)
@@ -93,6 +95,14 @@ def apply_shading_maps(tex: MaterialTextures, mi: int, uv: wp.vec2, n: wp.vec3, 
             nn = wp.normalize(local_to_world(wp.normalize(nt), ts, wp.cross(n, ts), n))
             ts = wp.normalize(rotate_to(ts, n, nn))
             ns = nn
+    return ns, ts
+
+
+@wp.func
+def apply_shading_maps(tex: MaterialTextures, mi: int, uv: wp.vec2, n: wp.vec3, t: wp.vec3):
+    """Normal map (tangent-space RGB → normal, the tangent rotated along with it) then tangent map
+    (RG → in-plane tangent direction). Returns the shading (normal, tangent)."""
+    ns, ts = apply_normal_map(tex, mi, SLOT_NORMAL, uv, n, t)
     s = tex.slots[mi, SLOT_TANGENT]
     if s >= 0:
         c = tex_sample(tex.atlas, s, uv)
@@ -134,4 +144,11 @@ def material_texture_slots(materials, colour_params):
             slots[mi, SLOT_NORMAL] = add(m.normal_map, False, True)
         if m.tangent_map is not None:
             slots[mi, SLOT_TANGENT] = add(m.tangent_map, False, True)
+        lay = getattr(m, "layers", None)
+        if lay is not None:  # (the alpha map lives with the cut-outs, warp_sg.cutout)
+            for attr, slot, raw in (("emission_map", SLOT_EMISSION, False), ("occlusion_map", SLOT_OCCLUSION, False),
+                                    ("clearcoat_map", SLOT_COAT, False),
+                                    ("clearcoat_normal_map", SLOT_COAT_NORMAL, True)):
+                if getattr(lay, attr) is not None:
+                    slots[mi, slot] = add(getattr(lay, attr), False, raw)
     return slots, images
