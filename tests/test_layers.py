@@ -42,7 +42,8 @@ LAYERS = (
     ("scene", ("warp_sg.scene", "warp_sg.scene_model", "warp_sg.scene_toml", "warp_sg.scene_schema",
                "warp_sg.scene_values", "warp_sg.geometry", "warp_sg.camera", "warp_sg.culling",
                "warp_sg.envmap", "warp_sg.primitives", "warp_sg.textures", "warp_sg.lights",
-               "warp_sg.plain_scenes", "warp_sg.gltf", "warp_sg.asset_scene")),
+               "warp_sg.plain_scenes", "warp_sg.gltf", "warp_sg.gltf_material", "warp_sg.material_layers",
+               "warp_sg.asset_scene")),
     # the public facade ``warp_sg`` (``ws.render``, ``ws.reference``: lazy) sits on top with the tools
     ("tools", ("warp_sg", "warp_sg.cli", "warp_sg.report",
                "warp_sg.bench",
@@ -60,7 +61,10 @@ LAYERS = (
                )),
     # surface: the shading point's textured material and frame, @wp.funcs shared by the shading
     # kernels and the reference kernel (it reads the scene's textures, so it cannot sit lower)
-    ("engines", ("raster", "raster.*", "precompute", "precompute.*", "warp_sg.surface", "warp_sg.shading",
+    # surface_layers and cutout: a material's layers and alpha cut-outs, likewise shared (and the
+    # cut-outs by the precompute's visibility rays)
+    ("engines", ("raster", "raster.*", "precompute", "precompute.*", "warp_sg.surface", "warp_sg.surface_layers",
+                 "warp_sg.cutout", "warp_sg.shading",
                  "warp_sg.vertex_visibility", "warp_sg.silhouette", "warp_sg.background")),
     ("render", ("warp_sg.render", "warp_sg.antialias", "warp_sg.reference", "warp_sg.reference_wp",
                 "warp_sg.sampling", "warp_sg.regions")),

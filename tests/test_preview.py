@@ -101,3 +101,29 @@ def test_vertex_colours_are_the_renderers_shading_at_the_vertices():
     expect = 0.5 / np.pi * cos
     np.testing.assert_allclose(rad[facing, 0], expect[facing], rtol=0.01)
     assert np.all(rad[cos < -0.3] < 1e-4)
+
+
+def test_preview_of_an_asset_is_the_frame_render_makes_of_it(tmp_path, capsys):
+    # `warp-sg preview ASSET --env MAP --view AZ EL` shows the scene `warp-sg render ASSET` makes
+    # (the same asset path: framing camera, ground, environment), here an emissive glTF ball
+    from gltf_files import GltfWriter, uv_sphere
+
+    from warp_sg.image_io import save_image
+
+    w = GltfWriter()
+    P, idx, N, uv = uv_sphere(0.5, (0.0, 0.5, 0.0), 12, 24)
+    m = w.material({"name": "ball", "emissiveFactor": [0.3, 0.1, 0.0],
+                    "pbrMetallicRoughness": {"baseColorFactor": [0.2, 0.5, 0.8, 1.0], "metallicFactor": 0.0}})
+    w.mesh(P, idx, N, uv, material=m, name="ball")
+    asset = w.glb(tmp_path / "ball.glb")
+    sky = np.ones((16, 32, 3), np.float32) * np.linspace(0.2, 1.0, 16)[:, None, None]
+    env = save_image(tmp_path / "sky.hdr", sky)
+    shot, out = tmp_path / "shot.png", tmp_path / "render.png"
+    args = [str(asset), "--env", str(env), "--view", "40", "25"]
+    assert main(["preview", *args, "--screenshot", str(shot), "--window-size", "48", "36"]) == 0, capsys.readouterr().err
+    assert main(["render", *args, "-o", str(out), "--width", "48", "--height", "36", "--no-progress"]) == 0
+    a = np.asarray(Image.open(shot).convert("RGB")).astype(float)
+    b = np.asarray(Image.open(out).convert("RGB")).astype(float)
+    assert a.shape == (36, 48, 3) and np.abs(a - b).max() <= 1
+    centre = a[14:22, 20:28].mean((0, 1))
+    assert centre[0] > centre[1] > 0  # the ball's emission is red: it shows in the middle of the frame

@@ -258,8 +258,9 @@ def test_render_your_own_asset_renders_and_prints_a_scene_that_loads(tmp_path):
     from warp_sg.cli import build_parser
     from warp_sg.scene import load_scene
 
-    render, printed = _asset_commands()
-    for argv in (render, printed):
+    render, printed, preview = _asset_commands()
+    assert preview[0] == "preview" and preview[1:] == render[1:render.index("-o")]  # the same asset, the same sky
+    for argv in (render, printed, preview):
         args = build_parser(argv[0]).parse_args(argv)
         assert (ROOT / args.scene).is_file() and (args.env is None or (ROOT / args.env).is_file())
     assert "--env" in render and render[render.index("--env") + 1].endswith(".hdr")

@@ -4,7 +4,7 @@
 
     warp-sg render SCENE -o OUT.(exr|png) [--device cpu|cuda|auto] [--supersampling K] [--exposure EV]
     warp-sg render ASSET.(glb|gltf|obj|ply|...) [--env SKY.(hdr|exr)] [--view AZ EL] [--print-scene] -o OUT
-    warp-sg preview SCENE [--screenshot PNG] [--window-size W H] [--exposure EV] [--device ...]
+    warp-sg preview SCENE|ASSET [--env SKY] [--view AZ EL] [--screenshot PNG] [--window-size W H] [--exposure EV]
     warp-sg reference SCENE -o OUT --spp N         (arguments from warp_sg.reference)
     warp-sg report SCENE -o DIR                    (arguments from warp_sg.report)
     warp-sg bench                                  (arguments from warp_sg.bench)
@@ -98,9 +98,10 @@ def add_render_arguments(p: argparse.ArgumentParser) -> None:
                    help="compute the SSDFs on Dask (docs/distributed.md); default: locally, without Dask")
 
 
-def _render_scene(args):
-    """(scene, TOML text) of ``render``'s SCENE: a TOML file, or an asset (:mod:`warp_sg.asset_scene`).
-    Features of an asset that are not rendered are reported as one ``warp-sg: warning:`` line each."""
+def _render_scene(args, width=None, height=None):
+    """(scene, TOML text) of ``render``'s and ``preview``'s SCENE: a TOML file, or an asset
+    (:mod:`warp_sg.asset_scene`, framed at ``width`` × ``height``). Features of an asset that are
+    not rendered are reported as one ``warp-sg: warning:`` line each."""
     import warnings
     from pathlib import Path
 
@@ -116,10 +117,10 @@ def _render_scene(args):
         warnings.simplefilter("always", AssetWarning)
         if asset:
             scene, text = asset_scene(path, env=args.env, view=args.view or DEFAULT_VIEW,
-                                      width=args.width or DEFAULT_SIZE[0], height=args.height or DEFAULT_SIZE[1])
+                                      width=width or DEFAULT_SIZE[0], height=height or DEFAULT_SIZE[1])
         else:
             scene = load_scene(path)
-            text = path.read_text(encoding="utf-8") if args.print_scene else ""
+            text = path.read_text(encoding="utf-8") if getattr(args, "print_scene", False) else ""
     for w in caught:
         if issubclass(w.category, AssetWarning):
             print(f"warp-sg: warning: {w.message}", file=sys.stderr)
@@ -135,7 +136,7 @@ def render_main(args) -> int:
     if args.output is None and not args.print_scene:
         raise _Fail("the following argument is required: -o/--output")
     out = None if args.output is None else check_output_path(args.output, create_parents=True)
-    scene, text = _render_scene(args)
+    scene, text = _render_scene(args, args.width, args.height)
     if args.print_scene:
         print(text, end="" if text.endswith("\n") else "\n")
     if out is None:
@@ -172,7 +173,12 @@ def render_main(args) -> int:
 # preview
 # --------------------------------------------------------------------------------------------
 def add_preview_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("scene", help="scene file (TOML)")
+    p.add_argument("scene", help="scene file (TOML), or an asset (.glb, .gltf, .obj, .ply, ...) shown as "
+                                 "`warp-sg render` shows it: on a ground plane under a sky, framed")
+    p.add_argument("--env", default=None, metavar="MAP",
+                   help="assets: environment map (.hdr or .exr; default: the procedural sky)")
+    p.add_argument("--view", type=_float, nargs=2, default=None, metavar=("AZ", "EL"),
+                   help="assets: camera azimuth and elevation in degrees (default 30 20)")
     p.add_argument("--screenshot", default=None, help="render off-screen into this PNG instead of opening a window")
     add_device_argument(p)
     p.add_argument("--window-size", type=_positive_int("--window-size"), nargs=2, default=None,
@@ -183,13 +189,13 @@ def add_preview_arguments(p: argparse.ArgumentParser) -> None:
 
 def preview_main(args) -> int:
     from .preview import preview
-    from .scene import load_scene
 
     if args.screenshot:
         make_parents(check_output_path(args.screenshot, (".png",), create_parents=True))
     if not math.isfinite(args.exposure):
         raise InputError(f"must be a finite number, got {args.exposure}", where="--exposure")
-    scene = load_scene(args.scene)
+    size = tuple(args.window_size) if args.window_size else (None, None)
+    scene, _ = _render_scene(args, *size)  # an asset: the scene `warp-sg render` makes for it
     preview(scene, screenshot=args.screenshot, device=args.device,
             window_size=tuple(args.window_size) if args.window_size else None, exposure=args.exposure)
     return 0

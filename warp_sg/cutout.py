@@ -208,6 +208,22 @@ def no_cutouts(device) -> Cutouts:
     return c
 
 
+class CutoutScene:
+    """A renderer's cut-outs: ``data`` (:class:`CutoutData` or None), ``arrays`` (the device
+    struct, disabled without cut-outs) and ``mesh_id`` (a ``wp.Mesh`` of the geometry's device
+    ``positions`` for the shading kernel's continued camera rays; 0 without cut-outs)."""
+
+    def __init__(self, geometry, materials: dict, positions, device):
+        self.data = cutout_data(geometry, materials)
+        self.mesh = None
+        if self.data is None:
+            self.arrays, self.mesh_id = no_cutouts(device), wp.uint64(0)
+            return
+        self.arrays = self.data.device(geometry.triangles, device)
+        self.mesh = wp.Mesh(points=positions, indices=self.arrays.indices)
+        self.mesh_id = self.mesh.id
+
+
 def cutout_data(geometry, materials: dict) -> CutoutData | None:
     """The :class:`CutoutData` of a :class:`warp_sg.scene.Geometry` whose ``material_names`` index
     ``materials`` ({name: Material}); None when none of its materials is cut out."""
@@ -239,4 +255,4 @@ def cutout_data(geometry, materials: dict) -> CutoutData | None:
 
 
 __all__ = ["Cutouts", "CutoutData", "MAX_LAYERS", "STEP_SCALE", "is_hole", "hole_at_hit", "first_opaque_hit",
-           "blocked", "cutout_data", "no_cutouts", "see_through", "see_through_kernel"]
+           "blocked", "cutout_data", "no_cutouts", "see_through", "see_through_kernel", "CutoutScene"]

@@ -31,6 +31,7 @@ import numpy as np
 import warp as wp
 
 from .background import BackgroundCache
+from .cutout import CutoutScene, cutout_data
 from .device import resolve_device
 from .errors import InputError, SceneError
 from .lights import DirectionalLight, EnvironmentLight, PointLight, light_arrays
@@ -141,8 +142,6 @@ class Renderer:
         self.input_geometry = g
         self.refinement = None
         self._refined = None
-        from .cutout import cutout_data
-
         if self.shadows and rs.visibility_budget > len(g.vertices):
             from precompute.refine import refine_cached
 
@@ -171,21 +170,9 @@ class Renderer:
         ga.tri_material = wp.array(g.tri_material, dtype=int, device=d)
         self.geo_arrays = ga
         self._tri_object = wp.array(np.asarray(g.tri_object, np.int32), dtype=int, device=d)
-        self._setup_cutouts()
-
-    def _setup_cutouts(self):
-        """Alpha cut-outs (:mod:`warp_sg.cutout`) of the (refined) geometry: the shading kernel's
-        camera rays continue through holes in a ``wp.Mesh`` of it; placeholders without cut-outs."""
-        from .cutout import cutout_data, no_cutouts
-
-        g, d = self.geometry, self.device
-        self.cutouts = cutout_data(g, self.scene.materials)
-        self._cut_mesh = None
-        if self.cutouts is None:
-            self._cut_arrays = no_cutouts(d)
-            return
-        self._cut_arrays = self.cutouts.device(g.triangles, d)
-        self._cut_mesh = wp.Mesh(points=self.geo_arrays.positions, indices=self._cut_arrays.indices)
+        # alpha cut-outs of the (refined) geometry: camera rays continue through their holes
+        self.cut = CutoutScene(g, self.scene.materials, ga.positions, d)
+        self.cutouts = self.cut.data
 
     def _setup_visibility(self):
         rs = self.scene.render
@@ -214,10 +201,10 @@ class Renderer:
                     raise InputError("precomputed SSDFs are for a different mesh or SSDF settings",
                                      where="precomputed")
             else:
-                cut = {} if self.cutouts is None else {"cutouts": self.cutouts}
                 self.ssdf = precompute.ssdf_for_mesh(g.vertices, g.triangles, g.normals,
                                                      resolution=rs.ssdf_resolution, pca_terms=rs.pca_terms, device=d,
-                                                     progress=self.progress, compute=self._ssdf_compute, **cut)
+                                                     progress=self.progress, compute=self._ssdf_compute,
+                                                     cutouts=self.cutouts)
             vis.mean, vis.basis, vis.weights = self.ssdf.device_arrays(d, precompute.ssdf.decompress_budget())
             cones = self.ssdf.cones if len(self.ssdf.cones) == len(g.vertices) else no_cones(len(g.vertices))
             vis.cones = wp.array(cones, dtype=wp.vec4, device=d)
@@ -348,13 +335,14 @@ class Renderer:
 
     def _setup_materials(self):
         from .brdf.material_wp import pack_materials
-        from .surface_layers import coat_models
+        from .surface_layers import coat_models, layer_arrays
 
         scene = self.scene
         rs = scene.render
         names = self.geometry.material_names
         mats = [scene.materials[n] for n in names]
-        coats, self._coat_index = coat_models([m.layers for m in mats])  # the clear coats, after the materials
+        lays = [m.layers for m in mats]
+        coats, coat_index = coat_models(lays)  # the clear coats, packed after the materials
         models = [m.brdf for m in mats] + coats
         if not (self.show_diffuse and self.show_specular):
             models = [_TermMask(b, self.show_diffuse, self.show_specular) for b in models]
@@ -367,10 +355,11 @@ class Renderer:
         slots, images = material_texture_slots(mats, COLOUR_PARAMS)
         self.has_textures = bool(np.any(slots[:, :S.SLOT_NORMAL] >= 0))
         self.has_normal_maps = bool(np.any(slots[:, [S.SLOT_NORMAL, S.SLOT_TANGENT]] >= 0))
-        lays = [m.layers for m in mats if m.layers is not None]
-        self.has_emission = any(lay.emissive for lay in lays)
+        self.has_emission = any(lay is not None and lay.emissive for lay in lays)
         self.has_occlusion = bool(np.any(slots[:, S.SLOT_OCCLUSION] >= 0)) and self.scene.environment is not None
         self.has_coat = bool(coats)
+        g = self.geometry
+        self.layers = layer_arrays(lays, coat_index, len(mats), g.colors, g.specular_colors, 0, self.device)
         # hidden terms unbind their textures after the variant is chosen (set_terms: same kernel)
         slots[:, S.SLOT_KD] = np.where(self.show_diffuse, slots[:, S.SLOT_KD], -1)
         slots[:, S.SLOT_KS] = np.where(self.show_specular, slots[:, S.SLOT_KS], -1)
@@ -378,19 +367,6 @@ class Renderer:
         mt.slots = wp.array(slots, dtype=int, device=self.device)
         mt.atlas = build_atlas(images, self.device)
         self.material_textures = mt
-
-    def _layer_arrays(self):
-        """The :class:`warp_sg.surface_layers.Layers` of this frame (lights ``[0, n_local)`` local)."""
-        from .surface_layers import layer_arrays
-
-        mats = [self.scene.materials[n] for n in self.geometry.material_names]
-        key = (id(self.material_table), len(self.scene.local_lights))
-        if getattr(self, "_layers_key", None) != key:
-            g = self.geometry
-            self._layers = layer_arrays([m.layers for m in mats], self._coat_index, len(mats), g.colors,
-                                        g.specular_colors, key[1], self.device)
-            self._layers_key = key
-        return self._layers
 
     def peak_lights(self) -> list:
         """The environment's sharp peaks as world-space directional lights (rotation and scale
@@ -424,11 +400,8 @@ class Renderer:
             light_vis_vertex=self._vertex_sampled() and len(self.shading_lights) > 0,
             env_irradiance_vertex=self._env_irradiance_vertex(),
             models=self.material_table.models,
-            emission=self.has_emission,
-            occlusion=self.has_occlusion,
-            coat=self.has_coat,
-            vertex_colors=self.geometry.colors is not None,
-            cutouts=self.cutouts is not None,
+            emission=self.has_emission, occlusion=self.has_occlusion, coat=self.has_coat,
+            vertex_colors=self.geometry.colors is not None, cutouts=self.cutouts is not None,
         )
 
     # ------------------------------------------------------------------ dynamic changes
@@ -516,10 +489,13 @@ class Renderer:
     def _background(self, k: int, rays: bool = False):
         """What the (sub)pixels of the k× grid that see no object show
         (:class:`warp_sg.background.BackgroundCache`): the camera rays, or this frame's image."""
-        args = (self.scene.camera, k, self.env_light, getattr(self, "env_base", None), self.scene.render.background)
+        args = self._bg_args(k)
         if rays:
             return self._bg.params(*args)
         return self._bg.for_frame(*args, self._vb, bool(self.timings.get("raster_reused")))
+
+    def _bg_args(self, k: int) -> tuple:
+        return self.scene.camera, k, self.env_light, getattr(self, "env_base", None), self.scene.render.background
 
     def rasterize(self, k: int | None = None, subsamples: int = 1):
         """The visibility buffer of the current camera at k×k sub-pixels (``subsamples`` a > 1: with
@@ -641,12 +617,10 @@ class Renderer:
         from raster import parallel
 
         n = int(tri_id.shape[0]) * int(tri_id.shape[1])
-        cam = self.scene.camera
-        env_bg = self._bg.params(cam, 1, self.env_light, getattr(self, "env_base", None), self.scene.render.background)
+        self.layers.n_local = len(self.scene.local_lights)  # (the rest are the environment's peaks)
         args = [tri_id, bary, *self._bg.kernel_args(bg), wp.vec3(*np.asarray(eye, np.float32)), self.geo_arrays,
                 self.material_table.materials, self.material_textures, self.irr_table, self.light_arrays, es, gamma,
-                self.vis, self._layer_arrays(), self._cut_arrays,
-                wp.uint64(0) if self._cut_mesh is None else self._cut_mesh.id, env_bg, out]
+                self.vis, self.layers, self.cut.arrays, self.cut.mesh_id, self._bg.params(*self._bg_args(1)), out]
         parallel.launch(kern, n, args, d, min_chunk=2048, per_thread=S.PIXELS_PER_THREAD)
 
 
