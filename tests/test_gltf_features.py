@@ -367,3 +367,16 @@ def test_an_asset_renders_the_same_in_any_unit(tmp_path):
     for img, ref in zip(imgs[::2], refs[::2]):
         np.testing.assert_allclose(img, imgs[1], rtol=1e-4, atol=1e-5)
         np.testing.assert_allclose(ref, refs[1], rtol=1e-4, atol=1e-5)
+
+
+def test_a_draco_blob_that_does_not_decode_is_an_error_not_an_empty_mesh(tmp_path):
+    from warp_sg.errors import MeshError
+
+    P, idx, N, uv = quad(1.0, 0.3, n=2)
+    w = GltfWriter()
+    w.mesh(P, idx, N, uv, material=w.material({"name": "m"}), name="m", draco=True)
+    view = w.h["bufferViews"][w.h["meshes"][0]["primitives"][0]["extensions"]["KHR_draco_mesh_compression"]["bufferView"]]
+    w.bin[view["byteOffset"]:view["byteOffset"] + view["byteLength"]] = b"\x07" * view["byteLength"]
+    path = w.glb(tmp_path / "bad.glb")
+    with pytest.raises(MeshError, match="bad.glb"):
+        load_gltf(path)

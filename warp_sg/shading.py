@@ -43,9 +43,19 @@ taking ``Ng`` to the mapped normal (Rodrigues; equivalent to the paper's quatern
 rotation about it to the mapped tangent. The BRDF and its slice are built in the rotated frame
 (with ``o' = ℜ o``); visibility stays in the vertex frame.
 
+A material's layers (:mod:`warp_sg.surface_layers`, glTF): the final radiance is
+``a(o)·(R + Le) + Rcoat`` with ``Le`` the emission, ``a(o) = 1 − c·F(n_c·o)`` and ``Rcoat`` the clear
+coat's GGX lobe shaded like the specular term above (lights: its BRDF at l; environment: its slice
+lobes' ΓL) in its own frame; an occlusion map multiplies the environment's diffuse term (the SG
+mixture and the diffuse response to the environment's peaks, lights ``≥ Layers.n_local``); vertex
+colours scale kd and ks. With alpha cut-outs a camera ray that meets a hole continues behind it
+(``warp_sg.cutout.first_opaque_hit`` in a ``wp.Mesh`` of the geometry), the background where it
+leaves the scene.
+
 Kernel variants: the kernel is specialised by scene content (``Features``): environment diffuse
 (SG mixture | none), environment specular (ΓL | none), lights, specular materials, shadows
-(SSDF), textures, normal/tangent maps, the fh method and the set of material models (the BRDF
+(SSDF), textures, normal/tangent maps, the material layers (emission, occlusion, coat, vertex colours,
+cut-outs), the fh method and the set of material models (the BRDF
 functions, ``shading_slice_lobe`` and ``diffuse_at`` come from ``material_funcs`` of
 ``brdf.material_variants``, built for just those models). Variants are created once per feature
 tuple and cached (``shade_kernel``); code a scene does not need is removed at compile time with
