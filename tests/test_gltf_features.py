@@ -265,14 +265,21 @@ def test_ior_and_specular_set_f0_and_f90(tmp_path):
 GLINT = [DirectionalLight(direction=(0.0, 1.0, -1.5), radius=0.05, intensity=(2.0, 2.0, 2.0))] + CONST
 
 
-@pytest.mark.parametrize("lights", ["sun", "sky"])
+@pytest.mark.parametrize("lights", ["sun", "sky", "sky, coat normal map"])
 def test_clearcoat_is_a_second_lobe_that_matches_the_reference(tmp_path, lights):
-    lights = GLINT if lights == "sun" else SKY
     coat = {"KHR_materials_clearcoat": {"clearcoatFactor": 1.0, "clearcoatRoughnessFactor": 0.2}}
-    path = quad_file(tmp_path / "c.glb", {"name": "m", "pbrMetallicRoughness": GREY, "extensions": coat})
+    textures = {}
+    if "normal" in lights:  # the coat's own normals, tilted 20° towards +u (tangent-space RGB)
+        n = np.array([np.sin(0.35), 0.0, np.cos(0.35)])
+        textures[("extensions", "KHR_materials_clearcoat", "clearcoatNormalTexture")] = (
+            {}, np.tile(np.round((n + 1) / 2 * 255).astype(np.uint8), (4, 4, 1)))
+    lights = GLINT if lights == "sun" else SKY
+    path = quad_file(tmp_path / "c.glb", {"name": "m", "pbrMetallicRoughness": GREY, "extensions": coat},
+                     textures=textures)
     scene = scene_of(path, lights)
     lay = scene.materials["asset/m"].layers
     assert lay.clearcoat == 1.0 and lay.clearcoat_alpha == pytest.approx(0.04)
+    assert (lay.clearcoat_normal_map is not None) == bool(textures)
     img, ref, err = errors_against_reference(scene)
     assert abs(err["object"]["bias"]) <= BIAS, err["object"]
     if lights is GLINT:  # the coat's sharp highlight of the sun, where the base has a dim one

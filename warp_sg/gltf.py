@@ -414,6 +414,14 @@ def gltf_object_parts(path, label: str, *, materials: bool = True) -> tuple[list
         parts.append(GltfPart(name=f"{label}/{p.name}", vertices=p.vertices, triangles=p.triangles,
                               normals=p.normals, uvs=uvs, tangents=tangents, material=keys[p.material],
                               colors=colors, specular_colors=spec))
+    for key, spec in specs.items():  # a cut-out with no alpha below its cutoff anywhere is opaque
+        lay = spec.get("layers")
+        if lay is not None and lay.cut_out and lay.alpha_map is None:
+            low = [float(p.colors[:, 3].min()) for p in parts if p.material == key and p.colors is not None]
+            if lay.alpha * min(low + [1.0]) >= lay.alpha_cutoff:
+                lay.alpha_cutoff = None
+                if not (lay.emissive or lay.occlusion_map is not None or lay.coated):
+                    spec["layers"] = None
     return parts, specs
 
 
