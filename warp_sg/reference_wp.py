@@ -23,6 +23,9 @@ from .surface_layers import Layers, coat_at, coat_attenuation, coat_frame, emiss
 
 LIGHT_POINT = 0
 LIGHT_DIRECTIONAL = 1
+#: the coat is a GGX lobe (warp_sg.material_layers): its functions specialised to that model
+_COAT = M.material_funcs({10})
+coat_eval = _COAT.brdf_eval
 
 
 # --------------------------------------------------------------------------------------------
@@ -125,13 +128,39 @@ def _brdf_pdf(mat: M.Material, pd: float, o: wp.vec3, i: wp.vec3) -> float:
 
 
 @wp.func
+def _coat_sample(mat: M.Material, o: wp.vec3, u_in: wp.vec2) -> wp.vec3:
+    """``brdf_sample`` of a GGX material (Heitz 2018 visible normals), as the generic one samples it."""
+    u = wp.vec2(wp.clamp(u_in[0], 0.0, 0.99999994), wp.clamp(u_in[1], 0.0, 0.99999994))
+    if o[2] <= 0.0:
+        return M.cosine_dir(u)
+    return M.reflect_about(o, M.ggx_vndf_h(o, mat.params[0], mat.params[1], u))
+
+
+@wp.func
+def _coat_pdf(mat: M.Material, o: wp.vec3, i: wp.vec3) -> float:
+    """``brdf_pdf`` of a GGX material: the density of :func:`_coat_sample`."""
+    if o[2] <= 0.0:
+        if i[2] <= 0.0:
+            return 0.0
+        return i[2] * S.INV_PI
+    hh = o + i
+    ln = wp.length(hh)
+    if ln <= 0.0:
+        return 0.0
+    h = hh / ln
+    if wp.dot(o, h) <= 0.0:
+        return 0.0
+    return M.ggx_pdf_i(o, h, mat.params[0], mat.params[1])
+
+
+@wp.func
 def _pdf(sp: SurfacePoint, d: wp.vec3) -> float:
     """Solid-angle density of the BRDF sample (:func:`_sample`) at world direction ``d``."""
     p = (1.0 - sp.pc) * _brdf_pdf(sp.mat, sp.pd, sp.o, world_to_local(d, sp.t, sp.b, sp.n))
     if sp.has_coat != 0:
         ic = world_to_local(d, sp.tc, sp.bc, sp.nc)
         if ic[2] > 0.0:
-            p = p + sp.pc * M.brdf_pdf(sp.coat, sp.oc, ic)
+            p = p + sp.pc * _coat_pdf(sp.coat, sp.oc, ic)
     return p
 
 
@@ -153,7 +182,7 @@ def _fcos(sp: SurfacePoint, d: wp.vec3, occ: float):
     if sp.has_coat != 0:
         ic = world_to_local(d, sp.tc, sp.bc, sp.nc)
         if ic[2] > 0.0:
-            fc = M.brdf_eval(sp.coat, sp.oc, ic)
+            fc = coat_eval(sp.coat, sp.oc, ic)
             cc = ic[2]
     return fb, cb, fc, cc
 
@@ -165,7 +194,7 @@ def _sample(sp: SurfacePoint, us: float, u1: float, u2: float) -> wp.vec3:
         return wp.normalize(local_to_world(S.cosine_sample_local(u1, u2), sp.t, sp.b, sp.n))
     if us < 1.0 - sp.pc:
         return wp.normalize(local_to_world(M.brdf_sample(sp.mat, sp.o, wp.vec2(u1, u2)), sp.t, sp.b, sp.n))
-    return wp.normalize(local_to_world(M.brdf_sample(sp.coat, sp.oc, wp.vec2(u1, u2)), sp.tc, sp.bc, sp.nc))
+    return wp.normalize(local_to_world(_coat_sample(sp.coat, sp.oc, wp.vec2(u1, u2)), sp.tc, sp.bc, sp.nc))
 
 
 @wp.func
