@@ -66,7 +66,7 @@ LAYERS = (
     ("engines", ("raster", "raster.*", "precompute", "precompute.*", "warp_sg.surface", "warp_sg.surface_layers",
                  "warp_sg.cutout", "warp_sg.shading",
                  "warp_sg.vertex_visibility", "warp_sg.silhouette", "warp_sg.background")),
-    ("render", ("warp_sg.render", "warp_sg.antialias", "warp_sg.reference", "warp_sg.reference_wp",
+    ("render", ("warp_sg.render", "warp_sg.render_environment", "warp_sg.antialias", "warp_sg.reference", "warp_sg.reference_wp",
                 "warp_sg.sampling", "warp_sg.regions")),
 )
 

@@ -98,6 +98,22 @@ def first_opaque_hit(mesh: wp.uint64, c: Cutouts, o: wp.vec3, d: wp.vec3, max_t:
 
 
 @wp.func
+def see_behind(mesh: wp.uint64, c: Cutouts, positions: wp.array(dtype=wp.vec3), eye: wp.vec3, face: int,
+               b0: float, b1: float, b2: float):
+    """A camera ray from ``eye`` that meets point (b0, b1, b2) of ``face``: where it ends, behind the
+    holes, as ``(hit, face, b0, b1, b2, unit ray direction)`` (the point itself where it is opaque)."""
+    i0 = c.indices[3 * face]
+    i1 = c.indices[3 * face + 1]
+    i2 = c.indices[3 * face + 2]
+    p = positions[i0] * b0 + positions[i1] * b1 + positions[i2] * b2
+    d = wp.normalize(p - eye)
+    if not is_hole(c, face, b0, b1, b2):
+        return True, face, b0, b1, b2, d
+    hit, s, f, u, v, n = first_opaque_hit(mesh, c, p + d * c.step, d, 1.0e30)
+    return hit, f, u, v, 1.0 - u - v, d
+
+
+@wp.func
 def blocked(mesh: wp.uint64, c: Cutouts, o: wp.vec3, d: wp.vec3, max_t: float) -> bool:
     """Whether an opaque point lies on ``o + s d``, ``0 < s < max_t`` (any hit without cut-outs)."""
     if c.enabled == 0:
@@ -255,4 +271,4 @@ def cutout_data(geometry, materials: dict) -> CutoutData | None:
 
 
 __all__ = ["Cutouts", "CutoutData", "MAX_LAYERS", "STEP_SCALE", "is_hole", "hole_at_hit", "first_opaque_hit",
-           "blocked", "cutout_data", "no_cutouts", "see_through", "see_through_kernel", "CutoutScene"]
+           "blocked", "see_behind", "cutout_data", "no_cutouts", "see_through", "see_through_kernel", "CutoutScene"]

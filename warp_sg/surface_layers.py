@@ -16,7 +16,8 @@ the same surface::
 import numpy as np
 import warp as wp
 
-from .brdf.material_wp import Material
+from .brdf.material_wp import Material, above
+from .frames import world_to_local
 from .material_layers import COAT_F0
 from .surface import SLOT_COAT, SLOT_COAT_NORMAL, SLOT_EMISSION, SLOT_OCCLUSION, MaterialTextures, apply_normal_map
 from .textures import tex_sample
@@ -102,6 +103,24 @@ def coat_attenuation(c: float, cos_o: float) -> float:
     return 1.0 - c * (COAT_F0_WP + (1.0 - COAT_F0_WP) * x2 * x2 * x)
 
 
+@wp.func
+def coat_setup(mats: wp.array(dtype=Material), lay: Layers, tex: MaterialTextures, mi: int, uv: wp.vec2, o: wp.vec3,
+               n: wp.vec3, t: wp.vec3):
+    """The coat of material ``mi`` at ``uv`` seen from world direction ``o`` over the interpolated frame
+    (n, t): ``(has coat, its material, its frame ns, ts, bs, the local view, a(o))``."""
+    has, cm = coat_at(mats, lay, tex, mi, uv)
+    ns = n
+    ts = t
+    if has:
+        ns, ts = coat_frame(tex, mi, uv, n, t)
+    bs = wp.cross(ns, ts)
+    ol = above(world_to_local(o, ts, bs, ns))
+    a = float(1.0)
+    if has:
+        a = coat_attenuation(cm.ks[0], ol[2])
+    return has, cm, ns, ts, bs, ol, a
+
+
 # --------------------------------------------------------------------------------------------
 # host side
 # --------------------------------------------------------------------------------------------
@@ -144,4 +163,4 @@ def layer_arrays(layers, coat_index, n_materials: int, colors, specular_colors, 
 
 
 __all__ = ["Layers", "vertex_coloured", "emission_at", "occlusion_at", "coat_at", "coat_frame", "coat_attenuation",
-           "coat_models", "layer_arrays"]
+           "coat_setup", "coat_models", "layer_arrays"]
