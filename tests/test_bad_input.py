@@ -437,3 +437,137 @@ def test_renderer_interrupted_during_precompute_leaves_a_clean_cache(tmp_path, c
     assert np.all(np.isfinite(img))
     again = Renderer(ws.load_scene(write_scene(tmp_path, text))).render()  # from the cache now
     np.testing.assert_array_equal(img, again)
+
+
+# ------------------------------------------------------------------------------------------------
+# glTF assets (issue 31): broken files are one line naming the element, never a traceback, and a
+# texture that cannot be read is an error, not an untextured image
+# ------------------------------------------------------------------------------------------------
+QUAD_V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+QUAD_F = np.array([[0, 1, 2], [0, 2, 3]])
+
+
+def write_gltf(folder, name="asset.gltf", *, faces=None, vertices=None, texture=False, edit=None):
+    """A one-quad glTF (``.gltf`` + ``.bin`` files, a 4×4 PNG base colour with ``texture``) written by
+    trimesh; ``faces`` / ``vertices`` replace the index / position buffers as written, ``edit(header)``
+    changes the JSON."""
+    import json
+
+    import trimesh
+    from PIL import Image
+    from trimesh.visual import TextureVisuals
+    from trimesh.visual.material import PBRMaterial
+
+    vis = None
+    if texture:
+        mat = PBRMaterial(name="paint", baseColorTexture=Image.fromarray(np.full((4, 4, 3), 200, np.uint8)),
+                          metallicFactor=0.0, roughnessFactor=0.5)
+        vis = TextureVisuals(uv=QUAD_V[:, :2], material=mat)
+    s = trimesh.Scene()
+    s.add_geometry(trimesh.Trimesh(QUAD_V.copy(), QUAD_F.copy(), visual=vis, process=False), node_name="quad")
+    files = s.export(file_type="gltf")
+    header = json.loads(files.pop("model.gltf"))
+    for fname, data in files.items():
+        (folder / fname).write_bytes(data)
+    acc = header["accessors"]
+    prim = header["meshes"][0]["primitives"][0]
+    for arr, key, dtype in ((faces, prim["indices"], np.uint32), (vertices, prim["attributes"]["POSITION"], np.float32)):
+        if arr is None:
+            continue
+        a = np.asarray(arr, dtype)
+        view = header["bufferViews"][acc[key]["bufferView"]]
+        uri = header["buffers"][view["buffer"]]["uri"]
+        (folder / uri).write_bytes(a.tobytes())
+        view["byteLength"] = header["buffers"][view["buffer"]]["byteLength"] = a.nbytes
+        if dtype == np.uint32:  # indices: a flat list
+            acc[key].update(count=int(a.size), max=[int(a.max())], min=[int(a.min())])
+        else:
+            acc[key].update(count=len(a), max=np.nanmax(a, 0).tolist(), min=np.nanmin(a, 0).tolist())
+    if edit is not None:
+        edit(header)
+    path = folder / name
+    path.write_text(json.dumps(header))
+    return path
+
+
+def _gltf_argv(how, path, tmp_path):
+    """``render`` of a glTF as an asset, or as ``mesh = "..."`` in a TOML scene."""
+    out = tmp_path / "o.png"
+    if how == "asset":
+        return ["render", path, "-o", out, "--width", 16, "--height", 12, "--no-progress"], out
+    scene = write_scene(tmp_path, replace('primitive = "sphere"\ncenter = [0.0, 0.4, 0.0]\nradius = 0.4\nmaterial = "shiny"',
+                                          f'mesh = "{path.name}"'))
+    return ["render", scene, "-o", out, "--no-progress"], out
+
+
+@pytest.mark.parametrize("how", ["asset", "toml"])
+def test_gltf_with_an_out_of_range_index_exits_2_naming_node_and_triangle(tmp_path, capsys, how):
+    # before: trimesh's vertex normals raised IndexError outside the guarded load (traceback, exit 1)
+    path = write_gltf(tmp_path, faces=[[0, 1, 2], [0, 2, 9]])
+    argv, out = _gltf_argv(how, path, tmp_path)
+    rc, _, err = run_cli(argv, capsys)
+    assert_clean_failure(rc, err, "asset.gltf", "node 'quad'", "triangle 1", "out of range")
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("how", ["asset", "toml"])
+def test_gltf_with_a_nan_position_names_the_vertex_not_the_camera(tmp_path, capsys, how):
+    # before: the asset's bounds were NaN and the message blamed camera.origin
+    v = QUAD_V.copy()
+    v[2, 0] = np.nan
+    argv, out = _gltf_argv(how, write_gltf(tmp_path, vertices=v), tmp_path)
+    rc, _, err = run_cli(argv, capsys)
+    msg = assert_clean_failure(rc, err, "asset.gltf", "vertex 2", "non-finite")
+    assert "camera" not in msg
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("damage", ["missing", "corrupt"])
+def test_gltf_texture_that_cannot_be_read_is_an_error_naming_material_and_image(tmp_path, capsys, damage):
+    # before: trimesh dropped the image, the run exited 0 and the image came out untextured
+    path = write_gltf(tmp_path, texture=True)
+    import json
+
+    h = json.loads(path.read_text())
+    h["images"][0] = {"uri": "paint.png"}
+    path.write_text(json.dumps(h))
+    if damage == "corrupt":
+        (tmp_path / "paint.png").write_bytes(b"\x89PNG\r\n\x1a\n" + b"\x00" * 40)
+    rc, _, err = run_cli(["render", path, "-o", tmp_path / "o.png", "--width", 16, "--height", 12], capsys)
+    assert_clean_failure(rc, err, "asset.gltf", "material 'paint'", "baseColorTexture", "paint.png",
+                         "not found" if damage == "missing" else "cannot be read")
+    assert not (tmp_path / "o.png").exists()
+
+
+def test_gltf_texture_that_reads_is_still_rendered(tmp_path):
+    # the check above does not refuse good files: the texture's 200/255 sRGB reaches kd
+    from warp_sg.gltf import gltf_object_parts
+    from warp_sg.textures import srgb_to_linear
+
+    _, specs = gltf_object_parts(write_gltf(tmp_path, texture=True), "a")
+    (spec,) = specs.values()
+    np.testing.assert_allclose(spec["textures"]["kd"].data[..., :3], srgb_to_linear(np.float64(200 / 255)), rtol=1e-5)
+
+
+GLTF_DANGLING = [
+    # id, edit of the header, words of the message
+    ("indices", lambda h: h["meshes"][0]["primitives"][0].update(indices=7), ["meshes[0].primitives[0].indices = 7", "accessors"]),
+    ("position", lambda h: h["meshes"][0]["primitives"][0]["attributes"].update(POSITION=-1), ["POSITION = -1"]),
+    ("material", lambda h: h["meshes"][0]["primitives"][0].update(material=3), ["material = 3", "0 materials"]),
+    ("node-mesh", lambda h: h["nodes"][0].update(mesh=5), ["nodes[0].mesh = 5", "meshes"]),
+    ("scene-node", lambda h: h["scenes"][0].update(nodes=[0, 4]), ["scenes[0].nodes[1] = 4", "nodes"]),
+    ("buffer", lambda h: h["bufferViews"][0].update(buffer=9), ["bufferViews[0].buffer = 9", "buffers"]),
+    ("view-type", lambda h: h["accessors"][0].update(bufferView="zero"), ["bufferView = 'zero'"]),
+    ("node-cycle", lambda h: h["nodes"].extend([{"children": [2]}, {"children": [1]}]), ["cycle", "node 1"]),
+    ("own-child", lambda h: h["nodes"][0].update(children=[0]), ["own child", "node 0"]),
+    ("meshopt", lambda h: h.update(extensionsRequired=["EXT_meshopt_compression"]), ["EXT_meshopt_compression", "cannot decode"]),
+]
+
+
+@pytest.mark.parametrize("case", GLTF_DANGLING, ids=[c[0] for c in GLTF_DANGLING])
+def test_gltf_with_a_dangling_reference_exits_2_naming_the_json_element(tmp_path, capsys, case):
+    _, edit, words = case
+    path = write_gltf(tmp_path, edit=edit)
+    rc, _, err = run_cli(["render", path, "-o", tmp_path / "o.png", "--width", 16, "--height", 12], capsys)
+    assert_clean_failure(rc, err, "asset.gltf", *words)
+    assert not (tmp_path / "o.png").exists()

@@ -42,7 +42,7 @@ LAYERS = (
     ("scene", ("warp_sg.scene", "warp_sg.scene_model", "warp_sg.scene_toml", "warp_sg.scene_schema",
                "warp_sg.scene_values", "warp_sg.geometry", "warp_sg.camera", "warp_sg.culling",
                "warp_sg.envmap", "warp_sg.primitives", "warp_sg.textures", "warp_sg.lights",
-               "warp_sg.plain_scenes", "warp_sg.gltf", "warp_sg.asset_scene")),
+               "warp_sg.plain_scenes", "warp_sg.gltf", "warp_sg.gltf_checks", "warp_sg.asset_scene")),
     # the public facade ``warp_sg`` (``ws.render``, ``ws.reference``: lazy) sits on top with the tools
     ("tools", ("warp_sg", "warp_sg.cli", "warp_sg.report",
                "warp_sg.bench",
