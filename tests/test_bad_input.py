@@ -571,3 +571,50 @@ def test_gltf_with_a_dangling_reference_exits_2_naming_the_json_element(tmp_path
     rc, _, err = run_cli(["render", path, "-o", tmp_path / "o.png", "--width", 16, "--height", 12], capsys)
     assert_clean_failure(rc, err, "asset.gltf", *words)
     assert not (tmp_path / "o.png").exists()
+
+
+# ------------------------------------------------------------------------------------------------
+# environment maps that are not 2:1 (issue 31, defect 2): refused with their size, and the SG fit's
+# working map is bounded whatever the shape (before: a 2×20000 map ran > 300 s in the O(N²) blur)
+# ------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("shape", [(2, 20000), (20000, 2), (64, 64 * 5)])
+def test_environment_map_far_from_2_to_1_exits_2_naming_its_size(tmp_path, capsys, shape):
+    h, w = shape
+    _write_exr(tmp_path / "sky.exr", {c: np.ones((h, w)) for c in "RGB"})
+    p = write_scene(tmp_path, BASE + '\n[[lights]]\ntype = "environment"\nfile = "sky.exr"\n')
+    rc, _, err = run_cli(["render", p, "-o", tmp_path / "o.png", "--no-progress"], capsys)
+    assert_clean_failure(rc, err, "sky.exr", f"{w}×{h}")
+    assert not (tmp_path / "o.png").exists()
+
+
+@pytest.mark.parametrize("options", [{"width": 2, "height": 20000}, {"width": 40000, "height": 2}])
+@pytest.mark.parametrize("procedural", ["sky", "constant"])
+def test_procedural_environment_of_a_bad_shape_is_refused_before_it_is_built(options, procedural):
+    from warp_sg.lights import EnvironmentLight
+
+    with pytest.raises(ImageError, match=f"{options['width']}×{options['height']}"):
+        EnvironmentLight(procedural=procedural, options=options).base_radiance()
+
+
+@pytest.mark.parametrize("shape", [(2, 20000), (20000, 2), (37, 211), (1001, 2003), (8, 16)])
+def test_sg_fit_working_map_is_bounded_and_keeps_the_energy_whatever_the_shape(shape):
+    # the energy Σ L Ω is an integral of the piecewise-constant map: every resampling must keep it
+    from precompute.env_sg_fit import _working_map
+    from warp_sg.envmap import texel_solid_angles
+
+    rows = 32
+    env = np.random.default_rng(1).random(shape + (3,))
+    work = _working_map(env, rows)
+    assert work.shape[0] <= 2 * rows and work.shape[1] <= 4 * rows
+    e_in = (env * texel_solid_angles(*shape)[..., None]).sum((0, 1))
+    e_out = (work * texel_solid_angles(*work.shape[:2])[..., None]).sum((0, 1))
+    np.testing.assert_allclose(e_out, e_in, rtol=1e-12)
+
+
+def test_area_resampling_of_a_divisible_map_is_the_box_mip():
+    # the exact solid-angle average over 2×2 blocks is what downsample_envmap computes in closed form
+    from precompute.env_sg_fit import _area_resample
+    from warp_sg.envmap import downsample_envmap
+
+    env = np.random.default_rng(2).random((64, 128, 3))
+    np.testing.assert_allclose(_area_resample(env, 32, 64), downsample_envmap(env, 2), rtol=1e-12, atol=1e-14)

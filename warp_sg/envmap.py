@@ -262,14 +262,37 @@ def rotate_envmap(env, rotation, supersample: int = 2) -> np.ndarray:
 # --------------------------------------------------------------------------------------------
 # Loading
 # --------------------------------------------------------------------------------------------
+#: accepted width / height of an equirectangular map (exactly 2 for the full sphere): a map far from
+#: 2:1 is not an equirectangular map (its texels would be stretched) and is refused
+ASPECT_RANGE = (1.0, 4.0)
+
+
+def check_envmap_shape(height: int, width: int, where: str = "environment map") -> None:
+    """Refuse a map smaller than 2 × 2 or whose aspect W/H is outside :data:`ASPECT_RANGE`, with
+    an :class:`ImageError` naming ``where`` and the size (before any work on the texels)."""
+    try:
+        h, w = int(height), int(width)
+    except (TypeError, ValueError):
+        raise ImageError(f"environment map width and height must be integers, got {width!r}×{height!r}",
+                         where=where) from None
+    if h < 2 or w < 2:
+        raise ImageError(f"environment map must be at least 2×2 texels, got {w}×{h} (W×H)", where=where)
+    lo, hi = ASPECT_RANGE
+    if not lo <= w / h <= hi:
+        raise ImageError(f"environment map is {w}×{h} texels (W×H), W/H = {w / h:.3g}: an equirectangular map is "
+                         f"twice as wide as it is tall (W/H from {lo:g} to {hi:g} is accepted)", where=where)
+
+
 def validate_envmap(env, where: str = "environment map") -> np.ndarray:
-    """Check an in-memory map: ``(H, W, 3)``, finite, non-negative. Returns float32.
+    """Check an in-memory map: ``(H, W, 3)`` (:func:`check_envmap_shape`), finite, non-negative.
+    Returns float32.
 
     Raises :class:`ImageError` naming ``where`` and the first bad texel.
     """
     a = np.asarray(env)
-    if a.ndim != 3 or a.shape[2] != 3 or a.shape[0] < 2 or a.shape[1] < 2:
+    if a.ndim != 3 or a.shape[2] != 3:
         raise ImageError(f"environment map must be (H, W, 3) with H, W >= 2, got shape {a.shape}", where=where)
+    check_envmap_shape(a.shape[0], a.shape[1], where)
     a = a.astype(np.float32, copy=False)
     bad_nan = ~np.isfinite(a)
     if bad_nan.any():
@@ -438,6 +461,8 @@ def procedural_sky(
 __all__ = [
     "load_envmap",
     "validate_envmap",
+    "check_envmap_shape",
+    "ASPECT_RANGE",
     "procedural_sky",
     "sky_radiance",
     "dir_to_uv",

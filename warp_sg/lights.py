@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 import warp as wp
 
-from .envmap import load_envmap, procedural_sky, rotate_envmap, rotation_y
+from .envmap import check_envmap_shape, load_envmap, procedural_sky, rotate_envmap, rotation_y, validate_envmap
 from .errors import InputError
 from .sg_wp import expm1_neg
 
@@ -146,6 +146,7 @@ class EnvironmentLight:
                 a = np.asarray(self.data, np.float32)
                 if a.ndim != 3 or a.shape[2] != 3:
                     raise InputError(f"environment data must be (H, W, 3), got {a.shape}", where="environment light")
+                a = validate_envmap(a, where="environment light.data")
             elif self.procedural == "constant":
                 o = dict(self.options)
                 rad = _rgb(o.pop("radiance", 1.0), "environment light.options.radiance")
@@ -154,8 +155,11 @@ class EnvironmentLight:
                 if o:
                     raise InputError(f"unknown option(s) {sorted(o)} for procedural 'constant'",
                                      where="environment light.options")
+                check_envmap_shape(h, w, "environment light.options")  # before the texels exist
                 a = np.broadcast_to(rad.astype(np.float32), (h, w, 3)).copy()
             elif self.procedural == "sky":
+                o = self.options
+                check_envmap_shape(o.get("height", 128), o.get("width", 256), "environment light.options")
                 a = np.asarray(procedural_sky(**self.options), np.float32)
             else:
                 a = np.asarray(load_envmap(self.file), np.float32)
