@@ -294,10 +294,11 @@ def _fit(env, n_lobes, rows, irradiance_weight, n_normals, max_nfev, cosine=None
     mu = _solve_amplitudes(_design(d, om, normals, ax, lam, w_e, cosine), B) * scale
     # statistics on the working map
     model, _ = _model(d, ax, lam, mu)
-    rad_rel = float(np.sqrt((om[:, None] * (model - L) ** 2).sum() / (om[:, None] * L**2).sum()))
+    err2, ref2 = (om[:, None] * (model - L) ** 2).sum(), (om[:, None] * L**2).sum()
+    rad_rel = float(np.sqrt(err2 / ref2)) if ref2 > 0 else (0.0 if err2 == 0 else math.inf)  # a black map: 0
     Ef = sg_irradiance(ax, lam, mu, normals, cosine=cosine)
     Et = E * scale
-    e_rel = np.abs(Ef - Et).max(1) / np.abs(Et).max(1)
+    e_rel = np.abs(Ef - Et).max(1) / np.maximum(np.abs(Et).max(1), 1e-300)
     order = np.argsort(-(mu @ LUMINANCE) * sgm.integral(lam))
     info = dict(
         radiance_rel_rms=rad_rel,

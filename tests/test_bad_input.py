@@ -618,3 +618,422 @@ def test_area_resampling_of_a_divisible_map_is_the_box_mip():
 
     env = np.random.default_rng(2).random((64, 128, 3))
     np.testing.assert_allclose(_area_resample(env, 32, 64), downsample_envmap(env, 2), rtol=1e-12, atol=1e-14)
+
+
+# ------------------------------------------------------------------------------------------------
+# exposure and radiance that are not finite (issue 31, defect 4 and 8): before, `render --exposure
+# inf` wrote an EXR of inf/NaN pixels and `--exposure nan` a black PNG, both with exit 0
+# ------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("value", ["inf", "nan", "-inf"])
+@pytest.mark.parametrize("suffix", [".exr", ".png"])
+def test_render_exposure_that_is_not_finite_exits_2_and_writes_nothing(tmp_path, capsys, value, suffix):
+    out = tmp_path / f"o{suffix}"
+    rc, _, err = run_cli(["render", write_scene(tmp_path), "-o", out, f"--exposure={value}"], capsys)
+    assert_clean_failure(rc, err, "--exposure", value)
+    assert not out.exists()
+
+
+def test_render_exposure_that_overflows_float32_exits_2_and_writes_nothing(tmp_path, capsys):
+    out = tmp_path / "o.exr"
+    rc, _, err = run_cli(["render", write_scene(tmp_path), "-o", out, "--exposure", "200", "--no-progress"], capsys)
+    assert_clean_failure(rc, err, "--exposure 200", "not finite")
+    assert not out.exists() and "RuntimeWarning" not in err
+
+
+def test_environment_radiance_that_overflows_float32_is_refused_naming_the_texel(tmp_path, capsys):
+    # before: an environment at 3e38 rendered inf pixels with exit 0
+    _write_exr(tmp_path / "sky.exr", {c: np.full((8, 16), 3e38) for c in "RGB"})
+    p = write_scene(tmp_path, BASE + '\n[[lights]]\ntype = "environment"\nfile = "sky.exr"\n')
+    rc, _, err = run_cli(["render", p, "-o", tmp_path / "o.exr", "--no-progress"], capsys)
+    assert_clean_failure(rc, err, "sky.exr", "radiance above 1e+20", "row 0, column 0")
+    assert not (tmp_path / "o.exr").exists()
+
+
+def test_finite_exposure_still_scales_the_image(tmp_path, capsys):
+    # the checks above refuse only what is not finite: +1 stop doubles every pixel
+    from warp_sg.image_io import load_image
+
+    p = write_scene(tmp_path)
+    assert run_cli(["render", p, "-o", tmp_path / "a.exr", "--no-progress"], capsys)[0] == 0
+    assert run_cli(["render", p, "-o", tmp_path / "b.exr", "--no-progress", "--exposure", "1"], capsys)[0] == 0
+    np.testing.assert_allclose(load_image(tmp_path / "b.exr"), 2 * load_image(tmp_path / "a.exr"), rtol=1e-6)
+
+
+# ------------------------------------------------------------------------------------------------
+# inside-out meshes (issue 31, defect 5): before, a closed mesh with inverted winding and normals
+# rendered about 10× too dark without a word
+# ------------------------------------------------------------------------------------------------
+def _sphere(path, *, invert=False):
+    """An icosphere (radius 0.4 about (0, 0.4, 0)) written as PLY or OBJ; ``invert``: winding and
+    normals reversed (inside out)."""
+    import trimesh
+
+    m = trimesh.creation.icosphere(subdivisions=2, radius=0.4)
+    m.vertices += [0.0, 0.4, 0.0]
+    if invert:
+        m.invert()
+    path.write_bytes(m.export(file_type="ply", vertex_normal=True) if path.suffix == ".ply"
+                     else m.export(file_type="obj", include_normals=False).encode())
+    return path
+
+
+def _render_mesh_scene(tmp_path, capsys, mesh_name):
+    from warp_sg.image_io import load_image
+
+    p = write_scene(tmp_path, replace('primitive = "sphere"\ncenter = [0.0, 0.4, 0.0]\nradius = 0.4',
+                                      f'mesh = "{mesh_name}"'), name=f"{mesh_name}.toml")
+    out = tmp_path / f"{mesh_name}.exr"
+    rc, _, err = run_cli(["render", p, "-o", out, "--no-progress", "--width", 32, "--height", 24], capsys)
+    assert rc == 0, err
+    return load_image(out), [ln for ln in err.splitlines() if "warning" in ln]
+
+
+@pytest.mark.parametrize("name", ["inv.ply", "inv.obj"])
+def test_inside_out_closed_mesh_is_flipped_with_one_warning_and_renders_like_the_right_one(tmp_path, capsys, name):
+    # the reference is the same sphere written the right way round (before: ~10x darker, no word)
+    good, good_warn = _render_mesh_scene(tmp_path, capsys, _sphere(tmp_path / "good.ply").name)
+    assert good_warn == []
+    img, warn = _render_mesh_scene(tmp_path, capsys, _sphere(tmp_path / name, invert=True).name)
+    assert len(warn) == 1 and warn[0].startswith("warp-sg: warning:") and name in warn[0], warn
+    assert "inside out" in warn[0]
+    np.testing.assert_allclose(img, good, atol=2e-3 * float(good.max()))
+
+
+def test_closed_mesh_with_inward_normals_gets_them_flipped_with_one_warning():
+    import trimesh
+
+    from warp_sg.errors import InputWarning
+    from warp_sg.geometry import object_mesh
+    from warp_sg.scene import SceneObject
+
+    m = trimesh.creation.icosphere(subdivisions=2)
+    ob = SceneObject(material="a", vertices=m.vertices, triangles=m.faces, normals=-m.vertex_normals, name="ball")
+    with pytest.warns(InputWarning, match=r"\(ball\): the closed mesh's normals point inwards") as rec:
+        out = object_mesh(ob, 0, None)
+    assert len(rec) == 1
+    np.testing.assert_allclose(out.normals, m.vertex_normals, atol=1e-6)  # outward: the sphere's own normals
+    np.testing.assert_array_equal(out.triangles, m.faces)
+
+
+def test_signed_volume_and_closedness_match_closed_forms():
+    import trimesh
+
+    from warp_sg.meshcheck import closed_and_oriented, signed_volume, weld_ids
+
+    box = trimesh.creation.box(extents=(1.0, 2.0, 3.0))
+    v, f = np.asarray(box.vertices), np.asarray(box.faces)
+    assert signed_volume(v, f) == pytest.approx(6.0) and signed_volume(v, f[:, ::-1]) == pytest.approx(-6.0)
+    assert closed_and_oriented(f, weld_ids(v))
+    assert not closed_and_oriented(f[1:], weld_ids(v))  # a hole
+    one_flipped = f.copy()
+    one_flipped[0] = one_flipped[0, ::-1]
+    assert not closed_and_oriented(one_flipped, weld_ids(v))
+    # split vertices (a seam exported twice) are welded back by position
+    vs = np.concatenate([v, v])
+    assert closed_and_oriented(np.concatenate([f[:6], f[6:] + len(v)]), weld_ids(vs))
+
+
+def test_open_mesh_keeps_its_orientation_without_a_warning():
+    import warnings
+
+    from warp_sg.geometry import orient_outward
+
+    v = QUAD_V.astype(np.float32)
+    t = QUAD_F[:, ::-1].copy()  # facing -z: an open mesh has no inside, nothing to decide
+    n = np.tile([0.0, 0.0, 1.0], (4, 1)).astype(np.float32)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        t2, n2 = orient_outward(v, t, np.ones(2, bool), n, "quad")
+    np.testing.assert_array_equal(t2, t)
+    np.testing.assert_array_equal(n2, n)
+
+
+# ------------------------------------------------------------------------------------------------
+# messages that blamed the wrong thing or said too little (issue 31, defects 6 and 7)
+# ------------------------------------------------------------------------------------------------
+def test_view_nan_names_the_view_and_the_nan_not_the_other_angle(tmp_path, capsys):
+    mesh = _sphere(tmp_path / "s.ply")
+    rc, _, err = run_cli(["render", mesh, "--view", "nan", "20", "-o", tmp_path / "o.png"], capsys)
+    msg = assert_clean_failure(rc, err, "--view", "nan")
+    assert "20" not in msg and "range" not in msg
+
+
+def test_view_angles_that_are_not_finite_are_named_by_the_api():
+    from warp_sg.asset_scene import frame_camera
+
+    with pytest.raises(InputError, match="azimuth must be a finite"):
+        frame_camera([0, 0, 0], [1, 1, 1], view=(float("nan"), 20.0))
+    with pytest.raises(InputError, match="elevation must be a finite"):
+        frame_camera([0, 0, 0], [1, 1, 1], view=(30.0, float("inf")))
+
+
+def test_zero_based_obj_face_index_names_the_line_not_zero_area(tmp_path, capsys):
+    (tmp_path / "tri0.obj").write_text("# made by hand\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n")
+    rc, _, err = run_cli(["render", tmp_path / "tri0.obj", "-o", tmp_path / "o.png"], capsys)
+    msg = assert_clean_failure(rc, err, "tri0.obj", "line 5", "index 0", "start at 1")
+    assert "zero area" not in msg
+
+
+def test_draco_asset_is_decoded_or_refused_naming_the_extension():
+    # before: trimesh's placeholder zeros gave "every triangle has zero area" on one of its parts
+    path = Path(__file__).resolve().parents[2] / "shared" / "assets" / "ferrari.glb"
+    if not path.exists():
+        pytest.skip("../shared/assets is not here")
+    from warp_sg.gltf import load_gltf
+
+    try:
+        asset = load_gltf(path, images=False)
+    except MeshError as e:
+        assert "KHR_draco_mesh_compression" in str(e) and "zero area" not in str(e)
+    else:  # a Draco decoder is installed: the triangles are real
+        lo, hi = asset.bounds()
+        assert np.all(hi - lo > 0)
+
+
+def test_zero_scale_names_the_file_and_the_object(tmp_path):
+    from warp_sg.lights import DirectionalLight
+    from warp_sg.scene import Camera, Scene, SceneObject, Transform
+
+    ob = SceneObject(material="a", vertices=QUAD_V, triangles=QUAD_F, name="blob", transform=Transform(scale=(1, 0, 1)))
+    sc = Scene(camera=Camera(width=4, height=4), objects=[ob], materials={"a": ws.brdf.Lambert()},
+               lights=[DirectionalLight(direction=(0, 1, 0))])
+    with pytest.raises(SceneError, match=r"\[\[objects\]\] #1 \(blob\): transform is singular"):
+        sc.geometry()
+    p = write_scene(tmp_path, replace('material = "floor"', 'material = "floor"\nscale = [1.0, 1e-40, 1.0]'))
+    with pytest.raises(SceneError, match=r"scene.toml: \[\[objects\]\] #2 \(plane\): transform is singular"):
+        ws.load_scene(p).geometry()
+
+
+def test_folder_given_as_scene_or_mesh_is_called_a_folder(tmp_path, capsys):
+    (tmp_path / "adir.toml").mkdir()
+    rc, _, err = run_cli(["render", tmp_path / "adir.toml", "-o", tmp_path / "o.png"], capsys)
+    assert_clean_failure(rc, err, "adir.toml", "is a folder")
+    (tmp_path / "meshes").mkdir()
+    p = write_scene(tmp_path, replace('primitive = "sphere"\ncenter = [0.0, 0.4, 0.0]\nradius = 0.4', 'mesh = "meshes"'))
+    rc, _, err = run_cli(["render", p, "-o", tmp_path / "o.png"], capsys)
+    assert_clean_failure(rc, err, "meshes", "is a folder")
+    rc, _, err = run_cli(["render", tmp_path / "meshes", "-o", tmp_path / "o.png"], capsys)
+    assert_clean_failure(rc, err, "meshes", "is a folder")
+
+
+def test_unknown_mesh_extension_names_the_format(tmp_path, capsys):
+    (tmp_path / "cloud.xyz").write_text("0 0 0\n1 0 0\n0 1 0\n")
+    rc, _, err = run_cli(["render", tmp_path / "cloud.xyz", "-o", tmp_path / "o.png"], capsys)
+    msg = assert_clean_failure(rc, err, "cloud.xyz", "'.xyz' is not supported", ".obj")
+    assert "no triangles" not in msg
+
+
+@pytest.mark.parametrize("command", ["reference", "report"])
+def test_asset_given_to_a_scene_command_says_it_needs_a_scene_file(tmp_path, capsys, command):
+    mesh = _sphere(tmp_path / "s.ply")
+    extra = ["--spp", "1"] if command == "reference" else ["--quick"]
+    rc, _, err = run_cli([command, mesh, "-o", tmp_path / ("o.exr" if command == "reference" else "rep"), *extra], capsys)
+    msg = assert_clean_failure(rc, err, "s.ply", "not a scene file", "--print-scene")
+    assert "TOML" not in msg and "utf-8" not in msg
+
+
+def test_scene_file_with_a_utf8_byte_order_mark_loads_as_without_it(tmp_path):
+    plain = ws.load_scene(write_scene(tmp_path))
+    bom = tmp_path / "bom.toml"
+    bom.write_bytes(b"\xef\xbb\xbf" + BASE.encode())
+    sc = ws.load_scene(bom)
+    assert sc.camera == plain.camera and list(sc.materials) == list(plain.materials)
+
+
+# ------------------------------------------------------------------------------------------------
+# warnings are ours (issue 31, defect 8): one line, never numpy's or trimesh's multi-line warnings
+# ------------------------------------------------------------------------------------------------
+def test_black_environment_fits_without_runtime_warnings(tmp_path, capsys, cache_dir):
+    from warp_sg.image_io import load_image
+
+    _write_exr(tmp_path / "black.exr", {c: np.zeros((16, 32)) for c in "RGB"})
+    p = write_scene(tmp_path, replace("model = \"cook_torrance\"", "model = \"cook_torrance\"") + '\n[[lights]]\ntype = "environment"\nfile = "black.exr"\n')
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        from precompute.env_sg_fit import fit_environment_sgs
+
+        fit = fit_environment_sgs(np.zeros((16, 32, 3), np.float32), 8, cache=False, cosine="exact")
+    assert np.all(fit.amplitude == 0) and fit.info["radiance_rel_rms"] == 0.0
+    rc, _, err = run_cli(["render", p, "-o", tmp_path / "o.exr", "--no-progress"], capsys)
+    assert rc == 0 and "Warning" not in err and "warning" not in err, err
+    assert np.all(np.isfinite(load_image(tmp_path / "o.exr")))
+
+
+def test_huge_coordinates_are_refused_naming_the_vertex_without_a_warning(tmp_path, capsys):
+    # before: trimesh's vertex welding cast 1e30 to int64 (a RuntimeWarning) and the image was wrong
+    import trimesh
+
+    m = trimesh.creation.icosphere(subdivisions=1)
+    m.vertices *= 1e30
+    (tmp_path / "big.ply").write_bytes(m.export(file_type="ply"))
+    rc, _, err = run_cli(["render", tmp_path / "big.ply", "-o", tmp_path / "o.png"], capsys)
+    assert_clean_failure(rc, err, "big.ply", "vertex 0", "beyond ±1e+12")
+    assert "Warning" not in err
+
+
+def test_tiny_object_is_refused_naming_its_size(tmp_path, capsys):
+    import trimesh
+
+    m = trimesh.creation.icosphere(subdivisions=1)
+    m.vertices *= 1e-8
+    (tmp_path / "tiny.ply").write_bytes(m.export(file_type="ply"))
+    rc, _, err = run_cli(["render", tmp_path / "tiny.ply", "-o", tmp_path / "o.png"], capsys)
+    assert_clean_failure(rc, err, "tiny.ply", "across", "at least 1e-05")
+
+
+def test_cli_prints_a_library_warning_as_one_line(tmp_path, capsys, monkeypatch):
+    # any warning that still reaches the CLI (here one raised by numpy's own machinery) is one line
+    import warnings
+
+    import warp_sg.cli as cli
+
+    def noisy(args):
+        warnings.warn_explicit("overflow encountered in multiply", RuntimeWarning, "/x/numpy/_core/umath.py", 7)
+        return 0
+
+    monkeypatch.setattr(cli, "schema_main", noisy)
+    rc, _, err = run_cli(["schema"], capsys)
+    assert rc == 0 and err.strip() == "warp-sg: warning: numpy: overflow encountered in multiply (RuntimeWarning)"
+
+
+# ------------------------------------------------------------------------------------------------
+# energy conservation (issue 31, defect 9): kd > 1 is an error; kd + ks·F(0°) > 1 for the
+# normalised models is one warning line (docs/rendering.md, "Energy conservation")
+# ------------------------------------------------------------------------------------------------
+def test_diffuse_albedo_above_one_is_an_error_naming_kd(tmp_path, capsys):
+    p = write_scene(tmp_path, replace("kd = [0.6, 0.6, 0.6]", "kd = [5.0, 5.0, 5.0]"))
+    rc, _, err = run_cli(["render", p, "-o", tmp_path / "o.png"], capsys)
+    assert_clean_failure(rc, err, "[materials.floor]", "'kd'", "<= 1", "5.0")
+    assert not (tmp_path / "o.png").exists()
+    with pytest.raises(InputError, match="kd"):
+        ws.scene.Material.from_brdf(ws.brdf.Lambert(kd=1.5))
+
+
+def test_kd_texture_above_one_is_an_error(tmp_path):
+    from warp_sg.image_io import save_image
+
+    save_image(tmp_path / "albedo.exr", np.full((4, 4, 3), 0.8, np.float32))
+    p = write_scene(tmp_path, replace("kd = [0.6, 0.6, 0.6]", 'kd = { texture = "albedo.exr", scale = 2.0 }'))
+    with pytest.raises(SceneError, match=r"\[materials.floor\] key 'kd': texture values reach 1.6 > 1"):
+        ws.load_scene(p)
+
+
+def test_normalised_model_reflecting_more_than_it_receives_warns_once(tmp_path, capsys):
+    text = replace('model = "cook_torrance"\nkd = [0.2, 0.1, 0.1]\nks = [0.5, 0.5, 0.5]\nm = 0.3',
+                   'model = "phong"\nkd = [0.8, 0.6, 0.6]\nks = [0.5, 0.5, 0.5]\nn = 30')
+    rc, _, err = run_cli(["render", write_scene(tmp_path, text), "-o", tmp_path / "o.png"], capsys)
+    warn = [ln for ln in err.splitlines() if ln.strip()]
+    assert rc == 0 and len(warn) == 1, err
+    assert "[materials.shiny]" in warn[0] and "kd + ks = [1.3, 1.1, 1.1] > 1" in warn[0]
+
+
+def test_energy_check_uses_the_fresnel_at_normal_incidence():
+    # GGX under Schlick F0 = 0.04 with kd = 0.9, ks = 1: R0 = 0.94 (fine); F0 = 0.2: R0 = 1.1 (warned)
+    from warp_sg.brdf.energy import energy_excess, normal_incidence_reflectance
+
+    ok = ws.brdf.make_model("ggx", kd=0.9, ks=1.0, alpha=0.2, fresnel={"schlick": 0.04})
+    np.testing.assert_allclose(normal_incidence_reflectance(ok), 0.94)
+    assert energy_excess(ok) is None
+    hot = ws.brdf.make_model("ggx", kd=0.9, ks=1.0, alpha=0.2, fresnel={"schlick": 0.2})
+    assert "kd + ks·F(0°) = [1.1, 1.1, 1.1]" in energy_excess(hot)
+    # cook_torrance's ks is no albedo (its D peaks at 1: the gold example has ks = 10)
+    assert energy_excess(ws.brdf.make_model("cook_torrance", kd=0.5, ks=10.0, m=0.2)) is None
+
+
+def test_examples_load_without_warnings():
+    import warnings
+
+    root = Path(__file__).resolve().parents[1] / "examples"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for f in sorted(root.glob("*.toml")):
+            if f.name != "turntable_job.toml":
+                ws.load_scene(f)
+
+
+# ------------------------------------------------------------------------------------------------
+# the watchdog (issue 31): sizes over a step's bound are refused up front, naming the size
+# ------------------------------------------------------------------------------------------------
+def _png_header(path, w, h):
+    """A PNG whose header says ``w × h`` (and whose pixel data is a stub): what a reader sees first."""
+    import struct
+    import zlib
+
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
+                     + chunk(b"IDAT", zlib.compress(b"\x00" * 16)) + chunk(b"IEND", b""))
+    return path
+
+
+@pytest.mark.parametrize("w,h", [(40000, 25000), (12000, 12000)])
+def test_texture_over_the_texel_bound_is_refused_from_its_header(tmp_path, capsys, w, h):
+    # 1e9 texels: over Pillow's own limit too (it raised DecompressionBombError, a traceback);
+    # 144 M: within Pillow's but over ours
+    _png_header(tmp_path / "big.png", w, h)
+    p = write_scene(tmp_path, replace("kd = [0.6, 0.6, 0.6]", 'kd = "big.png"'))
+    rc, _, err = run_cli(["render", p, "-o", tmp_path / "o.png"], capsys)
+    assert_clean_failure(rc, err, "big.png", f"{w * h:,} texels", "134,217,728")
+
+
+def test_environment_over_the_texel_bound_is_refused_unread_and_16k_by_8k_is_not(tmp_path):
+    from warp_sg.envmap import load_envmap
+
+    for w, h, refused in ((65536, 32768, True), (16384, 8192, False)):
+        f = tmp_path / f"sky{w}.hdr"
+        f.write_bytes(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y %d +X %d\n" % (h, w) + b"\x02\x02" * 8)
+        with pytest.raises(ImageError) as ei:
+            load_envmap(f)
+        if refused:
+            assert f"{w}×{h} texels" in str(ei.value) and "at most 134,217,728" in str(ei.value)
+        else:  # past the watchdog: the stub pixels fail to decode
+            assert "cannot read Radiance HDR" in str(ei.value)
+    with pytest.raises(ImageError, match="32768×16384 texels"):
+        ws.lights.EnvironmentLight(procedural="sky", options={"width": 32768, "height": 16384}).base_radiance()
+
+
+def test_million_triangle_mesh_is_within_the_bound():
+    from warp_sg.geometry import object_mesh
+    from warp_sg.scene import SceneObject
+
+    n = 708  # a 708 × 708 grid: 1,000,000 triangles
+    x, y = np.meshgrid(np.arange(n + 1, dtype=np.float32), np.arange(n + 1, dtype=np.float32))
+    v = np.stack([x.ravel(), y.ravel(), np.zeros(x.size, np.float32)], 1) / n
+    i = (np.arange(n)[:, None] * (n + 1) + np.arange(n)[None, :]).ravel()
+    t = np.concatenate([np.stack([i, i + 1, i + n + 2], 1), np.stack([i, i + n + 2, i + n + 1], 1)])
+    assert len(t) > 1_000_000
+    m = object_mesh(SceneObject(material="a", vertices=v, triangles=t, name="grid"), 0, None)
+    assert len(m.triangles) == len(t)
+
+
+def test_scene_over_the_triangle_bound_is_refused_naming_the_count(monkeypatch):
+    import warp_sg.geometry as geo
+    from warp_sg.scene import SceneObject
+
+    monkeypatch.setattr(geo, "MAX_TRIANGLES", 1)  # the bound's check, on a mesh of 2 triangles
+    with pytest.raises(MeshError, match="the mesh is too large: 2 triangles; at most 1 triangles"):
+        geo.object_mesh(SceneObject(material="a", vertices=QUAD_V, triangles=QUAD_F, name="quad"), 0, None)
+
+
+@pytest.mark.parametrize("render,camera,words", [
+    ("shadows = true\nvisibility_budget = 10000000", "", ["SSDF precompute", "10,000,000 vertices", "32²"]),
+    ("shadows = false", "width = 8", ["the frame", "20000×20000 pixels"]),
+    ("shadows = false\ngamma_levels = 64\ngamma_resolution = 1024", "", ["ΓL prefilter", "64 levels", "1024"]),
+])
+def test_precompute_over_its_bound_is_refused_before_any_work(tmp_path, render, camera, words):
+    from warp_sg.render import Renderer
+
+    text = replace("shadows = false", render)
+    if camera:
+        text = text.replace("width = 8\nheight = 6", "width = 20000\nheight = 20000")
+    # a 4096 × 2048 map: fine lobes up to gamma_resolution's faces (a constant map is quick to make)
+    text += ('\n[[lights]]\ntype = "environment"\nprocedural = "constant"\n'
+             'options = { radiance = 1.0, width = 4096, height = 2048 }\n')
+    sc = ws.load_scene(write_scene(tmp_path, text))
+    with pytest.raises(SceneError) as ei:
+        Renderer(sc)
+    for w in words:
+        assert w in str(ei.value), str(ei.value)
