@@ -3,17 +3,24 @@ naming the file / field / element at fault — never a traceback, never a partia
 never a corrupt cache.
 
 CLI cases call ``warp_sg.cli.main(argv)`` in-process (faster than a subprocess); one case runs the
-real ``warp-sg`` executable to check the installed entry point.
+real ``warp-sg`` executable to check the installed entry point. The property tests at the end
+(hypothesis) generate malformed scenes, meshes, glTF files and maps and judge every answer.
 """
 from __future__ import annotations
 
+import contextlib
+import math
 import shutil
+import signal
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 import warp_sg as ws
 from warp_sg.errors import ImageError, InputError, MeshError, SceneError
@@ -847,7 +854,7 @@ def test_black_environment_fits_without_runtime_warnings(tmp_path, capsys, cache
     from warp_sg.image_io import load_image
 
     _write_exr(tmp_path / "black.exr", {c: np.zeros((16, 32)) for c in "RGB"})
-    p = write_scene(tmp_path, replace("model = \"cook_torrance\"", "model = \"cook_torrance\"") + '\n[[lights]]\ntype = "environment"\nfile = "black.exr"\n')
+    p = write_scene(tmp_path, BASE + '\n[[lights]]\ntype = "environment"\nfile = "black.exr"\n')
     import warnings
 
     with warnings.catch_warnings():
@@ -1037,3 +1044,278 @@ def test_precompute_over_its_bound_is_refused_before_any_work(tmp_path, render, 
         Renderer(sc)
     for w in words:
         assert w in str(ei.value), str(ei.value)
+
+
+# ------------------------------------------------------------------------------------------------
+# property tests (issue 31): whatever malformed scene, mesh, glTF or map hypothesis makes, the CLI
+# answers with exit 2 and one line naming the culprit, or with a finite, non-negative image; never
+# a traceback, a hang past a size-proportional limit, or a partial file. Bounded for CI: tiny
+# images, no shadows, few examples, derandomized (the same examples every run), no deadline (the
+# first render compiles kernels) but a time limit per example from the input's size.
+# ------------------------------------------------------------------------------------------------
+def property_settings(n):
+    """``n`` derandomized examples; ``WARP_SG_PROPERTY_EXAMPLES=N`` runs N random ones instead (a
+    deeper search by hand)."""
+    import os
+
+    deep = int(os.environ.get("WARP_SG_PROPERTY_EXAMPLES", "0"))
+    return settings(max_examples=deep or n, deadline=None, derandomize=not deep, database=None,
+                    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+
+
+class Hang(Exception):
+    """An example that did not answer within its time limit."""
+
+
+@contextlib.contextmanager
+def time_limit(seconds):
+    def stop(signum, frame):
+        raise Hang(f"no answer within {seconds:.0f} s")
+
+    old = signal.signal(signal.SIGALRM, stop)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+
+
+def assert_answer(argv, folder, out, needles, capsys, limit):
+    """Run ``warp-sg argv`` under ``limit`` seconds and judge the answer (section docstring)."""
+    from warp_sg.image_io import load_image
+
+    before = set(folder.iterdir())
+    with time_limit(limit):
+        rc, _, err = run_cli(argv, capsys)
+    assert "Traceback" not in err, err
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    if rc == 2:
+        msg = lines[-1]
+        assert "error:" in msg and len(msg) < 500, err
+        assert any(n.lower() in msg.lower() for n in needles), f"{msg!r} names none of {needles}"
+        assert not out.exists() and set(folder.iterdir()) == before, "a failed run left a file"
+        assert all(ln.startswith("warp-sg: warning:") for ln in lines[:-1]) or "usage:" in err, err
+        return msg
+    assert rc == 0, err
+    assert all(ln.startswith("warp-sg: warning:") for ln in lines), err  # one line each, ours
+    assert set(folder.iterdir()) == before | {out}, "temporary files left behind"
+    img = load_image(out)
+    assert np.all(np.isfinite(img)) and img.min() >= -1e-6 * max(1.0, float(img.max())), (img.min(), img.max())
+    return None
+
+
+def _toml(v) -> str:
+    """A TOML literal of ``v`` (non-finite floats included: ``nan``, ``inf``)."""
+    import json
+
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        return "nan" if math.isnan(v) else ("inf" if v > 0 else "-inf") if math.isinf(v) else repr(v)
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, dict):
+        return "{ " + ", ".join(f"{k} = {_toml(x)}" for k, x in v.items()) + " }"
+    return "[" + ", ".join(_toml(x) for x in v) + "]"
+
+
+BASE_DOC = {
+    "camera": {"origin": [0.0, 1.0, 3.0], "target": [0.0, 0.3, 0.0], "fov": 40.0, "width": 8, "height": 6},
+    "objects": [{"primitive": "sphere", "center": [0.0, 0.4, 0.0], "radius": 0.4, "material": "shiny"},
+                {"primitive": "plane", "center": [0.0, 0.0, 0.0], "size": [3.0, 3.0], "material": "floor"}],
+    "materials": {"shiny": {"model": "cook_torrance", "kd": [0.2, 0.1, 0.1], "ks": [0.5, 0.5, 0.5], "m": 0.3},
+                  "floor": {"model": "lambert", "kd": [0.6, 0.6, 0.6]}},
+    "lights": [{"type": "point", "position": [1.0, 2.0, 1.0], "radius": 0.1, "intensity": [5.0, 5.0, 5.0]}],
+    "render": {"shadows": False},
+}
+
+
+def doc_text(doc) -> str:
+    out = []
+
+    def table(head, d):
+        out.append(f"\n{head}\n" + "".join(f"{k} = {_toml(v)}\n" for k, v in d.items()))
+
+    table("[camera]", doc["camera"])
+    for ob in doc["objects"]:
+        table("[[objects]]", ob)
+    for name, m in doc["materials"].items():
+        table(f"[materials.{name}]", m)
+    for li in doc["lights"]:
+        table("[[lights]]", li)
+    table("[render]", doc["render"])
+    return "".join(out)
+
+
+#: (section, entry, key, the table's name in messages) a mutation may hit
+TOML_KEYS = [("camera", None, k, "[camera]") for k in ("origin", "target", "up", "fov", "width", "height", "near", "far")] + \
+    [("objects", 0, k, "[[objects]] #1") for k in ("center", "radius", "resolution", "scale", "translate", "rotate",
+                                                    "material", "primitive")] + \
+    [("objects", 1, k, "[[objects]] #2") for k in ("size", "resolution", "center")] + \
+    [("materials", "shiny", k, "[materials.shiny]") for k in ("kd", "ks", "m", "fresnel")] + \
+    [("materials", "floor", "kd", "[materials.floor]")] + \
+    [("lights", 0, k, "[[lights]] #1") for k in ("position", "radius", "intensity", "type")] + \
+    [("render", None, k, "[render]") for k in ("supersampling", "antialias", "lobes", "shadows", "fh", "background",
+                                               "visibility_sampling", "ssdf_resolution")]
+
+_SCALARS = st.one_of(st.integers(-3, 3), st.integers(-2**62, 2**62), st.floats(allow_nan=True, allow_infinity=True),
+                     st.floats(-10, 10), st.text(alphabet="abc.-_ 0", max_size=5), st.booleans())
+TOML_VALUES = st.one_of(_SCALARS, st.lists(_SCALARS, max_size=4), st.lists(st.floats(-5, 5), min_size=3, max_size=3),
+                        st.dictionaries(st.sampled_from(["texture", "scale", "a"]), _SCALARS, max_size=2),
+                        st.just("__delete__"))
+
+
+@property_settings(40)
+@given(mutations=st.lists(st.tuples(st.sampled_from(TOML_KEYS), TOML_VALUES), min_size=1, max_size=2))
+def test_property_malformed_toml_values_get_exit_2_naming_the_key_or_a_finite_image(capsys, cache_dir, mutations):
+    import copy
+
+    doc = copy.deepcopy(BASE_DOC)
+    needles = []
+    for (section, entry, key, label), value in mutations:
+        table = doc[section] if entry is None else doc[section][entry]
+        if value == "__delete__":
+            table.pop(key, None)
+        else:
+            table[key] = value
+        needles += [key, label]
+    folder = Path(tempfile.mkdtemp())
+    scene = folder / "scene.toml"
+    scene.write_text(doc_text(doc))
+    out = folder / "out.exr"
+    assert_answer(["render", scene, "-o", out, "--no-progress"], folder, out, needles + ["scene.toml"], capsys,
+                  limit=120)
+
+
+@st.composite
+def raw_meshes(draw):
+    """(vertices, faces) with NaN / infinite / huge coordinates, degenerate, out-of-range and
+    reversed faces now and then."""
+    n = draw(st.integers(3, 9))
+    coord = st.one_of(st.floats(-2, 2), st.sampled_from([0.0, 1.0, math.nan, math.inf, -1e30, 1e-9]))
+    sane = draw(st.booleans())
+    c = st.floats(-2, 2) if sane else coord
+    v = draw(st.lists(st.tuples(c, c, c), min_size=n, max_size=n))
+    idx = st.integers(0, n - 1) if sane else st.integers(-2, n + 1)
+    f = draw(st.lists(st.tuples(idx, idx, idx), min_size=1, max_size=10))
+    if draw(st.booleans()):
+        f = [t[::-1] for t in f]
+    return np.array(v, float), np.array(f, int)
+
+
+def write_mesh(path, v, f):
+    """OBJ (1-based indices, as written) or ASCII PLY of raw arrays, whatever they hold."""
+    if path.suffix == ".obj":
+        lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in v] + [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in f]
+    else:
+        lines = ["ply", "format ascii 1.0", f"element vertex {len(v)}", "property float x", "property float y",
+                 "property float z", f"element face {len(f)}", "property list uchar int vertex_indices",
+                 "end_header"] + [f"{x!r} {y!r} {z!r}" for x, y, z in v] + [f"3 {a} {b} {c}" for a, b, c in f]
+    path.write_text("\n".join(lines) + "\n")
+
+
+@property_settings(14)
+@given(mesh=raw_meshes(), suffix=st.sampled_from([".obj", ".ply"]))
+def test_property_broken_meshes_get_exit_2_naming_the_file_or_a_finite_image(capsys, cache_dir, mesh, suffix):
+    folder = Path(tempfile.mkdtemp())
+    path = folder / f"mesh{suffix}"
+    write_mesh(path, *mesh)
+    out = folder / "out.exr"
+    argv = ["render", path, "-o", out, "--width", 8, "--height", 6, "--no-shadows", "--no-progress"]
+    assert_answer(argv, folder, out, [path.name], capsys, limit=120 + 0.01 * mesh[1].size)
+
+
+#: places in a glTF's JSON that hold references, counts and transforms
+GLTF_FIELDS = [("meshes", 0, "primitives", 0, "indices"), ("meshes", 0, "primitives", 0, "attributes", "POSITION"),
+               ("meshes", 0, "primitives", 0, "material"), ("meshes", 0, "primitives", 0, "mode"),
+               ("nodes", 0, "mesh"), ("nodes", 0, "children"), ("nodes", 0, "matrix"), ("nodes", 0, "scale"),
+               ("scenes", 0, "nodes"), ("scene",), ("accessors", 0, "bufferView"), ("accessors", 0, "count"),
+               ("accessors", 0, "componentType"), ("accessors", 1, "type"), ("accessors", 1, "byteOffset"),
+               ("bufferViews", 0, "buffer"), ("bufferViews", 0, "byteLength"), ("bufferViews", 1, "byteOffset"),
+               ("buffers", 0, "uri"), ("buffers", 1, "byteLength"), ("materials",), ("textures",)]
+GLTF_VALUES = st.one_of(st.integers(-3, 12), st.just("__delete__"), st.text(alphabet="ab0", max_size=3),
+                        st.lists(st.integers(-2, 4), max_size=3), st.floats(allow_nan=True, allow_infinity=True),
+                        st.lists(st.floats(-2, 2), min_size=16, max_size=16), st.just([{"children": [0]}]))
+
+
+def _set(h, path, value):
+    d = h
+    for p in path[:-1]:
+        if isinstance(d, list):
+            if not (isinstance(p, int) and p < len(d)):
+                return
+        elif p not in d:
+            d[p] = {} if not isinstance(p, int) else []
+        d = d[p]
+        if not isinstance(d, (dict, list)):
+            return
+    if isinstance(d, dict):
+        if value == "__delete__":
+            d.pop(path[-1], None)
+        else:
+            d[path[-1]] = value
+
+
+@property_settings(16)
+@given(edits=st.lists(st.tuples(st.sampled_from(GLTF_FIELDS), GLTF_VALUES), min_size=1, max_size=3))
+def test_property_gltf_with_dangling_references_gets_exit_2_naming_the_file_or_a_finite_image(capsys, cache_dir,
+                                                                                               edits):
+    folder = Path(tempfile.mkdtemp())
+
+    def edit(h):
+        for path, value in edits:
+            _set(h, path, value)
+
+    path = write_gltf(folder, edit=edit)
+    out = folder / "out.exr"
+    argv = ["render", path, "-o", out, "--width", 8, "--height", 6, "--no-shadows", "--no-progress"]
+    assert_answer(argv, folder, out, [path.name], capsys, limit=120)
+
+
+@st.composite
+def odd_maps(draw):
+    """An (H, W, 3) map of an odd size, mostly one value with a few special texels."""
+    h, w = draw(st.integers(1, 20)), draw(st.integers(1, 48))
+    base = draw(st.sampled_from([0.0, 1e-30, 0.5, 3.0, 1e6]))
+    a = np.full((h, w, 3), base, np.float32)
+    for r, c, ch, val in draw(st.lists(st.tuples(st.integers(0, h - 1), st.integers(0, w - 1), st.integers(0, 2),
+                                                 st.sampled_from([math.nan, math.inf, -1.0, 1e25, 0.0, 50.0])),
+                                       max_size=3)):
+        a[r, c, ch] = val
+    return a
+
+
+@property_settings(14)
+@given(env=odd_maps(), use=st.sampled_from(["environment", "texture"]))
+def test_property_odd_maps_get_exit_2_naming_the_file_or_a_finite_image(capsys, cache_dir, env, use):
+    import copy
+
+    folder = Path(tempfile.mkdtemp())
+    _write_exr(folder / "map.exr", {c: env[..., i] for i, c in enumerate("RGB")})
+    doc = copy.deepcopy(BASE_DOC)
+    doc["materials"]["shiny"] = {"model": "lambert", "kd": [0.5, 0.5, 0.5]}  # diffuse only: no ΓL prefilter
+    if use == "environment":
+        doc["lights"].append({"type": "environment", "file": "map.exr"})
+    else:
+        doc["materials"]["floor"]["kd"] = "map.exr"
+    scene = folder / "scene.toml"
+    scene.write_text(doc_text(doc))
+    out = folder / "out.exr"
+    assert_answer(["render", scene, "-o", out, "--no-progress"], folder, out, ["map.exr", "[materials.floor]"], capsys,
+                  limit=120 + 1e-3 * env.size)
+
+
+@pytest.mark.parametrize("old,new,words", [
+    ("intensity = [5.0, 5.0, 5.0]", "intensity = [5.0, 1e300, 5.0]", ["[[lights]] #1", "intensity", "<= 1e+20"]),
+    ('type = "point"\nposition = [1.0, 2.0, 1.0]\nradius = 0.1\nintensity = [5.0, 5.0, 5.0]',
+     'type = "environment"\nprocedural = "sky"\nscale = 1e30', ["[[lights]] #1", "scale", "<= 1e+20"]),
+    ("ks = [0.5, 0.5, 0.5]", "ks = [0.5, 1e300, 0.5]", ["[materials.shiny]", "'ks'", "±1e+20"]),
+])
+def test_light_or_material_value_that_overflows_float32_is_refused_naming_it(tmp_path, capsys, old, new, words):
+    # before: a finite 1e300 became inf in float32 and the image was inf (or, now, refused unnamed)
+    rc, _, err = run_cli(["render", write_scene(tmp_path, replace(old, new)), "-o", tmp_path / "o.exr"], capsys)
+    assert_clean_failure(rc, err, *words)
+    assert not (tmp_path / "o.exr").exists()

@@ -1,7 +1,7 @@
 """The watchdog's checks of a whole frame (:mod:`warp_sg.watchdog`), run by
 :class:`warp_sg.render.Renderer` before its first precompute step: the raster samples of the frame,
 the SSDF matrix the precompute would build (at the refined vertex count) and the ΓL pyramid's cube
-texels. Each refusal is one :class:`~warp_sg.errors.SceneError` line naming the size and the
+texels, and the rasterizer's limit per axis (``raster.setup.MAX_RESOLUTION``). Each refusal is one :class:`~warp_sg.errors.SceneError` line naming the size and the
 settings that make it. (Triangles, textures and environment maps are bounded where they are read.)
 """
 from __future__ import annotations
@@ -13,8 +13,14 @@ from .watchdog import MAX_PREFILTER_TEXELS, MAX_SAMPLES, MAX_SSDF_ENTRIES, check
 def check_frame_costs(scene, geometry, *, shadows: bool, specular: bool) -> None:
     """Refuse a frame of ``scene`` whose raster, SSDF precompute (``shadows``) or ΓL prefilter
     (``specular`` materials under an environment) would exceed the watchdog's bounds."""
+    from raster.setup import MAX_RESOLUTION
+
     rs, cam = scene.render, scene.camera
     k = int(rs.supersampling)
+    for name, n in (("width", cam.width), ("height", cam.height)):
+        if n * k > MAX_RESOLUTION:
+            raise SceneError(f"{name} {n} × supersampling {k} = {n * k} pixels: the rasterizer takes at most "
+                             f"{MAX_RESOLUTION} per axis", where="[camera]")
     check_size("the frame", cam.width * cam.height * k * k, MAX_SAMPLES,
                f"{cam.width}×{cam.height} pixels × supersampling {k}²", "samples", where="[camera]", error=SceneError)
     if shadows:

@@ -50,6 +50,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ImageError, MeshError
+from .geometry import validate_mesh
 from .gltf_checks import check_compression, check_images, check_references
 from .meshcheck import check_mesh
 from .textures import Texture, sample_bilinear_np, srgb_to_linear
@@ -234,6 +235,7 @@ def _part(path: Path, node: str, g, M: np.ndarray) -> GltfPart:
     A, t = M[:3, :3], M[:3, 3]
     try:  # before trimesh touches the triangles (its normals index the vertices by them)
         v, f, _ = check_mesh(g.vertices, g.faces)
+        validate_mesh(v, f, where=None)  # and not all of zero area (an accessor without data reads as zeros)
     except MeshError as e:
         raise MeshError(f"node '{node}': {e}", where=str(path)) from None
     if not np.isfinite(M).all():

@@ -36,26 +36,44 @@ _REFERENCES = (
 )
 
 
+class _Shape(Exception):
+    """A JSON value of the wrong kind (a number where the format has an object or a list)."""
+
+
+def _kind(v) -> str:
+    return {dict: "an object", list: "a list", str: "a string", bool: "a boolean", type(None): "null"}.get(
+        type(v), "a number")
+
+
 def _walk(value, steps: list[str], at: str):
-    """(location, value) of every value at the field path ``steps`` below ``value``."""
+    """(location, value) of every value at the field path ``steps`` below ``value``; a container of
+    the wrong kind on the way raises :class:`_Shape` naming its location."""
     if not steps:
         yield at, value
         return
+    if not isinstance(value, dict):
+        raise _Shape(f"{at} must be an object, got {_kind(value)}")
     step, rest = steps[0], steps[1:]
     if step == "*":
-        items = value.items() if isinstance(value, dict) else ()
-        for k, v in items:
+        for k, v in value.items():
             yield from _walk(v, rest, f"{at}.{k}")
         return
     key, many = (step[:-2], True) if step.endswith("[]") else (step, False)
-    if not isinstance(value, dict) or key not in value:
+    if key not in value:
         return
     v = value[key]
     if many:
-        for i, x in enumerate(v if isinstance(v, list) else ()):
+        if not isinstance(v, list):
+            raise _Shape(f"{at}.{key} must be a list, got {_kind(v)}")
+        for i, x in enumerate(v):
             yield from _walk(x, rest, f"{at}.{key}[{i}]")
     else:
         yield from _walk(v, rest, f"{at}.{key}")
+
+
+#: the top-level lists of glTF 2.0 (every entry an object)
+_LISTS = ("scenes", "nodes", "meshes", "accessors", "bufferViews", "buffers", "materials", "textures", "images",
+          "samplers", "skins", "cameras", "animations")
 
 
 def check_references(path: Path, header: dict) -> None:
@@ -71,12 +89,19 @@ def check_references(path: Path, header: dict) -> None:
         ref = header["scene"]
         if isinstance(ref, bool) or not isinstance(ref, int) or not 0 <= ref < len(entries("scenes")):
             raise MeshError(f"scene = {ref!r}: the file has {len(entries('scenes'))} scenes", where=str(path))
-    for holder, field_path, target in _REFERENCES:
-        n = len(entries(target))
-        for i, entry in enumerate(entries(holder)):
-            for at, ref in _walk(entry, field_path.split("."), f"{holder}[{i}]"):
-                if isinstance(ref, bool) or not isinstance(ref, int) or not 0 <= ref < n:
-                    raise MeshError(f"{at} = {ref!r}: the file has {n} {target}", where=str(path))
+    for name in _LISTS:
+        for i, entry in enumerate(entries(name)):
+            if not isinstance(entry, dict):
+                raise MeshError(f"{name}[{i}] must be an object, got {_kind(entry)}", where=str(path))
+    try:
+        for holder, field_path, target in _REFERENCES:
+            n = len(entries(target))
+            for i, entry in enumerate(entries(holder)):
+                for at, ref in _walk(entry, field_path.split("."), f"{holder}[{i}]"):
+                    if isinstance(ref, bool) or not isinstance(ref, int) or not 0 <= ref < n:
+                        raise MeshError(f"{at} = {ref!r}: the file has {n} {target}", where=str(path))
+    except _Shape as e:
+        raise MeshError(str(e), where=str(path)) from None
     nodes = entries("nodes")
     parent = {}
     for i, node in enumerate(nodes):

@@ -30,7 +30,8 @@ from pathlib import Path
 import numpy as np
 import warp as wp
 
-from .envmap import check_envmap_shape, load_envmap, procedural_sky, rotate_envmap, rotation_y, validate_envmap
+from .envmap import (MAX_RADIANCE, check_envmap_shape, load_envmap, procedural_sky, rotate_envmap, rotation_y,
+                     validate_envmap)
 from .errors import InputError
 from .sg_wp import expm1_neg
 
@@ -48,6 +49,8 @@ def _rgb(v, where):
         raise InputError(f"expected a number or 3 finite numbers (RGB), got {v!r}", where=where)
     if np.any(a < 0):
         raise InputError(f"must be >= 0, got {a.tolist()}", where=where)
+    if np.any(a > MAX_RADIANCE):  # as for environment texels: float32 shading would overflow
+        raise InputError(f"must be <= {MAX_RADIANCE:g}, got {a.tolist()}", where=where)
     return a
 
 
@@ -133,6 +136,8 @@ class EnvironmentLight:
             raise InputError(f"unknown procedural environment '{self.procedural}' (use {', '.join(ENV_PROCEDURAL)})",
                              where="environment light.procedural")
         self.scale = _nonneg(self.scale, "environment light.scale")
+        if self.scale > MAX_RADIANCE:
+            raise InputError(f"must be <= {MAX_RADIANCE:g}, got {self.scale!r}", where="environment light.scale")
         try:
             self.rotation = float(self.rotation)
         except (TypeError, ValueError):
