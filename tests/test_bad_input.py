@@ -1319,3 +1319,25 @@ def test_light_or_material_value_that_overflows_float32_is_refused_naming_it(tmp
     rc, _, err = run_cli(["render", write_scene(tmp_path, replace(old, new)), "-o", tmp_path / "o.exr"], capsys)
     assert_clean_failure(rc, err, *words)
     assert not (tmp_path / "o.exr").exists()
+
+
+def test_closed_room_around_the_camera_keeps_its_inward_faces(tmp_path):
+    # a room seen from inside faces inwards by design: no flip, no warning (winding number of the eye: 1)
+    import trimesh
+    import warnings
+
+    from warp_sg.lights import PointLight
+    from warp_sg.meshcheck import winding_number
+    from warp_sg.scene import Camera, Scene, SceneObject
+
+    room = trimesh.creation.box(extents=(4.0, 4.0, 4.0))
+    room.invert()
+    assert winding_number(room.vertices, room.faces, [0, 0, 0]) == pytest.approx(-1.0)
+    assert winding_number(room.vertices, room.faces, [5, 0, 0]) == pytest.approx(0.0, abs=1e-9)
+    sc = Scene(camera=Camera(origin=(0.0, 0.0, 1.0), target=(0.0, 0.0, -1.0), width=4, height=4),
+               objects=[SceneObject(material="a", vertices=room.vertices, triangles=room.faces, name="room")],
+               materials={"a": ws.brdf.Lambert()}, lights=[PointLight(position=(0, 1, 0), radius=0.1)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        g = sc.geometry()
+    np.testing.assert_array_equal(g.triangles, room.faces)

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError, InputWarning, MeshError, SceneError
-from .meshcheck import check_mesh, closed_and_oriented, signed_volume, weld_ids
+from .meshcheck import check_mesh, closed_and_oriented, signed_volume, weld_ids, winding_number
 from .primitives import MeshData, make_primitive
 from .watchdog import MAX_TRIANGLES, check_size
 
@@ -206,9 +206,10 @@ def _load_mesh_file(path: Path, where: str) -> MeshData:
     return MeshData(v, f, normals, uv, None)
 
 
-def object_mesh(ob, index: int, base: Path | None) -> MeshData:
+def object_mesh(ob, index: int, base: Path | None, eye=None) -> MeshData:
     """The mesh of ``ob`` (a :class:`~warp_sg.scene.SceneObject`) in world space (transform applied),
-    attributes filled in."""
+    attributes filled in; inside-out closed meshes are turned outwards unless they enclose the world
+    point ``eye`` (the camera: :func:`orient_outward`)."""
     where = f"{'scene' if base is None else base}: [[objects]] #{index + 1}"
     if ob.primitive is not None:
         try:
@@ -236,7 +237,7 @@ def object_mesh(ob, index: int, base: Path | None) -> MeshData:
     else:
         n = (n / np.linalg.norm(n, axis=1, keepdims=True)).astype(np.float32)
     if ob.primitive is None:  # primitives are built outward
-        t, n = orient_outward(v, t, keep, n, at)
+        t, n = orient_outward(v, t, keep, n, at, eye=_object_point(ob.transform, eye))
     if n is None:
         n = vertex_normals(v, t[keep]).astype(np.float32)
     uv = mesh.uvs
@@ -264,6 +265,17 @@ def object_mesh(ob, index: int, base: Path | None) -> MeshData:
     return mesh
 
 
+def _object_point(transform, p):
+    """World point ``p`` in the object's frame (``A⁻¹ (p − translate)``), None if there is none or
+    the transform is singular (refused later)."""
+    if p is None:
+        return None
+    A = transform.linear()
+    if abs(np.linalg.det(A)) < 1e-30:
+        return None
+    return np.linalg.solve(A, np.asarray(p, np.float64) - np.asarray(transform.translate, np.float64))
+
+
 def check_extent(vertices, where: str) -> None:
     """World-space coordinates within ±:data:`MAX_COORDINATE` and an extent of at least
     :data:`MIN_EXTENT`; else :class:`MeshError` naming ``where`` (and the first far vertex)."""
@@ -279,15 +291,18 @@ def check_extent(vertices, where: str) -> None:
                         f"renderer's welding tolerance merges its vertices); scale it up", where=where)
 
 
-def orient_outward(v, t, keep, normals, where: str):
+def orient_outward(v, t, keep, normals, where: str, eye=None):
     """``(triangles, normals)`` of a closed, consistently oriented mesh made to face outwards: a
     negative :func:`~warp_sg.meshcheck.signed_volume` (inside out) flips every triangle's winding,
     and normals that point inwards overall (``Σ n · N_geo < 0``, ``N_geo`` the area-weighted
     triangle normals at the vertices) are negated, with one :class:`~warp_sg.errors.InputWarning`
-    naming ``where``. Open meshes (a floor) have no inside and are returned as they are; so are
-    ``normals = None`` (computed later from the winding)."""
+    naming ``where``. Open meshes (a floor) have no inside and are returned as they are; so is a
+    closed mesh around the ``eye`` (in the mesh's frame; a room seen from inside faces inwards by
+    design: :func:`~warp_sg.meshcheck.winding_number` ±1)."""
     tk = t[keep]
     if not closed_and_oriented(tk, weld_ids(v)):
+        return t, normals
+    if eye is not None and abs(winding_number(v, tk, eye)) > 0.5:
         return t, normals
     vol = signed_volume(v, tk)
     flipped = vol < 0
@@ -319,7 +334,7 @@ def build_geometry(scene) -> Geometry:
     base = 0
     dropped = 0
     for i, ob in enumerate(scene.objects):
-        m = object_mesh(ob, i, scene.path)
+        m = object_mesh(ob, i, scene.path, eye=scene.camera.origin)
         check_size("the scene", sum(len(x) for x in tris) + len(m.triangles), MAX_TRIANGLES,
                    f"too large at object #{i + 1}", "triangles", where=str(scene.path or "scene"), error=MeshError)
         vs.append(m.vertices)

@@ -14,7 +14,7 @@
 * optionally ``mesh has no vertices`` / ``mesh has no triangles``.
 
 :func:`closed_and_oriented` and :func:`signed_volume` tell an inside-out closed mesh (negative
-volume) from a good one. Like :mod:`warp_sg.errors` it imports nothing else from the project, so
+volume) from a good one; :func:`winding_number` whether a point (the eye) is inside one. Like :mod:`warp_sg.errors` it imports nothing else from the project, so
 ``raster`` and ``precompute`` can use it.
 """
 from __future__ import annotations
@@ -135,5 +135,20 @@ def signed_volume(vertices, triangles) -> float:
     return float(np.einsum("ij,ij->", v[t[:, 0]], np.cross(v[t[:, 1]], v[t[:, 2]])) / 6.0)
 
 
-__all__ = ["check_mesh", "weld_ids", "closed_and_oriented", "signed_volume"]
+def winding_number(vertices, triangles, point) -> float:
+    """Generalised winding number of ``point``: ``Σ Ω_t / 4π`` over the triangles' signed solid
+    angles seen from it (van Oosterom & Strackee 1983, ``tan(Ω/2) = a·(b × c) / (|a||b||c| +
+    (a·b)|c| + (a·c)|b| + (b·c)|a|)`` with ``a, b, c`` the corners relative to the point). For a
+    closed mesh: ±1 inside (the sign of its orientation), 0 outside."""
+    v = np.asarray(vertices, np.float64) - np.asarray(point, np.float64)
+    t = np.asarray(triangles, np.int64)
+    a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
+    la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
+    num = np.einsum("ij,ij->i", a, np.cross(b, c))
+    den = (la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", a, c) * lb
+           + np.einsum("ij,ij->i", b, c) * la)
+    return float(2.0 * np.arctan2(num, den).sum() / (4.0 * np.pi))
+
+
+__all__ = ["check_mesh", "weld_ids", "closed_and_oriented", "signed_volume", "winding_number"]
 
