@@ -1027,7 +1027,8 @@ def test_scene_over_the_triangle_bound_is_refused_naming_the_count(monkeypatch):
 
 @pytest.mark.parametrize("render,camera,words", [
     ("shadows = true\nvisibility_budget = 10000000", "", ["SSDF precompute", "10,000,000 vertices", "32²"]),
-    ("shadows = false", "width = 8", ["the frame", "20000×20000 pixels"]),
+    ("shadows = false", "16000 16000", ["the frame", "16000×16000 pixels"]),
+    ("shadows = false", "20000 6", ["[camera]", "width 20000", "16384 per axis"]),
     ("shadows = false\ngamma_levels = 64\ngamma_resolution = 1024", "", ["ΓL prefilter", "64 levels", "1024"]),
 ])
 def test_precompute_over_its_bound_is_refused_before_any_work(tmp_path, render, camera, words):
@@ -1035,7 +1036,8 @@ def test_precompute_over_its_bound_is_refused_before_any_work(tmp_path, render, 
 
     text = replace("shadows = false", render)
     if camera:
-        text = text.replace("width = 8\nheight = 6", "width = 20000\nheight = 20000")
+        w, h = camera.split()
+        text = text.replace("width = 8\nheight = 6", f"width = {w}\nheight = {h}")
     # a 4096 × 2048 map: fine lobes up to gamma_resolution's faces (a constant map is quick to make)
     text += ('\n[[lights]]\ntype = "environment"\nprocedural = "constant"\n'
              'options = { radiance = 1.0, width = 4096, height = 2048 }\n')
