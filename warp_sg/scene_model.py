@@ -176,7 +176,7 @@ class RenderSettings:
     antialias: int = 4
     lobes: int = 1
     env_lobes: int = 8
-    env_peaks: int = 4
+    env_peaks: int = 8
     visibility_budget: int = 20000
     pca_terms: int = 32
     ssdf_resolution: int = 32
