@@ -75,7 +75,7 @@ def test_vertex_visible_fraction_matches_ray_cast_visibility_weighted_by_the_map
     r = Renderer(_scene((48, 24), shadows=True), device="cpu")
     r.render()
     assert r.features().env_visible_vertex and not r.features().env_vis_vertex
-    F = r.env_visible_cache.value.numpy()
+    F = r.env_visible_cache.value[0].numpy()
     g = r.geometry
     P, N = np.asarray(g.vertices), np.asarray(g.normals)
     dirs = _fibonacci_normals(4096)
@@ -104,7 +104,7 @@ def test_a_vertex_that_sees_nothing_gets_zero_and_one_that_sees_everything_gets_
     r = Renderer(Scene(camera=cam, objects=[box, floor], materials={"m": Material("lambert", {"kd": [0.5] * 3})},
                        lights=[env], render=rs), device="cpu")
     r.render()
-    F = r.env_visible_cache.value.numpy()
+    F = r.env_visible_cache.value[0].numpy()
     g = r.geometry
     inside = np.flatnonzero(np.isclose(np.asarray(g.vertices)[:, 1], -0.2))
     top = int(np.argmax(np.asarray(g.vertices)[:, 1]))
@@ -145,3 +145,18 @@ def test_pixel_sampling_and_oren_nayar_take_the_lobe_path():
     r.render()
     assert not r.features().env_visible_vertex and r.env_visible_cache.builds == 0
     assert r.features().env_vis_vertex
+
+
+def test_smooth_triangles_interpolate_the_vertices_visible_irradiance_within_half_a_percent(monkeypatch):
+    """On a finely tessellated torus (vertex normals within 5° on each triangle) the shading kernel
+    interpolates the vertices' E ∘ F; the same frame with every triangle reading E at its pixels'
+    normals instead differs by at most 0.5 % of the brightest pixel (0.4 % measured with the sun left
+    in the map, the sharpest irradiance there is)."""
+    from warp_sg import vertex_visibility as VV
+
+    r = Renderer(_scene((192, 96), shadows=True), device="cpu")
+    a = r.render()
+    assert r._env_arrays().smooth.numpy().mean() > 0.9
+    monkeypatch.setattr(VV, "smooth_triangles", lambda n, t: np.zeros(len(t), np.uint8))
+    b = Renderer(_scene((192, 96), shadows=True), device="cpu").render()
+    assert np.abs(a - b).max() < 0.005 * b.max()

@@ -109,7 +109,7 @@ def test_each_vertex_visible_fraction_of_the_diffuse_irradiance_matches_a_ray_ca
     r = renderer
     assert r.features().env_visible_vertex
     g = r.geometry
-    F = r.env_visible_cache.value.numpy()
+    F = r.env_visible_cache.value[0].numpy()
     ids = _test_ids(g)
     vis, d_world, n, cos = _hemisphere(g, ids)
     L = env_lookup_numpy(r.env_residual, d_world.reshape(-1, 3)).reshape(len(ids), -1, 3)  # rotation 0

@@ -23,6 +23,15 @@ class EnvironmentSetup:
     geometry, whose refinement follows the peaks' shadows, and ``_setup_environment`` after the
     materials)."""
 
+    def _smooth_tris(self):
+        """(T,) uint8 triangles whose vertex normals agree within 5° (built once per geometry)."""
+        g = self.geometry
+        if getattr(self, "_smooth", None) is None or self._smooth[0] is not g:
+            from .vertex_visibility import smooth_triangles
+
+            self._smooth = (g, wp.array(smooth_triangles(g.normals, g.triangles), dtype=wp.uint8, device=self.device))
+        return self._smooth[1]
+
     def _setup_env_peaks(self):
         """Sharp peaks of the environment (a sun, lamps) become directional lights
         (``precompute.env_peaks``, ``[render] env_peaks``): first, because the mesh is refined along
@@ -133,6 +142,7 @@ class EnvironmentSetup:
             es.mu = wp.zeros(1, dtype=wp.vec3, device=d)
             es.exact = placeholder_table(d)
             es.radiance = wp.zeros((1, 1), dtype=wp.vec3, device=d)
+            es.smooth = wp.zeros(1, dtype=wp.uint8, device=d)
         else:
             R = env.rotation_matrix()
             ax, lam, mu = self._env_sg_base
@@ -147,6 +157,7 @@ class EnvironmentSetup:
             es.mu = wp.array((mu * env.scale).astype(np.float32), dtype=wp.vec3, device=d)
             es.exact = self.env_irradiance.table(rotation=R, scale=float(env.scale), device=d)
             es.radiance = self.env_texel_radiance
+            es.smooth = self._smooth_tris()
         self._env_arrays_key, self._env_sg_arrays = key, S.lobe_constants(es, self.irr_table, d)
         return es
 

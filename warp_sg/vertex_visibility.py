@@ -153,18 +153,21 @@ def light_vertex_deficit_kernel(base: int, fh_mode: int, vis: Visibility, positi
 
 
 @wp.kernel(enable_backward=False)
-def env_vertex_visible_kernel(base: int, vis: Visibility, env: EnvSG, out: wp.array(dtype=wp.vec3)):
+def env_vertex_visible_kernel(base: int, vis: Visibility, env: EnvSG, out: wp.array(dtype=wp.vec3),
+                              out_irr: wp.array(dtype=wp.vec3)):
     """``out[v]`` = the visible fraction (RGB) of vertex ``v = base + tid``'s diffuse irradiance:
     ``1 − O/(O + S + max(E − O − S, 0))`` with ``O``, ``S`` the occluded and the visible parts of
     ``Σ_t (n·d_t) L̄(d_t) Ω_t`` over the texels inside the vertex's occluder cone (the texel's
     visible share ``s_t = clamp(½ + θd_t/h, 0, 1)``, ``L̄`` the residual map's radiance at texel
     scale, ``env.radiance``) and ``E`` the exact irradiance (``env.exact`` at unit scale): the texels
     outside the cone are visible (none when the cone holds the whole hemisphere). 1 without a read
-    where nothing occludes the vertex; exactly 0 where everything does."""
+    where nothing occludes the vertex; exactly 0 where everything does. ``out_irr[v] = E ∘ F``, the
+    visible irradiance at unit scale (what smooth triangles interpolate)."""
     v = base + wp.tid()
     n = wp.normalize(vis.normals[v])
     cone = vis.cones[v]
     f = wp.vec3(1.0, 1.0, 1.0)
+    ex = irradiance_unscaled(env.exact, n)
     if cone[3] >= 0.0:
         t = frame_tangent(n)
         b = frame_bitangent(n)
@@ -184,7 +187,6 @@ def env_vertex_visible_kernel(base: int, vis: Visibility, env: EnvSG, out: wp.ar
                     e = env_lookup(env.radiance, env.exact.to_env, d) * (dl[2] * om)
                     occ_sum += e * (1.0 - s)
                     seen_sum += e * s
-        ex = irradiance_unscaled(env.exact, n)
         outside = float(1.0)  # the texels outside the cone (visible), unless the cone holds the hemisphere
         if wp.acos(wp.clamp(wp.dot(axis, n), -1.0, 1.0)) + 0.5 * wp.pi <= cone[3] + h:
             outside = 0.0
@@ -193,16 +195,38 @@ def env_vertex_visible_kernel(base: int, vis: Visibility, env: EnvSG, out: wp.ar
             if tot > 0.0:
                 f[c] = wp.clamp(1.0 - occ_sum[c] / tot, 0.0, 1.0)
     out[v] = f
+    out_irr[v] = wp.cw_mul(ex, f)
 
 
-def env_vertex_visible(vis: Visibility, env: EnvSG, n_vertices: int, device) -> wp.array:
-    """(V,) vec3 array of :func:`env_vertex_visible_kernel` (one thread per vertex)."""
+def env_vertex_visible(vis: Visibility, env: EnvSG, n_vertices: int, device):
+    """``(F, E ∘ F)``: the (V,) vec3 arrays of :func:`env_vertex_visible_kernel` (one thread per
+    vertex)."""
     from raster import parallel
 
     out = wp.zeros(max(int(n_vertices), 1), dtype=wp.vec3, device=device)
+    out_irr = wp.zeros(max(int(n_vertices), 1), dtype=wp.vec3, device=device)
     if n_vertices > 0:
-        parallel.launch(env_vertex_visible_kernel, int(n_vertices), [vis, env, out], device, min_chunk=64)
-    return out
+        parallel.launch(env_vertex_visible_kernel, int(n_vertices), [vis, env, out, out_irr], device, min_chunk=64)
+    return out, out_irr
+
+
+#: the largest angle between the vertex normals of a triangle whose diffuse environment term is
+#: interpolated from its vertices' visible irradiance (``E ∘ F``) instead of reading the exact
+#: irradiance at each pixel's normal: 5°, where interpolating E errs by ≈ (5°)²/8 ≈ 0.1 % (0.4 % of
+#: the brightest pixel on a torus under a sky whose sun is left in the map, tests/test_env_diffuse.py)
+SMOOTH_TRIANGLE_DEG = 5.0
+
+
+def smooth_triangles(normals, triangles) -> np.ndarray:
+    """(T,) uint8: 1 where the triangle's vertex normals are within :data:`SMOOTH_TRIANGLE_DEG`."""
+    n = np.asarray(normals, np.float64)
+    n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+    t = np.asarray(triangles, np.int64).reshape(-1, 3)
+    if not len(t):
+        return np.zeros(1, np.uint8)
+    a, b, c = n[t[:, 0]], n[t[:, 1]], n[t[:, 2]]
+    cmin = np.minimum(np.minimum(np.sum(a * b, 1), np.sum(b * c, 1)), np.sum(a * c, 1))
+    return (cmin >= np.cos(np.radians(SMOOTH_TRIANGLE_DEG))).astype(np.uint8)
 
 
 def _vertex_table(kernel, n_vertices: int, n_cols: int, inputs: list, device) -> wp.array2d:
@@ -272,7 +296,8 @@ class VertexCache:
 def caches() -> tuple:
     """The renderer's three caches: environment lobes' visibility, lights' deficit, and the visible
     fraction of the diffuse environment irradiance."""
-    return VertexCache(), VertexCache(), VertexCache(lambda d: wp.zeros(1, dtype=wp.vec3, device=d))
+    return VertexCache(), VertexCache(), VertexCache(lambda d: (wp.zeros(1, dtype=wp.vec3, device=d),
+                                                                wp.zeros(1, dtype=wp.vec3, device=d)))
 
 
 def update_caches(r, es: EnvSG) -> EnvSG:
@@ -282,9 +307,9 @@ def update_caches(r, es: EnvSG) -> EnvSG:
       Oren–Nayar materials): rebuilt when the lobe axes (rotation, fit) or the visibility data change;
     * ``r.vis.light_deficit`` (``r.light_vis_cache``), each light's SSDF deficit: rebuilt when a
       light moves or is resized (not on an intensity or environment-scale edit);
-    * ``es.visible`` (``r.env_visible_cache``), the visible fraction of each vertex's diffuse
-      environment irradiance: rebuilt on environment rotation or with the visibility data (it does
-      not depend on the environment's scale).
+    * ``es.visible``, ``es.irr_vertex`` (``r.env_visible_cache``), the visible fraction of each
+      vertex's diffuse environment irradiance and that visible irradiance at unit scale: rebuilt on
+      environment rotation or with the visibility data (``es.irr_scale`` is the scale).
 
     Camera and material edits reuse all three. ``r.timings["vertex_visibility"]``: this call's
     rebuild time."""
@@ -298,12 +323,14 @@ def update_caches(r, es: EnvSG) -> EnvSG:
     r.vis.light_deficit = r.light_vis_cache.array(
         key, lambda: light_vertex_deficit(r.vis, r.geo_arrays.positions, r.light_arrays, nv, fh == "sigmoid", d), d)
     key = (r._env_arrays_key[:2], r.ssdf, r.vis.cones) if f.env_visible_vertex else None
-    es.visible = r.env_visible_cache.array(key, lambda: env_vertex_visible(r.vis, es, nv, d), d)
+    es.visible, es.irr_vertex = r.env_visible_cache.array(key, lambda: env_vertex_visible(r.vis, es, nv, d), d)
+    es.irr_scale = float(r.env_light.scale) if r.env_light is not None else 0.0
     r.timings["vertex_visibility"] = sum(c.seconds for c in (r.env_vis_cache, r.light_vis_cache,
                                                              r.env_visible_cache))
     return es
 
 
 __all__ = ["VertexCache", "caches", "update_caches", "env_vertex_visible", "env_vertex_visible_kernel",
+           "smooth_triangles", "SMOOTH_TRIANGLE_DEG",
            "env_vertex_visibility", "env_vertex_visibility_kernel", "light_vertex_deficit",
            "light_vertex_deficit_kernel"]

@@ -21,7 +21,8 @@ then exact whatever the model; under a sky the slice keeps its shape (where the 
 gets the BRDF's energy. Lights do not need it: they evaluate the exact BRDF.
 
 Table per material (``Material.albedo``, one shared array): ``NQ × NMU`` entries, ``NMU`` = 32
-view angles θ_o from 0 to 89.9° (linear in θ_o), and a second axis ``q`` of ``NQ`` entries:
+view angles θ_o from 0 to 89.9° (uniform in √(1 − cos θ_o)), and a second axis ``q`` of ``NQ``
+entries:
 
 * ``kind`` 0 — none (a diffuse model): ``c = 1``;
 * ``kind`` 1 — isotropic: ``NQ = 1``, or, when the first parameter is textured (a glTF roughness
@@ -52,9 +53,12 @@ NMU = 32
 NQ = 8
 SAMPLES = 2048
 THETA_MAX = 0.999 * 0.5 * math.pi
+#: the table's view axis: s = √(1 − cos θ_o), uniform from 0 to S_MAX (θ_o from 0 to 89.9°; ≈ θ/√2
+#: near the normal, finite slope at grazing, and one square root per pixel instead of an acos)
+S_MAX = math.sqrt(1.0 - math.cos(THETA_MAX))
 C_MIN, C_MAX = 0.25, 4.0
 KIND_NONE, KIND_ISO, KIND_ANISO = 0, 1, 2
-_THETA_MAX = wp.constant(THETA_MAX)
+_S_MAX = wp.constant(S_MAX)
 _C_MIN = wp.constant(C_MIN)
 _C_MAX = wp.constant(C_MAX)
 _HALF_PI = wp.constant(0.5 * math.pi)
@@ -75,12 +79,12 @@ def _radical_inverse(i: int) -> float:
 
 
 @wp.func
-def _q_value(q0: float, q1: float, q: int, nq: int) -> float:
-    """The q-th of ``nq`` values log-spaced over [q0, q1] (q0 itself when nq = 1)."""
+def _q_value(log_q0: float, inv_span: float, q: int, nq: int) -> float:
+    """The q-th of ``nq`` values log-spaced from q0 (``ln q0``) over ``ln(q1/q0) = 1/inv_span``
+    (q0 itself when nq = 1)."""
     if nq <= 1:
-        return q0
-    t = float(q) / float(nq - 1)
-    return wp.exp(wp.log(q0) * (1.0 - t) + wp.log(q1) * t)
+        return wp.exp(log_q0)
+    return wp.exp(log_q0 + float(q) / (float(nq - 1) * inv_span))
 
 
 _KERNELS: dict = {}
@@ -100,7 +104,8 @@ def albedo_kernel(models):
         e = wp.tid()
         m = mats[entry_mat[e]]
         q = entry_q[e]
-        th = _THETA_MAX * float(entry_mu[e]) / float(NMU - 1)
+        sv = _S_MAX * float(entry_mu[e]) / float(NMU - 1)
+        ct = 1.0 - sv * sv
         phi = float(0.0)
         if m.albedo_kind == KIND_ANISO:
             phi = _HALF_PI * float(q) / float(NQ - 1)
@@ -111,7 +116,8 @@ def albedo_kernel(models):
                 p1 = v
             m.params = wp.vec4(v, p1, m.params[2], m.params[3])
         m.ks = wp.vec3(1.0, 1.0, 1.0)
-        o = wp.vec3(wp.sin(th) * wp.cos(phi), wp.sin(th) * wp.sin(phi), wp.cos(th))
+        st = wp.sqrt(wp.max(1.0 - ct * ct, 0.0))
+        o = wp.vec3(st * wp.cos(phi), st * wp.sin(phi), ct)
         exact = wp.vec3(0.0, 0.0, 0.0)
         for s in range(samples):
             u = wp.vec2((float(s) + 0.5) / float(samples), _radical_inverse(s))
@@ -172,7 +178,10 @@ def attach(table, p0_ranges, irr, device, samples: int = SAMPLES):
         off += nq * NMU
     out = wp.ones(max(off, 1), dtype=wp.vec3, device=device)
     for s, (kind, nq, q0, q1, o) in zip(table.structs, meta):
-        s.albedo_kind, s.albedo_nq, s.albedo_q0, s.albedo_q1, s.albedo_offset = kind, nq, q0, q1, o
+        # the struct holds ln q0 and 1/ln(q1/q0) (one log per pixel for a textured parameter)
+        span = math.log(q1 / q0) if q1 > q0 else 0.0
+        s.albedo_kind, s.albedo_nq, s.albedo_offset = kind, nq, o
+        s.albedo_q0, s.albedo_q1 = math.log(q0), (1.0 / span if span > 0 else 0.0)
         s.albedo = out
     table.rebuild()
     if off > 0:
@@ -184,22 +193,19 @@ def attach(table, p0_ranges, irr, device, samples: int = SAMPLES):
 
 @wp.func
 def albedo_correction(mat: Material, o: wp.vec3) -> wp.vec3:
-    """``c(o) = A(o)/A*(o)`` of the material at local view ``o`` (bilinear in θ_o and q; 1 for a
-    material without a table)."""
+    """``c(o) = A(o)/A*(o)`` of the material at local view ``o`` (bilinear in √(1 − cos θ_o) and q;
+    1 for a material without a table)."""
     if mat.albedo_nq <= 0:
         return wp.vec3(1.0, 1.0, 1.0)
-    th = wp.acos(wp.clamp(o[2], 0.0, 1.0))
-    x = wp.clamp(th / _THETA_MAX, 0.0, 1.0) * float(NMU - 1)
+    x = wp.clamp(wp.sqrt(wp.max(1.0 - o[2], 0.0)) / _S_MAX, 0.0, 1.0) * float(NMU - 1)
     x0 = wp.min(int(x), NMU - 2)
     fx = x - float(x0)
+    nq = mat.albedo_nq
     y = float(0.0)
     if mat.albedo_kind == KIND_ANISO:
         y = wp.atan2(wp.abs(o[1]), wp.abs(o[0])) / _HALF_PI * float(NQ - 1)
-    elif mat.albedo_nq > 1:
-        lo = wp.log(mat.albedo_q0)
-        hi = wp.log(mat.albedo_q1)
-        y = wp.clamp((wp.log(wp.max(mat.params[0], 1.0e-6)) - lo) / (hi - lo), 0.0, 1.0) * float(mat.albedo_nq - 1)
-    nq = mat.albedo_nq
+    elif nq > 1:  # log-spaced values of a textured first parameter: albedo_q0 = ln q0, q1 = 1/ln(q1/q0)
+        y = wp.clamp((wp.log(wp.max(mat.params[0], 1.0e-6)) - mat.albedo_q0) * mat.albedo_q1, 0.0, 1.0) * float(nq - 1)
     y0 = wp.min(int(y), wp.max(nq - 2, 0))
     fy = wp.clamp(y - float(y0), 0.0, 1.0)
     y1 = wp.min(y0 + 1, nq - 1)

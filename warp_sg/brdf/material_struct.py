@@ -61,7 +61,8 @@ class Material:
     mo_tables: wp.array3d(dtype=float)
     #: the environment-specular energy correction (``warp_sg.brdf.albedo``): entries of this
     #: material in the shared ``albedo`` array, layout ``albedo_kind`` / ``albedo_nq`` (0: none)
-    #: and the range ``[albedo_q0, albedo_q1]`` of its textured first parameter
+    #: and the range of its textured first parameter as ``albedo_q0 = ln q0``,
+    #: ``albedo_q1 = 1/ln(q1/q0)``
     albedo: wp.array(dtype=wp.vec3)
     albedo_offset: int
     albedo_nq: int
@@ -211,7 +212,7 @@ def pack_materials(models, n_lobes=1, device="cpu", method="analytic"):
         s.merl_data = merl
         s.mo_tables = mo
         s.albedo = no_albedo
-        s.albedo_offset, s.albedo_nq, s.albedo_kind, s.albedo_q0, s.albedo_q1 = 0, 0, 0, 1.0, 1.0
+        s.albedo_offset, s.albedo_nq, s.albedo_kind, s.albedo_q0, s.albedo_q1 = 0, 0, 0, 0.0, 0.0
         structs.append(s)
     if structs:
         mats = wp.array(structs, dtype=Material, device=device)
