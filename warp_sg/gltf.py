@@ -22,7 +22,13 @@ KHR_texture_transform is applied to the texture coordinates.
 
 Whatever else a file uses (other extensions, second UV sets, animations, point and line
 primitives, alpha blending) is reported once per file and feature as an :class:`AssetWarning`
-(one line). An unreadable file raises :class:`~warp_sg.errors.MeshError` naming it.
+(one line). An unreadable file raises :class:`~warp_sg.errors.MeshError` naming it; so do an index
+that points past its list (``meshes[0].primitives[0].indices = 9: the file has 2 accessors``), a
+node graph with a cycle, meshes compressed by an extension that cannot be decoded
+(:mod:`warp_sg.gltf_checks`), and a primitive with non-finite positions or out-of-range vertex
+indices (naming the node). A texture whose image cannot be read (a missing file, a corrupt image)
+raises :class:`~warp_sg.errors.ImageError` naming the material, the texture and the image: an
+untextured image would be a wrong answer.
 """
 from __future__ import annotations
 
@@ -37,8 +43,11 @@ from pathlib import Path
 import numpy as np
 
 from .errors import MeshError
+from .geometry import validate_mesh
+from .gltf_checks import check_compression, check_images, check_references
 from .gltf_material import (ALPHA_MIN, DIELECTRIC_F0, TEXTURE_SLOTS, gltf_material, material_uv_transform,  # noqa: F401
                             pbr_to_ggx, texture_infos, uv_transform, vertex_colour_factors)
+from .meshcheck import check_mesh
 
 GLTF_SUFFIXES = (".glb", ".gltf")
 #: glTF extensions whose meaning the importer renders (everything else is reported and ignored)
@@ -227,6 +236,8 @@ def load_gltf(path, *, images: bool = True) -> GltfAsset:
     if not path.is_file():
         raise MeshError("glTF file not found", where=str(path))
     header, raw = _read_header(path)
+    check_references(path, header)
+    check_compression(path, header, SUPPORTED_EXTENSIONS)
     data = _retagged(path, header, raw)
     _register_dequantize()
     if "KHR_draco_mesh_compression" in header.get("extensionsUsed", []):
@@ -255,6 +266,8 @@ def load_gltf(path, *, images: bool = True) -> GltfAsset:
         idx = parts[-1].material = _material_index(mat)
         if idx is not None and idx not in imgs:
             imgs[idx] = {k: getattr(mat, k, None) for k in _TRIMESH_SLOTS}
+            if images:
+                check_images(path, header, idx, imgs[idx])
     if not parts:
         raise MeshError("glTF file contains no triangles", where=str(path))
     notes = _notes(path, header)
@@ -350,9 +363,15 @@ def _material_index(mat) -> int | None:
 def _part(path: Path, node: str, g, M: np.ndarray) -> GltfPart:
     """Apply the node's world matrix: P' = M P, n' ∝ M⁻ᵀ n, t' ∝ M t (winding flipped when det M < 0)."""
     A, t = M[:3, :3], M[:3, 3]
-    v = np.asarray(g.vertices, np.float64)
-    f = np.asarray(g.faces, np.int64)
-    n = np.asarray(g.vertex_normals, np.float64)
+    try:  # before trimesh touches the triangles (its normals index the vertices by them)
+        v, f, _ = check_mesh(g.vertices, g.faces)
+        validate_mesh(v, f, where=None)  # and not all of zero area (an accessor without data reads as zeros)
+    except MeshError as e:
+        raise MeshError(f"node '{node}': {e}", where=str(path)) from None
+    if not np.isfinite(M).all():
+        raise MeshError(f"node '{node}' has a non-finite transform", where=str(path))
+    with np.errstate(invalid="ignore", divide="ignore"):  # zero-area faces: normals fixed below
+        n = np.nan_to_num(np.asarray(g.vertex_normals, np.float64))
     uv = getattr(g.visual, "uv", None)
     uv = None if uv is None or len(uv) != len(v) else np.asarray(uv, np.float32)
     tan = g.vertex_attributes.get("_TANGENT") if hasattr(g, "vertex_attributes") else None

@@ -42,6 +42,7 @@ import math
 
 import numpy as np
 
+from .errors import ImageError
 from .material_layers import MaterialLayers
 from .textures import Texture, sample_bilinear_np, srgb_to_linear
 
@@ -117,11 +118,14 @@ def image_array(img, where: str) -> np.ndarray:
     """A PIL image as float32 (H, W, 4) code values in [0, 1]."""
     from .textures import to_rgba
 
-    if img.mode in ("I;16", "I;16B", "I;16L", "I"):
-        a = np.asarray(img, np.float32) / 65535.0
-    else:
-        a = np.asarray(img.convert("RGBA") if img.mode not in ("L", "LA", "RGB", "RGBA") else img,
-                       np.float32) / 255.0
+    try:  # Pillow decodes lazily: a truncated or corrupt image fails here
+        if img.mode in ("I;16", "I;16B", "I;16L", "I"):
+            a = np.asarray(img, np.float32) / 65535.0
+        else:
+            a = np.asarray(img.convert("RGBA") if img.mode not in ("L", "LA", "RGB", "RGBA") else img,
+                           np.float32) / 255.0
+    except (OSError, ValueError, SyntaxError) as e:
+        raise ImageError(f"cannot decode the image ({type(e).__name__}: {e})", where=where) from None
     return to_rgba(a, where)
 
 

@@ -31,6 +31,7 @@ import numpy as np
 import warp as wp
 
 from .background import BackgroundCache
+from .costs import check_frame_costs
 from .cutout import CutoutScene, cutout_data
 from .device import resolve_device
 from .errors import InputError, SceneError
@@ -105,6 +106,8 @@ class Renderer(EnvironmentSetup):
         self._env_sg_arrays = None
         self.env_vis_cache, self.light_vis_cache, self.env_visible_cache = caches()  # (_vertex_visibility)
         t0 = time.perf_counter()
+        check_frame_costs(scene, scene.geometry(), shadows=scene.render.shadows,  # the watchdog, before any work
+                          specular=any(getattr(m.brdf, "is_specular", True) for m in scene.materials.values()))
         with wp.ScopedDevice(self.device):
             self._setup_env_peaks()
             self._setup_geometry()

@@ -91,9 +91,6 @@ from .surface import (  # noqa: F401  (re-exported: slot constants, MaterialText
     N_SLOTS, SLOT_COAT, SLOT_COAT_NORMAL, SLOT_EMISSION, SLOT_KD, SLOT_KS, SLOT_NORMAL, SLOT_OCCLUSION, SLOT_P0,
     SLOT_P1, SLOT_TANGENT, MaterialTextures, apply_shading_maps, tangent_in_plane, textured_material,
 )
-    N_SLOTS, SLOT_KD, SLOT_KS, SLOT_NORMAL, SLOT_P0, SLOT_P1, SLOT_TANGENT, MaterialTextures,
-    apply_shading_maps, tangent_in_plane, textured_material,
-)
 from .ssdf_product import sg_visibility_scale_sigmoid
 from .surface_layers import Layers, coat_setup, emission_at, occlusion_at, vertex_coloured
 
