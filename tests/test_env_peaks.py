@@ -38,7 +38,7 @@ def _sky(h, w, seed=0):
     """A smooth sky (0.2–1) over a darker ground, with a little texture."""
     d = texel_directions(h, w)
     rng = np.random.default_rng(seed)
-    base = np.where(d[..., 1:2] > 0, 0.3 + 0.7 * d[..., 1:2] ** 0.5 * np.array([0.5, 0.7, 1.0]), 0.15)
+    base = np.where(d[..., 1:2] > 0, 0.3 + 0.7 * np.sqrt(np.clip(d[..., 1:2], 0, 1)) * np.array([0.5, 0.7, 1.0]), 0.15)
     return (base * (1 + 0.05 * rng.standard_normal((h, w, 1)))).astype(np.float32)
 
 

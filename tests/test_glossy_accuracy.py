@@ -25,7 +25,7 @@ MATERIALS = {
     "ggx_0.02": {"model": "ggx", "alpha": 0.02, "fresnel": "gold"},
     "ggx_0.2": {"model": "ggx", "alpha": 0.2, "fresnel": "gold"},
     "ggx_0.5": {"model": "ggx", "alpha": 0.5, "fresnel": "gold"},
-    "ggx_1": {"model": "ggx", "alpha": 1.0, "kd": [0.1, 0.1, 0.1]},
+    "ggx_1": {"model": "ggx", "alpha": 1.0, "kd": [0.1, 0.1, 0.1], "ks": [0.9, 0.9, 0.9]},
     "ggx_aniso": {"model": "ggx", "alpha_x": 0.3, "alpha_y": 0.08, "fresnel": "gold"},
     "blinn_phong": {"model": "blinn_phong", "kd": [0.35, 0.25, 0.2], "ks": [0.4, 0.4, 0.4], "n": 50.0},
     "cook_torrance": {"model": "cook_torrance", "kd": [0.2, 0.2, 0.25], "ks": [0.8, 0.8, 0.8], "m": 0.25,
