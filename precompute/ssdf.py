@@ -27,6 +27,7 @@ Then all vertices are compressed with PCA (:mod:`warp_sg.pca`, eq. 24) and cache
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -36,6 +37,7 @@ from warp_sg import cache as _cache
 from warp_sg.device import resolve_device
 from warp_sg.errors import InputError
 from warp_sg.pca import pca
+from warp_sg.stage_clock import StageClock, thread_cpu
 
 from .occluder_cone import occluder_cones
 from .ssdf_wp import texel_directions
@@ -170,12 +172,15 @@ def _check_resolutions(resolution, ray_resolution):
                          f"({resolution})", where="ray_resolution")
 
 
-def _ssdf_batch(ctx, dirs, Rr, R, points, normals, s, e, device, out_vis=None):
+def _ssdf_batch(ctx, dirs, Rr, R, points, normals, s, e, device, out_vis=None, clock=None):
     B = e - s
     N = Rr * Rr
+    w0, c0 = time.perf_counter(), thread_cpu()
     vis = wp.empty((B, N), dtype=wp.uint8, device=device)
     wp.launch(_visibility_kernel, dim=(B, N), device=device,
               inputs=[ctx.mesh.id, points, normals, s, dirs, ctx.offset, ctx.max_t, vis])
+    wp.synchronize_device(device)
+    w1, c1 = time.perf_counter(), thread_cpu()
     a = wp.empty((B, N), dtype=wp.vec3, device=device)
     b = wp.empty((B, N), dtype=wp.vec3, device=device)
     wp.launch(_seed_kernel, dim=(B, N), device=device, inputs=[vis, dirs, Rr, a])
@@ -186,19 +191,26 @@ def _ssdf_batch(ctx, dirs, Rr, R, points, normals, s, e, device, out_vis=None):
     wp.launch(_signed_kernel, dim=(B, N), device=device, inputs=[vis, a, dirs, sd])
     if out_vis is not None:
         out_vis[s:e] = vis.numpy()
-    if Rr == R:
-        return sd.numpy()
-    ds = wp.empty((B, R * R), dtype=float, device=device)
-    wp.launch(_downsample_kernel, dim=(B, R * R), device=device, inputs=[sd, R, Rr // R, ds])
-    return ds.numpy()
+    if Rr != R:
+        ds = wp.empty((B, R * R), dtype=float, device=device)
+        wp.launch(_downsample_kernel, dim=(B, R * R), device=device, inputs=[sd, R, Rr // R, ds])
+        sd = ds
+    out = sd.numpy()
+    if clock is not None:
+        clock.add("rays", w1 - w0, c1 - c0)
+        clock.add("ssdf_fit", time.perf_counter() - w1, thread_cpu() - c1)
+    return out
 
 
 def compute_ssdf(vertices, triangles, normals, *, resolution: int = DEFAULT_RESOLUTION,
                  ray_resolution: int = DEFAULT_RAY_RESOLUTION, device="cpu", vertex_ids=None,
-                 progress: bool = True, batch: int = 256, return_visibility: bool = False):
+                 progress: bool = True, batch: int = 256, return_visibility: bool = False, clock=None):
     """Uncompressed SSDFs ``(n, R, R)`` float32 (radians) of the selected vertices (default all).
 
     With ``return_visibility`` also returns the binary maps ``(n, Rr, Rr)`` uint8 at ray resolution.
+    ``clock`` (:class:`warp_sg.stage_clock.StageClock`): adds the stages ``bvh``, ``rays`` and
+    ``ssdf_fit`` (CPU: the sum over the worker threads; wall: summed per batch too, so over the
+    threads).
     """
     device = resolve_device(device)
     _check_resolutions(resolution, ray_resolution)
@@ -206,7 +218,10 @@ def compute_ssdf(vertices, triangles, normals, *, resolution: int = DEFAULT_RESO
     if n is None:
         raise InputError("compute_ssdf needs per-vertex normals")
     ids = np.arange(len(v)) if vertex_ids is None else np.asarray(vertex_ids, np.int64)
+    w0, c0 = time.perf_counter(), time.process_time()
     ctx = _MeshContext(v, f, n, device)
+    if clock is not None:
+        clock.add("bvh", time.perf_counter() - w0, time.process_time() - c0)
     R, Rr = int(resolution), int(ray_resolution)
     dirs = wp.array(texel_directions(Rr).reshape(-1, 3).astype(np.float32), dtype=wp.vec3, device=device)
     pts = wp.array(v[ids].astype(np.float32), dtype=wp.vec3, device=device)
@@ -216,7 +231,7 @@ def compute_ssdf(vertices, triangles, normals, *, resolution: int = DEFAULT_RESO
         batch = max(batch, int(2 ** 24 // (Rr * Rr)))  # bigger batches on GPUs
     bar = _tqdm(len(ids), "SSDF", progress and len(ids) * Rr * Rr > 1_000_000)
     parts = run_batches(len(ids), batch,
-                        lambda s, e: _ssdf_batch(ctx, dirs, Rr, R, pts, nrm, s, e, device, vis_out),
+                        lambda s, e: _ssdf_batch(ctx, dirs, Rr, R, pts, nrm, s, e, device, vis_out, clock),
                         device, bar)
     if bar is not None:
         bar.close()
@@ -249,6 +264,9 @@ class SSDFData:
     #: (V, 4) per-vertex occluder cones (:func:`precompute.occluder_cone.occluder_cones`); empty:
     #: unknown (no lookup is skipped)
     cones: np.ndarray = field(default_factory=lambda: np.zeros((0, 4), np.float32))
+    #: ``{stage: (wall s, CPU s)}`` of the build (``bvh``, ``rays``, ``ssdf_fit``, ``pca``, ``cones``;
+    #: :class:`warp_sg.stage_clock.StageClock`); empty when the data came from the cache
+    stats: dict = field(default_factory=dict)
 
     @property
     def pca_terms(self) -> int:
@@ -336,16 +354,23 @@ def ssdf_for_mesh(vertices, triangles, normals, *, resolution: int = DEFAULT_RES
     key = _cache.content_key(v.astype(np.float32), f.astype(np.int32), n.astype(np.float32), params)
     compute = compute_ssdf if compute is None else compute
 
+    clock = StageClock()
+
     def build():
-        X = compute(v, f, n, resolution=resolution, ray_resolution=ray_resolution, device=device,
-                    progress=progress).reshape(len(v), -1)
-        p = pca(X, int(pca_terms))
+        kw = {"clock": clock} if compute is compute_ssdf else {}
+        with clock.stage("ssdf_total"):
+            X = compute(v, f, n, resolution=resolution, ray_resolution=ray_resolution, device=device,
+                        progress=progress, **kw).reshape(len(v), -1)
         R = int(resolution)
+        with clock.stage("pca"):
+            p = pca(X, int(pca_terms))
+        with clock.stage("cones"):
+            cones = occluder_cones(X, n, R)
         return {"mean": p.mean.reshape(R, R), "basis": p.basis.reshape(-1, R, R), "weights": p.weights,
-                "pca_rms_error": p.rms_error, "cones": occluder_cones(X, n, R)}
+                "pca_rms_error": p.rms_error, "cones": cones}
 
     data = _cache.load_or_build("ssdf", key, build) if use_cache else build()
     return SSDFData(resolution=int(resolution), mean=data["mean"].astype(np.float32),
                     basis=data["basis"].astype(np.float32), weights=data["weights"].astype(np.float32),
                     ray_resolution=int(ray_resolution), pca_rms_error=np.asarray(data["pca_rms_error"]), key=key,
-                    cones=np.asarray(data["cones"], np.float32))
+                    cones=np.asarray(data["cones"], np.float32), stats=clock.as_dict())

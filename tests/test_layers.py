@@ -35,7 +35,7 @@ LAYER_ORDER = ("base", "math", "scene", "engines", "render", "tools")
 #: match wins (so the bench modules of ``raster``/``precompute`` are tools, the rest engines).
 LAYERS = (
     ("base", ("warp_sg.errors", "warp_sg.device", "warp_sg.atomic", "warp_sg.workers", "warp_sg.meshcheck",
-              "warp_sg.lazy", "warp_sg.image_io", "warp_sg.cache")),
+              "warp_sg.lazy", "warp_sg.image_io", "warp_sg.cache", "warp_sg.stage_clock")),
     ("math", ("warp_sg.fastmath", "warp_sg.sg", "warp_sg.sg_wp", "warp_sg.frames", "warp_sg.clamped_cosine", "warp_sg.fh",
               "warp_sg.sg_irradiance", "warp_sg.ssdf_product", "warp_sg.anisotropy", "warp_sg.pca",
               "warp_sg.brdf", "warp_sg.brdf.*")),
@@ -48,6 +48,7 @@ LAYERS = (
                "warp_sg.bench",
                "warp_sg.peer_mitsuba",
                "warp_sg.bench_scaling",
+               "warp_sg.bench_assets",
                "warp_sg.preview",
                "warp_sg.viewer",
                "warp_sg.viewer_widgets",

@@ -19,7 +19,8 @@ Data flow (DESIGN.md): ``scene → precompute (cached) → raster (visibility bu
 k×k blocks. Changing materials, textures, lights, the environment rotation/scale or the camera
 (the setters below) re-renders without re-running precompute. Per-frame timings (seconds) are in
 ``Renderer.timings``: ``precompute`` (construction; cache hits included), ``raster``, ``shade``,
-``resolve``, ``frame`` (last ``render()``), and ``precompute_parts`` (ssdf, env_fit, env_prefilter).
+``resolve``, ``frame`` (last ``render()``), ``precompute_parts`` (wall seconds of refine, ssdf,
+env_peaks, env_fit, env_prefilter) and ``precompute_cpu`` (their CPU seconds, all threads).
 """
 from __future__ import annotations
 
@@ -97,7 +98,7 @@ class Renderer:
         self._precomputed = precomputed
         self.device = resolve_device(device if device is not None else scene.render.device)
         self.progress = progress
-        self.timings: dict = {"precompute_parts": {}}
+        self.timings: dict = {"precompute_parts": {}, "precompute_cpu": {}}
         self._env_arrays_key = ()  # (see _env_arrays; () = not built yet)
         self._env_sg_arrays = None
         self.env_vis_cache, self.light_vis_cache, self.env_irr_cache = caches()  # (_vertex_visibility)
@@ -114,6 +115,16 @@ class Renderer:
         self._bg = BackgroundCache(self.device)  # what pixels that see no object show
         self._aa = None  # antialiasing's caches between frames (warp_sg.antialias.AntialiasCache)
         self._vb_key = self._vb = self._culling = None
+
+    @staticmethod
+    def _tick():
+        return time.perf_counter(), time.process_time()
+
+    def _tock(self, part: str, t0) -> None:
+        """Record part ``part`` begun at ``t0 = _tick()``: wall seconds in ``precompute_parts``, CPU
+        seconds of the process (all threads) in ``precompute_cpu``."""
+        self.timings["precompute_parts"][part] = time.perf_counter() - t0[0]
+        self.timings["precompute_cpu"][part] = time.process_time() - t0[1]
 
     def precomputed(self) -> dict:
         """The mesh refinement and SSDFs of this renderer (plain numpy data, picklable), for
@@ -144,7 +155,7 @@ class Renderer:
         if self.shadows and rs.visibility_budget > len(g.vertices):
             from precompute.refine import refine_cached
 
-            t = time.perf_counter()
+            t = self._tick()
             pre = self._precomputed
             if pre is not None:
                 if pre.get("refinement") is None or pre.get("refine_key") != _refine_key(g, rs.visibility_budget):
@@ -155,7 +166,7 @@ class Renderer:
                 ref = refine_cached(g.vertices, g.triangles, g.normals, budget=rs.visibility_budget, device=d,
                                     progress=self.progress)
             self._refined = ref
-            self.timings["precompute_parts"]["refine"] = time.perf_counter() - t
+            self._tock("refine", t)
             if len(ref.vertices) > len(g.vertices):
                 self.refinement = ref
                 g = refined_geometry(g, ref)
@@ -184,7 +195,7 @@ class Renderer:
         if self.shadows:
             import precompute
 
-            t = time.perf_counter()
+            t = self._tick()
             pre = self._precomputed
             if pre is not None and pre.get("ssdf") is not None:
                 from precompute.ssdf import ssdf_key
@@ -203,7 +214,7 @@ class Renderer:
             cones = self.ssdf.cones if len(self.ssdf.cones) == len(g.vertices) else no_cones(len(g.vertices))
             vis.cones = wp.array(cones, dtype=wp.vec4, device=d)
             vis.cone_band = texel_half_diagonal(self.ssdf.resolution)
-            self.timings["precompute_parts"]["ssdf"] = time.perf_counter() - t
+            self._tock("ssdf", t)
         else:
             self.ssdf = None
             vis.mean = wp.zeros((2, 2), dtype=float, device=d)
@@ -233,10 +244,10 @@ class Renderer:
 
         base = env.base_radiance()
         self.env_base = base  # what the background shows
-        t = time.perf_counter()
+        t = self._tick()
         self.env_residual, self.env_peaks = extract_peaks(base, max_peaks=rs.env_peaks)
-        self.timings["precompute_parts"]["env_peaks"] = time.perf_counter() - t
-        t = time.perf_counter()
+        self._tock("env_peaks", t)
+        t = self._tick()
         if env.procedural == "constant":
             # a constant map is exactly one SG of vanishing sharpness: no fit needed
             rad = np.asarray(base.reshape(-1, 3)[0], np.float64)
@@ -245,7 +256,7 @@ class Renderer:
         else:
             self._env_sg_base = self._fit_env(self.env_residual, rs.env_lobes)
         self.env_diffuse_mode = S.ENV_SG
-        self.timings["precompute_parts"]["env_fit"] = time.perf_counter() - t
+        self._tock("env_fit", t)
 
     def _ensure_gamma(self):
         """Prefilter the environment (ΓL pyramid, eq. 35) when the scene needs it: a specular
@@ -259,7 +270,7 @@ class Renderer:
 
         rs = self.scene.render
         base = self.env_residual
-        t = time.perf_counter()
+        t = self._tick()
         kw = {}
         if rs.gamma_levels > 0:
             from precompute.prefilter import default_ladder
@@ -269,7 +280,7 @@ class Renderer:
         self.gamma = precompute.prefilter_environment(base, device=self.device, base_face=rs.gamma_resolution,
                                                       progress=self.progress, **kw)
         self.env_specular_mode = S.ENV_PREFILTERED
-        self.timings["precompute_parts"]["env_prefilter"] = time.perf_counter() - t
+        self._tock("env_prefilter", t)
 
     @staticmethod
     def _fit_env(base, n_lobes):
