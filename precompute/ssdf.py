@@ -8,7 +8,11 @@ Per vertex, on the concentric map of the upper hemisphere (:mod:`precompute.ssdf
 with directions below the horizon invisible. Pipeline per batch of vertices, all in Warp kernels
 on the device (:func:`compute_ssdf`):
 
-1. binary visibility at ``ray_resolution²`` texels by BVH ray casts (:mod:`precompute.visibility`);
+1. binary visibility at ``ray_resolution²`` texels by BVH ray casts (:mod:`precompute.visibility`):
+   coarse first and refined where the visibility changes (:mod:`precompute.adaptive_rays`, the
+   default ``rays = "adaptive"``: about a third of the rays), or one ray per texel (``"full"``);
+   a vertex whose map is uniform (all visible or all blocked) skips steps 2–4 (its SSDF is one of
+   two fixed maps);
 2. **boundary seeds**: every pair of 4-neighbour texels with different visibility contributes the
    boundary point ``normalize(d_a + d_b)`` (midpoint on the sphere); each texel keeps its nearest;
 3. **jump flooding** (Rong & Tan 2006) on the concentric grid with the angular metric: passes with
@@ -39,6 +43,7 @@ from warp_sg.errors import InputError
 from warp_sg.pca import pca
 from warp_sg.stage_clock import StageClock, thread_cpu
 
+from .adaptive_rays import adaptive_visibility, levels
 from .occluder_cone import occluder_cones
 from .ssdf_wp import texel_directions
 from .visibility import OFFSET_SCALE, _MeshContext, _tqdm, _visibility_kernel, run_batches, validate_mesh
@@ -47,10 +52,16 @@ from .visibility import OFFSET_SCALE, _MeshContext, _tqdm, _visibility_kernel, r
 DEFAULT_RESOLUTION = 32
 DEFAULT_RAY_RESOLUTION = 64
 DEFAULT_PCA_TERMS = 24
+#: how the binary visibility maps are cast: coarse first and refined where the visibility changes
+#: (:mod:`precompute.adaptive_rays`), or one ray per texel
+RAYS = ("adaptive", "full")
+DEFAULT_RAYS = "adaptive"
 
 _HALF_PI = wp.constant(0.5 * math.pi)
 #: Cache format of the "ssdf" kind; bump when the SSDF definition changes.
 SSDF_VERSION = 2  # 2: per-vertex occluder cones (precompute.occluder_cone)
+#: version of the adaptive ray schedule (precompute.adaptive_rays), part of the cache key
+ADAPTIVE_VERSION = 1
 
 
 # ---------------------------------------------------------------------------------------------
@@ -164,6 +175,13 @@ def _jfa_steps(R: int) -> list[int]:
 # per-vertex SSDFs
 # ---------------------------------------------------------------------------------------------
 
+def _check_rays(rays):
+    rays = DEFAULT_RAYS if rays is None else rays
+    if rays not in RAYS:
+        raise InputError(f"rays must be one of {', '.join(RAYS)}, got {rays!r}", where="rays")
+    return rays
+
+
 def _check_resolutions(resolution, ray_resolution):
     if int(resolution) != resolution or resolution < 2:
         raise InputError(f"SSDF resolution must be an integer >= 2, got {resolution}", where="ssdf_resolution")
@@ -172,15 +190,9 @@ def _check_resolutions(resolution, ray_resolution):
                          f"({resolution})", where="ray_resolution")
 
 
-def _ssdf_batch(ctx, dirs, Rr, R, points, normals, s, e, device, out_vis=None, clock=None):
-    B = e - s
-    N = Rr * Rr
-    w0, c0 = time.perf_counter(), thread_cpu()
-    vis = wp.empty((B, N), dtype=wp.uint8, device=device)
-    wp.launch(_visibility_kernel, dim=(B, N), device=device,
-              inputs=[ctx.mesh.id, points, normals, s, dirs, ctx.offset, ctx.max_t, vis])
-    wp.synchronize_device(device)
-    w1, c1 = time.perf_counter(), thread_cpu()
+def _fit_maps(vis, dirs, Rr, R, device):
+    """(B, R²) SSDFs of the (B, Rr²) visibility maps ``vis`` (steps 2–5 of the module docstring)."""
+    B, N = int(vis.shape[0]), Rr * Rr
     a = wp.empty((B, N), dtype=wp.vec3, device=device)
     b = wp.empty((B, N), dtype=wp.vec3, device=device)
     wp.launch(_seed_kernel, dim=(B, N), device=device, inputs=[vis, dirs, Rr, a])
@@ -189,31 +201,81 @@ def _ssdf_batch(ctx, dirs, Rr, R, points, normals, s, e, device, out_vis=None, c
         a, b = b, a
     sd = wp.empty((B, N), dtype=float, device=device)
     wp.launch(_signed_kernel, dim=(B, N), device=device, inputs=[vis, a, dirs, sd])
-    if out_vis is not None:
-        out_vis[s:e] = vis.numpy()
     if Rr != R:
         ds = wp.empty((B, R * R), dtype=float, device=device)
         wp.launch(_downsample_kernel, dim=(B, R * R), device=device, inputs=[sd, R, Rr // R, ds])
         sd = ds
-    out = sd.numpy()
+    return sd.numpy()
+
+
+_UNIFORM: dict = {}
+
+
+def _uniform_maps(dirs, Rr, R, device):
+    """The SSDFs of an all-occluded and an all-visible map (rows 0 and 1), through the same kernels:
+    a vertex with uniform visibility has no boundary to search for (−π/2, resp. its horizon bound)."""
+    key = (Rr, R, str(device))
+    if key not in _UNIFORM:
+        vis = wp.array(np.stack([np.zeros(Rr * Rr, np.uint8), np.ones(Rr * Rr, np.uint8)]), dtype=wp.uint8,
+                       device=device)
+        _UNIFORM[key] = _fit_maps(vis, dirs, Rr, R, device)
+    return _UNIFORM[key]
+
+
+def _ssdf_batch(ctx, dirs, Rr, R, points, normals, s, e, device, out_vis=None, clock=None, rays=None, adaptive=None):
+    """SSDFs ``(e − s, R²)`` of vertices ``s..e−1`` of ``points``/``normals``: binary visibility
+    (``rays = "adaptive"``: :mod:`precompute.adaptive_rays`; ``"full"``: a ray per texel), then the
+    distance search (skipped for vertices whose map is uniform: their SSDF is one of two fixed maps)."""
+    rays = DEFAULT_RAYS if rays is None else rays
+    B = e - s
+    N = Rr * Rr
+    w0, c0 = time.perf_counter(), thread_cpu()
+    if rays == "adaptive" and len(levels(Rr)) > 1:
+        vis, n_rays = adaptive_visibility(ctx, dirs, Rr, points, normals, s, B, device, **(adaptive or {}))
+    else:
+        vis = wp.empty((B, N), dtype=wp.uint8, device=device)
+        wp.launch(_visibility_kernel, dim=(B, N), device=device,
+                  inputs=[ctx.mesh.id, points, normals, s, dirs, ctx.offset, ctx.max_t, vis])
+        n_rays = B * N
+    vn = vis.numpy()
+    w1, c1 = time.perf_counter(), thread_cpu()
+    if out_vis is not None:
+        out_vis[s:e] = vn
+    lo, hi = vn.min(axis=1), vn.max(axis=1)
+    mixed = np.flatnonzero(lo != hi)
+    if len(mixed) == B or not wp.get_device(device).is_cpu:
+        out = _fit_maps(vis, dirs, Rr, R, device)
+    else:
+        out = np.empty((B, R * R), np.float32)
+        out[:] = _uniform_maps(dirs, Rr, R, device)[np.minimum(lo, 1).astype(np.int64)]
+        if len(mixed):
+            out[mixed] = _fit_maps(wp.array(vn[mixed], dtype=wp.uint8, device=device), dirs, Rr, R, device)
     if clock is not None:
         clock.add("rays", w1 - w0, c1 - c0)
         clock.add("ssdf_fit", time.perf_counter() - w1, thread_cpu() - c1)
+        clock.count("rays_cast", n_rays)
+        clock.count("uniform_vertices", B - len(mixed))
     return out
 
 
 def compute_ssdf(vertices, triangles, normals, *, resolution: int = DEFAULT_RESOLUTION,
                  ray_resolution: int = DEFAULT_RAY_RESOLUTION, device="cpu", vertex_ids=None,
-                 progress: bool = True, batch: int = 256, return_visibility: bool = False, clock=None):
+                 progress: bool = True, batch: int = 256, return_visibility: bool = False, clock=None,
+                 rays: str = None, adaptive: dict | None = None):
     """Uncompressed SSDFs ``(n, R, R)`` float32 (radians) of the selected vertices (default all).
 
     With ``return_visibility`` also returns the binary maps ``(n, Rr, Rr)`` uint8 at ray resolution.
+    ``rays``: ``"adaptive"`` (default, :data:`DEFAULT_RAYS`; :mod:`precompute.adaptive_rays`) or
+    ``"full"`` (a ray per texel, the reference the adaptive maps are measured against);
+    ``adaptive``: keyword arguments of :func:`precompute.adaptive_rays.adaptive_visibility`
+    (``coarse_factor``, ``depth_ratio``: the ray budget; ``ssdf_for_mesh`` uses the defaults).
     ``clock`` (:class:`warp_sg.stage_clock.StageClock`): adds the stages ``bvh``, ``rays`` and
     ``ssdf_fit`` (CPU: the sum over the worker threads; wall: summed per batch too, so over the
-    threads).
+    threads) and the counts ``rays_cast`` and ``uniform_vertices``.
     """
     device = resolve_device(device)
     _check_resolutions(resolution, ray_resolution)
+    rays = _check_rays(rays)
     v, f, n = validate_mesh(vertices, triangles, normals)
     if n is None:
         raise InputError("compute_ssdf needs per-vertex normals")
@@ -231,7 +293,8 @@ def compute_ssdf(vertices, triangles, normals, *, resolution: int = DEFAULT_RESO
         batch = max(batch, int(2 ** 24 // (Rr * Rr)))  # bigger batches on GPUs
     bar = _tqdm(len(ids), "SSDF", progress and len(ids) * Rr * Rr > 1_000_000)
     parts = run_batches(len(ids), batch,
-                        lambda s, e: _ssdf_batch(ctx, dirs, Rr, R, pts, nrm, s, e, device, vis_out, clock),
+                        lambda s, e: _ssdf_batch(ctx, dirs, Rr, R, pts, nrm, s, e, device, vis_out, clock, rays,
+                                                  adaptive),
                         device, bar)
     if bar is not None:
         bar.close()
@@ -265,7 +328,8 @@ class SSDFData:
     #: unknown (no lookup is skipped)
     cones: np.ndarray = field(default_factory=lambda: np.zeros((0, 4), np.float32))
     #: ``{stage: (wall s, CPU s)}`` of the build (``bvh``, ``rays``, ``ssdf_fit``, ``pca``, ``cones``;
-    #: :class:`warp_sg.stage_clock.StageClock`); empty when the data came from the cache
+    #: :class:`warp_sg.stage_clock.StageClock`) and counts (``rays_cast``, ``uniform_vertices``: ints);
+    #: empty when the data came from the cache
     stats: dict = field(default_factory=dict)
 
     @property
@@ -314,20 +378,24 @@ def decompress_budget() -> int:
     return max(int(mb * (1 << 20)), 0)
 
 
-def _ssdf_params(resolution, ray_resolution, pca_terms):
+def _ssdf_params(resolution, ray_resolution, pca_terms, rays=None):
     if ray_resolution is None:
         ray_resolution = 2 * int(resolution)
     _check_resolutions(resolution, ray_resolution)
     if int(pca_terms) != pca_terms or pca_terms < 1:
         raise InputError(f"pca_terms must be a positive integer, got {pca_terms}", where="pca_terms")
+    rays = _check_rays(rays)
+    if rays == "adaptive" and len(levels(int(ray_resolution))) == 1:
+        rays = "full"  # no coarse level at this ray resolution: the same maps
     return {"kind": "ssdf", "version": SSDF_VERSION, "resolution": int(resolution),
-            "ray_resolution": int(ray_resolution), "pca_terms": int(pca_terms), "offset": OFFSET_SCALE}
+            "ray_resolution": int(ray_resolution), "pca_terms": int(pca_terms), "offset": OFFSET_SCALE,
+            "rays": rays if rays == "full" else f"adaptive-{ADAPTIVE_VERSION}"}
 
 
 def ssdf_key(vertices, triangles, normals, *, resolution: int = DEFAULT_RESOLUTION, ray_resolution: int | None = None,
-             pca_terms: int = DEFAULT_PCA_TERMS) -> str:
+             pca_terms: int = DEFAULT_PCA_TERMS, rays: str | None = None) -> str:
     """The cache key of :func:`ssdf_for_mesh` for these arguments (a content hash; no SSDF is computed)."""
-    params = _ssdf_params(resolution, ray_resolution, pca_terms)
+    params = _ssdf_params(resolution, ray_resolution, pca_terms, rays)
     v, f, n = validate_mesh(vertices, triangles, normals)
     if n is None:
         raise InputError("ssdf_for_mesh needs per-vertex normals")
@@ -336,7 +404,8 @@ def ssdf_key(vertices, triangles, normals, *, resolution: int = DEFAULT_RESOLUTI
 
 def ssdf_for_mesh(vertices, triangles, normals, *, resolution: int = DEFAULT_RESOLUTION,
                   ray_resolution: int | None = None, pca_terms: int = DEFAULT_PCA_TERMS,
-                  device="cpu", progress: bool = True, use_cache: bool = True, compute=None) -> SSDFData:
+                  device="cpu", progress: bool = True, use_cache: bool = True, compute=None,
+                  rays: str | None = None) -> SSDFData:
     """Per-vertex SSDFs of a (merged) mesh, PCA-compressed (eq. 23–24), cached on disk.
 
     ``ray_resolution`` defaults to ``2 × resolution`` (paper: 4×, 512 → 128). The cache key is a
@@ -344,9 +413,11 @@ def ssdf_for_mesh(vertices, triangles, normals, *, resolution: int = DEFAULT_RES
     ``compute``). ``compute`` replaces :func:`compute_ssdf` (same keyword arguments: ``resolution``,
     ``ray_resolution``, ``device``, ``progress``), e.g. the Dask version of
     :mod:`warp_sg.distributed_precompute`; it must return the same per-vertex SSDFs, so a
-    distributed result and a local one are the same cache entry. PCA and the cache write run here.
+    distributed result and a local one are the same cache entry; it casts the default ``rays``
+    (:data:`DEFAULT_RAYS`). PCA and the cache write run here. ``stats`` of the result: the build's
+    stages and counts (:meth:`compute_ssdf`'s ``clock``; empty on a cache hit).
     """
-    params = _ssdf_params(resolution, ray_resolution, pca_terms)
+    params = _ssdf_params(resolution, ray_resolution, pca_terms, rays)
     ray_resolution = params["ray_resolution"]
     v, f, n = validate_mesh(vertices, triangles, normals)
     if n is None:
@@ -357,7 +428,9 @@ def ssdf_for_mesh(vertices, triangles, normals, *, resolution: int = DEFAULT_RES
     clock = StageClock()
 
     def build():
-        kw = {"clock": clock} if compute is compute_ssdf else {}
+        kw = {"clock": clock, "rays": rays} if compute is compute_ssdf else {}
+        if compute is not compute_ssdf and _check_rays(rays) != DEFAULT_RAYS:
+            raise InputError(f"rays={rays!r} needs the local compute_ssdf", where="rays")
         with clock.stage("ssdf_total"):
             X = compute(v, f, n, resolution=resolution, ray_resolution=ray_resolution, device=device,
                         progress=progress, **kw).reshape(len(v), -1)
@@ -373,4 +446,4 @@ def ssdf_for_mesh(vertices, triangles, normals, *, resolution: int = DEFAULT_RES
     return SSDFData(resolution=int(resolution), mean=data["mean"].astype(np.float32),
                     basis=data["basis"].astype(np.float32), weights=data["weights"].astype(np.float32),
                     ray_resolution=int(ray_resolution), pca_rms_error=np.asarray(data["pca_rms_error"]), key=key,
-                    cones=np.asarray(data["cones"], np.float32), stats=clock.as_dict())
+                    cones=np.asarray(data["cones"], np.float32), stats={**clock.as_dict(), **clock.counts})

@@ -90,10 +90,13 @@ def main(argv=None) -> int:
         pre_wall, pre_cpu = time.perf_counter() - w0, time.process_time() - c0
         for k, w in r.timings["precompute_parts"].items():
             clock.add(k, w, r.timings["precompute_cpu"].get(k, 0.0))
+        counts = {}
         if r.ssdf is not None:
-            for k, (w, c) in r.ssdf.stats.items():
-                if k != "ssdf_total":
-                    clock.add("  ssdf." + k, w, c)
+            for k, v in r.ssdf.stats.items():
+                if isinstance(v, tuple) and k != "ssdf_total":
+                    clock.add("  ssdf." + k, *v)
+                elif not isinstance(v, tuple):
+                    counts[k] = v
         with clock.stage("first frame"):
             r.render()
         with clock.stage("warm frame"):
@@ -107,6 +110,9 @@ def main(argv=None) -> int:
     print(f"asset {Path(asset).name}: {len(geo.triangles)} triangles, {len(geo.vertices)} vertices; "
           f"{nv} after refinement; {a.size[0]}x{a.size[1]}; load average {load0:.2f} -> {load_average():.2f} "
           f"on {os.cpu_count()} cores; kernels {'fresh' if a.fresh_kernels else 'cached'}")
+    if counts.get("rays_cast"):
+        print(f"rays cast: {counts['rays_cast'] / nv:.0f} per SSDF vertex; uniform-visibility vertices: "
+              f"{counts.get('uniform_vertices', 0)}")
     print("| stage | wall (s) | CPU (s) |\n|---|---:|---:|")
     for k, (w, c) in stages.items():
         print(f"| {k} | {w:.2f} | {c:.2f} |")
@@ -117,7 +123,7 @@ def main(argv=None) -> int:
         Path(a.json).write_text(json.dumps({"asset": Path(asset).name, "triangles": int(len(geo.triangles)),
                                             "vertices": int(nv), "stages": stages, "precompute": [pre_wall, pre_cpu],
                                             "kernels_s": tee.ms / 1000, "total": [total_wall, total_cpu],
-                                            "load": [load0, load_average()]}, indent=1))
+                                            "load": [load0, load_average()], "counts": counts}, indent=1))
     return 0
 
 

@@ -40,6 +40,7 @@ class StageClock:
     def __init__(self):
         self.wall: dict[str, float] = {}
         self.cpu: dict[str, float] = {}
+        self.counts: dict[str, int] = {}
         self._lock = threading.Lock()
 
     @contextmanager
@@ -56,6 +57,11 @@ class StageClock:
         with self._lock:
             self.wall[name] = self.wall.get(name, 0.0) + float(wall)
             self.cpu[name] = self.cpu.get(name, 0.0) + float(cpu)
+
+    def count(self, name: str, n: int) -> None:
+        """Add ``n`` to counter ``name`` (rays cast, vertices skipped; thread-safe)."""
+        with self._lock:
+            self.counts[name] = self.counts.get(name, 0) + int(n)
 
     def merge(self, other: dict | None, prefix: str = "") -> None:
         """Add the stages of another clock's :meth:`as_dict` (names prefixed)."""
