@@ -63,7 +63,7 @@ LAYERS = (
     # kernels and the reference kernel (it reads the scene's textures, so it cannot sit lower)
     ("engines", ("raster", "raster.*", "precompute", "precompute.*", "warp_sg.surface", "warp_sg.shading",
                  "warp_sg.vertex_visibility", "warp_sg.silhouette", "warp_sg.background")),
-    ("render", ("warp_sg.render", "warp_sg.antialias", "warp_sg.reference", "warp_sg.reference_wp",
+    ("render", ("warp_sg.render", "warp_sg.progressive", "warp_sg.visibility_setup", "warp_sg.antialias", "warp_sg.reference", "warp_sg.reference_wp",
                 "warp_sg.sampling", "warp_sg.regions")),
 )
 

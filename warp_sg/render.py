@@ -35,18 +35,13 @@ from .background import BackgroundCache
 from .device import resolve_device
 from .errors import InputError, SceneError
 from .lights import DirectionalLight, EnvironmentLight, PointLight, light_arrays
-from .geometry import refined_geometry
 from .scene import COLOUR_PARAMS, Geometry, Material, Scene
 from .surface import material_texture_slots
 from . import shading as S
 from .textures import Texture, build_atlas
+from .progressive import ShadowJob
 from .vertex_visibility import caches
-
-
-def _refine_key(g: Geometry, budget: int) -> str:
-    from .cache import content_key
-
-    return content_key(np.asarray(g.vertices), np.asarray(g.triangles), np.asarray(g.normals), {"budget": int(budget)})
+from .visibility_setup import refine_key, visibility_arrays
 
 
 class _TermMask:
@@ -81,7 +76,10 @@ class Renderer:
     version, :mod:`warp_sg.distributed_precompute`). ``precomputed``: :meth:`precomputed` of a
     renderer of a scene with the same geometry and visibility settings (refinement and SSDFs are
     reused instead of recomputed; a mismatch is an :class:`InputError`): how batch workers share
-    one precompute.
+    one precompute. ``progressive``: the mesh refinement and SSDFs run on a background thread
+    (:mod:`warp_sg.progressive`); frames are unshadowed (those of ``[render] shadows = false``)
+    until they are installed (:meth:`poll`, called by :meth:`render`; :meth:`wait`;
+    :attr:`shadows_pending`), then equal to a non-progressive renderer's, bit for bit.
     """
 
     #: terms of eq. 36 shown (:meth:`set_terms`; the viewer's check boxes)
@@ -90,7 +88,7 @@ class Renderer:
     show_shadows = True
 
     def __init__(self, scene: Scene, device: str | None = None, progress: bool = False, *, ssdf_compute=None,
-                 precomputed: dict | None = None):
+                 precomputed: dict | None = None, progressive: bool = False):
         if not isinstance(scene, Scene):
             raise InputError(f"expected a warp_sg.Scene, got {type(scene).__name__}", where="scene")
         self.scene = scene
@@ -98,6 +96,8 @@ class Renderer:
         self._precomputed = precomputed
         self.device = resolve_device(device if device is not None else scene.render.device)
         self.progress = progress
+        self.progressive = bool(progressive)
+        self._job = None  # the background shadow precompute (progressive)
         self.timings: dict = {"precompute_parts": {}, "precompute_cpu": {}}
         self._env_arrays_key = ()  # (see _env_arrays; () = not built yet)
         self._env_sg_arrays = None
@@ -105,7 +105,6 @@ class Renderer:
         t0 = time.perf_counter()
         with wp.ScopedDevice(self.device):
             self._setup_geometry()
-            self._setup_visibility()
             self._setup_materials()
             self._setup_environment()
             self._ensure_gamma()
@@ -130,9 +129,10 @@ class Renderer:
         """The mesh refinement and SSDFs of this renderer (plain numpy data, picklable), for
         ``Renderer(scene', precomputed=...)`` of a scene with the same geometry and visibility
         settings (camera, materials, lights and environment may differ)."""
+        self.wait()
         g = self.input_geometry
         budget = self.scene.render.visibility_budget
-        return {"refine_key": _refine_key(g, budget) if self._refined is not None else None,
+        return {"refine_key": refine_key(g, budget) if self._refined is not None else None,
                 "refinement": self._refined, "ssdf": self.ssdf}
 
     # ------------------------------------------------------------------ setup
@@ -140,37 +140,31 @@ class Renderer:
         """The scene's flattened mesh; with shadows, refined where the visibility changes
         (``precompute.refine_for_visibility``, ``[render] visibility_budget`` vertices at most) so
         the per-vertex SSDFs do not depend on how the user tessellated (a floor exported as two
-        triangles still gets its shadows). Raster, SSDF precompute and shading use the refined mesh."""
+        triangles still gets its shadows), and its SSDFs (:mod:`warp_sg.visibility_setup`). Raster,
+        SSDF precompute and shading use the refined mesh. ``progressive``: the refinement and SSDFs
+        are computed on a background thread (:mod:`warp_sg.progressive`) and installed by
+        :meth:`poll`; until then the input mesh is shaded without shadows."""
+        from .visibility_setup import compute_visibility, needs_shadows
+
         g = self.scene.geometry()
-        rs = self.scene.render
-        d = self.device
-        self.shadows = False
-        if rs.shadows:
-            import precompute
-
-            self.shadows = bool(precompute.needs_visibility(g.vertices, g.triangles, shadows=True))
         self.input_geometry = g
-        self.refinement = None
+        self.shadows = False
+        self.ssdf = None
         self._refined = None
-        if self.shadows and rs.visibility_budget > len(g.vertices):
-            from precompute.refine import refine_cached
+        self._install_geometry(g, None)
+        if not needs_shadows(self.scene, g):
+            return
+        args = (self.scene, g, self.device)
+        kw = {"progress": self.progress, "compute": self._ssdf_compute, "precomputed": self._precomputed}
+        if self.progressive:
+            self._job = ShadowJob(lambda: compute_visibility(*args, **kw))
+        else:
+            self._install_shadows(compute_visibility(*args, **kw))
 
-            t = self._tick()
-            pre = self._precomputed
-            if pre is not None:
-                if pre.get("refinement") is None or pre.get("refine_key") != _refine_key(g, rs.visibility_budget):
-                    raise InputError("precomputed data is for a different mesh or visibility_budget",
-                                     where="precomputed")
-                ref = pre["refinement"]
-            else:
-                ref = refine_cached(g.vertices, g.triangles, g.normals, budget=rs.visibility_budget, device=d,
-                                    progress=self.progress)
-            self._refined = ref
-            self._tock("refine", t)
-            if len(ref.vertices) > len(g.vertices):
-                self.refinement = ref
-                g = refined_geometry(g, ref)
+    def _install_geometry(self, g, ref):
+        self.refinement = ref if ref is not None and len(ref.vertices) > len(self.input_geometry.vertices) else None
         self.geometry = g
+        d = self.device
         ga = S.GeometryArrays()
         ga.positions = wp.array(g.vertices, dtype=wp.vec3, device=d)
         ga.normals = wp.array(g.normals, dtype=wp.vec3, device=d)
@@ -180,50 +174,57 @@ class Renderer:
         ga.tri_material = wp.array(g.tri_material, dtype=int, device=d)
         self.geo_arrays = ga
         self._tri_object = wp.array(np.asarray(g.tri_object, np.int32), dtype=int, device=d)
+        self.vis = visibility_arrays(None, ga.normals, len(g.vertices), d)
 
-    def _setup_visibility(self):
-        rs = self.scene.render
-        g = self.geometry
-        d = self.device
-        vis = S.Visibility()
-        from precompute.occluder_cone import no_cones, texel_half_diagonal
+    def _install_shadows(self, result):
+        """Install :func:`warp_sg.visibility_setup.compute_visibility`'s result: the refined mesh,
+        its SSDFs and the shading visibility."""
+        ref, g, ssdf, parts = result
+        for name, (w, c) in parts.items():
+            self.timings["precompute_parts"][name] = w
+            self.timings["precompute_cpu"][name] = c
+        self._refined = ref
+        self._install_geometry(g, ref)
+        self.shadows = True
+        self.ssdf = ssdf
+        self.vis = visibility_arrays(ssdf, self.geo_arrays.normals, len(g.vertices), self.device)
 
-        from .fh import fh_table_array
+    @property
+    def shadows_pending(self) -> bool:
+        """A progressive renderer whose SSDFs are not installed yet (:meth:`poll`)."""
+        return self._job is not None
 
-        vis.fh_table = fh_table_array(d)
-        vis.normals = self.geo_arrays.normals
-        if self.shadows:
-            import precompute
+    def shadows_ready(self) -> bool:
+        """Whether nothing is left to wait for: no background precompute, or one that has finished
+        (installed by the next :meth:`poll`)."""
+        return self._job is None or self._job.done()
 
-            t = self._tick()
-            pre = self._precomputed
-            if pre is not None and pre.get("ssdf") is not None:
-                from precompute.ssdf import ssdf_key
+    def poll(self) -> bool:
+        """Install the background shadow precompute's result if it has finished (``progressive``):
+        True when this call switched the renderer to shadowed frames. Never waits; an error of
+        the precompute is raised here. ``render()`` calls it first."""
+        job = self._job
+        if job is None or not job.done():
+            return False
+        self._job = None
+        result = job.result()
+        with wp.ScopedDevice(self.device):
+            self._install_shadows(result)
+            self._setup_materials()
+        self.timings["shadows_ready"] = job.seconds
+        self.env_vis_cache, self.light_vis_cache, self.env_irr_cache = caches()
+        self._aa = None
+        self._vb_key = self._vb = self._culling = None
+        return True
 
-                self.ssdf = pre["ssdf"]
-                want = ssdf_key(g.vertices, g.triangles, g.normals, resolution=rs.ssdf_resolution,
-                                ray_resolution=self.ssdf.ray_resolution, pca_terms=rs.pca_terms)
-                if want != self.ssdf.key:
-                    raise InputError("precomputed SSDFs are for a different mesh or SSDF settings",
-                                     where="precomputed")
-            else:
-                self.ssdf = precompute.ssdf_for_mesh(g.vertices, g.triangles, g.normals,
-                                                     resolution=rs.ssdf_resolution, pca_terms=rs.pca_terms, device=d,
-                                                     progress=self.progress, compute=self._ssdf_compute)
-            vis.mean, vis.basis, vis.weights = self.ssdf.device_arrays(d, precompute.ssdf.decompress_budget())
-            cones = self.ssdf.cones if len(self.ssdf.cones) == len(g.vertices) else no_cones(len(g.vertices))
-            vis.cones = wp.array(cones, dtype=wp.vec4, device=d)
-            vis.cone_band = texel_half_diagonal(self.ssdf.resolution)
-            self._tock("ssdf", t)
-        else:
-            self.ssdf = None
-            vis.mean = wp.zeros((2, 2), dtype=float, device=d)
-            vis.basis = wp.zeros((2, 2, 0), dtype=float, device=d)
-            vis.weights = wp.zeros((1, 1), dtype=float, device=d)
-            vis.cones = wp.array(no_cones(1), dtype=wp.vec4, device=d)
-            vis.cone_band = 1.0
-        vis.light_deficit = wp.zeros((1, 1), dtype=float, device=d)
-        self.vis = vis
+    def wait(self, timeout: float | None = None) -> bool:
+        """Block until the shadows are installed (``progressive``; at most ``timeout`` seconds):
+        whether they are. A renderer built without ``progressive`` has them already."""
+        job = self._job
+        if job is not None and not job.wait(timeout):
+            return False
+        self.poll()
+        return True
 
     def _setup_environment(self):
         """Environment: sharp peaks (a sun) become directional lights (``precompute.env_peaks``,
@@ -519,7 +520,9 @@ class Renderer:
         object at similar depth is shaded once (at its centre), an edge pixel once per triangle its
         sub-pixels see, weighted by coverage, a contrasting one at 4 probes and, where they
         disagree, at every sub-pixel (:mod:`warp_sg.antialias`) — antialiased silhouettes at a
-        fraction of the cost of shading every sub-pixel."""
+        fraction of the cost of shading every sub-pixel. A ``progressive`` renderer first installs
+        its shadows if they have become ready (:meth:`poll`)."""
+        self.poll()
         rs = self.scene.render
         if rs.supersampling == 1 and rs.antialias > 1:
             return self._render_adaptive(int(rs.antialias))
@@ -585,6 +588,7 @@ class Renderer:
         (used by the pyvista preview). Unreferenced vertices get 0."""
         from .geometry import vertex_samples
 
+        self.poll()
         d, nv = self.device, len(self.geometry.vertices)
         owner, bary = vertex_samples(self.geometry.triangles, nv)
         tri_id = wp.array(owner.reshape(1, nv), dtype=int, device=d)
