@@ -96,3 +96,30 @@ def test_region_errors_give_bias_per_channel_and_count_pixels_off_by_three_times
     assert e["bias"] == pytest.approx(0.88)  # the worst channel (red)
     assert e["off3"] == pytest.approx(1 / 5)
     np.testing.assert_allclose(e["rel_mse"], np.sum((img[m] - 1) ** 2) / 15)
+
+
+def test_reused_precompute_gives_the_rows_of_a_fresh_cache_per_setting(tmp_path, cache_dir):
+    """The sweep's settings share one cache (each stage built once per distinct input): the
+    images, hence the error columns, are those of the slow path that rebuilds everything per
+    setting, and every row still counts a whole precompute (what it reused at its build time)."""
+    from warp_sg.bench import bench_scene
+    from warp_sg.cache import record_builds
+
+    sc = bench_scene(12, 9, quick=True)
+    knobs = ["ssdf_resolution", "pca_terms", "env_lobes", "lobes"]
+    kw = dict(quick=True, truth_spp=16, mc_max_spp=2, knobs=knobs, progress=False, frames=1)
+    with record_builds() as ledger:
+        fast = run_report(sc, tmp_path / "fast", **kw).rows
+    slow = run_report(sc, tmp_path / "slow", reuse=False, **kw).rows
+    assert [(r["knob"], r["value"]) for r in fast] == [(r["knob"], r["value"]) for r in slow]
+    for a, b in zip(fast, slow):
+        for k in ("rel_mse", "psnr_db", "max_err"):
+            assert a[k] == b[k], (a["knob"], a["value"], k)
+    sweep = [r for r in fast if r["knob"] != "mc_reference"]
+    assert all(r["precompute_s"] > 0 for r in sweep)
+    # one SSDF build per SSDF resolution, PCA per term count; one environment fit per lobe count
+    builds = [k for k, _, built in ledger.events if built]
+    # default (16², 8 terms) also stands for ssdf_resolution 16; then 32², 4 terms, 16 terms
+    assert builds.count("ssdf") == 4
+    assert builds.count("ssdf_raw") == 2  # rays and distance search at 16² and 32² only
+    assert builds.count("env_sg_fit") == 3  # 4 (default), 2 and 6 lobes

@@ -87,3 +87,40 @@ def textured_helmet(path, triangles: int = 16000) -> Path:
 
 
 __all__ = ["textured_helmet"]
+
+
+def lumpy_mesh(triangles: int = 12000):
+    """A closed, non-convex, bunny-sized lump of about ``triangles`` triangles (a UV sphere with
+    three bulges and a fold, about 1 unit across, standing on y = 0): it shadows itself and the floor."""
+    import trimesh
+
+    cells = max(triangles / 4.0, 64)
+    cols = int(round(math.sqrt(2 * cells)))
+    rows = max(int(round(cells / cols)), 8)
+    m = trimesh.creation.uv_sphere(radius=1.0, count=[rows, cols])
+    d = m.vertices / np.linalg.norm(m.vertices, axis=1, keepdims=True)
+    r = (1.0 + 0.35 * np.exp(-8 * np.sum((d - [0.55, 0.75, 0.3]) ** 2, 1))
+         + 0.30 * np.exp(-8 * np.sum((d - [-0.5, 0.8, 0.2]) ** 2, 1))
+         + 0.25 * np.exp(-6 * np.sum((d - [0.0, -0.2, -0.95]) ** 2, 1))
+         - 0.18 * np.exp(-10 * np.sum((d - [0.0, 0.35, 0.95]) ** 2, 1)))
+    v = d * r[:, None] * np.array([0.45, 0.4, 0.35])
+    v[:, 1] -= v[:, 1].min()
+    return trimesh.Trimesh(vertices=v, faces=m.faces, process=False)
+
+
+def write_report_scene(folder, triangles: int = 12000, size: int = 160) -> Path:
+    """The error-vs-run-time report's benchmark scene (docs/benchmarks.md): :func:`lumpy_mesh` on
+    a two-triangle floor under the plain-input sun-sky EXR (:func:`warp_sg.plain_scenes.write_plain_scene`),
+    ``size × size`` pixels. Returns the scene file."""
+    from .plain_scenes import write_plain_scene
+
+    folder = Path(folder)
+    scene = write_plain_scene(folder, obj="blob", light="sky", material="cook_torrance", size=size)
+    lumpy_mesh(triangles).export(folder / "blob.obj")
+    text = scene.read_text().replace("scale = 0.45", "scale = 1.0").replace("translate = [0.0, 0.5, 0.0]",
+                                                                             "translate = [0.0, 0.0, 0.0]")
+    scene.write_text(text)
+    return scene
+
+
+__all__ += ["lumpy_mesh", "write_report_scene"]

@@ -39,28 +39,11 @@ from .scene import COLOUR_PARAMS, Geometry, Material, Scene
 from .surface import material_texture_slots
 from . import shading as S
 from .textures import Texture, build_atlas
+from .brdf.term_mask import TermMask
 from .progressive import ShadowJob
 from .vertex_visibility import caches
+from .lobe_extent import gamma_reach
 from .visibility_setup import refine_key, visibility_arrays
-
-
-class _TermMask:
-    """A BRDF model seen with its kd and/or ks zeroed (:meth:`Renderer.set_terms`); everything
-    else (lobes, tables, parameters) is the model's own."""
-
-    def __init__(self, model, diffuse: bool, specular: bool):
-        self._model, self._diffuse, self._specular = model, diffuse, specular
-
-    def __getattr__(self, name):
-        return getattr(self._model, name)
-
-    def material_record(self):
-        rec = dict(self._model.material_record())
-        if not self._diffuse:
-            rec["kd"] = (0.0, 0.0, 0.0)
-        if not self._specular:
-            rec["ks"] = (0.0, 0.0, 0.0)
-        return rec
 
 
 def _timer(device):
@@ -101,6 +84,7 @@ class Renderer:
         self.timings: dict = {"precompute_parts": {}, "precompute_cpu": {}}
         self._env_arrays_key = ()  # (see _env_arrays; () = not built yet)
         self._env_sg_arrays = None
+        self._gamma_capped, self._gamma_reach = False, 0.0  # (_ensure_gamma)
         self.env_vis_cache, self.light_vis_cache, self.env_irr_cache = caches()  # (_vertex_visibility)
         t0 = time.perf_counter()
         with wp.ScopedDevice(self.device):
@@ -111,6 +95,8 @@ class Renderer:
             self._setup_lights()
         wp.synchronize_device(self.device)
         self.timings["precompute"] = time.perf_counter() - t0
+        if self._job is not None:  # progressive: the shadows now get the cores the setup had
+            self._job = self._job()
         self._bg = BackgroundCache(self.device)  # what pixels that see no object show
         self._aa = None  # antialiasing's caches between frames (warp_sg.antialias.AntialiasCache)
         self._vb_key = self._vb = self._culling = None
@@ -156,8 +142,8 @@ class Renderer:
             return
         args = (self.scene, g, self.device)
         kw = {"progress": self.progress, "compute": self._ssdf_compute, "precomputed": self._precomputed}
-        if self.progressive:
-            self._job = ShadowJob(lambda: compute_visibility(*args, **kw))
+        if self.progressive:  # started once the first frame's own precompute is done (__init__)
+            self._job = lambda: ShadowJob(lambda: compute_visibility(*args, **kw))
         else:
             self._install_shadows(compute_visibility(*args, **kw))
 
@@ -261,23 +247,28 @@ class Renderer:
 
     def _ensure_gamma(self):
         """Prefilter the environment (ΓL pyramid, eq. 35) when the scene needs it: a specular
-        material or prefiltered diffuse. Done lazily so diffuse-only scenes skip it."""
+        material. Done lazily so diffuse-only scenes skip it. The default λ ladder ends at the
+        first level at or above the scene's sharpest NDF lobe (:mod:`warp_sg.lobe_extent`); a
+        material edit that needs a sharper level rebuilds it."""
         env = self.env_light
-        if env is None or self.gamma is not None:
+        if env is None or not self.has_specular:
             return
-        if not self.has_specular:
+        if self.gamma is not None and (not self._gamma_capped or self._gamma_need <= self._gamma_reach):
             return
         import precompute
+        from precompute.prefilter import default_ladder
 
         rs = self.scene.render
         base = self.env_residual
         t = self._tick()
+        lams, _, _ = default_ladder(base.shape[0], base_face=rs.gamma_resolution)
         kw = {}
         if rs.gamma_levels > 0:
-            from precompute.prefilter import default_ladder
-
-            lams, _, _ = default_ladder(base.shape[0], base_face=rs.gamma_resolution)
             kw["lambdas"] = np.geomspace(lams[0], lams[-1], rs.gamma_levels)
+        elif 0.0 < self._gamma_need < lams[-2]:
+            kw["lambdas"] = lams[:max(int(np.searchsorted(lams, self._gamma_need)) + 1, 2)]
+        self._gamma_capped = "lambdas" in kw and rs.gamma_levels == 0
+        self._gamma_reach = float(kw.get("lambdas", lams)[-1])
         self.gamma = precompute.prefilter_environment(base, device=self.device, base_face=rs.gamma_resolution,
                                                       progress=self.progress, **kw)
         self.env_specular_mode = S.ENV_PREFILTERED
@@ -347,8 +338,9 @@ class Renderer:
         names = self.geometry.material_names
         mats = [scene.materials[n] for n in names]
         models = [m.brdf for m in mats]
+        self._gamma_need = gamma_reach(scene, names)
         if not (self.show_diffuse and self.show_specular):
-            models = [_TermMask(b, self.show_diffuse, self.show_specular) for b in models]
+            models = [TermMask(b, self.show_diffuse, self.show_specular) for b in models]
         try:
             self.material_table = pack_materials(models, rs.lobes, self.device)
         except InputError as e:
