@@ -30,6 +30,7 @@ Then all vertices are compressed with PCA (:mod:`warp_sg.pca`, eq. 24) and cache
 """
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from dataclasses import dataclass, field
@@ -261,7 +262,7 @@ def _ssdf_batch(ctx, dirs, Rr, R, points, normals, s, e, device, out_vis=None, c
 def compute_ssdf(vertices, triangles, normals, *, resolution: int = DEFAULT_RESOLUTION,
                  ray_resolution: int = DEFAULT_RAY_RESOLUTION, device="cpu", vertex_ids=None,
                  progress: bool = True, batch: int = 256, return_visibility: bool = False, clock=None,
-                 rays: str = None, adaptive: dict | None = None):
+                 rays: str = None, adaptive: dict | None = None, out=None):
     """Uncompressed SSDFs ``(n, R, R)`` float32 (radians) of the selected vertices (default all).
 
     With ``return_visibility`` also returns the binary maps ``(n, Rr, Rr)`` uint8 at ray resolution.
@@ -269,6 +270,8 @@ def compute_ssdf(vertices, triangles, normals, *, resolution: int = DEFAULT_RESO
     ``"full"`` (a ray per texel, the reference the adaptive maps are measured against);
     ``adaptive``: keyword arguments of :func:`precompute.adaptive_rays.adaptive_visibility`
     (``coarse_factor``, ``depth_ratio``: the ray budget; ``ssdf_for_mesh`` uses the defaults).
+    ``out``: a float32 ``(n, R²)`` array (e.g. a ``numpy.memmap``) the rows are written into
+    batch by batch (and which is returned, reshaped); default a new array.
     ``clock`` (:class:`warp_sg.stage_clock.StageClock`): adds the stages ``bvh``, ``rays`` and
     ``ssdf_fit`` (CPU: the sum over the worker threads; wall: summed per batch too, so over the
     threads) and the counts ``rays_cast`` and ``uniform_vertices``.
@@ -292,13 +295,18 @@ def compute_ssdf(vertices, triangles, normals, *, resolution: int = DEFAULT_RESO
     if device != "cpu":
         batch = max(batch, int(2 ** 24 // (Rr * Rr)))  # bigger batches on GPUs
     bar = _tqdm(len(ids), "SSDF", progress and len(ids) * Rr * Rr > 1_000_000)
-    parts = run_batches(len(ids), batch,
-                        lambda s, e: _ssdf_batch(ctx, dirs, Rr, R, pts, nrm, s, e, device, vis_out, clock, rays,
-                                                  adaptive),
-                        device, bar)
+    if out is None:
+        out = np.empty((len(ids), R * R), np.float32)
+    elif out.shape != (len(ids), R * R) or out.dtype != np.float32:
+        raise InputError(f"out must be float32 of shape {(len(ids), R * R)}, got {out.dtype} {out.shape}", where="out")
+
+    def work(s, e):  # each batch writes its own rows: nothing is held twice
+        out[s:e] = _ssdf_batch(ctx, dirs, Rr, R, pts, nrm, s, e, device, vis_out, clock, rays, adaptive)
+
+    run_batches(len(ids), batch, work, device, bar)
     if bar is not None:
         bar.close()
-    out = (np.concatenate(parts) if parts else np.zeros((0, R * R), np.float32)).reshape(len(ids), R, R)
+    out = out.reshape(len(ids), R, R)
     if return_visibility:
         return out, vis_out.reshape(len(ids), Rr, Rr)
     return out
@@ -378,6 +386,36 @@ def decompress_budget() -> int:
     return max(int(mb * (1 << 20)), 0)
 
 
+def memory_budget() -> int:
+    """Bytes of uncompressed SSDFs ``ssdf_for_mesh`` keeps in memory (``WARP_SG_SSDF_MEMORY_MB``,
+    default 1024 MiB); beyond, the rows go to a temporary file in the cache folder and PCA and the
+    occluder cones read them back in chunks (out of core: 1 M vertices at 32² are 4 GiB on disk)."""
+    import os
+
+    raw = os.environ.get("WARP_SG_SSDF_MEMORY_MB", "1024")
+    try:
+        mb = float(raw)
+    except ValueError:
+        raise InputError(f"WARP_SG_SSDF_MEMORY_MB must be a number of MiB, got {raw!r}",
+                         where="WARP_SG_SSDF_MEMORY_MB") from None
+    return max(int(mb * (1 << 20)), 0)
+
+
+@contextlib.contextmanager
+def _disk_rows(n: int, d: int):
+    """A float32 ``(n, d)`` ``numpy.memmap`` in a temporary file of the cache folder, deleted after."""
+    import tempfile
+
+    folder = _cache.cache_dir()
+    folder.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="ssdf-rows-", dir=folder) as tmp:
+        mm = np.memmap(f"{tmp}/rows.f32", dtype=np.float32, mode="w+", shape=(int(n), int(d)))
+        try:
+            yield mm
+        finally:
+            del mm
+
+
 def _ssdf_params(resolution, ray_resolution, pca_terms, rays=None):
     if ray_resolution is None:
         ray_resolution = 2 * int(resolution)
@@ -428,17 +466,21 @@ def ssdf_for_mesh(vertices, triangles, normals, *, resolution: int = DEFAULT_RES
     clock = StageClock()
 
     def build():
+        R = int(resolution)
         kw = {"clock": clock, "rays": rays} if compute is compute_ssdf else {}
         if compute is not compute_ssdf and _check_rays(rays) != DEFAULT_RAYS:
             raise InputError(f"rays={rays!r} needs the local compute_ssdf", where="rays")
-        with clock.stage("ssdf_total"):
-            X = compute(v, f, n, resolution=resolution, ray_resolution=ray_resolution, device=device,
-                        progress=progress, **kw).reshape(len(v), -1)
-        R = int(resolution)
-        with clock.stage("pca"):
-            p = pca(X, int(pca_terms))
-        with clock.stage("cones"):
-            cones = occluder_cones(X, n, R)
+        with contextlib.ExitStack() as stack:
+            if compute is compute_ssdf and len(v) * R * R * 4 > memory_budget():
+                kw["out"] = stack.enter_context(_disk_rows(len(v), R * R))
+            with clock.stage("ssdf_total"):
+                X = compute(v, f, n, resolution=resolution, ray_resolution=ray_resolution, device=device,
+                            progress=progress, **kw).reshape(len(v), -1)
+            with clock.stage("pca"):
+                p = pca(X, int(pca_terms))
+            with clock.stage("cones"):
+                cones = occluder_cones(X, n, R)
+            del X
         return {"mean": p.mean.reshape(R, R), "basis": p.basis.reshape(-1, R, R), "weights": p.weights,
                 "pca_rms_error": p.rms_error, "cones": cones}
 

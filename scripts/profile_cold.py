@@ -28,6 +28,13 @@ import time
 from pathlib import Path
 
 
+def peak_rss_gib() -> float:
+    """The process's peak resident set size so far (GiB)."""
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / (1 << 20)
+
+
 class _Tee(io.TextIOBase):
     """stdout that also collects Warp's ``Module ... took X ms`` lines."""
 
@@ -118,12 +125,14 @@ def main(argv=None) -> int:
         print(f"| {k} | {w:.2f} | {c:.2f} |")
     print(f"| precompute (all parts) | {pre_wall:.2f} | {pre_cpu:.2f} |")
     print(f"| kernels (module loads, {tee.compiled} compiled) | {tee.ms / 1000:.2f} | |")
+    print(f"peak resident memory {peak_rss_gib():.2f} GiB")
     print(f"| **cold first image** | **{total_wall:.2f}** | **{total_cpu:.2f}** |")
     if a.json:
         Path(a.json).write_text(json.dumps({"asset": Path(asset).name, "triangles": int(len(geo.triangles)),
                                             "vertices": int(nv), "stages": stages, "precompute": [pre_wall, pre_cpu],
                                             "kernels_s": tee.ms / 1000, "total": [total_wall, total_cpu],
-                                            "load": [load0, load_average()], "counts": counts}, indent=1))
+                                            "load": [load0, load_average()], "counts": counts,
+                                            "peak_rss_gib": peak_rss_gib()}, indent=1))
     return 0
 
 
