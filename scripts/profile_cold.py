@@ -58,6 +58,9 @@ def main(argv=None) -> int:
     ap.add_argument("--size", type=int, nargs=2, default=(512, 384), metavar=("W", "H"))
     ap.add_argument("--fresh-kernels", action="store_true", help="empty Warp kernel cache (compile everything)")
     ap.add_argument("--json", default=None, help="write the stages as JSON here")
+    ap.add_argument("--sequential", action="store_true",
+                    help="precompute parts one after the other (Renderer.overlap_precompute = False), so the "
+                         "CPU time of each is its own; default: the renderer's overlap of shadows and environment")
     a = ap.parse_args(argv)
     tmp = tempfile.mkdtemp(prefix="wsg-profile-")
     os.environ["WARP_SG_CACHE_DIR"] = os.path.join(tmp, "cache")
@@ -93,6 +96,7 @@ def main(argv=None) -> int:
             scene, _ = asset_scene(asset, env=a.env, width=a.size[0], height=a.size[1])
             geo = scene.geometry()
         w0, c0 = time.perf_counter(), time.process_time()
+        Renderer.overlap_precompute = not a.sequential  # sequential: each part's CPU is its own
         r = Renderer(scene, device="cpu")
         pre_wall, pre_cpu = time.perf_counter() - w0, time.process_time() - c0
         for k, w in r.timings["precompute_parts"].items():

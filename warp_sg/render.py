@@ -65,6 +65,9 @@ class Renderer:
     :attr:`shadows_pending`), then equal to a non-progressive renderer's, bit for bit.
     """
 
+    #: compute the refinement and SSDFs on a thread beside the environment fit and ΓL prefilter
+    #: (the same data; False: one after the other, so each part's CPU time is its own)
+    overlap_precompute = True
     #: terms of eq. 36 shown (:meth:`set_terms`; the viewer's check boxes)
     show_diffuse = True
     show_specular = True
@@ -86,6 +89,9 @@ class Renderer:
         self._env_sg_arrays = None
         self._gamma_capped, self._gamma_reach = False, 0.0  # (_ensure_gamma)
         self.env_vis_cache, self.light_vis_cache, self.env_irr_cache = caches()  # (_vertex_visibility)
+        self._bg = BackgroundCache(self.device)  # what pixels that see no object show
+        self._aa = None  # antialiasing's caches between frames (warp_sg.antialias.AntialiasCache)
+        self._vb_key = self._vb = self._culling = None
         t0 = time.perf_counter()
         with wp.ScopedDevice(self.device):
             self._setup_geometry()
@@ -93,13 +99,12 @@ class Renderer:
             self._setup_environment()
             self._ensure_gamma()
             self._setup_lights()
+        if self.progressive and self._job is not None:  # the shadows now get the cores the setup had
+            self._job = self._job()
+        elif self._job is not None:  # computed beside the environment setup: install them now
+            self.wait()
         wp.synchronize_device(self.device)
         self.timings["precompute"] = time.perf_counter() - t0
-        if self._job is not None:  # progressive: the shadows now get the cores the setup had
-            self._job = self._job()
-        self._bg = BackgroundCache(self.device)  # what pixels that see no object show
-        self._aa = None  # antialiasing's caches between frames (warp_sg.antialias.AntialiasCache)
-        self._vb_key = self._vb = self._culling = None
 
     @staticmethod
     def _tick():
@@ -144,6 +149,8 @@ class Renderer:
         kw = {"progress": self.progress, "compute": self._ssdf_compute, "precomputed": self._precomputed}
         if self.progressive:  # started once the first frame's own precompute is done (__init__)
             self._job = lambda: ShadowJob(lambda: compute_visibility(*args, **kw))
+        elif self.overlap_precompute:  # beside the environment fit and ΓL (single-threaded parts)
+            self._job = ShadowJob(lambda: compute_visibility(*args, **kw))
         else:
             self._install_shadows(compute_visibility(*args, **kw))
 
