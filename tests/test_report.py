@@ -52,8 +52,8 @@ def test_tiny_report_writes_csv_markdown_plots_with_decreasing_mc_error(tmp_path
     from warp_sg.bench import bench_scene
 
     sc = bench_scene(12, 9, quick=True)
-    rep = run_report(sc, tmp_path / "rep", quick=True, truth_spp=64, mc_max_spp=8,
-                     knobs=["lobes", "supersampling"], progress=False)
+    rep = run_report(sc, tmp_path / "rep", quick=True, truth_spp=1024, mc_max_spp=128,
+                     knobs=["lobes", "supersampling"], progress=False)  # per pixel; 4×4 sub-pixels
     umask = os.umask(0)
     os.umask(umask)
     for key in ("csv", "markdown", "plot", "plot_psnr", "images", "json"):
@@ -63,14 +63,14 @@ def test_tiny_report_writes_csv_markdown_plots_with_decreasing_mc_error(tmp_path
     with open(rep.files["csv"]) as f:
         rows = list(csv.DictReader(f))
     kinds = [r["knob"] for r in rows]
-    assert kinds.count("mc_reference") == 4  # spp 1, 2, 4, 8
+    assert kinds.count("mc_reference") == 4  # spp 1, 2, 4, 8 per sub-pixel
     assert kinds.count("default") == 1
     assert kinds.count("lobes") == len(KNOBS["lobes"][1]) and kinds.count("supersampling") == len(KNOBS["supersampling"][1])
     for r in rows:
         for k in ("frame_s", "rel_mse", "psnr_db", "max_err"):
             assert math.isfinite(float(r[k])) or r[k] == "inf", (k, r)
     mc = [r for r in rep.rows if r["knob"] == "mc_reference"]
-    assert [r["spp"] for r in mc] == [1, 2, 4, 8]
+    assert [r["spp"] for r in mc] == [16, 32, 64, 128] and rep.truth_spp == 1024
     assert mc[-1]["rel_mse"] < mc[0]["rel_mse"] / 2  # MC error falls like 1/spp
     assert mc[-1]["psnr_db"] > mc[0]["psnr_db"]
     assert all(b["total_s"] >= a["total_s"] for a, b in zip(mc, mc[1:]))  # progressive: time grows
@@ -107,7 +107,7 @@ def test_reused_precompute_gives_the_rows_of_a_fresh_cache_per_setting(tmp_path,
 
     sc = bench_scene(12, 9, quick=True)
     knobs = ["ssdf_resolution", "pca_terms", "env_lobes", "lobes"]
-    kw = dict(quick=True, truth_spp=16, mc_max_spp=2, knobs=knobs, progress=False, frames=1)
+    kw = dict(quick=True, truth_spp=256, mc_max_spp=32, knobs=knobs, progress=False, frames=1)
     with record_builds() as ledger:
         fast = run_report(sc, tmp_path / "fast", **kw).rows
     slow = run_report(sc, tmp_path / "slow", reuse=False, **kw).rows

@@ -4,7 +4,8 @@ For one scene it measures how the knobs that trade accuracy for speed move the r
 the error/time plane, next to the Monte-Carlo reference's own error-vs-samples curve:
 
 1. **Ground truth**: a high-sample :func:`warp_sg.reference` image (``truth_spp`` samples per
-   sub-pixel, seed 1). Its own noise (mean squared standard error) is reported as the noise floor.
+   pixel, spread over the k×k sub-pixel grid the truth resolves; seed 1). Its own noise (mean
+   squared standard error) is reported as the noise floor.
 2. **MC curve**: an independent progressive reference run (seed 2); after every power-of-two
    ``spp`` its error against the ground truth and its elapsed time are recorded.
 3. **Knob sweeps**: each render-setting knob the scene exposes (:data:`KNOBS`: SG lobes per NDF,
@@ -188,16 +189,18 @@ class Report:
     files: dict
 
 
-def mc_curve(scene, truth, device="cpu", max_spp=64, seed=2, progress=True):
-    """Error-vs-time rows of a progressive reference run at every power of two up to ``max_spp``."""
+def mc_curve(scene, truth, device="cpu", max_spp=64, seed=2, progress=True, per_sample: int = 1):
+    """Error-vs-time rows of a progressive reference run at every power of two up to ``max_spp``
+    samples per sub-pixel of ``scene``; ``per_sample``: sub-pixels per pixel (the rows' ``spp``
+    count samples per pixel)."""
     from .reference import render_reference
 
     rows = []
 
     def cb(spp, seconds, img, se):
         if spp & (spp - 1) == 0 or spp == max_spp:
-            rows.append({"knob": "mc_reference", "value": spp, "precompute_s": 0.0, "frame_s": seconds,
-                         "total_s": seconds, "spp": spp, **image_errors(img, truth)})
+            rows.append({"knob": "mc_reference", "value": spp * per_sample, "precompute_s": 0.0, "frame_s": seconds,
+                         "total_s": seconds, "spp": spp * per_sample, **image_errors(img, truth)})
 
     render_reference(scene, spp=max_spp, device=device, progress=progress, seed=seed, callback=cb)
     return rows
@@ -259,18 +262,20 @@ def run_report(scene, out_dir, device=None, quick=False, truth_spp=None, mc_max_
     k_truth = max([int(rs0.supersampling)] + [int(v) for k, v in sweep if k == "supersampling"] + aa)
     truth_scene = scene if k_truth == _settings(scene).supersampling else with_setting(scene, "supersampling", k_truth)
 
+    per = k_truth * k_truth  # the spp counts are per pixel, spread over the k×k sub-pixels
+    sub_spp = max(1, truth_spp // per)
     t0 = time.perf_counter()
     if cluster is not None:
         from .distributed import render_reference_distributed
 
-        truth = render_reference_distributed(truth_scene, spp=truth_spp, cluster=cluster, device=device,
+        truth = render_reference_distributed(truth_scene, spp=sub_spp, cluster=cluster, device=device,
                                              progress=progress, seed=1)
     else:
-        truth = render_reference(truth_scene, spp=truth_spp, device=device, progress=progress, seed=1)
+        truth = render_reference(truth_scene, spp=sub_spp, device=device, progress=progress, seed=1)
     truth_time = time.perf_counter() - t0
     floor = float(np.sum(truth.stderr.astype(np.float64) ** 2) / max(np.sum(truth.image.astype(np.float64) ** 2),
                                                                         1e-300))
-    rows = mc_curve(truth_scene, truth.image, device, mc_max_spp, progress=progress)
+    rows = mc_curve(truth_scene, truth.image, device, max(1, mc_max_spp // per), progress=progress, per_sample=per)
     write_rows_csv(out, rows)
     base_img = None
     bar = None
@@ -300,9 +305,9 @@ def run_report(scene, out_dir, device=None, quick=False, truth_spp=None, mc_max_
     from .regions import region_errors, scene_regions
 
     regions = region_errors(base_img, truth.image, scene_regions(scene, device=device)) if base_img is not None else None
-    files = write_outputs(out, rows, truth.image, base_img, truth_spp, floor, truth_time, scene, k_truth,
+    files = write_outputs(out, rows, truth.image, base_img, sub_spp * per, floor, truth_time, scene, k_truth,
                           regions=regions)
-    return Report(out, rows, truth_spp, floor, files)
+    return Report(out, rows, sub_spp * per, floor, files)
 
 
 # --------------------------------------------------------------------------------------------
@@ -437,7 +442,8 @@ def write_outputs(out: Path, rows, truth, base_img, truth_spp, floor, truth_time
     else:
         lines += [f"Image: {w}×{h} pixels.", ""]
     lines += [
-        f"Ground truth: Monte-Carlo reference with {truth_spp} samples per sub-pixel, supersampling {k_truth} "
+        f"Ground truth: Monte-Carlo reference with {truth_spp} samples per pixel ({truth_spp // (k_truth * k_truth)} "
+        f"per sub-pixel of a {k_truth}×{k_truth} grid) "
         f"({truth_time:.1f} s); its noise floor (Σ stderr² / Σ ref²) is {floor:.3g} in relative MSE. "
         f"The MC curve is an independent progressive run at the same supersampling.",
         "Precompute times are those of an empty cache (each stage built once and reused by the settings "
