@@ -134,7 +134,8 @@ def _mitsuba_row(path, size, device, quick):
     ref = copy.deepcopy(scene)
     k = max(1, ref.render.antialias) if ref.render.supersampling == 1 else ref.render.supersampling
     ref.render.supersampling = k
-    truth = render_reference(ref, spp=max(1, (64 if quick else 512) // (k * k)), device=device, seed=5).image
+    truth = render_reference(ref, spp=max(1, (64 if quick else 512) // (k * k)), device=device, seed=5,
+                             progress=False).image
     err = image_errors(img, truth)["rel_mse"]
     w0 = time.perf_counter()
     mscene = pm.mitsuba_scene(scene, device)

@@ -125,13 +125,18 @@ def time_renderer(scene, device="cpu", frames=3, ledger=None, memo=None):
     With a ``ledger`` (:func:`warp_sg.cache.record_builds`, recording into the report's one cache)
     the precompute reuses what earlier settings built, and its time is the measured construction
     plus the build time of every entry it found (what an empty cache would have cost); ``memo``:
-    the report's :class:`RawSSDFMemo`."""
+    the report's :class:`RawSSDFMemo`. The precompute stages run one after the other
+    (``Renderer.overlap_precompute`` off), so that a setting's time is the sum of its stages'."""
     from .render import Renderer
 
     def run():
         mark = ledger.mark() if ledger is not None else 0
         t0 = time.perf_counter()
-        r = Renderer(scene, device=device, ssdf_compute=memo)
+        overlap, Renderer.overlap_precompute = Renderer.overlap_precompute, False  # stage times add up
+        try:
+            r = Renderer(scene, device=device, ssdf_compute=memo)
+        finally:
+            Renderer.overlap_precompute = overlap
         t_pre = time.perf_counter() - t0
         if ledger is not None:
             t_pre += ledger.hit_cost(mark)[0]
@@ -446,8 +451,9 @@ def write_outputs(out: Path, rows, truth, base_img, truth_spp, floor, truth_time
         f"per sub-pixel of a {k_truth}×{k_truth} grid) "
         f"({truth_time:.1f} s); its noise floor (Σ stderr² / Σ ref²) is {floor:.3g} in relative MSE. "
         f"The MC curve is an independent progressive run at the same supersampling.",
-        "Precompute times are those of an empty cache (each stage built once and reused by the settings "
-        "that do not change it, counted at its build time); frame times are the median of warm frames.",
+        "Precompute times are those of an empty cache with the stages one after the other (each stage built "
+        "once and reused by the settings that do not change it, counted at its build time); frame times "
+        "are the median of warm frames.",
         "",
     ]
     if base and mc:
