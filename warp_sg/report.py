@@ -65,6 +65,10 @@ KNOBS: dict[str, tuple[list, list]] = {
     "antialias": ([1, 4, 6], [1, 4]),
 }
 
+#: samples per pixel of the ground truth (its noise floor is printed in the report; at the default
+#: sweep's 6×6 grid that is 113 samples per sub-pixel)
+DEFAULT_TRUTH_SPP = 4096
+
 CSV_FIELDS = ["knob", "value", "precompute_s", "frame_s", "total_s", "rel_mse", "psnr_db", "max_err", "spp"]
 
 
@@ -252,7 +256,7 @@ def run_report(scene, out_dir, device=None, quick=False, truth_spp=None, mc_max_
         raise InputError(f"cannot create the output folder ({e.strerror})", where=str(out)) from None
     if not os.access(out, os.W_OK):
         raise InputError("output folder is not writable", where=str(out))
-    truth_spp = int(truth_spp or (64 if quick else 1024))
+    truth_spp = int(truth_spp or (64 if quick else DEFAULT_TRUTH_SPP))
     mc_max_spp = int(mc_max_spp or max(1, truth_spp // 8))
     frames = frames or (1 if quick else 3)
 
@@ -495,7 +499,8 @@ def add_cli_arguments(p) -> None:
     p.add_argument("-o", "--output", required=True, help="output folder")
     add_device_argument(p)
     p.add_argument("--quick", action="store_true", help="small sweep (smoke test)")
-    p.add_argument("--truth-spp", type=int, default=None, help="samples per pixel of the ground truth")
+    p.add_argument("--truth-spp", type=int, default=None,
+                   help=f"samples per pixel of the ground truth (default {DEFAULT_TRUTH_SPP}; --quick: 64)")
     p.add_argument("--width", type=int, default=None, help="override the camera width (keeps the aspect)")
     p.add_argument("--height", type=int, default=None, help="override the camera height")
     p.add_argument("--no-progress", action="store_true")
