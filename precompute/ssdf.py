@@ -59,6 +59,10 @@ RAYS = ("adaptive", "full")
 DEFAULT_RAYS = "adaptive"
 
 _HALF_PI = wp.constant(0.5 * math.pi)
+#: "no boundary point yet": its dot product with any texel direction (z ≥ 1/(2Rr) > 1e-4) is
+#: below −1, so every real boundary point wins over it, and the signed distance it gives is the
+#: clamp π/2 (acos(−1) = π, then min with π/2): the same as no seed at all
+NO_SEED = wp.constant(wp.vec3(0.0, 0.0, -1.0e4))
 #: Cache format of the "ssdf" kind; bump when the SSDF definition changes.
 SSDF_VERSION = 2  # 2: per-vertex occluder cones (precompute.occluder_cone)
 #: version of the adaptive ray schedule (precompute.adaptive_rays), part of the cache key
@@ -81,13 +85,14 @@ def _consider(d: wp.vec3, da: wp.vec3, best: wp.vec3, best_dot: float):
 @wp.kernel
 def _seed_kernel(vis: wp.array2d(dtype=wp.uint8), dirs: wp.array(dtype=wp.vec3), R: int,
                  seeds: wp.array2d(dtype=wp.vec3)):
-    """Nearest boundary midpoint among the 4-neighbour pairs of differing visibility (else 0)."""
+    """Nearest boundary midpoint among the 4-neighbour pairs of differing visibility (else
+    :data:`NO_SEED`)."""
     k, tex = wp.tid()
     j = tex // R
     i = tex - j * R
     me = vis[k, tex]
     d = dirs[tex]
-    best = wp.vec3(0.0, 0.0, 0.0)
+    best = NO_SEED
     best_dot = float(-2.0)
     if i > 0:
         if vis[k, tex - 1] != me:
@@ -113,9 +118,7 @@ def _jfa_kernel(src: wp.array2d(dtype=wp.vec3), dirs: wp.array(dtype=wp.vec3), R
     i = tex - j * R
     d = dirs[tex]
     best = src[k, tex]
-    best_dot = float(-2.0)
-    if wp.length_sq(best) > 0.25:
-        best_dot = wp.dot(d, best)
+    best_dot = wp.dot(d, best)  # NO_SEED's dot loses to every boundary point's (≥ −1)
     for dj in range(-1, 2):
         jj = j + dj * step
         if jj >= 0 and jj < R:
@@ -123,11 +126,10 @@ def _jfa_kernel(src: wp.array2d(dtype=wp.vec3), dirs: wp.array(dtype=wp.vec3), R
                 ii = i + di * step
                 if ii >= 0 and ii < R and (di != 0 or dj != 0):
                     s = src[k, jj * R + ii]
-                    if wp.length_sq(s) > 0.25:
-                        c = wp.dot(d, s)
-                        if c > best_dot:
-                            best_dot = c
-                            best = s
+                    c = wp.dot(d, s)
+                    if c > best_dot:
+                        best_dot = c
+                        best = s
     dst[k, tex] = best
 
 
