@@ -2,7 +2,7 @@ r"""``warp-sg bench`` sections on the cold path (tools layer).
 
 **time to first image** (:func:`first_image_section`): for the generated textured helmet
 (:func:`warp_sg.bench_assets.textured_helmet`, 17 k triangles) and each asset of the shared inputs
-folder (``../shared/assets``: a scanned head, a material ball, the clear-coat test, the 359 k-triangle
+folder (``../shared/assets``, :func:`_shared_assets`: a scanned head, a material ball, the clear-coat test, the 359 k-triangle
 Draco Ferrari; rows say "skipped" with the reason when the folder or a decoder is missing), as
 ``warp-sg render ASSET`` renders it (ground plane, procedural sky, 512×384; quick: the helmet at
 64×48 only), each with an empty precompute cache:
@@ -30,6 +30,7 @@ boundaries and its error against a 256²-ray truth (the metric of ``precompute.b
 from __future__ import annotations
 
 import copy
+import os
 import statistics
 import tempfile
 import time
@@ -39,8 +40,22 @@ import numpy as np
 
 from .stage_clock import load_average
 
+def _shared_assets() -> Path:
+    """The shared inputs' folder: ``$WARP_SG_SHARED_ASSETS``, else ``shared/assets`` beside the
+    repository or beside one of its parent folders (a checkout in a subfolder); the first that
+    exists (else the one beside the repository, which the rows then name as missing)."""
+    env = os.environ.get("WARP_SG_SHARED_ASSETS")
+    if env:
+        return Path(env)
+    root = Path(__file__).resolve().parents[1]
+    for up in (root.parent, root.parent.parent, root.parent.parent.parent):
+        if (up / "shared" / "assets").is_dir():
+            return up / "shared" / "assets"
+    return root.parent / "shared" / "assets"
+
+
 #: the shared inputs (tests and benchmarks skip with a reason when absent)
-SHARED_ASSETS = Path(__file__).resolve().parents[1].parent / "shared" / "assets"
+SHARED_ASSETS = _shared_assets()
 #: shared assets of the section, in order (file, label)
 ASSETS = (("LeePerrySmith.glb", "scanned head (17.7 k triangles)"), ("ShaderBall.glb", "material ball (88 k)"),
           ("ClearcoatTest.glb", "clear-coat test"), ("ferrari.glb", "Ferrari (359 k, Draco)"))
