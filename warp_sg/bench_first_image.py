@@ -74,7 +74,8 @@ def _asset_scene(path, size, quick=False):
 
 
 def _cold(path, size, device, progressive: bool, quick=False):
-    """Seconds (wall, CPU) of one cold run with a fresh cache, and its renderer."""
+    """One cold run with a fresh cache: (wall s to the first frame, wall s to the shadowed frame,
+    CPU s of the whole run, the renderer)."""
     from .cache import fresh_cache
     from .render import Renderer
 
