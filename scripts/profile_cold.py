@@ -2,6 +2,7 @@
 
     python scripts/profile_cold.py ASSET [--env SKY.hdr] [--size 512 384] [--fresh-kernels] [--json OUT]
     python scripts/profile_cold.py helmet   # the generated textured helmet (warp_sg.bench_assets)
+    python scripts/profile_cold.py scene.toml --render visibility_budget=0   # a scene file, a setting changed
 
 A fresh precompute cache (a temporary ``WARP_SG_CACHE_DIR``) every run; with ``--fresh-kernels`` a
 fresh Warp kernel cache too (what a new installation pays: every kernel compiled). Per stage: wall
@@ -53,7 +54,9 @@ class _Tee(io.TextIOBase):
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("asset", help="asset file, or 'helmet' for the generated textured helmet")
+    ap.add_argument("asset", help="asset file, a scene file (.toml), or 'helmet' for the generated textured helmet")
+    ap.add_argument("--render", action="append", default=[], metavar="KEY=VALUE",
+                    help="override a [render] setting (repeatable), e.g. visibility_budget=0")
     ap.add_argument("--env", default=None, help="environment map (default: the procedural sky)")
     ap.add_argument("--size", type=int, nargs=2, default=(512, 384), metavar=("W", "H"))
     ap.add_argument("--fresh-kernels", action="store_true", help="empty Warp kernel cache (compile everything)")
@@ -93,7 +96,15 @@ def main(argv=None) -> int:
             from warp_sg.asset_scene import asset_scene
             from warp_sg.render import Renderer
 
-            scene, _ = asset_scene(asset, env=a.env, width=a.size[0], height=a.size[1])
+            if asset.endswith(".toml"):
+                from warp_sg.scene import load_scene
+
+                scene = load_scene(asset)
+            else:
+                scene, _ = asset_scene(asset, env=a.env, width=a.size[0], height=a.size[1])
+            for kv in a.render:
+                k, v = kv.split("=", 1)
+                setattr(scene.render, k, type(getattr(scene.render, k))(v))
             geo = scene.geometry()
         w0, c0 = time.perf_counter(), time.process_time()
         Renderer.overlap_precompute = not a.sequential  # sequential: each part's CPU is its own
