@@ -9,7 +9,7 @@ irradiance ``E(n) = ∫ max(n·i, 0) L(i) di``; the renderer evaluates it (unsha
 Algorithm (:func:`fit_environment_sgs`):
 
 1. Work on a solid-angle-weighted downsampling of the map (default 32 × 64 texels; the sum
-   ``Σ L Ω`` is kept exactly).
+   ``Σ L Ω`` is kept exactly; at most 2·rows × 4·rows texels whatever the input's shape).
 2. Initialisation from the brightest regions (up to K/2 lobes): blur the residual's luminance
    energy with an SG kernel (λ = 16), take its maximum, place a lobe at the energy centroid
    around it with sharpness ``1 / E[1 − p·i]`` of the residual energy there (for an SG,
@@ -71,19 +71,45 @@ class EnvSGFit(tuple):
 # Helpers
 # --------------------------------------------------------------------------------------------
 def _working_map(env: np.ndarray, rows: int) -> np.ndarray:
-    """Downsample to about ``rows`` rows (exact box mips while divisible; else bilinear resampling)."""
+    """Downsample to about ``rows`` × ``2 rows`` texels: exact box mips while divisible, then, if
+    either side is still over twice its target (odd sizes, or an aspect far from 2:1), the exact
+    solid-angle average over a ``min(H, rows)`` × ``min(W, 2 rows)`` grid (:func:`_area_resample`).
+    The result has at most ``2 rows × 4 rows`` texels whatever the input's shape, which bounds the
+    O(N²) peak blur and the fit."""
     env = np.asarray(env, np.float64)
     h, w = env.shape[:2]
     while h > rows and h % 2 == 0 and w % 2 == 0 and h // 2 >= rows:
         env = downsample_envmap(env, 2)
         h, w = env.shape[:2]
-    if h > 2 * rows:  # odd sizes: resample with supersampling (approximately energy preserving)
-        from warp_sg.envmap import env_lookup_numpy
-
-        s = int(math.ceil(h / rows))
-        d = texel_directions(rows * s, 2 * rows * s)
-        env = env_lookup_numpy(env, d, bilinear=True).reshape(rows, s, 2 * rows, s, 3).mean(axis=(1, 3))
+    if h > 2 * rows or w > 4 * rows:
+        env = _area_resample(env, min(h, rows), min(w, 2 * rows))
     return env
+
+
+def _cell_average(a: np.ndarray, knots: np.ndarray, edges: np.ndarray, axis: int) -> np.ndarray:
+    """Average over the cells ``edges[k]..edges[k+1]`` of the piecewise-constant function whose
+    value in ``knots[j]..knots[j+1]`` is ``a[j]`` (along ``axis``): differences of its running
+    integral, which is linear between knots (exact)."""
+    a = np.moveaxis(a, axis, 0)
+    run = np.concatenate([np.zeros((1,) + a.shape[1:]), np.cumsum(a * np.diff(knots).reshape((-1,) + (1,) * (a.ndim - 1)), 0)])
+    j = np.clip(np.searchsorted(knots, edges, side="right") - 1, 0, len(knots) - 2)
+    f = ((edges - knots[j]) / (knots[j + 1] - knots[j])).reshape((-1,) + (1,) * (a.ndim - 1))
+    at = run[j] + f * (run[j + 1] - run[j])
+    return np.moveaxis(np.diff(at, axis=0) / np.diff(edges).reshape((-1,) + (1,) * (a.ndim - 1)), 0, axis)
+
+
+def _area_resample(env: np.ndarray, rows: int, cols: int) -> np.ndarray:
+    """The solid-angle average of the (piecewise-constant) map over each texel of a ``rows × cols``
+    equirectangular grid: the measure is separable, ``dΩ = dφ · d(cos θ)``, so the map is averaged
+    along u in φ and then along v in ``(1 − cos θ)/2``; ``Σ L Ω`` is kept exactly. O(H·W) time,
+    row blocks of bounded memory."""
+    h, w = env.shape[:2]
+    u_src, u_dst = np.linspace(0.0, 1.0, w + 1), np.linspace(0.0, 1.0, cols + 1)
+    mu = lambda n: (1.0 - np.cos(np.pi * np.arange(n + 1) / n)) / 2.0  # noqa: E731
+    step = max(1, (1 << 22) // max(w, 1))
+    along_u = np.concatenate([_cell_average(np.asarray(env[r0:r0 + step], np.float64), u_src, u_dst, 1)
+                              for r0 in range(0, h, step)], 0)
+    return _cell_average(along_u, mu(h), mu(rows), 0)
 
 
 def irradiance_reference(env, normals, supersample: int = 1):
@@ -268,10 +294,11 @@ def _fit(env, n_lobes, rows, irradiance_weight, n_normals, max_nfev, cosine=None
     mu = _solve_amplitudes(_design(d, om, normals, ax, lam, w_e, cosine), B) * scale
     # statistics on the working map
     model, _ = _model(d, ax, lam, mu)
-    rad_rel = float(np.sqrt((om[:, None] * (model - L) ** 2).sum() / (om[:, None] * L**2).sum()))
+    err2, ref2 = (om[:, None] * (model - L) ** 2).sum(), (om[:, None] * L**2).sum()
+    rad_rel = float(np.sqrt(err2 / ref2)) if ref2 > 0 else (0.0 if err2 == 0 else math.inf)  # a black map: 0
     Ef = sg_irradiance(ax, lam, mu, normals, cosine=cosine)
     Et = E * scale
-    e_rel = np.abs(Ef - Et).max(1) / np.abs(Et).max(1)
+    e_rel = np.abs(Ef - Et).max(1) / np.maximum(np.abs(Et).max(1), 1e-300)
     order = np.argsort(-(mu @ LUMINANCE) * sgm.integral(lam))
     info = dict(
         radiance_rel_rms=rad_rel,

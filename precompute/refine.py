@@ -308,9 +308,30 @@ def _signature_difference(sig, normals, i, j, R, device="cpu"):
 # public entry point
 # ---------------------------------------------------------------------------------------------
 
+def _light_signatures(mesh_v, F, V, N, lights, device) -> np.ndarray:
+    """(n, L) int8 per vertex and key light: 1 the light is seen, 0 it is hidden, 2 the light is
+    below the vertex's horizon (no shadow edge to place there: the cosine handles it), for vertices
+    ``V`` with normals ``N`` of the mesh ``(mesh_v, F)``. ``lights``: ``("directional",
+    towards-light unit vector)`` or ``("point", position)`` pairs."""
+    from .visibility import ray_visibility
+
+    V = np.asarray(V, np.float64)
+    N = np.asarray(N, np.float64)
+    out = np.full((len(V), len(lights)), 2, np.int8)
+    for k, (kind, vec) in enumerate(lights):
+        d = np.asarray(vec, np.float64)[None, :] - (V if kind == "point" else 0.0)
+        d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300)
+        d = np.broadcast_to(d, V.shape)
+        up = np.einsum("ij,ij->i", d, N) > 1e-6
+        ids = np.flatnonzero(up)
+        if len(ids):
+            out[ids, k] = ray_visibility(mesh_v, F, V[ids], N[ids], d[ids], device=device).astype(np.int8)
+    return out
+
+
 def refine_for_visibility(vertices, triangles, normals, *, budget: int = 20000, device="cpu",
                           base_edge: float | None = None, levels: int = 4, signature_resolution: int = 12,
-                          threshold: float = 0.03, progress=False) -> Refinement:
+                          threshold: float = 0.03, lights=(), progress=False) -> Refinement:
     """Refine a mesh so per-vertex visibility can hold its shadows (see module docstring).
 
     ``vertices`` (N, 3), ``triangles`` (M, 3), ``normals`` (N, 3) unit (the merged scene mesh;
@@ -319,7 +340,12 @@ def refine_for_visibility(vertices, triangles, normals, *, budget: int = 20000, 
     (default diagonal / 24; ``float("inf")`` skips the pre-split).
     ``levels``: adaptive levels (0: pre-split only). ``signature_resolution``: R of the R×R
     binary hemisphere maps compared across edges; ``threshold``: fraction of differing
-    directions that marks an edge. ``progress``: tqdm bar over the vertex budget.
+    directions that marks an edge. ``lights``: the scene's key lights, ``("directional",
+    towards-light)`` or ``("point", position)``: an edge whose one end sees a light and whose other
+    end has it hidden (both facing it) is marked too, with the largest score — a sharp shadow's
+    boundary at any distance from its occluder (the hemisphere signature misses an occluder that
+    subtends less than a texel: the far end of a low sun's shadow). ``progress``: tqdm bar over the
+    vertex budget.
     """
     t0 = time.perf_counter()
     v, f, n = validate_mesh(vertices, triangles, normals)
@@ -373,11 +399,15 @@ def refine_for_visibility(vertices, triangles, normals, *, budget: int = 20000, 
         used = np.zeros(st.nv, bool)
         used[st.T.ravel()] = True
         sig = np.ones((st.nv, R * R), bool)
+        lights = list(lights)
+        lsig = np.full((st.nv, len(lights)), 2, np.int8)
 
         def signatures(ids):
             if len(ids):
                 maps = hemisphere_visibility(st.V, f, st.N, resolution=R, device=device, vertex_ids=ids)
                 sig[ids] = maps.reshape(len(ids), -1).astype(bool)
+                if lights:
+                    lsig[ids] = _light_signatures(st.V, f, st.V[ids], st.N[ids], lights, device)
 
         signatures(np.flatnonzero(used))
         for _ in range(levels):
@@ -389,6 +419,10 @@ def refine_for_visibility(vertices, triangles, normals, *, budget: int = 20000, 
             cand = glen[ge] > min_edge
             d = np.zeros(len(uk))
             d[cand] = _signature_difference(sig, st.N, lo[cand], hi[cand], R, device)
+            if lights:  # a key light seen from one end and hidden from the other: a shadow edge
+                la, lb = lsig[lo], lsig[hi]
+                edge = np.any(((la == 0) & (lb == 1)) | ((la == 1) & (lb == 0)), axis=1)
+                d = np.where(edge & cand, 1.0, d)
             gdiff = np.zeros(len(glen))
             np.maximum.at(gdiff, ge, d)
             marked = (gdiff > threshold) & (glen > min_edge)
@@ -401,6 +435,7 @@ def refine_for_visibility(vertices, triangles, normals, *, budget: int = 20000, 
             if not added:
                 break
             sig = np.concatenate([sig, np.ones((added, R * R), bool)])
+            lsig = np.concatenate([lsig, np.full((added, len(lights)), 2, np.int8)])
             signatures(np.arange(n0, st.nv))
     if bar is not None:
         bar.close()
@@ -422,6 +457,8 @@ def refine_cached(vertices, triangles, normals, *, budget: int = 20000, device="
     mesh's content and the parameters, so a renderer built twice on one scene refines once."""
     from warp_sg.cache import content_key, load_or_build
 
+    if "lights" in kwargs:  # (kind, vector) pairs as plain lists for the key
+        kwargs["lights"] = [(str(k), [float(x) for x in np.ravel(v)]) for k, v in kwargs["lights"]]
     key = content_key(np.asarray(vertices, np.float64), np.asarray(triangles, np.int64),
                       np.asarray(normals, np.float64), dict(v=_VERSION, budget=int(budget), **kwargs))
 

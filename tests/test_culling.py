@@ -55,12 +55,23 @@ def test_closed_objects_seen_from_outside_drop_their_back_faces_and_the_raster_i
 def test_open_inward_wound_entered_and_near_clipped_objects_keep_their_back_faces(cache_dir):
     """An inward-wound closed ball is not a volume (culling it would drop every face the camera
     sees: it must still be drawn); a camera inside the ball, or a near plane that cuts it, sees
-    its inside."""
-    r = ws.Renderer(_scene(flip=True))
-    assert _objects(r) == {"ring": True, "ball": False, "floor": False}
+    its inside. (The scene turns an inside-out ball outwards with a warning, warp_sg.geometry.
+    orient_outward: the culling's own rule is checked on the ball wound back inwards.)"""
+    from dataclasses import replace
+
+    import pytest
+
+    from warp_sg.errors import InputWarning
+
+    with pytest.warns(InputWarning, match="inside out"):
+        r = ws.Renderer(_scene(flip=True))
+    assert _objects(r) == {"ring": True, "ball": True, "floor": False}  # outwards now: a volume
     img = r.render()
     ball = np.asarray(r.geometry.tri_object)[np.maximum(r.rasterize(1).tri_id.numpy(), 0)] == 1
     assert ball.sum() > 50 and np.isfinite(img).all()
+    g = r.geometry
+    inward = np.where((np.asarray(g.tri_object) == 1)[:, None], np.asarray(g.triangles)[:, ::-1], g.triangles)
+    assert not BackfaceCulling(replace(g, triangles=inward)).objects(r.scene.camera)[1]
     inside = Camera(origin=(0.6, 0.4, 0.1), target=(0.6, 0.4, -1.0), fov=60.0, width=16, height=16)
     assert _objects(ws.Renderer(_scene(camera=inside)))["ball"] is False
     clipped = Camera(origin=(0.6, 0.4, 0.55), target=(0.6, 0.4, -1.0), fov=60.0, width=16, height=16, near=0.3)

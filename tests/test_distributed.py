@@ -47,7 +47,7 @@ material = "grey"
 [materials.red]
 model = "torrance_sparrow"
 kd = [0.6, 0.1, 0.1]
-ks = [0.5, 0.5, 0.5]
+ks = [0.4, 0.4, 0.4]
 m = 0.3
 
 [materials.grey]

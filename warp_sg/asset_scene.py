@@ -47,12 +47,20 @@ def asset_bounds(path) -> tuple[np.ndarray, np.ndarray]:
     """World-space bounding box (lo, hi) of an asset file (glTF: scene graph applied)."""
     from .geometry import object_mesh
 
+    import warnings
+
+    from .errors import InputWarning
+
     path = Path(path)
+    if path.is_dir():
+        raise MeshError("is a folder, not an asset file", where=str(path))
     if is_gltf(path):
         return load_gltf(path, images=False).bounds()
     if not path.is_file():
         raise MeshError("asset file not found", where=str(path))
-    v = object_mesh(SceneObject(material="asset", mesh=path), 0, None).vertices
+    with warnings.catch_warnings():  # the scene's own load reports them (once)
+        warnings.simplefilter("ignore", InputWarning)
+        v = object_mesh(SceneObject(material="asset", mesh=path), 0, None).vertices
     return v.min(0).astype(np.float64), v.max(0).astype(np.float64)
 
 
@@ -61,7 +69,10 @@ def frame_camera(lo, hi, view=DEFAULT_VIEW, width: int = DEFAULT_SIZE[0], height
     """``[camera]`` keys that frame the box ``lo..hi`` from ``view = (azimuth, elevation)`` degrees
     (module docstring)."""
     az, el = (float(x) for x in view)
-    if not (math.isfinite(az) and math.isfinite(el)) or not -89.0 <= el <= 89.0:
+    for name, v in (("azimuth", az), ("elevation", el)):
+        if not math.isfinite(v):
+            raise InputError(f"{name} must be a finite number of degrees, got {v}", where="--view")
+    if not -89.0 <= el <= 89.0:
         raise InputError(f"elevation must be in [-89, 89] degrees, got {el}", where="--view")
     lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
     c = (lo + hi) / 2

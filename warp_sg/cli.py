@@ -25,7 +25,9 @@ module makes its subcommand say so and exit 2.
 Bad input (any :class:`warp_sg.errors.InputError`, an unusable output path, an ``OSError`` while
 writing) prints one line ``warp-sg: error: ...`` on stderr and exits with status 2 — never a
 traceback, never a partial output file (``save_image`` writes atomically; output paths are
-checked before any work).
+checked before any work). ``--exposure`` and ``--view`` take finite numbers only, and ``render``
+writes no image with a non-finite pixel (radiance or exposure that overflows float32 is an error).
+Every warning is one line ``warp-sg: warning: ...`` (:func:`_show_warning`).
 """
 from __future__ import annotations
 
@@ -33,6 +35,7 @@ import argparse
 import importlib
 import math
 import sys
+import warnings
 
 from .atomic import IMAGE_SUFFIXES, check_output_path, make_parents  # noqa: F401  (IMAGE_SUFFIXES: old home)
 from .device import add_device_argument
@@ -65,10 +68,27 @@ def _positive_int(name):
 
 
 def _float(s):
+    """A finite number (``inf`` and ``nan`` are refused: they make every pixel inf or NaN)."""
     try:
-        return float(s)
+        v = float(s)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number, got {s!r}") from None
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {s!r}")
+    return v
+
+
+def _finite_image(img, what: str):
+    """``img`` if every pixel is finite, else a one-line failure naming ``what`` made it so."""
+    import numpy as np
+
+    bad = ~np.isfinite(img)
+    if bad.any():
+        r, c = (int(x) for x in np.argwhere(bad)[0][:2])
+        n = int(bad.reshape(bad.shape[0], bad.shape[1], -1).any(-1).sum())
+        raise _Fail(f"{what}: {n} pixel(s) are not finite (first at row {r}, column {c}); float32 holds at "
+                    f"most 3.4e38, nothing was written")
+    return img
 
 
 # --------------------------------------------------------------------------------------------
@@ -166,16 +186,24 @@ def render_main(args) -> int:
     else:
         r = Renderer(scene, device=args.device, progress=not args.no_progress and first is None,
                      progressive=first is not None)
-    gain = 2.0 ** args.exposure if args.exposure else 1.0
-    img = r.render()
+    import numpy as np
+
+    gain = np.float32(2.0 ** args.exposure) if args.exposure else None
+
+    def frame():
+        img = _finite_image(r.render(), "the rendered radiance overflows (an environment or light too bright?)")
+        if gain is None:
+            return img
+        with np.errstate(over="ignore", invalid="ignore"):  # overflow is reported below
+            return _finite_image(img * gain, f"--exposure {args.exposure:g} overflows")
+
+    img = frame()
     if first is not None:
         make_parents(first)
-        save_image(first, img * gain if gain != 1.0 else img)
+        save_image(first, img)
         print(f"first frame written to {first}", file=sys.stderr)
         r.wait()
-        img = r.render()
-    if args.exposure:
-        img = img * gain
+        img = frame()
     make_parents(out)  # only now: a failed render leaves nothing behind
     save_image(out, img)
     if args.timings:
@@ -196,7 +224,7 @@ def add_preview_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--window-size", type=_positive_int("--window-size"), nargs=2, default=None,
                    metavar=("W", "H"), help="window / screenshot size = rendered resolution (default: the scene "
                                             "camera's)")
-    p.add_argument("--exposure", type=float, default=0.0, help="display exposure in stops (default 0)")
+    p.add_argument("--exposure", type=_float, default=0.0, help="display exposure in stops (default 0)")
 
 
 def preview_main(args) -> int:
@@ -280,6 +308,20 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """Every warning as one line ``warp-sg: warning: ...``: ours (:class:`~warp_sg.errors.InputWarning`,
+    asset notes) as they are, a library's (numpy, trimesh, Pillow) prefixed with its name and kind."""
+    from pathlib import Path
+
+    text = str(message).strip().splitlines()[0] if str(message).strip() else category.__name__
+    parts = Path(str(filename)).parts
+    ours = "warp_sg" in parts or "precompute" in parts or "raster" in parts
+    if not (ours and issubclass(category, UserWarning)):
+        lib = next((p for p in parts[::-1] if p in ("numpy", "trimesh", "PIL", "scipy", "warp", "OpenEXR")), None)
+        text = f"{lib or Path(str(filename)).stem}: {text} ({category.__name__})"
+    print(f"warp-sg: warning: {text}", file=sys.stderr if file is None else file)
+
+
 def _message(e: BaseException) -> str:
     msg = str(e).strip().replace("\n", " ")
     return msg or type(e).__name__
@@ -295,7 +337,10 @@ def main(argv=None) -> int:
     parser = build_parser(command)
     args = parser.parse_args(argv)
     try:
-        rc = args.func(args)
+        with warnings.catch_warnings():
+            warnings.simplefilter("default")  # each warning once per place it is raised
+            warnings.showwarning = _show_warning
+            rc = args.func(args)
         return int(rc or 0)
     except (InputError, _Fail) as e:
         print(f"warp-sg: error: {_message(e)}", file=sys.stderr)

@@ -36,6 +36,7 @@ import numpy as np
 import warp as wp
 
 from warp_sg.errors import ImageError
+from warp_sg.watchdog import MAX_ENV_TEXELS, check_size
 from warp_sg.fastmath import fast_asin, fast_atan2
 
 PI = wp.constant(3.141592653589793)
@@ -262,20 +263,54 @@ def rotate_envmap(env, rotation, supersample: int = 2) -> np.ndarray:
 # --------------------------------------------------------------------------------------------
 # Loading
 # --------------------------------------------------------------------------------------------
+#: largest radiance of a texel: 18 orders of magnitude below float32's 3.4e38 leave room for the SG
+#: amplitudes, BRDF peaks and exposure that multiply it (a real sun in an HDRI is below 1e6)
+MAX_RADIANCE = 1e20
+#: accepted width / height of an equirectangular map (exactly 2 for the full sphere): a map far from
+#: 2:1 is not an equirectangular map (its texels would be stretched) and is refused
+ASPECT_RANGE = (1.0, 4.0)
+
+
+def check_envmap_shape(height: int, width: int, where: str = "environment map") -> None:
+    """Refuse a map smaller than 2 × 2, with more texels than :data:`warp_sg.watchdog.MAX_ENV_TEXELS`
+    or whose aspect W/H is outside :data:`ASPECT_RANGE`, with an :class:`ImageError` naming
+    ``where`` and the size (before any work on the texels)."""
+    try:
+        h, w = int(height), int(width)
+    except (TypeError, ValueError):
+        raise ImageError(f"environment map width and height must be integers, got {width!r}×{height!r}",
+                         where=where) from None
+    if h < 2 or w < 2:
+        raise ImageError(f"environment map must be at least 2×2 texels, got {w}×{h} (W×H)", where=where)
+    check_size("the environment map", h * w, MAX_ENV_TEXELS, f"{w}×{h} texels", "texels", where=where, error=ImageError)
+    lo, hi = ASPECT_RANGE
+    if not lo <= w / h <= hi:
+        raise ImageError(f"environment map is {w}×{h} texels (W×H), W/H = {w / h:.3g}: an equirectangular map is "
+                         f"twice as wide as it is tall (W/H from {lo:g} to {hi:g} is accepted)", where=where)
+
+
 def validate_envmap(env, where: str = "environment map") -> np.ndarray:
-    """Check an in-memory map: ``(H, W, 3)``, finite, non-negative. Returns float32.
+    """Check an in-memory map: ``(H, W, 3)`` (:func:`check_envmap_shape`), finite, non-negative,
+    at most :data:`MAX_RADIANCE`. Returns float32.
 
     Raises :class:`ImageError` naming ``where`` and the first bad texel.
     """
     a = np.asarray(env)
-    if a.ndim != 3 or a.shape[2] != 3 or a.shape[0] < 2 or a.shape[1] < 2:
+    if a.ndim != 3 or a.shape[2] != 3:
         raise ImageError(f"environment map must be (H, W, 3) with H, W >= 2, got shape {a.shape}", where=where)
+    check_envmap_shape(a.shape[0], a.shape[1], where)
     a = a.astype(np.float32, copy=False)
     bad_nan = ~np.isfinite(a)
     if bad_nan.any():
         r, c, _ = np.argwhere(bad_nan)[0]
         n = int(bad_nan.any(axis=2).sum())
         raise ImageError(f"{n} texel(s) are NaN or infinite (first at row {r}, column {c})", where=where)
+    hot = a > MAX_RADIANCE
+    if hot.any():
+        r, c, _ = np.argwhere(hot)[0]
+        n = int(hot.any(axis=2).sum())
+        raise ImageError(f"{n} texel(s) have radiance above {MAX_RADIANCE:g} (first at row {r}, column {c}: "
+                         f"{a[r, c].tolist()}); shading in float32 (at most 3.4e38) would overflow", where=where)
     neg = a < 0
     if neg.any():
         r, c, _ = np.argwhere(neg)[0]
@@ -305,6 +340,11 @@ def load_envmap(path, scale: float = 1.0) -> np.ndarray:
             magic = f.read(4)
     except OSError as e:
         raise ImageError(f"cannot open environment map ({e.strerror or e})", where=where) from None
+    if magic == b"\x76\x2f\x31\x01" or is_hdr_file(path):
+        from warp_sg.image_io import image_size
+
+        h, w, _ = image_size(path)
+        check_envmap_shape(h, w, where)  # from the header: a huge or stretched map is refused unread
     if magic == b"\x76\x2f\x31\x01":
         names = {n.rsplit(".", 1)[-1] for n in exr_channel_names(path)}
         if not {"R", "G", "B"} <= names:
@@ -438,6 +478,9 @@ def procedural_sky(
 __all__ = [
     "load_envmap",
     "validate_envmap",
+    "check_envmap_shape",
+    "ASPECT_RANGE",
+    "MAX_RADIANCE",
     "procedural_sky",
     "sky_radiance",
     "dir_to_uv",

@@ -3,6 +3,7 @@
 Every error a user can cause (a bad scene file, a corrupt mesh, a missing texture, an impossible
 parameter) is raised as :class:`InputError` (or a subclass) with a message that names the file,
 field or element at fault. The CLI turns these into one line on stderr and exit status 2.
+Input that is accepted with a change is reported as an :class:`InputWarning` (one line).
 This module imports nothing from the rest of the project so that ``raster`` and ``precompute``
 can raise the same types.
 """
@@ -27,6 +28,12 @@ class MeshError(InputError):
 
 class ImageError(InputError):
     """An image/texture/environment map cannot be read or has the wrong shape/channels."""
+
+
+class InputWarning(UserWarning):
+    """Input that is accepted but changed or doubtful (an inside-out mesh flipped, a material that
+    reflects more light than it receives): one line naming the element; the CLI prints it as
+    ``warp-sg: warning: ...``."""
 
 
 class CacheError(RuntimeError):

@@ -5,14 +5,26 @@ these names; :meth:`warp_sg.scene.Scene.geometry` calls :func:`build_geometry`.
 """
 from __future__ import annotations
 
+import re
+import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError, MeshError, SceneError
-from .meshcheck import check_mesh
+from .errors import InputError, InputWarning, MeshError, SceneError
+from .meshcheck import check_mesh, closed_and_oriented, signed_volume, weld_ids, winding_number
 from .primitives import MeshData, make_primitive
+from .watchdog import MAX_TRIANGLES, check_size
+
+#: mesh files an object's ``mesh`` may name (read by trimesh; ``.glb``/``.gltf`` by :mod:`warp_sg.gltf`)
+MESH_SUFFIXES = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
+#: largest world-space coordinate magnitude: beyond it float32 shading and trimesh's vertex welding
+#: (positions × 1e8 as int64) lose the mesh (a unit sphere scaled by 1e14 renders wrong)
+MAX_COORDINATE = 1e12
+#: smallest extent (bounding-box diagonal) of an object: below it trimesh's 1e-8 welding tolerance
+#: merges its vertices (a unit sphere scaled by 1e-8 renders wrong)
+MIN_EXTENT = 1e-5
 
 
 @dataclass
@@ -143,11 +155,28 @@ def _read_simple_obj(path: Path) -> MeshData | None:
         return None
 
 
+#: an OBJ face corner whose vertex index is 0 (OBJ indices start at 1; negative ones count back)
+_OBJ_ZERO_INDEX = re.compile(rb"^[ \t]*f[ \t][^\n]*?(?<=[ \t])0(?=[/ \t\r\n]|$)", re.MULTILINE)
+
+
 def _load_mesh_file(path: Path, where: str) -> MeshData:
     import trimesh
 
+    if path.is_dir():
+        raise SceneError(f"mesh '{path}' is a folder, not a mesh file", where=where)
     if not path.is_file():
         raise SceneError(f"mesh file not found: {path}", where=where)
+    if path.suffix.lower() not in MESH_SUFFIXES:
+        raise MeshError(f"mesh format '{path.suffix or path.name}' is not supported (use {', '.join(MESH_SUFFIXES)})",
+                        where=str(path))
+    if path.suffix.lower() == ".obj":
+        try:
+            zero = _OBJ_ZERO_INDEX.search(path.read_bytes())
+        except OSError as e:
+            raise MeshError(f"cannot read mesh ({e.strerror or e})", where=str(path)) from None
+        if zero is not None:
+            line = zero.string.count(b"\n", 0, zero.start()) + 1
+            raise MeshError(f"line {line}: face vertex index 0 (OBJ indices start at 1)", where=str(path))
     try:
         m = trimesh.load(str(path), force="mesh", process=False)
     except Exception as e:  # noqa: BLE001 - trimesh raises many types
@@ -177,9 +206,10 @@ def _load_mesh_file(path: Path, where: str) -> MeshData:
     return MeshData(v, f, normals, uv, None)
 
 
-def object_mesh(ob, index: int, base: Path | None) -> MeshData:
+def object_mesh(ob, index: int, base: Path | None, eye=None) -> MeshData:
     """The mesh of ``ob`` (a :class:`~warp_sg.scene.SceneObject`) in world space (transform applied),
-    attributes filled in."""
+    attributes filled in; inside-out closed meshes are turned outwards unless they enclose the world
+    point ``eye`` (the camera: :func:`orient_outward`)."""
     where = f"{'scene' if base is None else base}: [[objects]] #{index + 1}"
     if ob.primitive is not None:
         try:
@@ -197,12 +227,19 @@ def object_mesh(ob, index: int, base: Path | None) -> MeshData:
     else:
         raise SceneError("needs 'mesh', 'primitive' or vertices + triangles", where=where)
     label = ob.label(index)
-    v, t, keep = validate_mesh(mesh.vertices, mesh.triangles, where=f"{where} ({label})")
+    at = f"{where} ({label})"
+    n_tri = np.size(mesh.triangles) // 3
+    check_size("the mesh", n_tri, MAX_TRIANGLES, "too large", "triangles", where=at, error=MeshError)
+    v, t, keep = validate_mesh(mesh.vertices, mesh.triangles, where=at)
     n = mesh.normals
     if n is None or n.shape != v.shape or not np.all(np.isfinite(n)) or np.any(np.linalg.norm(n, axis=1) < 1e-12):
-        n = vertex_normals(v, t[keep]).astype(np.float32)
+        n = None
     else:
         n = (n / np.linalg.norm(n, axis=1, keepdims=True)).astype(np.float32)
+    if ob.primitive is None:  # primitives are built outward
+        t, n = orient_outward(v, t, keep, n, at, eye=_object_point(ob.transform, eye))
+    if n is None:
+        n = vertex_normals(v, t[keep]).astype(np.float32)
     uv = mesh.uvs
     if uv is not None and (uv.shape != (len(v), 2) or not np.all(np.isfinite(uv))):
         raise MeshError(f"uvs must have shape ({len(v)}, 2) and be finite, got {uv.shape}", where=f"{where} ({label})")
@@ -210,7 +247,11 @@ def object_mesh(ob, index: int, base: Path | None) -> MeshData:
     if tan is None or tan.shape != v.shape or not np.all(np.isfinite(tan)):
         tan = uv_tangents(v, t[keep], uv, n).astype(np.float32)
     mesh = MeshData(v, t[keep], n, np.zeros((len(v), 2), np.float32) if uv is None else uv.astype(np.float32), tan)
-    mesh = ob.transform.apply(mesh)
+    try:
+        mesh = ob.transform.apply(mesh)
+    except SceneError as e:
+        raise SceneError(f"{e.args[0].split(': ', 1)[-1]} (scale {ob.transform.scale})", where=at) from None
+    check_extent(mesh.vertices, at)
     # re-orthogonalise the tangents against the (transformed) normals
     tn = mesh.tangents.astype(np.float64)
     nn = mesh.normals.astype(np.float64)
@@ -224,6 +265,68 @@ def object_mesh(ob, index: int, base: Path | None) -> MeshData:
     return mesh
 
 
+def _object_point(transform, p):
+    """World point ``p`` in the object's frame (``A⁻¹ (p − translate)``), None if there is none or
+    the transform is singular (refused later)."""
+    if p is None:
+        return None
+    A = transform.linear()
+    if abs(np.linalg.det(A)) < 1e-30:
+        return None
+    return np.linalg.solve(A, np.asarray(p, np.float64) - np.asarray(transform.translate, np.float64))
+
+
+def check_extent(vertices, where: str) -> None:
+    """World-space coordinates within ±:data:`MAX_COORDINATE` and an extent of at least
+    :data:`MIN_EXTENT`; else :class:`MeshError` naming ``where`` (and the first far vertex)."""
+    v = np.asarray(vertices)
+    far = ~(np.abs(v) <= MAX_COORDINATE).all(axis=1)
+    if far.any():
+        i = int(np.argmax(far))
+        raise MeshError(f"vertex {i} is at {v[i].tolist()}: coordinates beyond ±{MAX_COORDINATE:g} are refused "
+                        f"(float32 shading and vertex welding lose the mesh there); scale the object down", where=where)
+    size = float(np.linalg.norm(v.max(axis=0).astype(np.float64) - v.min(axis=0)))
+    if size < MIN_EXTENT:
+        raise MeshError(f"the object is {size:.3g} across: at least {MIN_EXTENT:g} is needed (below it the "
+                        f"renderer's welding tolerance merges its vertices); scale it up", where=where)
+
+
+def orient_outward(v, t, keep, normals, where: str, eye=None):
+    """``(triangles, normals)`` of a closed, consistently oriented mesh made to face outwards: a
+    negative :func:`~warp_sg.meshcheck.signed_volume` (inside out) flips every triangle's winding,
+    and normals that point inwards overall (``Σ n · N_geo < 0``, ``N_geo`` the area-weighted
+    triangle normals at the vertices) are negated, with one :class:`~warp_sg.errors.InputWarning`
+    naming ``where``. Open meshes (a floor) have no inside and are returned as they are; so is a
+    closed mesh around the ``eye`` (in the mesh's frame; a room seen from inside faces inwards by
+    design: :func:`~warp_sg.meshcheck.winding_number` ±1)."""
+    tk = t[keep]
+    if not closed_and_oriented(tk, weld_ids(v)):
+        return t, normals
+    if eye is not None and abs(winding_number(v, tk, eye)) > 0.5:
+        return t, normals
+    vol = signed_volume(v, tk)
+    flipped = vol < 0
+    if flipped:
+        t, tk = t[:, [0, 2, 1]], tk[:, [0, 2, 1]]
+    inward = False
+    if normals is not None:
+        e = np.cross(v[tk[:, 1]] - v[tk[:, 0]], v[tk[:, 2]] - v[tk[:, 0]]).astype(np.float64)
+        inward = float(sum(np.einsum("ij,ij->", normals[tk[:, k]].astype(np.float64), e) for k in range(3))) < 0
+        if inward:
+            normals = -normals
+    if flipped and (inward or normals is None):
+        what = f"the closed mesh is inside out (signed volume {vol:.3g} < 0): its triangles and normals are flipped"
+    elif flipped:
+        what = (f"the closed mesh's triangles wind inwards (signed volume {vol:.3g} < 0): they are flipped "
+                f"(its normals point outwards already)")
+    elif inward:
+        what = "the closed mesh's normals point inwards: they are flipped"
+    else:
+        return t, normals
+    warnings.warn(f"{where}: {what}", InputWarning, stacklevel=2)
+    return t, normals
+
+
 def build_geometry(scene) -> Geometry:
     """Every object of ``scene`` (a :class:`~warp_sg.scene.Scene`) flattened into one :class:`Geometry`."""
     names = scene.material_names
@@ -231,7 +334,9 @@ def build_geometry(scene) -> Geometry:
     base = 0
     dropped = 0
     for i, ob in enumerate(scene.objects):
-        m = object_mesh(ob, i, scene.path)
+        m = object_mesh(ob, i, scene.path, eye=scene.camera.origin)
+        check_size("the scene", sum(len(x) for x in tris) + len(m.triangles), MAX_TRIANGLES,
+                   f"too large at object #{i + 1}", "triangles", where=str(scene.path or "scene"), error=MeshError)
         vs.append(m.vertices)
         ns.append(m.normals)
         uvs.append(m.uvs)
@@ -258,4 +363,5 @@ def build_geometry(scene) -> Geometry:
     )
 
 
-__all__ = ["Geometry", "validate_mesh", "vertex_normals", "uv_tangents", "object_mesh", "build_geometry", "vertex_samples"]
+__all__ = ["Geometry", "validate_mesh", "vertex_normals", "uv_tangents", "object_mesh", "build_geometry", "vertex_samples",
+           "orient_outward", "check_extent", "MESH_SUFFIXES", "MAX_COORDINATE", "MIN_EXTENT"]

@@ -30,7 +30,13 @@ the file or are generated from the UVs (:func:`warp_sg.geometry.uv_tangents`).
 
 Extensions, occlusion and emissive textures, alpha modes, vertex colours, second UV sets and
 animations are not rendered: each is reported once as an :class:`AssetWarning` (one line) and
-ignored. An unreadable file raises :class:`~warp_sg.errors.MeshError` naming it.
+ignored. An unreadable file raises :class:`~warp_sg.errors.MeshError` naming it; so do an index
+that points past its list (``meshes[0].primitives[0].indices = 9: the file has 2 accessors``), a
+node graph with a cycle, meshes compressed by an extension that cannot be decoded
+(:mod:`warp_sg.gltf_checks`), and a primitive with non-finite positions or out-of-range vertex
+indices (naming the node). A texture whose image cannot be read (a missing file, a corrupt image)
+raises :class:`~warp_sg.errors.ImageError` naming the material, the texture and the image: an
+untextured image would be a wrong answer.
 """
 from __future__ import annotations
 
@@ -43,7 +49,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import MeshError
+from .errors import ImageError, MeshError
+from .geometry import validate_mesh
+from .gltf_checks import check_compression, check_images, check_references
+from .meshcheck import check_mesh
 from .textures import Texture, sample_bilinear_np, srgb_to_linear
 
 GLTF_SUFFIXES = (".glb", ".gltf")
@@ -186,6 +195,8 @@ def load_gltf(path, *, images: bool = True) -> GltfAsset:
     if not path.is_file():
         raise MeshError("glTF file not found", where=str(path))
     header, raw = _read_header(path)
+    check_references(path, header)
+    check_compression(path, header, SUPPORTED_EXTENSIONS)
     data = _retagged(path, header, raw)
     try:
         resolver = trimesh.resolvers.FilePathResolver(str(path))
@@ -205,6 +216,8 @@ def load_gltf(path, *, images: bool = True) -> GltfAsset:
         if idx is not None and idx not in imgs:
             imgs[idx] = {k: getattr(mat, k, None) for k in ("baseColorTexture", "metallicRoughnessTexture",
                                                                "normalTexture")}
+            if images:
+                check_images(path, header, idx, imgs[idx])
     if not parts:
         raise MeshError("glTF file contains no triangles", where=str(path))
     return GltfAsset(path=path, parts=parts, header=header, images=imgs, notes=_notes(path, header))
@@ -220,9 +233,15 @@ def _material_index(mat) -> int | None:
 def _part(path: Path, node: str, g, M: np.ndarray) -> GltfPart:
     """Apply the node's world matrix: P' = M P, n' ∝ M⁻ᵀ n, t' ∝ M t (winding flipped when det M < 0)."""
     A, t = M[:3, :3], M[:3, 3]
-    v = np.asarray(g.vertices, np.float64)
-    f = np.asarray(g.faces, np.int64)
-    n = np.asarray(g.vertex_normals, np.float64)
+    try:  # before trimesh touches the triangles (its normals index the vertices by them)
+        v, f, _ = check_mesh(g.vertices, g.faces)
+        validate_mesh(v, f, where=None)  # and not all of zero area (an accessor without data reads as zeros)
+    except MeshError as e:
+        raise MeshError(f"node '{node}': {e}", where=str(path)) from None
+    if not np.isfinite(M).all():
+        raise MeshError(f"node '{node}' has a non-finite transform", where=str(path))
+    with np.errstate(invalid="ignore", divide="ignore"):  # zero-area faces: normals fixed below
+        n = np.nan_to_num(np.asarray(g.vertex_normals, np.float64))
     uv = getattr(g.visual, "uv", None)
     uv = None if uv is None or len(uv) != len(v) else np.asarray(uv, np.float32)
     tan = g.vertex_attributes.get("_TANGENT") if hasattr(g, "vertex_attributes") else None
@@ -249,11 +268,14 @@ def _image(img, where: str) -> np.ndarray:
     """A PIL image as float32 (H, W, 4) code values in [0, 1]."""
     from .textures import to_rgba
 
-    if img.mode in ("I;16", "I;16B", "I;16L", "I"):
-        a = np.asarray(img, np.float32) / 65535.0
-    else:
-        a = np.asarray(img.convert("RGBA") if img.mode not in ("L", "LA", "RGB", "RGBA") else img,
-                       np.float32) / 255.0
+    try:  # Pillow decodes lazily: a truncated or corrupt image fails here
+        if img.mode in ("I;16", "I;16B", "I;16L", "I"):
+            a = np.asarray(img, np.float32) / 65535.0
+        else:
+            a = np.asarray(img.convert("RGBA") if img.mode not in ("L", "LA", "RGB", "RGBA") else img,
+                           np.float32) / 255.0
+    except (OSError, ValueError, SyntaxError) as e:
+        raise ImageError(f"cannot decode the image ({type(e).__name__}: {e})", where=where) from None
     return to_rgba(a, where)
 
 

@@ -136,6 +136,62 @@ def read_hdr(path) -> np.ndarray:
     return np.ascontiguousarray(a[..., ::-1], np.float32)
 
 
+def image_size(path) -> tuple[int | None, int | None, int]:
+    """``(H, W, H·W)`` of an image file from its header alone (the OpenEXR data window, the Radiance
+    resolution line, Pillow's lazy open), before any pixel is decoded; ``H``, ``W`` are None when
+    Pillow refuses the file as a decompression bomb (its count is then the third value). Unreadable
+    headers raise :class:`ImageError` naming the file."""
+    import re
+    import warnings
+
+    path = Path(path)
+    try:
+        with open(path, "rb") as f:
+            head = f.read(1 << 16)
+    except OSError as e:
+        raise ImageError(f"cannot open image ({e.strerror or e})", where=str(path)) from None
+    if head[:4] == b"\x76\x2f\x31\x01":
+        import OpenEXR
+
+        try:
+            with OpenEXR.File(str(path), header_only=True) as f:
+                lo, hi = f.header()["dataWindow"]
+        except Exception as e:  # noqa: BLE001 - the OpenEXR binding raises many types
+            raise ImageError(f"cannot read OpenEXR file ({type(e).__name__}: {e})", where=str(path)) from None
+        h, w = int(hi[1]) - int(lo[1]) + 1, int(hi[0]) - int(lo[0]) + 1
+        return h, w, h * w
+    if head[:2] == b"#?":
+        m = re.search(rb"\n\s*[-+]Y\s+(\d+)\s+[-+]X\s+(\d+)\s*\n", head)
+        if m is None:
+            raise ImageError("cannot read Radiance HDR file (no resolution line in its header)", where=str(path))
+        h, w = int(m.group(1)), int(m.group(2))
+        return h, w, h * w
+    from PIL import Image, UnidentifiedImageError
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", Image.DecompressionBombWarning)  # our own bound decides
+        try:
+            with Image.open(path) as im:
+                w, h = im.size
+        except Image.DecompressionBombError as e:
+            m = re.search(r"\((\d+) pixels\)", str(e))
+            return None, None, int(m.group(1)) if m else Image.MAX_IMAGE_PIXELS * 2 + 1
+        except (UnidentifiedImageError, OSError, ValueError, SyntaxError) as e:
+            raise ImageError(f"cannot read image ({type(e).__name__}: {e})", where=str(path)) from None
+    return int(h), int(w), int(h) * int(w)
+
+
+def check_image_file(path, what: str, bound: int) -> tuple[int | None, int | None]:
+    """Refuse an image file with more than ``bound`` texels (:mod:`warp_sg.watchdog`) from its
+    header, before decoding it; returns its ``(H, W)``."""
+    from .watchdog import check_size
+
+    h, w, n = image_size(path)
+    check_size(what, n, bound, f"{w}×{h} texels" if h is not None else "larger than Pillow opens (a decompression bomb)",
+               "texels", where=str(path), error=ImageError)
+    return h, w
+
+
 def is_hdr_file(path) -> bool:
     """``.hdr`` suffix or the Radiance signature ``#?`` (``#?RADIANCE``, ``#?RGBE``)."""
     path = Path(path)
@@ -360,4 +416,6 @@ __all__ = [
     "read_exr",
     "read_hdr",
     "is_hdr_file",
+    "image_size",
+    "check_image_file",
 ]

@@ -30,7 +30,8 @@ from pathlib import Path
 import numpy as np
 import warp as wp
 
-from .envmap import load_envmap, procedural_sky, rotate_envmap, rotation_y
+from .envmap import (MAX_RADIANCE, check_envmap_shape, load_envmap, procedural_sky, rotate_envmap, rotation_y,
+                     validate_envmap)
 from .errors import InputError
 from .sg_wp import expm1_neg
 
@@ -48,6 +49,8 @@ def _rgb(v, where):
         raise InputError(f"expected a number or 3 finite numbers (RGB), got {v!r}", where=where)
     if np.any(a < 0):
         raise InputError(f"must be >= 0, got {a.tolist()}", where=where)
+    if np.any(a > MAX_RADIANCE):  # as for environment texels: float32 shading would overflow
+        raise InputError(f"must be <= {MAX_RADIANCE:g}, got {a.tolist()}", where=where)
     return a
 
 
@@ -133,6 +136,8 @@ class EnvironmentLight:
             raise InputError(f"unknown procedural environment '{self.procedural}' (use {', '.join(ENV_PROCEDURAL)})",
                              where="environment light.procedural")
         self.scale = _nonneg(self.scale, "environment light.scale")
+        if self.scale > MAX_RADIANCE:
+            raise InputError(f"must be <= {MAX_RADIANCE:g}, got {self.scale!r}", where="environment light.scale")
         try:
             self.rotation = float(self.rotation)
         except (TypeError, ValueError):
@@ -146,6 +151,7 @@ class EnvironmentLight:
                 a = np.asarray(self.data, np.float32)
                 if a.ndim != 3 or a.shape[2] != 3:
                     raise InputError(f"environment data must be (H, W, 3), got {a.shape}", where="environment light")
+                a = validate_envmap(a, where="environment light.data")
             elif self.procedural == "constant":
                 o = dict(self.options)
                 rad = _rgb(o.pop("radiance", 1.0), "environment light.options.radiance")
@@ -154,8 +160,11 @@ class EnvironmentLight:
                 if o:
                     raise InputError(f"unknown option(s) {sorted(o)} for procedural 'constant'",
                                      where="environment light.options")
+                check_envmap_shape(h, w, "environment light.options")  # before the texels exist
                 a = np.broadcast_to(rad.astype(np.float32), (h, w, 3)).copy()
             elif self.procedural == "sky":
+                o = self.options
+                check_envmap_shape(o.get("height", 128), o.get("width", 256), "environment light.options")
                 a = np.asarray(procedural_sky(**self.options), np.float32)
             else:
                 a = np.asarray(load_envmap(self.file), np.float32)

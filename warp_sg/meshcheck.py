@@ -13,8 +13,9 @@
   normal [...]``, ``vertex 3 has a zero-length normal``;
 * optionally ``mesh has no vertices`` / ``mesh has no triangles``.
 
-Like :mod:`warp_sg.errors` it imports nothing else from the project, so ``raster`` and
-``precompute`` can use it.
+:func:`closed_and_oriented` and :func:`signed_volume` tell an inside-out closed mesh (negative
+volume) from a good one; :func:`winding_number` whether a point (the eye) is inside one. Like :mod:`warp_sg.errors` it imports nothing else from the project, so
+``raster`` and ``precompute`` can use it.
 """
 from __future__ import annotations
 
@@ -105,5 +106,49 @@ def weld_ids(vertices) -> np.ndarray:
     return np.unique(v + 0.0, axis=0, return_inverse=True)[1].reshape(-1).astype(np.int64)
 
 
-__all__ = ["check_mesh", "weld_ids"]
+def closed_and_oriented(triangles, ids) -> bool:
+    """Whether the mesh is closed and consistently oriented: every directed edge ``a→b`` of the
+    triangles (vertices identified by ``ids``, :func:`weld_ids`) occurs exactly once and so does
+    its reverse ``b→a`` (each edge is shared by two triangles that traverse it in opposite
+    directions; no boundary, no non-manifold or flipped neighbour)."""
+    t = np.asarray(ids, np.int64)[np.asarray(triangles, np.int64)]
+    a = t.reshape(-1)
+    b = t[:, [1, 2, 0]].reshape(-1)
+    keep = a != b  # an edge collapsed by welding belongs to a degenerate triangle
+    a, b = a[keep], b[keep]
+    if len(a) == 0:
+        return False
+    n = int(t.max()) + 1
+    fwd = np.sort(a * n + b)
+    if np.any(fwd[1:] == fwd[:-1]):
+        return False
+    return bool(np.array_equal(fwd, np.sort(b * n + a)))
+
+
+def signed_volume(vertices, triangles) -> float:
+    """``V = Σ v0 · (v1 × v2) / 6`` over the triangles (divergence theorem; about the vertices'
+    centroid for precision): positive for a closed mesh whose triangles wind counter-clockwise seen
+    from outside (outward normals), negative for one that is inside out."""
+    v = np.asarray(vertices, np.float64)
+    v = v - v.mean(axis=0)
+    t = np.asarray(triangles, np.int64)
+    return float(np.einsum("ij,ij->", v[t[:, 0]], np.cross(v[t[:, 1]], v[t[:, 2]])) / 6.0)
+
+
+def winding_number(vertices, triangles, point) -> float:
+    """Generalised winding number of ``point``: ``Σ Ω_t / 4π`` over the triangles' signed solid
+    angles seen from it (van Oosterom & Strackee 1983, ``tan(Ω/2) = a·(b × c) / (|a||b||c| +
+    (a·b)|c| + (a·c)|b| + (b·c)|a|)`` with ``a, b, c`` the corners relative to the point). For a
+    closed mesh: ±1 inside (the sign of its orientation), 0 outside."""
+    v = np.asarray(vertices, np.float64) - np.asarray(point, np.float64)
+    t = np.asarray(triangles, np.int64)
+    a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
+    la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
+    num = np.einsum("ij,ij->i", a, np.cross(b, c))
+    den = (la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", a, c) * lb
+           + np.einsum("ij,ij->i", b, c) * la)
+    return float(2.0 * np.arctan2(num, den).sum() / (4.0 * np.pi))
+
+
+__all__ = ["check_mesh", "weld_ids", "closed_and_oriented", "signed_volume", "winding_number"]
 

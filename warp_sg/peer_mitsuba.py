@@ -16,7 +16,9 @@ camera rays through a box-filtered pixel, environment visible in the background.
   same near/far: :class:`warp_sg.camera.Camera` is defined by that convention (row 0 at the top,
   image +x = forward × up).
 * **Materials** — only :class:`warp_sg.brdf.Lambert` → ``diffuse`` (``reflectance = kd``, BRDF
-  ``kd/π`` in both). Not expressible, so refused (:class:`NotExpressible`): our microfacet models
+  ``kd/π`` in both); with ``approximate=True`` (the real-asset report's peer column) also GGX
+  conductors → ``roughconductor`` (same NDF, Mitsuba's separable Smith term). Not expressible, so
+  refused (:class:`NotExpressible`): our microfacet models
   use the V-cavity shadowing term ``min(1, 2(n·h)(n·o)/(o·h), 2(n·h)(n·i)/(i·h))``
   (:mod:`warp_sg.brdf.microfacet`) where Mitsuba's ``roughconductor``/``roughplastic`` use Smith
   masking (and ``roughplastic`` adds a Fresnel-weighted internal-scattering diffuse); our
@@ -141,16 +143,44 @@ def mitsuba_envmap(radiance: np.ndarray) -> np.ndarray:
     return (0.5 * (a[above] + a[below])).astype(np.float32)
 
 
-def _check_material(name, brdf):
-    from .brdf import Lambert
+def _check_material(name, brdf, approximate: bool = False):
+    """The Mitsuba BSDF dict of one of our materials: Lambert → ``diffuse`` (identical); with
+    ``approximate``, a GGX conductor (kd = 0) → ``roughconductor`` (``distribution = "ggx"``, α or
+    (α_u, α_v), ``specular_reflectance = ks``; Fresnel: (η, k) as given, Schlick f0 as the real η of
+    the same normal reflectance, none as ``material = "none"``) — the same NDF, but Mitsuba's
+    separable Smith term ``G1(o) G1(i)`` instead of our height-correlated ``G2`` (darker at grazing
+    angles), so only an approximate peer."""
+    from .brdf import GGX, Lambert
+    from .brdf.fresnel import Conductor, Dielectric, NoFresnel, Schlick
 
-    if type(brdf) is not Lambert:
-        raise NotExpressible(f"material '{name}' is {type(brdf).__name__}; only Lambert materials render identically "
-                             "in Mitsuba 3 (see warp_sg.peer_mitsuba)", where=f"[materials.{name}]")
-    return {"type": "diffuse", "reflectance": {"type": "rgb", "value": [float(x) for x in brdf.kd]}}
+    if type(brdf) is Lambert:
+        return {"type": "diffuse", "reflectance": {"type": "rgb", "value": [float(x) for x in brdf.kd]}}
+    if approximate and type(brdf) is GGX and not np.any(np.asarray(brdf.kd) > 0):
+        d = {"type": "roughconductor", "distribution": "ggx", "sample_visible": True,
+             "specular_reflectance": {"type": "rgb", "value": [float(x) for x in brdf.ks]}}
+        if brdf.isotropic:
+            d["alpha"] = float(brdf.alpha_x)
+        else:
+            d["alpha_u"], d["alpha_v"] = float(brdf.alpha_x), float(brdf.alpha_y)
+        f = brdf.fresnel
+        if isinstance(f, NoFresnel):
+            d["material"] = "none"
+        elif isinstance(f, (Conductor, Dielectric, Schlick)):
+            if isinstance(f, Schlick):  # the η of a dielectric with the same normal reflectance
+                r = np.sqrt(np.clip(np.asarray(f.f0, np.float64), 0.0, 0.999))
+                eta, k = (1 + r) / (1 - r), np.zeros(3)
+            else:
+                eta = np.asarray(f.eta, np.float64)
+                k = np.asarray(getattr(f, "k", np.zeros(3)), np.float64)
+            d["eta"] = {"type": "rgb", "value": [float(x) for x in np.broadcast_to(eta, 3)]}
+            d["k"] = {"type": "rgb", "value": [float(x) for x in np.broadcast_to(k, 3)]}
+        return d
+    raise NotExpressible(f"material '{name}' is {type(brdf).__name__}; only Lambert materials render identically "
+                         "in Mitsuba 3 (GGX conductors approximately; see warp_sg.peer_mitsuba)",
+                         where=f"[materials.{name}]")
 
 
-def _meshes(mi, scene) -> dict:
+def _meshes(mi, scene, approximate: bool = False) -> dict:
     g = scene.geometry()
     out = {}
     for m, name in enumerate(g.material_names):
@@ -161,7 +191,7 @@ def _meshes(mi, scene) -> dict:
         if getattr(mat, "textures", None) or getattr(mat, "normal_map", None) or getattr(mat, "tangent_map", None):
             raise NotExpressible(f"material '{name}' is textured; textures are not converted",
                                  where=f"[materials.{name}]")
-        bsdf = mi.load_dict(_check_material(name, mat.brdf))
+        bsdf = mi.load_dict(_check_material(name, mat.brdf, approximate))
         tris = g.triangles[sel]
         used, inv = np.unique(tris, return_inverse=True)
         faces = inv.reshape(-1, 3).astype(np.uint32)
@@ -242,8 +272,9 @@ def envmap_dict(light, device: str = "cpu") -> dict:
             "to_world": mi.ScalarTransform4f(m.tolist())}
 
 
-def mitsuba_scene_dict(scene, spp: int = 1, device: str = "cpu") -> dict:
-    """The Mitsuba scene dict of ``scene`` (module docstring); raises :class:`NotExpressible`."""
+def mitsuba_scene_dict(scene, spp: int = 1, device: str = "cpu", approximate: bool = False) -> dict:
+    """The Mitsuba scene dict of ``scene`` (module docstring); raises :class:`NotExpressible`.
+    ``approximate``: GGX conductors too (:func:`_check_material`)."""
     mi = _mi(device)
     cam = scene.camera
     d = {"type": "scene",
@@ -255,15 +286,15 @@ def mitsuba_scene_dict(scene, spp: int = 1, device: str = "cpu") -> dict:
                     "sampler": {"type": "independent", "sample_count": int(spp)},
                     "film": {"type": "hdrfilm", "width": int(cam.width), "height": int(cam.height),
                              "pixel_format": "rgb", "rfilter": {"type": "box"}}}}
-    d.update(_meshes(mi, scene))
+    d.update(_meshes(mi, scene, approximate))
     d.update(_lights(mi, scene))
     return d
 
 
-def mitsuba_scene(scene, device: str = "cpu"):
+def mitsuba_scene(scene, device: str = "cpu", approximate: bool = False):
     """``mi.load_dict(mitsuba_scene_dict(scene))`` (the loaded scene: BVH and envmap sampling built)."""
     mi = _mi(device)
-    return mi.load_dict(mitsuba_scene_dict(scene, device=device))
+    return mi.load_dict(mitsuba_scene_dict(scene, device=device, approximate=approximate))
 
 
 def mitsuba_render(mscene, spp: int, seed: int = 0, device: str = "cpu") -> tuple[np.ndarray, float]:

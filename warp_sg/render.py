@@ -32,6 +32,7 @@ import numpy as np
 import warp as wp
 
 from .background import BackgroundCache
+from .costs import check_frame_costs
 from .device import resolve_device
 from .errors import InputError, SceneError
 from .lights import DirectionalLight, EnvironmentLight, PointLight, light_arrays
@@ -41,6 +42,7 @@ from . import shading as S
 from .textures import Texture, build_atlas
 from .brdf.term_mask import TermMask
 from .progressive import ShadowJob
+from .render_environment import EnvironmentSetup
 from .vertex_visibility import caches
 from .lobe_extent import gamma_reach
 from .visibility_setup import refine_key, visibility_arrays
@@ -51,7 +53,7 @@ def _timer(device):
     return time.perf_counter()
 
 
-class Renderer:
+class Renderer(EnvironmentSetup):
     """Stateful renderer: precompute once, then ``render()`` any number of frames.
 
     ``progress``: show progress bars for the precompute steps. ``ssdf_compute``: replaces
@@ -88,12 +90,15 @@ class Renderer:
         self._env_arrays_key = ()  # (see _env_arrays; () = not built yet)
         self._env_sg_arrays = None
         self._gamma_capped, self._gamma_reach = False, 0.0  # (_ensure_gamma)
-        self.env_vis_cache, self.light_vis_cache, self.env_irr_cache = caches()  # (_vertex_visibility)
+        self.env_vis_cache, self.light_vis_cache, self.env_visible_cache = caches()  # (_vertex_visibility)
         self._bg = BackgroundCache(self.device)  # what pixels that see no object show
         self._aa = None  # antialiasing's caches between frames (warp_sg.antialias.AntialiasCache)
         self._vb_key = self._vb = self._culling = None
         t0 = time.perf_counter()
+        check_frame_costs(scene, scene.geometry(), shadows=scene.render.shadows,  # the watchdog, before any work
+                          specular=any(getattr(m.brdf, "is_specular", True) for m in scene.materials.values()))
         with wp.ScopedDevice(self.device):
+            self._setup_env_peaks()
             self._setup_geometry()
             self._setup_materials()
             self._setup_environment()
@@ -123,7 +128,7 @@ class Renderer:
         self.wait()
         g = self.input_geometry
         budget = self.scene.render.visibility_budget
-        return {"refine_key": refine_key(g, budget) if self._refined is not None else None,
+        return {"refine_key": refine_key(g, budget, self._refine_lights()) if self._refined is not None else None,
                 "refinement": self._refined, "ssdf": self.ssdf}
 
     # ------------------------------------------------------------------ setup
@@ -146,7 +151,8 @@ class Renderer:
         if not needs_shadows(self.scene, g):
             return
         args = (self.scene, g, self.device)
-        kw = {"progress": self.progress, "compute": self._ssdf_compute, "precomputed": self._precomputed}
+        kw = {"progress": self.progress, "compute": self._ssdf_compute, "precomputed": self._precomputed,
+              "lights": self._refine_lights()}
         if self.progressive:  # started once the first frame's own precompute is done (__init__)
             self._job = lambda: ShadowJob(lambda: compute_visibility(*args, **kw))
         elif self.overlap_precompute:  # beside the environment fit and ΓL (single-threaded parts)
@@ -205,7 +211,7 @@ class Renderer:
             self._install_shadows(result)
             self._setup_materials()
         self.timings["shadows_ready"] = job.seconds
-        self.env_vis_cache, self.light_vis_cache, self.env_irr_cache = caches()
+        self.env_vis_cache, self.light_vis_cache, self.env_visible_cache = caches()
         self._aa = None
         self._vb_key = self._vb = self._culling = None
         return True
@@ -219,117 +225,15 @@ class Renderer:
         self.poll()
         return True
 
-    def _setup_environment(self):
-        """Environment: sharp peaks (a sun) become directional lights (``precompute.env_peaks``,
-        ``[render] env_peaks``); the broad remainder is fitted by an SG mixture for the diffuse
-        term (eq. 34, fitted through the exact SG irradiance) and prefiltered (ΓL) for the
-        specular term (lazily, only when a material is specular)."""
-        env = self.scene.environment
-        rs = self.scene.render
-        self.env_light = env
-        self.env_diffuse_mode = S.ENV_NONE
-        self.env_specular_mode = S.ENV_NONE
-        self._env_sg_base = None  # (axes in the map frame, λ, μ unscaled)
-        self.env_peaks = []
-        self.gamma = None
-        if env is None:
-            return
-        from precompute.env_peaks import extract_peaks
-
-        base = env.base_radiance()
-        self.env_base = base  # what the background shows
-        t = self._tick()
-        self.env_residual, self.env_peaks = extract_peaks(base, max_peaks=rs.env_peaks)
-        self._tock("env_peaks", t)
-        t = self._tick()
-        if env.procedural == "constant":
-            # a constant map is exactly one SG of vanishing sharpness: no fit needed
-            rad = np.asarray(base.reshape(-1, 3)[0], np.float64)
-            lam0 = 1.0e-4
-            self._env_sg_base = (np.array([[0.0, 1.0, 0.0]]), np.array([lam0]), (rad * np.exp(lam0))[None, :])
-        else:
-            self._env_sg_base = self._fit_env(self.env_residual, rs.env_lobes)
-        self.env_diffuse_mode = S.ENV_SG
-        self._tock("env_fit", t)
-
-    def _ensure_gamma(self):
-        """Prefilter the environment (ΓL pyramid, eq. 35) when the scene needs it: a specular
-        material. Done lazily so diffuse-only scenes skip it. The default λ ladder ends at the
-        first level at or above the scene's sharpest NDF lobe (:mod:`warp_sg.lobe_extent`); a
-        material edit that needs a sharper level rebuilds it."""
-        env = self.env_light
-        if env is None or not self.has_specular:
-            return
-        if self.gamma is not None and (not self._gamma_capped or self._gamma_need <= self._gamma_reach):
-            return
-        import precompute
-        from precompute.prefilter import default_ladder
-
-        rs = self.scene.render
-        base = self.env_residual
-        t = self._tick()
-        lams, _, _ = default_ladder(base.shape[0], base_face=rs.gamma_resolution)
-        kw = {}
-        if rs.gamma_levels > 0:
-            kw["lambdas"] = np.geomspace(lams[0], lams[-1], rs.gamma_levels)
-        elif 0.0 < self._gamma_need < lams[-2]:
-            kw["lambdas"] = lams[:max(int(np.searchsorted(lams, self._gamma_need)) + 1, 2)]
-        self._gamma_capped = "lambdas" in kw and rs.gamma_levels == 0
-        self._gamma_reach = float(kw.get("lambdas", lams)[-1])
-        self.gamma = precompute.prefilter_environment(base, device=self.device, base_face=rs.gamma_resolution,
-                                                      progress=self.progress, **kw)
-        self.env_specular_mode = S.ENV_PREFILTERED
-        self._tock("env_prefilter", t)
-
-    @staticmethod
-    def _fit_env(base, n_lobes):
-        from precompute.env_sg_fit import fit_environment_sgs
-
-        axes, lam, mu = fit_environment_sgs(base, n_lobes, cosine="exact")
-        return (np.asarray(axes, np.float64).reshape(-1, 3), np.asarray(lam, np.float64).reshape(-1),
-                np.asarray(mu, np.float64).reshape(-1, 3))
-
-    def _env_arrays(self):
-        """EnvSG (world axes: rotation applied; amplitudes scaled) on the device, rebuilt only when
-        the rotation or scale changes. Lobes that carry no energy (``|μ| ∫G`` below 1e-6 of the
-        mixture's, e.g. amplitudes the non-negative fit set to 0) are left out."""
-        env = self.env_light
-        key = None if env is None or self._env_sg_base is None else (id(self._env_sg_base), float(env.rotation), float(env.scale))
-        if self._env_arrays_key == key:
-            return self._env_sg_arrays
-        d = self.device
-        es = S.EnvSG()
-        if key is None:
-            es.count = 0
-            es.axis = wp.zeros(1, dtype=wp.vec3, device=d)
-            es.lam = wp.ones(1, dtype=float, device=d)
-            es.mu = wp.zeros(1, dtype=wp.vec3, device=d)
-        else:
-            R = env.rotation_matrix()
-            ax, lam, mu = self._env_sg_base
-            energy = np.abs(mu).max(axis=1) * 2.0 * np.pi * -np.expm1(-2.0 * lam) / np.maximum(lam, 1e-12)
-            keep = energy > 1e-6 * max(float(energy.sum()), 1e-300)
-            if not keep.any():
-                keep[:1] = True
-            ax, lam, mu = ax[keep], lam[keep], mu[keep]
-            es.count = len(lam)
-            es.axis = wp.array((ax @ R.T).astype(np.float32), dtype=wp.vec3, device=d)
-            es.lam = wp.array(lam.astype(np.float32), dtype=float, device=d)
-            es.mu = wp.array((mu * env.scale).astype(np.float32), dtype=wp.vec3, device=d)
-            self._env_mu_unit = wp.array(mu.astype(np.float32), dtype=wp.vec3, device=d)  # (update_caches)
-        self._env_arrays_key, self._env_sg_arrays = key, S.lobe_constants(es, self.irr_table, d)
-        return es
-
     def _vertex_sampled(self) -> bool:
         """Visibility of fixed directions sampled per vertex (``[render] visibility_sampling =
         "vertex"``) with shadows shown."""
         return self.scene.render.visibility_sampling == "vertex" and self.shadows and self.show_shadows
 
-    def _env_irradiance_vertex(self) -> bool:
-        """The diffuse environment sum per vertex where it interpolates well (``visibility_sampling =
-        "vertex"``; needs ρd = kd/π, no Oren–Nayar, and no normal maps)."""
-        return self.scene.render.visibility_sampling == "vertex" and S.diffuse_sum_per_vertex_ok(
-            self.env_diffuse_mode, self.material_table.models, self.has_normal_maps)
+    def _env_visible_vertex(self) -> bool:
+        """The diffuse environment term as the exact irradiance times the per-vertex visible fraction
+        (``visibility_sampling = "vertex"`` with shadows shown; needs ρd = kd/π, no Oren–Nayar)."""
+        return self._vertex_sampled() and S.env_visible_vertex_ok(self.env_diffuse_mode, self.material_table.models)
 
     def _vertex_visibility(self, es):
         """The per-vertex caches, brought up to date (:func:`warp_sg.vertex_visibility.update_caches`)."""
@@ -364,16 +268,16 @@ class Renderer:
         mt.slots = wp.array(slots, dtype=int, device=self.device)
         mt.atlas = build_atlas(images, self.device)
         self.material_textures = mt
+        if self.has_specular and self.scene.environment is not None:
+            # the environment specular's energy correction, per material (brdf.albedo); a textured
+            # first parameter (a roughness map) gets its table over the texture's range
+            from .brdf import albedo
+            from .sg_irradiance import irradiance_table_array
 
-    def peak_lights(self) -> list:
-        """The environment's sharp peaks as world-space directional lights (rotation and scale
-        of the environment applied)."""
-        env = self.env_light
-        if env is None or not self.env_peaks:
-            return []
-        R = env.rotation_matrix()
-        return [DirectionalLight(direction=R @ p.direction, radius=p.radius, intensity=p.irradiance * env.scale)
-                for p in self.env_peaks]
+            ranges = [None if s < 0 else (max(float(np.min(images[s][..., 0])), 1e-4),
+                                          max(float(np.max(images[s][..., 0])), 1e-4))
+                      for s in slots[:len(mats), S.SLOT_P0]]
+            albedo.attach(self.material_table, ranges, irradiance_table_array(self.device), self.device)
 
     def _setup_lights(self):
         from .sg_irradiance import irradiance_table_array
@@ -393,9 +297,10 @@ class Renderer:
             textures=self.has_textures,
             normal_maps=self.has_normal_maps,
             fh_sigmoid=self.scene.render.fh == "sigmoid",
-            env_vis_vertex=self._vertex_sampled() and self.env_diffuse_mode == S.ENV_SG,
+            env_vis_vertex=(self._vertex_sampled() and self.env_diffuse_mode == S.ENV_SG
+                            and not self._env_visible_vertex()),
             light_vis_vertex=self._vertex_sampled() and len(self.shading_lights) > 0,
-            env_irradiance_vertex=self._env_irradiance_vertex(),
+            env_visible_vertex=self._env_visible_vertex(),
             models=self.material_table.models,
         )
 

@@ -51,6 +51,7 @@ class Transform:
         if abs(np.linalg.det(A)) < 1e-30:
             raise SceneError("transform is singular (a zero scale?)", where="transform")
         v = mesh.vertices.astype(np.float64) @ A.T + np.asarray(self.translate, np.float64)
+        v = np.clip(v, -np.finfo(np.float32).max, np.finfo(np.float32).max)  # (far vertices are refused later)
         n = t = None
         if mesh.normals is not None:
             n = mesh.normals.astype(np.float64) @ np.linalg.inv(A)  # (A⁻ᵀ n)ᵀ = nᵀ A⁻¹
@@ -106,6 +107,9 @@ class Material:
     @classmethod
     def from_brdf(cls, model, name=None) -> "Material":
         """Wrap a ``warp_sg.brdf`` model instance."""
+        from .brdf.energy import check_diffuse_albedo
+
+        check_diffuse_albedo(model)
         m = cls(model=model.NAME, params={}, name=name)
         m._brdf = model
         return m
@@ -172,7 +176,7 @@ class RenderSettings:
     antialias: int = 4
     lobes: int = 1
     env_lobes: int = 8
-    env_peaks: int = 4
+    env_peaks: int = 8
     visibility_budget: int = 20000
     pca_terms: int = 32
     ssdf_resolution: int = 32

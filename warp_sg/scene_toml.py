@@ -8,12 +8,18 @@ unknown (valid keys: ...)``); ``warp_sg.scene`` re-exports these names.
 from __future__ import annotations
 
 import tomllib
+import warnings
 from pathlib import Path
 
 from pydantic import ValidationError
 
 from .camera import Camera
-from .errors import ImageError, InputError, SceneError
+from .brdf.energy import energy_excess
+from .errors import ImageError, InputError, InputWarning, SceneError
+from .geometry import MESH_SUFFIXES
+
+#: files that are assets (meshes, glTF), not scenes
+ASSET_SUFFIXES = MESH_SUFFIXES
 from .lights import DirectionalLight, EnvironmentLight, PointLight
 from .scene_model import COLOUR_PARAMS, Material, RenderSettings, Scene, SceneObject, Transform
 from .textures import Texture
@@ -33,6 +39,8 @@ class _Builder:
         p = Path(v)
         if not p.is_absolute():
             p = self.base / p
+        if p.is_dir():
+            raise self.err(table, f"key '{key}': {v} is a folder, not a file")
         if not p.is_file():
             raise self.err(table, f"key '{key}': file not found: {v}")
         return p
@@ -97,8 +105,16 @@ class _Builder:
             for k in ("normal_map", "tangent_map"):
                 if k in md:
                     setattr(m, k, self.texture(tab, k, md[k], colour=False))
+            if "kd" in textures:  # the model sees the texture's mean; no texel may exceed 1 either
+                top = float(textures["kd"].rgba(colour=True)[..., :3].max())
+                if top > 1.0:
+                    raise self.err(tab, f"key 'kd': texture values reach {top:.4g} > 1: a diffuse albedo above 1 "
+                                        f"reflects more light than the surface receives (lower its scale)")
             try:
-                _ = m.brdf  # builds the model: its own checks (combinations, files) run now
+                _ = m.brdf  # builds the model: its own checks (combinations, files, kd <= 1) run now
+                excess = energy_excess(m.brdf)
+                if excess:
+                    warnings.warn(f"{self.fname}: {tab} {excess}", InputWarning, stacklevel=2)
             except InputError as e:
                 key = e.where or ""
                 msg = str(e).split(": ", 1)[1] if e.where and str(e).startswith(f"{e.where}: ") else str(e)
@@ -133,11 +149,17 @@ class _Builder:
 def load_scene(path) -> Scene:
     """Read and validate a TOML scene file (relative paths are relative to the file)."""
     path = Path(path)
+    if path.is_dir():
+        raise SceneError("is a folder, not a scene file", where=str(path))
     if not path.is_file():
         raise SceneError("scene file not found", where=str(path))
+    if path.suffix.lower() in ASSET_SUFFIXES:
+        raise SceneError(f"is a {path.suffix} asset, not a scene file (.toml): `warp-sg render` takes assets "
+                         f"directly; for other commands write its scene with `warp-sg render {path.name} "
+                         f"--print-scene > scene.toml`", where=str(path))
     try:
-        with open(path, "rb") as f:
-            data = tomllib.load(f)
+        raw = path.read_bytes()
+        data = tomllib.loads(raw.decode("utf-8-sig"))  # -sig: a byte-order mark (editors on Windows) is no error
     except tomllib.TOMLDecodeError as e:
         raise SceneError(f"not valid TOML: {e}", where=path.name) from None
     except (OSError, UnicodeDecodeError) as e:

@@ -17,20 +17,32 @@ exact where it is cheap — one BRDF evaluation at the light's direction l::
 (with ``Features.light_vis_vertex`` the SSDF towards the light is ``θd = θh + Σ_k b_k D[i_k, j]``,
 the per-vertex deficit cache of ``warp_sg.vertex_visibility``, and no lookup is made.)
 
-Environment, diffuse — eq. 39 with the exact irradiance of each SG ``L*_j`` of the mixture::
+Environment, diffuse — eq. 39, with the magnitude exact: ``E(n)`` is the irradiance of the map
+(``precompute.env_irradiance``, a cube-map table of its cosine-weighted integral) and only the
+visible fraction is approximated::
 
-    Rd += ρd(o, p_G) μ_j ∫G_j e(Ns·p_j, λ_j) vis_ratio(p_G, λ_G),   G = C* ⊗ L*_j (eq. 5, 40)
+    Rd += ρd E(Ns) Σ_k b_k F[i_k]                                 (Features.env_visible_vertex)
 
-(with ``Features.env_vis_vertex`` the visibility factor is ``Σ_k b_k V[i_k, j]``, the per-vertex
-cache of ``warp_sg.vertex_visibility``: the lobe axes are fixed in world space. With
-``Features.env_irradiance_vertex`` and ρd = kd/π the whole sum, which depends on the point and its
-normal only, is taken per vertex and interpolated, ``ρd Σ_k b_k D[i_k]``, on the triangles whose
-check at their edge midpoints and centroid found that within 0.5 % of the per-pixel sum.)
+(on triangles whose vertex normals agree within 5°, and without normal maps, the vertices' own
+``E ∘ F`` interpolated: no table lookup, within ≈ 0.1 %.)
+
+``F`` the per-vertex visible fraction by quadrature of the vertex's SSDF weighted by the map
+(``warp_sg.vertex_visibility``; the default with ``visibility_sampling = "vertex"`` and ρd = kd/π).
+Otherwise (per-pixel visibility, or Oren–Nayar's directional ρd) the mixture's lobes give it::
+
+    Rd += ρd(o, p_G) μ_j ∫G_j e(Ns·p_j, λ_j) vis_ratio(p_G, λ_G) + ρd (E − Σ_j a_j) v̄,   G = C* ⊗ L*_j
+
+(``a_j`` the lobes' unshadowed irradiance, ``v̄`` their mean visible fraction; with
+``Features.env_vis_vertex`` the lobes' visibility is the per-vertex cache ``Σ_k b_k V[i_k, j]``.)
+Without shadows it is ``ρd E(Ns)``, one table lookup.
 
 Environment, specular — eq. 41, for each slice lobe G_k of ks ρs(o, ·) (spherical warp of the
 NDF lobes, eq. 17–22, ``shading_slice_lobe``)::
 
-    Rs += μ_k ∫G_k e(Ns·p_k, λ_k) · ΓL(p, λ)/∫G(λ) (eq. 35) · vis_ratio(p, λ),   (p, λ) = C* ⊗ G_k
+    Rs += c(o) Σ_k μ_k ∫G_k e(Ns·p_k, λ_k) · ΓL(p, λ)/∫G(λ) (eq. 35) · vis_ratio(p, λ),   (p, λ) = C* ⊗ G_k
+
+``c(o) = A(o)/A*(o)`` is the material's tabulated ratio of the exact BRDF's directional albedo to
+the slice lobes' (``warp_sg.brdf.albedo``): the warp's energy error, up to ±20 %, removed.
 
 The clamped-cosine SG ``C*`` (eq. 40) only places and sizes the product lobe whose visibility
 and mean radiance stand for the cosine-weighted lobe; the cosine itself is exact. The diffuse BRDF
@@ -61,7 +73,8 @@ from dataclasses import dataclass
 import warp as wp
 
 from .background import Background, background_at
-from .brdf.material_wp import ALL_MODELS, Material, above, material_funcs
+from .brdf.albedo import albedo_correction
+from .brdf.material_wp import ALL_MODELS, Material, above, lum, material_funcs
 from .fastmath import fast_asin
 from .fh import fh_ratio_table_pair, fh_theta_max_wp
 from .frames import local_to_world, world_to_local
@@ -76,10 +89,15 @@ from .surface import (  # noqa: F401  (re-exported: slot constants, MaterialText
 from .ssdf_product import sg_visibility_scale_sigmoid
 
 
+from precompute.env_irradiance import IrradianceTable, env_irradiance  # noqa: E402
 from precompute.occluder_cone import occluder_clearance  # noqa: E402
 from precompute.ssdf_wp import SSDFPoint, ssdf_at, ssdf_point  # noqa: E402
 
 ENV_NONE, ENV_SG, ENV_PREFILTERED = 0, 1, 2
+_HALF_PI_F = wp.constant(1.5707963267948966)
+_INV_SQRT2 = wp.constant(0.7071067811865476)
+_INV_SQRT_2PI = wp.constant(0.3989422804014327)
+_CONE_UNKNOWN = wp.constant(3.9)  # occluder_cone.no_cones' α (4): the axis says nothing
 #: sharpness of the eq. 40 clamped-cosine lobe: only used to place and size the product lobe
 #: C* ⊗ G whose visibility / ΓL lookup stands for the cosine-weighted lobe
 CC_LAM = wp.constant(CLAMPED_COSINE_SHARPNESS)
@@ -128,14 +146,21 @@ class EnvSG:
     #: (V, count) visible fraction of C*(n_v) ⊗ G_j per vertex (``warp_sg.vertex_visibility``),
     #: read by the variant with ``Features.env_vis_vertex``; a (1, 1) placeholder otherwise
     vis: wp.array2d(dtype=float)
-    #: (V,) the diffuse environment term per vertex without ρd at unit environment scale,
-    #: Σ_j μ_j ∫G_j e(n_v·p_j, λ_j) V[v, j],
-    #: and (T,) per triangle 1 where interpolating it is within tolerance of the per-pixel sum
-    #: (``warp_sg.vertex_visibility.env_vertex_irradiance``), read by the variant with
-    #: ``Features.env_irradiance_vertex``; length-1 placeholders otherwise
+    #: (V,) per vertex the visible fraction (RGB) of its diffuse environment irradiance
+    #: (``warp_sg.vertex_visibility.env_vertex_visible``), read by the variant with
+    #: ``Features.env_visible_vertex``; a length-1 placeholder otherwise
+    visible: wp.array(dtype=wp.vec3)
+    #: (V,) the vertices' visible irradiance E ∘ F at unit scale, and (T,) 1 for triangles whose
+    #: vertex normals are within 5° (``vertex_visibility.smooth_triangles``): those interpolate it
     irr_vertex: wp.array(dtype=wp.vec3)
-    gouraud: wp.array(dtype=wp.uint8)
-    irr_scale: float  # the environment scale (irr_vertex is built at unit scale)
+    smooth: wp.array(dtype=wp.uint8)
+    irr_scale: float  # the environment's scale (irr_vertex is at unit scale)
+    #: the residual map at texel scale (64 × 128, unit scale), which the per-vertex quadrature of
+    #: ``visible`` weighs the SSDF texels with; a 1×1 placeholder where unused
+    radiance: wp.array2d(dtype=wp.vec3)
+    #: the exact irradiance of the residual map (``precompute.env_irradiance``): the magnitude of
+    #: the diffuse term, of which the vertices' quadrature or the lobes give the visible fraction
+    exact: IrradianceTable
 
 
 # --------------------------------------------------------------------------------------------
@@ -174,6 +199,69 @@ def vis_ratio(shadows: int, fh_mode: int, vis: Visibility, q: SSDFPoint, p: wp.v
 
 
 @wp.func
+def vis_ratio_depth(shadows: int, fh_mode: int, vis: Visibility, q: SSDFPoint, p: wp.vec3, lam: float) -> wp.vec2:
+    """:func:`vis_ratio` and the SSDF value θd(p) it read (``(ratio, θd)``; θd = π/2 where no
+    lookup was needed: the lobe clears the occluders)."""
+    if shadows == 0:
+        return wp.vec2(1.0, _HALF_PI_F)
+    th_h = fast_asin(wp.dot(p, q.ng))
+    s = lookup_skip(fh_mode, vis, q, p, th_h, lam)
+    if s >= 1.0:
+        return wp.vec2(1.0, _HALF_PI_F)
+    th = ssdf_at(vis.mean, vis.basis, vis.weights, q, p)
+    r = fh_fraction(fh_mode, vis, th, th_h, lam)
+    return wp.vec2(r + (1.0 - r) * s, th)
+
+
+@wp.func
+def _occluder_axis(vis: Visibility, q: SSDFPoint) -> wp.vec3:
+    """The occluder-cone axes of the point's vertices (``precompute.occluder_cone``) weighted by
+    the barycentrics, over the vertices that have occluders (zero vector: none; cones of unknown
+    axis, ``no_cones``' α = 4, do not count)."""
+    c = wp.vec3(0.0, 0.0, 0.0)
+    k0 = vis.cones[q.i0]
+    k1 = vis.cones[q.i1]
+    k2 = vis.cones[q.i2]
+    if k0[3] >= 0.0 and k0[3] < _CONE_UNKNOWN:
+        c += wp.vec3(k0[0], k0[1], k0[2]) * (q.c0 + q.e0)
+    if k1[3] >= 0.0 and k1[3] < _CONE_UNKNOWN:
+        c += wp.vec3(k1[0], k1[1], k1[2]) * (q.c1 + q.e1)
+    if k2[3] >= 0.0 and k2[3] < _CONE_UNKNOWN:
+        c += wp.vec3(k2[0], k2[1], k2[2]) * (q.c2 + q.e2)
+    return c
+
+
+@wp.func
+def visible_lobe(vis: Visibility, q: SSDFPoint, p: wp.vec3, lam: float, th: float):
+    """``(p', λ')``: where the visible part of the lobe (p, λ) lies when the half-space model of
+    eq. 25–31 cuts it θd = ``th`` from its axis, on the side away from the point's occluders (the
+    vertices' occluder-cone axes). Along that direction the lobe is a Gaussian of σ = 1/√λ cut at
+    −θd: its visible part has mean ``σ φ(t)/Φ(t)`` and variance ``σ² (1 − t m − m²)`` (t = θd/σ,
+    m = φ(t)/Φ(t), the truncated normal), so the axis moves by that mean and the sharpness grows
+    by the variance's inverse square root. The lobe's mean radiance is then read there
+    (``gamma_mean``): a lobe that straddles the horizon of a floor sees the sky above it, not the
+    average of the sky and the ground the floor hides. (p, λ) itself where nothing cuts it."""
+    sig = 1.0 / wp.sqrt(wp.max(lam, 1.0e-6))
+    t = th / sig
+    if t >= 3.0:  # the cut is 3σ away: the shift would be < 0.005 σ
+        return p, lam
+    c = _occluder_axis(vis, q)
+    away = p * wp.dot(p, c) - c  # tangent at p pointing away from the occluders
+    if wp.length_sq(away) < 1.0e-12:
+        return p, lam
+    g = wp.normalize(away)
+    tt = wp.max(t, -8.0)
+    cdf = 0.5 * (1.0 + wp.erf(tt * _INV_SQRT2))
+    pdf = _INV_SQRT_2PI * wp.exp(-0.5 * tt * tt)
+    m = pdf / wp.max(cdf, 1.0e-12)
+    if cdf < 1.0e-12:
+        m = -tt  # the far tail: the visible part starts at the cut
+    var = wp.clamp(1.0 - tt * m - m * m, 0.05, 1.0)
+    shift = wp.min(sig * m, _HALF_PI_F)
+    return wp.normalize(p * wp.cos(shift) + g * wp.sin(shift)), lam / wp.sqrt(var)
+
+
+@wp.func
 def fh_fraction(fh_mode: int, vis: Visibility, th: float, th_h: float, lam: float) -> float:
     """``fh(θd, λ) / fh(θh, λ)`` clamped to [0, 1] (eq. 30 over the unoccluded point's value).
     With the table, both angles at or beyond θmax(λ) read its flat tail: exactly 1, no lookup."""
@@ -191,19 +279,17 @@ def fh_fraction(fh_mode: int, vis: Visibility, th: float, th_h: float, lam: floa
 
 
 @wp.func
-def env_diffuse_sum(irr: wp.array2d(dtype=float), env: EnvSG, use_vis: int, n: wp.vec3, i0: int, i1: int, i2: int,
-                    b0: float, b1: float, b2: float) -> wp.vec3:
-    """``Σ_j μ_j ∫G_j e(n·p_j, λ_j) Σ_k b_k V[i_k, j]``: the diffuse environment sum (eq. 39)
-    without ρd at normal ``n`` (visibility interpolated from ``env.vis`` when ``use_vis``) — what
-    the shading kernel adds per pixel with ρd = kd/π and the per-vertex visibility, and what
-    ``warp_sg.vertex_visibility`` evaluates at the vertices and checks the interpolation against."""
-    acc = wp.vec3(0.0, 0.0, 0.0)
-    for j in range(env.count):
-        vr = float(1.0)
-        if use_vis != 0:
-            vr = b0 * env.vis[i0, j] + b1 * env.vis[i1, j] + b2 * env.vis[i2, j]
-        acc += env.power[j] * (sg_irradiance_norm_at(irr, wp.dot(n, env.axis[j]), env.lam[j], env.irr_row[j]) * vr)
-    return acc
+def visible_irradiance(exact: wp.vec3, lobes: wp.vec3, lobes_visible: wp.vec3) -> wp.vec3:
+    """The diffuse environment term's irradiance with visibility: the lobes' visible irradiance
+    ``Σ_j a_j V_j`` plus the part of the exact irradiance ``E(n)`` the lobes miss, ``E − Σ_j a_j``
+    (either sign), seen with the lobes' mean visible fraction ``v̄ = lum(Σ a_j V_j)/lum(Σ a_j)``
+    (1 where the lobes carry nothing). Unshadowed (all ``V_j = 1``) it is ``E(n)`` exactly; where the
+    mixture is right (``Σ_j a_j = E``) it is eq. 39 unchanged (``precompute.env_irradiance``)."""
+    den = lum(lobes)
+    vbar = float(1.0)
+    if den > 1.0e-30:
+        vbar = wp.clamp(lum(lobes_visible) / den, 0.0, 1.0)
+    return lobes_visible + (exact - lobes) * vbar
 
 
 @wp.kernel(enable_backward=False)
@@ -245,9 +331,9 @@ class Features:
     env_vis_vertex: bool = False
     #: lights' SSDF deficit interpolated from the per-vertex cache ``Visibility.light_deficit``
     light_vis_vertex: bool = False
-    #: the whole diffuse environment term interpolated from ``EnvSG.irr_vertex`` on the triangles
-    #: where ``EnvSG.gouraud`` says that is within tolerance (needs ρd = kd/π and no normal maps)
-    env_irradiance_vertex: bool = False
+    #: the diffuse environment term as the exact irradiance times the visible fraction interpolated
+    #: from ``EnvSG.visible`` (per-vertex quadrature of the SSDF; needs ρd = kd/π)
+    env_visible_vertex: bool = False
     #: sorted material model codes of the scene (``MaterialTable.models``); the material
     #: functions are specialised to them (``material_funcs``); default: every model
     models: tuple = tuple(sorted(ALL_MODELS))
@@ -265,12 +351,12 @@ _KERNELS: dict = {}
 PIXELS_PER_THREAD = 16
 
 
-def diffuse_sum_per_vertex_ok(env_diffuse: int, models, normal_maps: bool) -> bool:
-    """Whether the whole diffuse environment term can be taken from per-vertex values
-    (``EnvSG.irr_vertex``): an SG environment, ρd = kd/π whatever the directions (no Oren–Nayar,
-    model 1) and the interpolated normal as the shading normal (no normal maps). The renderer asks
-    this before building the cache; the kernel variant before reading it."""
-    return int(env_diffuse) == ENV_SG and 1 not in tuple(models) and not normal_maps
+def env_visible_vertex_ok(env_diffuse: int, models) -> bool:
+    """Whether the diffuse environment term can be the exact irradiance times the per-vertex visible
+    fraction (``EnvSG.visible``): an SG environment and ρd = kd/π whatever the directions (no
+    Oren–Nayar, model 1; its directional ρd takes the lobe path). The renderer asks this before
+    building the cache; the kernel variant before reading it."""
+    return int(env_diffuse) == ENV_SG and 1 not in tuple(models)
 
 
 def _gamma_parts():
@@ -295,10 +381,10 @@ def shade_kernel(f: Features):
     VVIS = bool(f.env_vis_vertex) and SHADOWS == 1
     LVIS = bool(f.light_vis_vertex) and SHADOWS == 1
     RHO_D_CONST = 1 not in f.models  # no Oren–Nayar: ρd = kd/π, whatever the directions
-    EVTX = bool(f.env_irradiance_vertex) and diffuse_sum_per_vertex_ok(f.env_diffuse, f.models, f.normal_maps)
+    EVIS = bool(f.env_visible_vertex) and env_visible_vertex_ok(f.env_diffuse, f.models) and SHADOWS == 1
     # per-pixel SSDF reads outside the specular loop (lights without the deficit cache, diffuse
     # lobes without the visibility cache): the SSDF point is built for every pixel
-    Q_EARLY = SHADOWS == 1 and ((LIGHTS and not LVIS) or (ENV_D == 1 and not VVIS))
+    Q_EARLY = SHADOWS == 1 and ((LIGHTS and not LVIS) or (ENV_D == 1 and not VVIS and not EVIS))
     MF = material_funcs(f.models)  # the material switch reduced to the scene's models
     brdf_eval, diffuse_at, slice_lobe_count = MF.brdf_eval, MF.diffuse_at, MF.slice_lobe_count
     shading_slice_lobe = MF.shading_slice_lobe
@@ -393,33 +479,46 @@ def shade_kernel(f: Features):
                         col += wp.cw_mul(f, E) * (e * vr)
 
             # ---------------- environment, diffuse (eq. 39) ----------------
-            # Σ_j ρd μ_j ∫G_j e(n·p_j, λ_j): the exact irradiance of each SG of the environment's
-            # mixture (sg_irradiance: within 2 % for every λ, where eq. 40's single clamped-cosine lobe
-            # is 17 % low at 54°), times the visible fraction of the product lobe C* ⊗ G_j.
-            if wp.static(ENV_D == 1):
-                if has_kd:
-                    rho_d = diffuse_at(mat, o_l, wp.vec3(0.0, 0.0, 1.0))  # ρd itself where it is constant
-                    nj = env.count
-                    if wp.static(EVTX):  # the per-vertex sum, where the triangle's check allows it
-                        if env.gouraud[t] != wp.uint8(0):
-                            dsum = b0 * env.irr_vertex[i0] + b1 * env.irr_vertex[i1] + b2 * env.irr_vertex[i2]
-                            col += wp.cw_mul(dsum, rho_d) * env.irr_scale
-                            nj = 0
-                    if wp.static(VVIS and RHO_D_CONST):  # no product lobe needed: the cache × kd/π
-                        if nj > 0:
-                            col += wp.cw_mul(env_diffuse_sum(irr, env, 1, ns, i0, i1, i2, b0, b1, b2), rho_d)
+            # ρd E(n) with the exact irradiance of the map (precompute.env_irradiance) and its visible
+            # fraction: per vertex by quadrature of the SSDF weighted by the map (EVIS, the default),
+            # else from the mixture's lobes, Σ_j ρd μ_j ∫G_j e(n·p_j, λ_j) V_j (the exact irradiance
+            # of each SG, sg_irradiance, times the visible fraction of the product lobe C* ⊗ G_j)
+            # plus the part of E(n) the lobes miss, seen with their mean visibility.
+            if wp.static(ENV_D == 1 and SHADOWS == 0 and RHO_D_CONST):
+                if has_kd:  # nothing occludes: ρd E(n), no lobe
+                    col += wp.cw_mul(env_irradiance(env.exact, ns), diffuse_at(mat, o_l, wp.vec3(0.0, 0.0, 1.0)))
+            if wp.static(ENV_D == 1 and EVIS):
+                if has_kd:  # ρd E(n) F, F the vertices' visible fractions interpolated
+                    rho_d = diffuse_at(mat, o_l, wp.vec3(0.0, 0.0, 1.0))
+                    if not wp.static(NMAP) and env.smooth[t] != wp.uint8(0):  # E ∘ F of the vertices
+                        dv = b0 * env.irr_vertex[i0] + b1 * env.irr_vertex[i1] + b2 * env.irr_vertex[i2]
+                        col += wp.cw_mul(dv, rho_d) * env.irr_scale
                     else:
-                        for j in range(nj):
-                            ax = env.axis[j]
-                            E = env.power[j] * sg_irradiance_norm_at(irr, wp.dot(ns, ax), env.lam[j], env.irr_row[j])
-                            if wp.length_sq(E) > 0.0:
-                                vr = float(1.0)
-                                pe, le = sg_product_lobe(ns, CC_LAM, ax, env.lam[j])
-                                if wp.static(VVIS):  # the per-vertex cache, interpolated
-                                    vr = b0 * env.vis[i0, j] + b1 * env.vis[i1, j] + b2 * env.vis[i2, j]
-                                else:
-                                    vr = vis_ratio(SHADOWS, FH, vis, q, pe, le)
-                                col += wp.cw_mul(E, diffuse_at(mat, o_l, world_to_local(pe, ts, bs, ns))) * vr
+                        fv = b0 * env.visible[i0] + b1 * env.visible[i1] + b2 * env.visible[i2]
+                        col += wp.cw_mul(wp.cw_mul(env_irradiance(env.exact, ns), fv), rho_d)
+            if wp.static(ENV_D == 1 and not (SHADOWS == 0 and RHO_D_CONST) and not EVIS):
+                if has_kd:
+                    rho_d = diffuse_at(mat, o_l, wp.vec3(0.0, 0.0, 1.0))  # ρd at the normal
+                    nj = env.count
+                    # Σ_j a_j ρd(p_G) V_j, and the exact irradiance's part the lobes miss (E − Σ_j a_j)
+                    # with ρd at the normal and the lobes' mean visible fraction (visible_irradiance)
+                    unocc = wp.vec3(0.0, 0.0, 0.0)
+                    seen = wp.vec3(0.0, 0.0, 0.0)
+                    for j in range(nj):
+                        ax = env.axis[j]
+                        E = env.power[j] * sg_irradiance_norm_at(irr, wp.dot(ns, ax), env.lam[j], env.irr_row[j])
+                        if wp.length_sq(E) > 0.0:
+                            vr = float(1.0)
+                            pe, le = sg_product_lobe(ns, CC_LAM, ax, env.lam[j])
+                            if wp.static(VVIS):  # the per-vertex cache, interpolated
+                                vr = b0 * env.vis[i0, j] + b1 * env.vis[i1, j] + b2 * env.vis[i2, j]
+                            else:
+                                vr = vis_ratio(SHADOWS, FH, vis, q, pe, le)
+                            unocc += E
+                            seen += E * vr
+                            col += wp.cw_mul(E, diffuse_at(mat, o_l, world_to_local(pe, ts, bs, ns))) * vr
+                    rest = visible_irradiance(env_irradiance(env.exact, ns), unocc, seen) - seen
+                    col += wp.cw_mul(rest, rho_d)
 
             # ---------------- environment, specular (eq. 41) ----------------
             # For each slice lobe G_k (axis pW, λW, amplitude μ_k ∝ Mo): ∫ G_k(i) max(n·i, 0) L(i) di ≈
@@ -432,6 +531,7 @@ def shade_kernel(f: Features):
                 if wp.static(SHADOWS == 1 and not Q_EARLY):
                     if nspec > 0:
                         q = ssdf_point(vis.normals, i0, i1, i2, b0, b1, b2, ng)
+                spec = wp.vec3(0.0, 0.0, 0.0)
                 for k in range(nspec):
                     pw_l, lw, mw = shading_slice_lobe(mat, o_l, k)
                     if wp.length_sq(mw) > 0.0:
@@ -439,13 +539,19 @@ def shade_kernel(f: Features):
                         if e > 0.0:
                             pw = local_to_world(pw_l, ts, bs, ns)
                             pa, lam = sg_product_lobe(ns, CC_LAM, pw, lw)
-                            g = gamma_mean(gamma, pa, lam)  # L̄ = ΓL(p, λ)/∫G(λ)
-                            vr = vis_ratio(SHADOWS, FH, vis, q, pa, lam)
-                            col += wp.cw_mul(mw, g) * (e * vr)
+                            vd = vis_ratio_depth(SHADOWS, FH, vis, q, pa, lam)
+                            pv = pa
+                            lv = lam
+                            if vd[0] < 1.0:  # the mean radiance of the lobe's visible part
+                                pv, lv = visible_lobe(vis, q, pa, lam, vd[1])
+                            g = gamma_mean(gamma, pv, lv)  # L̄ = ΓL(p, λ)/∫G(λ)
+                            spec += wp.cw_mul(mw, g) * (e * vd[0])
+                if nspec > 0:  # the slice's energy made the BRDF's: A(o)/A*(o) (brdf.albedo)
+                    col += wp.cw_mul(spec, albedo_correction(mat, o_l))
             out[y, x] = wp.vec3(wp.max(col[0], 0.0), wp.max(col[1], 0.0), wp.max(col[2], 0.0))
 
     key = "shade_" + "_".join(str(int(v)) for v in (ENV_D, ENV_S, LIGHTS, SPEC, SHADOWS, TEX, NMAP, FH, VVIS, LVIS,
-                                                      EVTX)) + MF.tag
+                                                      EVIS)) + MF.tag
     shade.__name__ = key
     shade.__qualname__ = key
     k = wp.kernel(shade, enable_backward=False, module="unique")

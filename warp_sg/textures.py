@@ -43,9 +43,17 @@ def read_texture_file(path, *, srgb: bool = False) -> np.ndarray:
 
     Raises :class:`~warp_sg.errors.ImageError` naming the file when it is missing or unreadable.
     """
+    import warnings
+
+    from .image_io import check_image_file
+    from .watchdog import MAX_TEXTURE_TEXELS
+
     p = Path(path)
+    if p.is_dir():
+        raise ImageError("is a folder, not a texture file", where=str(p))
     if not p.is_file():
         raise ImageError("texture file not found", where=str(p))
+    check_image_file(p, "texture", MAX_TEXTURE_TEXELS)  # before decoding (a 1e9-texel file is refused)
     suf = p.suffix.lower()
     if suf in EXR_SUFFIXES:
         try:
@@ -57,7 +65,8 @@ def read_texture_file(path, *, srgb: bool = False) -> np.ndarray:
         try:
             from PIL import Image
 
-            with Image.open(p) as im:
+            with warnings.catch_warnings(), Image.open(p) as im:  # size checked above: no bomb warning
+                warnings.simplefilter("ignore", Image.DecompressionBombWarning)
                 im.load()
                 if im.mode in ("I;16", "I;16B", "I;16L", "I"):
                     a = np.asarray(im, np.float32) / 65535.0

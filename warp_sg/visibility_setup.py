@@ -21,11 +21,12 @@ from .geometry import refined_geometry
 from . import shading as S
 
 
-def refine_key(g, budget: int) -> str:
-    """The key that ties ``precomputed["refinement"]`` to a mesh and a budget."""
+def refine_key(g, budget: int, lights=()) -> str:
+    """The key that ties ``precomputed["refinement"]`` to a mesh, a budget and the key lights."""
     from .cache import content_key
 
-    return content_key(np.asarray(g.vertices), np.asarray(g.triangles), np.asarray(g.normals), {"budget": int(budget)})
+    return content_key(np.asarray(g.vertices), np.asarray(g.triangles), np.asarray(g.normals),
+                       {"budget": int(budget), "lights": [(k, np.ravel(v).tolist()) for k, v in lights]})
 
 
 def needs_shadows(scene, g) -> bool:
@@ -44,11 +45,12 @@ def _timed(parts: dict, name: str, fn):
     return out
 
 
-def compute_visibility(scene, g, device, *, progress=False, compute=None, precomputed=None):
+def compute_visibility(scene, g, device, *, progress=False, compute=None, precomputed=None, lights=()):
     """``(refinement or None, refined geometry, SSDFData, parts)`` of the flattened input mesh ``g``
     of ``scene`` (shadows assumed on). ``precomputed``: :meth:`Renderer.precomputed` data to reuse
     (checked against the mesh and settings: a mismatch is an :class:`InputError`). ``parts``:
-    ``{name: (wall s, CPU s)}`` of ``refine`` and ``ssdf`` (CPU: the whole process's)."""
+    ``{name: (wall s, CPU s)}`` of ``refine`` and ``ssdf`` (CPU: the whole process's). ``lights``:
+    the key lights the refinement places shadow edges for (``Renderer._refine_lights``)."""
     import precompute
 
     rs = scene.render
@@ -61,12 +63,12 @@ def compute_visibility(scene, g, device, *, progress=False, compute=None, precom
             def refine():
                 if precomputed is not None:
                     if (precomputed.get("refinement") is None
-                            or precomputed.get("refine_key") != refine_key(g, rs.visibility_budget)):
+                            or precomputed.get("refine_key") != refine_key(g, rs.visibility_budget, lights)):
                         raise InputError("precomputed data is for a different mesh or visibility_budget",
                                          where="precomputed")
                     return precomputed["refinement"]
                 return refine_cached(g.vertices, g.triangles, g.normals, budget=rs.visibility_budget, device=device,
-                                     progress=progress)
+                                     lights=lights, progress=progress)
 
             ref = _timed(parts, "refine", refine)
         gr = refined_geometry(g, ref) if ref is not None and len(ref.vertices) > len(g.vertices) else g

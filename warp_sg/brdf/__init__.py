@@ -13,6 +13,7 @@ import importlib
 from ..errors import InputError
 from .ashikhmin_shirley import AshikhminShirley
 from .base import BRDF, SpecularBRDF, suggest
+from .energy import check_diffuse_albedo
 from .ggx import GGX
 from .fresnel import Conductor, Dielectric, NoFresnel, Schlick, parse_fresnel
 from .lafortune import Lafortune
@@ -68,7 +69,9 @@ def make_model(name, **params):
         if key not in allowed:
             raise InputError(f"unknown parameter '{key}' for model '{name}'{suggest(key, allowed)}; "
                              f"parameters: {', '.join(allowed)}", where=key)
-    return cls(**params)
+    model = cls(**params)
+    check_diffuse_albedo(model)
+    return model
 
 
 def __getattr__(name):

@@ -15,6 +15,9 @@ from ..errors import InputError
 INV_PI = 1.0 / np.pi
 #: Smallest cosine used where a model divides by a cosine (grazing guard).
 COS_EPS = 1e-6
+#: Largest magnitude of a parameter: beyond it the float32 shading overflows (3.4e38) once the value
+#: meets the lobes' amplitudes and the lights (the same bound as radiance, ``warp_sg.envmap.MAX_RADIANCE``)
+MAX_PARAM = 1e20
 
 
 def closest(name, options):
@@ -41,6 +44,8 @@ def as_rgb(value, name, *, nonneg=True):
         raise InputError("must be finite", where=name)
     if nonneg and np.any(a < 0):
         raise InputError(f"must be >= 0, got {a.tolist()}", where=name)
+    if np.any(np.abs(a) > MAX_PARAM):
+        raise InputError(f"must be within ±{MAX_PARAM:g}, got {a.tolist()}", where=name)
     return a
 
 
@@ -51,6 +56,8 @@ def as_scalar(value, name, *, lo=None, lo_open=False, hi=None):
         raise InputError(f"expected a number, got {value!r}", where=name) from None
     if not np.isfinite(v):
         raise InputError("must be finite", where=name)
+    if abs(v) > MAX_PARAM:
+        raise InputError(f"must be within ±{MAX_PARAM:g}, got {v}", where=name)
     if lo is not None and (v < lo or (lo_open and v <= lo)):
         raise InputError(f"must be {'>' if lo_open else '>='} {lo}, got {v}", where=name)
     if hi is not None and v > hi:

@@ -59,6 +59,16 @@ class Material:
     lobe_amplitude: wp.array(dtype=float)
     merl_data: wp.array(dtype=float)
     mo_tables: wp.array3d(dtype=float)
+    #: the environment-specular energy correction (``warp_sg.brdf.albedo``): entries of this
+    #: material in the shared ``albedo`` array, layout ``albedo_kind`` / ``albedo_nq`` (0: none)
+    #: and the range of its textured first parameter as ``albedo_q0 = ln q0``,
+    #: ``albedo_q1 = 1/ln(q1/q0)``
+    albedo: wp.array(dtype=wp.vec3)
+    albedo_offset: int
+    albedo_nq: int
+    albedo_kind: int
+    albedo_q0: float
+    albedo_q1: float
 
 
 # ------------------------------------------------------------------------------------------------
@@ -69,8 +79,10 @@ class MaterialTable:
     ``lobe_axis``, ``lobe_sharpness``, ``lobe_amplitude``, ``merl_data``, ``mo_tables`` (also
     referenced from every Material) and ``records`` (the python dicts)."""
 
-    def __init__(self, materials, lobe_axis, lobe_sharpness, lobe_amplitude, merl_data, mo_tables, records, device):
+    def __init__(self, materials, lobe_axis, lobe_sharpness, lobe_amplitude, merl_data, mo_tables, records, device,
+                 structs=()):
         self.materials = materials
+        self.structs = list(structs)  # the Material structs behind ``materials`` (``rebuild``)
         self.lobe_axis = lobe_axis
         self.lobe_sharpness = lobe_sharpness
         self.lobe_amplitude = lobe_amplitude
@@ -86,6 +98,11 @@ class MaterialTable:
 
     def __len__(self):
         return len(self.records)
+
+    def rebuild(self):
+        """Copy ``structs`` (edited fields, e.g. ``warp_sg.brdf.albedo.attach``) to ``materials``."""
+        if self.structs:
+            self.materials = wp.array(self.structs, dtype=Material, device=self.device)
 
 
 def material_lobes(model, n_lobes=1, method="analytic"):
@@ -135,6 +152,7 @@ def pack_materials(models, n_lobes=1, device="cpu", method="analytic"):
         aniso = _is_anisotropic(model)
         rec["analytic"] = 1 if (method == "analytic" and rec["model"] in _ANALYTIC
                                 and (aniso or len(lam) == 1)) else 0
+        rec["anisotropic"] = bool(aniso)
         table = model.kernel_lobe_table(method) if hasattr(model, "kernel_lobe_table") else None
         if table is not None:  # GGX: the node table itself; the kernel interpolates it at the texel's α
             lam, amp = table
@@ -173,6 +191,7 @@ def pack_materials(models, n_lobes=1, device="cpu", method="analytic"):
         mo = wp.zeros((1, 1, 1), dtype=float, device=device)
 
     structs = []
+    no_albedo = wp.ones(1, dtype=wp.vec3, device=device)
     for rec in records:
         s = Material()
         s.model = int(rec["model"])
@@ -192,12 +211,14 @@ def pack_materials(models, n_lobes=1, device="cpu", method="analytic"):
         s.lobe_amplitude = lobe_amp
         s.merl_data = merl
         s.mo_tables = mo
+        s.albedo = no_albedo
+        s.albedo_offset, s.albedo_nq, s.albedo_kind, s.albedo_q0, s.albedo_q1 = 0, 0, 0, 0.0, 0.0
         structs.append(s)
     if structs:
         mats = wp.array(structs, dtype=Material, device=device)
     else:
         mats = wp.empty(0, dtype=Material, device=device)
-    return MaterialTable(mats, lobe_axis, lobe_sharp, lobe_amp, merl, mo, records, device)
+    return MaterialTable(mats, lobe_axis, lobe_sharp, lobe_amp, merl, mo, records, device, structs)
 
 
 __all__ = ["Material", "MaterialTable", "material_lobes", "pack_materials"]
