@@ -131,10 +131,11 @@ class EnvironmentSetup:
 
     def _env_arrays(self):
         """EnvSG (world axes: rotation applied; amplitudes scaled) on the device, rebuilt only when
-        the rotation or scale changes. Lobes that carry no energy (``|μ| ∫G`` below 1e-6 of the
+        the rotation, the scale or the geometry (a progressive renderer's refined mesh) changes. Lobes that carry no energy (``|μ| ∫G`` below 1e-6 of the
         mixture's, e.g. amplitudes the non-negative fit set to 0) are left out."""
         env = self.env_light
-        key = None if env is None or self._env_sg_base is None else (id(self._env_sg_base), float(env.rotation), float(env.scale))
+        key = None if env is None or self._env_sg_base is None else (id(self._env_sg_base), float(env.rotation), float(env.scale),
+                                                                     id(self.geometry))  # (smooth: per triangle)
         if self._env_arrays_key == key:
             return self._env_sg_arrays
         d = self.device
