@@ -31,12 +31,13 @@ times the environment's scale. Cached on disk (kind ``env_irradiance``).
 import numpy as np
 import warp as wp
 
+from warp_sg.cache import code_key
 from warp_sg.envmap import row_solid_angles, uv_to_dir
 
 from .env_peaks import LUMINANCE
 from .cubemap import cube_dir_numpy, cube_face_of, cube_face_of_numpy
 
-_VERSION = "env-irradiance-v1"
+_VERSION = code_key(__name__, cube_dir_numpy, row_solid_angles)  # the producing code
 
 
 def _cells(env: np.ndarray, rows: int):

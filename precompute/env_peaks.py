@@ -51,7 +51,7 @@ import numpy as np
 
 from warp_sg.envmap import row_solid_angles, uv_to_dir
 
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+from warp_sg.image_io import LUMINANCE  # noqa: E402
 #: texels of the ring around a grown peak whose median is the background under it
 RING = 2
 

@@ -40,10 +40,11 @@ import time
 import numpy as np
 
 from warp_sg import sg as sgm
+from warp_sg.cache import code_key
 from warp_sg.envmap import downsample_envmap, row_solid_angles, texel_directions, validate_envmap
 
-_VERSION = "env-sg-fit-v1"
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+_VERSION = code_key(__name__, sgm, downsample_envmap)  # the producing code
+from warp_sg.image_io import LUMINANCE  # noqa: E402
 
 
 class EnvSGFit(tuple):

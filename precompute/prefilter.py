@@ -73,8 +73,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
+from warp_sg.cache import code_key
 from warp_sg.device import resolve_device
 from warp_sg.envmap import downsample_envmap, row_solid_angles, validate_envmap
+from warp_sg.image_io import LUMINANCE
 from warp_sg.workers import cpu_workers
 
 # the cube-map geometry and the kernel side (build kernel, table struct, lookups), re-exported here
@@ -84,7 +86,7 @@ from .prefilter_wp import GammaTable, _prefilter_level_kernel, erf_filtered, gam
 #: Cap of the quadrature window: texels with λ (1 − p·d) > CUTOFF are skipped (mass e^{−14}).
 CUTOFF = 14.0
 #: Format tag of the cached entry (bump when the table layout or algorithm changes).
-_VERSION = "prefilter-v4"
+_VERSION = code_key(__name__, _prefilter_level_kernel, cube_dir, downsample_envmap)  # the producing code
 
 
 # --------------------------------------------------------------------------------------------
@@ -211,7 +213,7 @@ def _mip_chain(env64: np.ndarray, min_rows: int = 8):
     cos_mid = 0.5 * (np.cos(np.pi * np.arange(h) / h) + np.cos(np.pi * np.arange(1, h + 1) / h))
     v_mid = np.arccos(cos_mid) / np.pi
     cent = uv_to_dir(((np.arange(w) + 0.5) / w)[None, :], v_mid[:, None])
-    lum_w = np.array([0.2126, 0.7152, 0.0722])
+    lum_w = LUMINANCE
     chain = [(env64, cent)]
     while True:
         rad, cen = chain[-1]

@@ -51,6 +51,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from warp_sg.cache import code_key
 from warp_sg.errors import InputError
 from warp_sg.meshcheck import weld_ids
 
@@ -451,7 +452,7 @@ def refine_for_visibility(vertices, triangles, normals, *, budget: int = 20000, 
 
 
 _FIELDS = ("vertices", "normals", "triangles", "parent_tri", "vertex_parent", "bary", "input_triangles")
-_VERSION = "refine-v2"  # v2: signature comparison in a float32 kernel
+_VERSION = code_key(__name__, world_disagreement, hemisphere_visibility)  # the producing code
 
 
 def refine_cached(vertices, triangles, normals, *, budget: int = 20000, device="cpu", progress=False,

@@ -63,10 +63,10 @@ _HALF_PI = wp.constant(0.5 * math.pi)
 #: below −1, so every real boundary point wins over it, and the signed distance it gives is the
 #: clamp π/2 (acos(−1) = π, then min with π/2): the same as no seed at all
 NO_SEED = wp.constant(wp.vec3(0.0, 0.0, -1.0e4))
-#: Cache format of the "ssdf" kind; bump when the SSDF definition changes.
-SSDF_VERSION = 2  # 2: per-vertex occluder cones (precompute.occluder_cone)
-#: version of the adaptive ray schedule (precompute.adaptive_rays), part of the cache key
-ADAPTIVE_VERSION = 1
+#: Part of the "ssdf" cache key: the hash of the code that computes the maps (``warp_sg.cache.code_key``).
+SSDF_VERSION = _cache.code_key(__name__, occluder_cones, texel_directions, launch_visibility, pca)  # the producing code
+#: the hash of the adaptive ray schedule's code (precompute.adaptive_rays), part of the cache key
+ADAPTIVE_VERSION = _cache.code_key(adaptive_visibility)  # the adaptive ray cast's code
 
 
 # ---------------------------------------------------------------------------------------------

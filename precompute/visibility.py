@@ -24,7 +24,7 @@ import warp as wp
 from warp_sg.device import resolve_device
 from warp_sg.errors import InputError, MeshError
 from warp_sg.meshcheck import check_mesh
-from warp_sg.workers import cpu_workers as _cpu_workers
+from warp_sg.workers import RAY_THREADS, cpu_workers
 from warp_sg.frames import frame_bitangent, frame_tangent, local_to_world
 
 from warp_sg.cutout import Cutouts, blocked
@@ -181,12 +181,6 @@ class _MeshContext:
         self.cutouts = None if cutouts is None else cutouts.device(triangles, device)
 
 
-def cpu_workers(device: str) -> int:
-    """Threads for CPU batch launches (``WARP_SG_THREADS`` or the usable cores, at most 8); 1 on CUDA
-    (:func:`warp_sg.workers.cpu_workers`)."""
-    return _cpu_workers(device, limit=8)
-
-
 def run_batches(n_items: int, batch: int, work, device: str, progress=None, desc: str = ""):
     """Call ``work(start, stop)`` for consecutive batches; on the CPU several batches run at once
     in a thread pool. Results are returned in batch order. ``progress``: a tqdm bar (ticks by items)."""
@@ -201,7 +195,7 @@ def run_batches(n_items: int, batch: int, work, device: str, progress=None, desc
             with lock:
                 progress.update(e - s)
 
-    nw = min(cpu_workers(device), len(ranges))
+    nw = min(cpu_workers(device, limit=RAY_THREADS), len(ranges))
     if nw <= 1:
         for k in range(len(ranges)):
             one(k)

@@ -111,3 +111,72 @@ def test_interrupted_write_leaves_nothing(cache_dir, monkeypatch):
     with pytest.raises(KeyboardInterrupt):
         cache.load_or_build("unit", "k6", _builder([]))
     assert list((cache_dir / "unit").iterdir()) == []
+
+
+def _write_module(folder, name, body):
+    path = folder / f"{name}.py"
+    path.write_text(body, encoding="utf-8")
+    os.utime(path, ns=(os.stat(path).st_atime_ns, os.stat(path).st_mtime_ns + 1_000_000))  # a new file version
+    return path
+
+
+def test_code_key_changes_with_the_producing_code(tmp_path, monkeypatch):
+    import importlib
+    import sys
+
+    monkeypatch.syspath_prepend(str(tmp_path))
+    _write_module(tmp_path, "wsg_producer_probe", "def build(x):\n    return x * 2\n")
+    mod = importlib.import_module("wsg_producer_probe")
+    try:
+        k0 = cache.code_key(mod)
+        assert cache.code_key("wsg_producer_probe") == k0 == cache.code_key(mod.build)
+        # comments and layout are not code: same key
+        _write_module(tmp_path, "wsg_producer_probe", "# a note\ndef build(x):\n\n    return x  *  2  # twice\n")
+        assert cache.code_key(mod) == k0
+        # a changed algorithm is: a new key, and so a new content_key for the same inputs
+        _write_module(tmp_path, "wsg_producer_probe", "def build(x):\n    return x * 3\n")
+        k1 = cache.code_key(mod)
+        assert k1 != k0
+        assert cache.content_key(np.ones(3), {"v": k1}) != cache.content_key(np.ones(3), {"v": k0})
+    finally:
+        sys.modules.pop("wsg_producer_probe", None)
+
+
+def test_code_key_covers_every_producer_in_order(tmp_path, monkeypatch):
+    import importlib
+    import sys
+
+    monkeypatch.syspath_prepend(str(tmp_path))
+    _write_module(tmp_path, "wsg_probe_a", "A = 1\n")
+    _write_module(tmp_path, "wsg_probe_b", "B = 1\n")
+    a, b = importlib.import_module("wsg_probe_a"), importlib.import_module("wsg_probe_b")
+    try:
+        kab = cache.code_key(a, b)
+        assert kab != cache.code_key(a) and kab != cache.code_key(b, a)
+        _write_module(tmp_path, "wsg_probe_b", "B = 2\n")  # a change in a helper module counts too
+        assert cache.code_key(a, b) != kab
+    finally:
+        sys.modules.pop("wsg_probe_a", None)
+        sys.modules.pop("wsg_probe_b", None)
+
+
+def test_code_key_refuses_code_without_source():
+    with pytest.raises(ValueError, match="no Python source"):
+        cache.code_key(len)
+
+
+def test_cached_producers_key_on_a_code_hash_not_a_version_number():
+    """Every producer of a cache kind keys on :func:`cache.code_key` of its own module (a hand-kept
+    version would be a small int or a literal string)."""
+    import precompute.env_irradiance as ei
+    import precompute.env_sg_fit as es
+    import precompute.prefilter as pf
+    import precompute.refine as rf
+    import precompute.ssdf as ss
+    from warp_sg.brdf import measured_fit as mf
+
+    keys = {pf: pf._VERSION, ei: ei._VERSION, es: es._VERSION, rf: rf._VERSION, ss: ss.SSDF_VERSION,
+            mf: mf.FIT_VERSION}
+    for mod, key in keys.items():
+        assert isinstance(key, str) and len(key) == 16 and int(key, 16) >= 0, mod.__name__
+    assert len(set(keys.values())) == len(keys)

@@ -7,7 +7,10 @@ fit; ``precompute.cache`` re-exports it.
 * :func:`cache_dir` — ``$WARP_SG_CACHE_DIR`` or ``~/.cache/warp-sg``; deleting it is always safe.
 * :func:`fresh_cache` — a private empty cache folder for a ``with`` block (timings of precompute).
 * :func:`content_key` — a stable SHA-256 over numpy arrays (dtype, shape and bytes) and JSON-able
-  parameters, plus :data:`FORMAT_VERSION` (bump it whenever a cached format changes).
+  parameters, plus :data:`FORMAT_VERSION` (bump it whenever the file format itself changes).
+* :func:`code_key` — a hash of the source of the modules that produce an entry; every producer
+  puts it in its ``content_key`` parts, so an algorithm change misses the old entries by itself
+  (no hand-kept version numbers).
 * :func:`load_or_build` — ``kind/key.npz`` files holding ``dict[str, np.ndarray]``. Files are
   written atomically (a temporary file in the same folder, flushed and fsync-ed, then
   ``os.replace``) and carry a SHA-256 checksum of their own contents (``__checksum__``); a file
@@ -19,8 +22,12 @@ fit; ``precompute.cache`` re-exports it.
 """
 from __future__ import annotations
 
+import ast
 import contextlib
+import functools
 import hashlib
+import importlib.util
+import sys
 import io
 import json
 import os
@@ -107,6 +114,48 @@ def content_key(*parts) -> str:
     for p in parts:
         _update(h, p)
     return h.hexdigest()[:40]
+
+
+@functools.lru_cache(maxsize=256)
+def _source_digest(path: str, mtime_ns: int, size: int) -> str:
+    """SHA-256 of a Python file's syntax tree (``ast.dump``: comments and formatting don't count)."""
+    source = Path(path).read_text(encoding="utf-8")
+    return hashlib.sha256(ast.dump(ast.parse(source, filename=path)).encode()).hexdigest()
+
+
+def _source_file(producer) -> Path:
+    """The source file of a module, a dotted module name, or a function, class or Warp kernel/func
+    (the module it is defined in)."""
+    if isinstance(producer, str):
+        mod = sys.modules.get(producer)
+        origin = getattr(mod, "__file__", None) if mod is not None else None
+        if origin is None:
+            spec = importlib.util.find_spec(producer)
+            origin = spec.origin if spec is not None else None
+    elif hasattr(producer, "__file__") and not callable(producer):  # a module
+        origin = producer.__file__
+    else:
+        fn = getattr(producer, "func", producer)  # wp.Kernel / wp.Function wrap a Python function
+        origin = getattr(sys.modules.get(getattr(fn, "__module__", None) or ""), "__file__", None)
+    if not origin or not str(origin).endswith(".py"):
+        raise ValueError(f"code_key: no Python source for {producer!r}")
+    return Path(origin)
+
+
+def code_key(*producers) -> str:
+    """Hex hash of the code that produces a cache entry: the syntax trees of the source files of
+    ``producers`` (modules, dotted module names, or functions / classes / Warp kernels, which stand
+    for the module that defines them), in order.
+
+    A producer passes ``code_key(__name__, helper, ...)`` as one of its :func:`content_key` parts:
+    any change of that code (not of its comments or layout) changes the key, so the old entries
+    miss and are rebuilt. The trees are hashed once per file version (path, mtime, size)."""
+    h = hashlib.sha256(b"warp-sg-code")
+    for p in producers:
+        path = _source_file(p)
+        st = path.stat()
+        h.update(_source_digest(str(path), st.st_mtime_ns, st.st_size).encode())
+    return h.hexdigest()[:16]
 
 
 def _checksum(arrays: Mapping[str, np.ndarray]) -> str:

@@ -51,7 +51,7 @@ EXR_EXTS = (".exr",)
 HDR_EXTS = (".hdr",)
 LDR_EXTS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG"}
 #: Rec. 709 luminance weights (linear RGB).
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
 
 # --------------------------------------------------------------------------------------------
@@ -369,7 +369,7 @@ def _convert_channels(a: np.ndarray, channels: int | None, path: Path) -> np.nda
         if c == 4:
             return np.ascontiguousarray(a[..., :3])
     if channels == 1 and c in (3, 4):
-        return (a[..., :3] @ LUMINANCE)[..., None].astype(np.float32)
+        return (a[..., :3] @ LUMINANCE.astype(np.float32))[..., None].astype(np.float32)
     if channels == 4 and c == 3:
         return np.concatenate([a, np.ones_like(a[..., :1])], axis=2)
     raise ImageError(f"image has {c} channel(s), expected {channels}", where=str(path))

@@ -33,12 +33,13 @@ import warp as wp
 from .envmap import (MAX_RADIANCE, check_envmap_shape, load_envmap, procedural_sky, rotate_envmap, rotation_y,
                      validate_envmap)
 from .errors import InputError
+from .sg import EPSILON
 from .sg_wp import expm1_neg
 
 #: Smallest light solid angle (sr) used to turn a light into an SG (radius 0 = delta light).
 MIN_LIGHT_AREA = 1.0e-6
 #: Largest light sharpness (fa⁻¹(MIN_LIGHT_AREA)).
-FA_NUMERATOR = -2.0 * math.pi * math.log(0.1)
+FA_NUMERATOR = -2.0 * math.pi * math.log(EPSILON)
 
 
 def _rgb(v, where):
@@ -219,6 +220,7 @@ def directional_light_sg(light: DirectionalLight):
 # --------------------------------------------------------------------------------------------
 # kernel side
 # --------------------------------------------------------------------------------------------
+#: the kernel-side light kinds (``LightArrays.kind``; the reference's kernels read them too)
 LIGHT_POINT = 0
 LIGHT_DIRECTIONAL = 1
 

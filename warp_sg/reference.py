@@ -57,7 +57,7 @@ from .cutout import no_cutouts
 from .surface import N_SLOTS, MaterialTextures
 from .surface_layers import coat_models, layer_arrays
 from .textures import build_atlas
-from .workers import cpu_workers
+from .workers import RAY_THREADS, cpu_workers
 
 
 #: Relative offset of shadow-ray origins (times the scene's diameter).
@@ -282,7 +282,7 @@ def render_reference_inputs(
     t0 = time.perf_counter()
     prep = _Prepared(inp, device)
     if threads is None:
-        threads = cpu_workers(device, limit=8)
+        threads = cpu_workers(device, limit=RAY_THREADS)
     kh, kw = prep.shape
     if kh % k or kw % k:
         raise InputError(f"ray grid {kh}x{kw} is not a multiple of supersampling {k}", where="supersample")

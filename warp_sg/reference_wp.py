@@ -21,8 +21,7 @@ from .frames import local_to_world, world_to_local
 from .surface import MaterialTextures, apply_shading_maps, tangent_in_plane, textured_material
 from .surface_layers import Layers, coat_at, coat_attenuation, coat_frame, emission_at, occlusion_at, vertex_coloured
 
-LIGHT_POINT = 0
-LIGHT_DIRECTIONAL = 1
+from .lights import LIGHT_DIRECTIONAL, LIGHT_POINT  # noqa: E402  (the light kinds' one source)
 #: the coat is a GGX lobe (warp_sg.material_layers): its functions specialised to that model
 _COAT = M.material_funcs({10})
 coat_eval = _COAT.brdf_eval

@@ -30,7 +30,7 @@ import math
 import numpy as np
 
 REGIONS = ("object", "lit_floor", "shadow", "silhouette")
-LUMA = np.array([0.2126, 0.7152, 0.0722])
+from .image_io import LUMINANCE as LUMA  # noqa: E402
 
 
 def _key_light(scene):

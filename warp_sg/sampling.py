@@ -36,7 +36,7 @@ TWO_PI = wp.constant(6.283185307179586)
 INV_PI = wp.constant(0.3183098861837907)
 
 #: Relative luminance weights (Rec. 709) used for the environment CDF.
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+from .image_io import LUMINANCE  # noqa: E402
 
 
 # --------------------------------------------------------------------------------------------

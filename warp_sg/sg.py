@@ -19,8 +19,11 @@ from __future__ import annotations
 
 import numpy as np
 
-#: Effective-area threshold ε of ``fa(λ) = −2π ln ε / λ`` (paper §3, eq. 33).
-EPSILON_AREA = 0.1
+#: The paper's negligible-value threshold ε: the effective area ``fa(λ) = −2π ln ε / λ`` of an SG
+#: (paper §3, eq. 33) and the extent θv of the anisotropic NDF lobe layouts, where D falls to ε
+#: (supplement eq. 14). The one source of ε (``sg_wp``, ``lights``, ``brdf`` read it from here).
+EPSILON = 0.1
+EPSILON_AREA = EPSILON
 #: Single-lobe clamped-cosine SG (paper eq. 40): ``max(cos θ, 0) ≈ 1.170 exp(2.133 (cos θ − 1))``.
 CLAMPED_COSINE_SHARPNESS = 2.133
 CLAMPED_COSINE_AMPLITUDE = 1.170

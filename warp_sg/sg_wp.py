@@ -13,11 +13,15 @@ function for any number of channels. The same stable forms as the numpy module a
 """
 from __future__ import annotations
 
+import math
+
 import warp as wp
 
+from .sg import EPSILON
+
 TWO_PI = wp.constant(6.283185307179586)
-#: −2π ln(0.1): numerator of fa(λ) = −2π ln ε / λ (ε = 0.1).
-FA_NUMERATOR = wp.constant(14.467568824830927)
+#: −2π ln ε: numerator of fa(λ) = −2π ln ε / λ (ε: :data:`warp_sg.sg.EPSILON`).
+FA_NUMERATOR = wp.constant(-2.0 * math.pi * math.log(EPSILON))
 
 
 @wp.func

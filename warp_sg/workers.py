@@ -12,6 +12,8 @@ import os
 
 #: Environment variable that overrides the number of CPU worker threads everywhere.
 THREADS_ENV = "WARP_SG_THREADS"
+#: Most threads of the ray-casting pools (visibility batches, the Monte-Carlo reference).
+RAY_THREADS = 8
 
 
 def usable_cores() -> int:
@@ -35,4 +37,4 @@ def cpu_workers(device="cpu", limit: int | None = None, *, env: tuple[str, ...] 
     return max(1, min(n, int(limit)) if limit else n)
 
 
-__all__ = ["THREADS_ENV", "cpu_workers", "usable_cores"]
+__all__ = ["RAY_THREADS", "THREADS_ENV", "cpu_workers", "usable_cores"]

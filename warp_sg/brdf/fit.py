@@ -30,7 +30,7 @@ from ..errors import InputError
 from .helpers import half_vector, suggest
 from .warp import WARP_COS_EPS
 
-EPSILON = 0.1
+from ..sg import EPSILON  # noqa: E402,F401  (ε of supplement eq. 14)
 METHODS = ("analytic", "fit")
 
 

@@ -50,7 +50,7 @@ DEFAULT_LOBES = 3
 #: default number of NDF lobes for anisotropic GGX (the Ashikhmin–Shirley layout needs odd N)
 DEFAULT_ANISO_LOBES = 9
 #: ε of the anisotropic extent θv (supplement eq. 14)
-EPSILON = 0.1
+from ..sg import EPSILON  # noqa: E402
 #: the isotropic multi-lobe fit covers θ ∈ [0, min(π/2, FIT_EXTENT α)]
 FIT_EXTENT = 25.0
 #: roughness nodes of the shipped isotropic fits (ggx_lobe_table.py): α = TABLE_A0 + TABLE_STEP·n

@@ -10,6 +10,7 @@ models. Local frame, z+ = normal, x = tangent.
 import warp as wp
 
 from ..frames import frame_bitangent, frame_tangent
+from ..image_io import LUMINANCE
 from .material_struct import LN_EPS, WARP_COS_EPS, Material
 from .measured_wp import fresnel_dielectric
 
@@ -74,9 +75,13 @@ def from_axis(a: wp.vec3, x: float, y: float, z: float) -> wp.vec3:
     return x * frame_tangent(a) + y * frame_bitangent(a) + z * a
 
 
+#: the luminance weights (:data:`warp_sg.image_io.LUMINANCE`) as kernel constants
+LUM_R, LUM_G, LUM_B = (wp.constant(float(w)) for w in LUMINANCE)
+
+
 @wp.func
 def lum(c: wp.vec3) -> float:
-    return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
+    return LUM_R * c[0] + LUM_G * c[1] + LUM_B * c[2]
 
 
 @wp.func

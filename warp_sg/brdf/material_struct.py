@@ -4,10 +4,13 @@ contract of :mod:`warp_sg.brdf.material_wp`, which re-exports every name; the ``
 read the struct are in :mod:`~warp_sg.brdf.material_eval_wp` and :mod:`~warp_sg.brdf.material_sample_wp`.
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the @wp.func / struct annotations.
+import math
+
 import numpy as np
 import warp as wp
 
 from ..errors import InputError
+from ..sg import EPSILON
 from .fit import is_anisotropic as _is_anisotropic
 from .fit import lobe_count as _lobe_count
 
@@ -31,8 +34,8 @@ FRESNEL_CONDUCTOR = wp.constant(3)
 PI = wp.constant(3.141592653589793)
 INV_PI = wp.constant(0.3183098861837907)
 TWO_PI = wp.constant(6.283185307179586)
-#: ln ε of the anisotropic construction (ε = 0.1, supplement eq. 14)
-LN_EPS = wp.constant(-2.302585092994046)
+#: ln ε of the anisotropic construction (supplement eq. 14; ε: :data:`warp_sg.sg.EPSILON`)
+LN_EPS = wp.constant(math.log(EPSILON))
 #: grazing guard of the spherical warp (|pD·o| ≥ 1e-4)
 WARP_COS_EPS = wp.constant(1.0e-4)
 

@@ -10,6 +10,7 @@ import functools
 
 import numpy as np
 
+from ..cache import code_key
 from ..errors import InputError
 from ..pca import pca
 from . import merl
@@ -24,7 +25,8 @@ _D_EDGES = (np.arange(merl.N_THETA_H + 1) / merl.N_THETA_H) ** 2 * (np.pi / 2)
 #: solid angle of each θh bin (2π (cos θ0 − cos θ1))
 D_SOLID_ANGLE = 2 * np.pi * (np.cos(_D_EDGES[:-1]) - np.cos(_D_EDGES[1:]))
 COS_MIN = 0.05
-FIT_VERSION = 1
+#: the hash of the code that computes the fit (part of its cache key; ``warp_sg.cache.code_key``)
+FIT_VERSION = code_key(__name__, merl, fresnel_normalised, pca)
 
 
 # --------------------------------------------------------------------------------------------
