@@ -21,7 +21,7 @@ from tqdm import tqdm
 
 import warp_sg as ws
 from warp_sg.atomic import atomic_output
-from warp_sg.brdf.ggx import DEFAULT_LOBES
+from warp_sg.brdf.models.ggx import DEFAULT_LOBES
 from warp_sg.plain_scenes import write_plain_scene
 from warp_sg.regions import box_reference, region_errors, scene_regions
 

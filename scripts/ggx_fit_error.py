@@ -2,7 +2,7 @@
 
 For each α and K = 1..4 lobes — ``fit``: the least-squares fit of :mod:`warp_sg.brdf.fit` at that α
 (non-negative amplitudes; K = 1: λ with μ = 1); ``table``: the shipped node fits interpolated at α
-(:func:`warp_sg.brdf.ggx.table_lobes`, what the renderer uses); ``taylor``: the single lobe
+(:func:`warp_sg.brdf.models.ggx.table_lobes`, what the renderer uses); ``taylor``: the single lobe
 λ = 4/α² − 4 — two errors:
 
 * ``ndf_l2``: relative L2 error of the NDF over the hemisphere, ``∫ (D̂ − D*)² dω / ∫ D̂² dω``;

@@ -9,7 +9,7 @@ import warp as wp
 import warp_sg.brdf as B
 from warp_sg.brdf import material_wp as M
 from warp_sg.brdf import merl
-from warp_sg.brdf.measured import (D_THETA, S_THETA, Measured, compress_shadowing, fit_ndf_sg,
+from warp_sg.brdf.models.measured import (D_THETA, S_THETA, Measured, compress_shadowing, fit_ndf_sg,
                                    fit_ndf_sg_anisotropic, fresnel_eq14, fresnel_normalised)
 from warp_sg.errors import InputError
 

@@ -8,7 +8,7 @@ import pytest
 
 import warp_sg.brdf as B
 from warp_sg.brdf.fit import warp_error
-from warp_sg.brdf.warp import WARP_COS_EPS, eval_slice, spherical_warp
+from warp_sg.brdf.spherical_warp import WARP_COS_EPS, eval_slice, spherical_warp
 
 
 def test_warp_formula():

@@ -20,7 +20,7 @@ camera rays through a box-filtered pixel, environment visible in the background.
   conductors → ``roughconductor`` (same NDF, Mitsuba's separable Smith term). Not expressible, so
   refused (:class:`NotExpressible`): our microfacet models
   use the V-cavity shadowing term ``min(1, 2(n·h)(n·o)/(o·h), 2(n·h)(n·i)/(i·h))``
-  (:mod:`warp_sg.brdf.microfacet`) where Mitsuba's ``roughconductor``/``roughplastic`` use Smith
+  (:mod:`warp_sg.brdf.models.microfacet`) where Mitsuba's ``roughconductor``/``roughplastic`` use Smith
   masking (and ``roughplastic`` adds a Fresnel-weighted internal-scattering diffuse); our
   :class:`~warp_sg.brdf.GGX` has the height-correlated Smith term ``G2 = 1/(1 + Λ(o) + Λ(i))``
   where Mitsuba's GGX ``roughconductor`` uses the separable ``G1(o) G1(i)`` (its

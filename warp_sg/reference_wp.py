@@ -16,6 +16,7 @@ import warp as wp
 
 from . import sampling as S
 from .brdf import material_wp as M  # contract: Material, brdf_eval, brdf_sample, brdf_pdf
+from .brdf.models.ggx import GGX
 from .cutout import Cutouts, blocked, first_opaque_hit
 from .frames import local_to_world, world_to_local
 from .surface import MaterialTextures, apply_shading_maps, tangent_in_plane, textured_material
@@ -23,7 +24,7 @@ from .surface_layers import Layers, coat_at, coat_attenuation, coat_frame, emiss
 
 from .lights import LIGHT_DIRECTIONAL, LIGHT_POINT  # noqa: E402  (the light kinds' one source)
 #: the coat is a GGX lobe (warp_sg.material_layers): its functions specialised to that model
-_COAT = M.material_funcs({10})
+_COAT = M.material_funcs({GGX.CODE})
 coat_eval = _COAT.brdf_eval
 
 
@@ -126,30 +127,9 @@ def _brdf_pdf(mat: M.Material, pd: float, o: wp.vec3, i: wp.vec3) -> float:
     return p
 
 
-@wp.func
-def _coat_sample(mat: M.Material, o: wp.vec3, u_in: wp.vec2) -> wp.vec3:
-    """``brdf_sample`` of a GGX material (Heitz 2018 visible normals), as the generic one samples it."""
-    u = wp.vec2(wp.clamp(u_in[0], 0.0, 0.99999994), wp.clamp(u_in[1], 0.0, 0.99999994))
-    if o[2] <= 0.0:
-        return M.cosine_dir(u)
-    return M.reflect_about(o, M.ggx_vndf_h(o, mat.params[0], mat.params[1], u))
-
-
-@wp.func
-def _coat_pdf(mat: M.Material, o: wp.vec3, i: wp.vec3) -> float:
-    """``brdf_pdf`` of a GGX material: the density of :func:`_coat_sample`."""
-    if o[2] <= 0.0:
-        if i[2] <= 0.0:
-            return 0.0
-        return i[2] * S.INV_PI
-    hh = o + i
-    ln = wp.length(hh)
-    if ln <= 0.0:
-        return 0.0
-    h = hh / ln
-    if wp.dot(o, h) <= 0.0:
-        return 0.0
-    return M.ggx_pdf_i(o, h, mat.params[0], mat.params[1])
+#: ``brdf_sample`` / ``brdf_pdf`` of a GGX material (Heitz 2018 visible normals), as the generic ones
+_coat_sample = _COAT.brdf_sample
+_coat_pdf = _COAT.brdf_pdf
 
 
 @wp.func

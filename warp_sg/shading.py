@@ -80,6 +80,7 @@ from .background import Background, background_along, background_at
 from .cutout import Cutouts, see_behind
 from .brdf.albedo import albedo_correction
 from .brdf.material_wp import ALL_MODELS, Material, above, lum, material_funcs
+from .brdf.registry import constant_diffuse
 from .fastmath import fast_asin
 from .fh import fh_ratio_table_pair, fh_theta_max_wp
 from .frames import local_to_world, world_to_local
@@ -367,9 +368,9 @@ PIXELS_PER_THREAD = 16
 def env_visible_vertex_ok(env_diffuse: int, models) -> bool:
     """Whether the diffuse environment term can be the exact irradiance times the per-vertex visible
     fraction (``EnvSG.visible``): an SG environment and ρd = kd/π whatever the directions (no
-    Oren–Nayar, model 1; its directional ρd takes the lobe path). The renderer asks this before
-    building the cache; the kernel variant before reading it."""
-    return int(env_diffuse) == ENV_SG and 1 not in tuple(models)
+    Oren–Nayar: its directional ρd takes the lobe path; ``registry.constant_diffuse``). The renderer
+    asks this before building the cache; the kernel variant before reading it."""
+    return int(env_diffuse) == ENV_SG and constant_diffuse(models)
 
 
 def _gamma_parts():
@@ -393,7 +394,7 @@ def shade_kernel(f: Features):
     FH = 1 if f.fh_sigmoid else 0
     VVIS = bool(f.env_vis_vertex) and SHADOWS == 1
     LVIS = bool(f.light_vis_vertex) and SHADOWS == 1
-    RHO_D_CONST = 1 not in f.models  # no Oren–Nayar: ρd = kd/π, whatever the directions
+    RHO_D_CONST = constant_diffuse(f.models)  # no Oren–Nayar: ρd = kd/π, whatever the directions
     EVIS = bool(f.env_visible_vertex) and env_visible_vertex_ok(f.env_diffuse, f.models) and SHADOWS == 1
     # per-pixel SSDF reads outside the specular loop (lights without the deficit cache, diffuse
     # lobes without the visibility cache): the SSDF point is built for every pixel

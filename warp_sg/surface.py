@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from .brdf.material_wp import Material, oren_nayar_params
+from .brdf.material_wp import Material, texel_param0
 from .errors import SceneError
 from .frames import frame_tangent, local_to_world
 from .textures import TextureAtlas, tex_sample
@@ -60,10 +60,7 @@ def textured_material(mat: Material, tex: MaterialTextures, mi: int, uv: wp.vec2
     s = tex.slots[mi, 2]
     if s >= 0:
         v = tex_sample(tex.atlas, s, uv)[0]
-        if m.model == 1:  # Oren-Nayar: σ -> (A, B, σ)
-            p = oren_nayar_params(wp.max(v, 0.0))
-        else:
-            p = wp.vec4(wp.max(v, 1.0e-4), p[1], p[2], p[3])
+        p = texel_param0(m, p, v)  # the model's rule (Oren–Nayar: σ -> (A, B, σ); else max(v, 1e-4))
     s = tex.slots[mi, 3]
     if s >= 0:
         v = tex_sample(tex.atlas, s, uv)[0]

@@ -1,61 +1,30 @@
 r"""BRDF models (local frame, z+ = normal), their NDF SG fits and the kernel-side material records.
 
 ``ρ(o, i) = kd/π + ks ρs(o, i)``, ``ρs = Mo(o, i) D(h)`` (DESIGN.md "BRDF"; paper eq. 8–9).
-Models are keyed in :data:`MODELS` by their scene-file names; :func:`make_model` validates the
-parameter names (an unknown one raises :class:`~warp_sg.errors.InputError` naming the closest).
-The kernel side (``Material`` struct, ``brdf_eval``, ``slice_lobe`` ...) is in
-:mod:`warp_sg.brdf.material_wp` (imported on demand: it compiles Warp code).
+Models are keyed in :data:`MODELS` by their scene-file names, in one registry
+(:mod:`warp_sg.brdf.registry`: each model is one class in :mod:`warp_sg.brdf.models` that declares
+its name, kernel code, parameters, fit hooks and kernel ``@wp.func`` functions); :func:`make_model`
+validates the parameter names (an unknown one raises :class:`~warp_sg.errors.InputError` naming
+the closest). The kernel side (``Material`` struct, ``brdf_eval``, ``slice_lobe`` ..., generated
+from the registry) is in :mod:`warp_sg.brdf.material_wp`.
 """
 from __future__ import annotations
 
-import importlib
-
 from ..errors import InputError
-from .ashikhmin_shirley import AshikhminShirley
+from . import models  # noqa: F401  (imports and registers every model)
 from .base import BRDF, SpecularBRDF, suggest
 from .energy import check_diffuse_albedo
-from .ggx import GGX
 from .fresnel import Conductor, Dielectric, NoFresnel, Schlick, parse_fresnel
-from .lafortune import Lafortune
-from .lambert import Lambert, OrenNayar
-from .microfacet import CookTorrance, TorranceSparrow
-from .phong import BlinnPhong, Phong
-from .ward import Ward
-from .warp import slice_lobes_numpy, spherical_warp
-
-
-class _LazyMeasured:
-    """Stands for ``warp_sg.brdf.measured.Measured`` until first use (keeps imports light)."""
-
-    NAME = "measured"
-
-    @staticmethod
-    def _cls():
-        return importlib.import_module("warp_sg.brdf.measured").Measured
-
-    def __call__(self, *args, **kwargs):
-        return self._cls()(*args, **kwargs)
-
-    def __getattr__(self, name):
-        return getattr(self._cls(), name)
-
-    def __repr__(self):
-        return "<lazy warp_sg.brdf.measured.Measured>"
-
-
-MODELS = {
-    "lambert": Lambert,
-    "oren_nayar": OrenNayar,
-    "phong": Phong,
-    "blinn_phong": BlinnPhong,
-    "cook_torrance": CookTorrance,
-    "torrance_sparrow": TorranceSparrow,
-    "ward": Ward,
-    "ashikhmin_shirley": AshikhminShirley,
-    "lafortune": Lafortune,
-    "ggx": GGX,
-    "measured": _LazyMeasured(),
-}
+from .models.ashikhmin_shirley import AshikhminShirley
+from .models.ggx import GGX
+from .models.lafortune import Lafortune
+from .models.lambert import Lambert, OrenNayar
+from .models.measured import Measured
+from .models.microfacet import CookTorrance, TorranceSparrow
+from .models.phong import BlinnPhong, Phong
+from .models.ward import Ward
+from .registry import MODELS
+from .spherical_warp import slice_lobes_numpy, spherical_warp
 
 
 def make_model(name, **params):
@@ -75,9 +44,9 @@ def make_model(name, **params):
 
 
 def __getattr__(name):
-    if name == "Measured":
-        return importlib.import_module("warp_sg.brdf.measured").Measured
-    if name == "material_wp":
+    if name == "material_wp":  # the kernel side compiles on first use
+        import importlib
+
         return importlib.import_module("warp_sg.brdf.material_wp")
     raise AttributeError(f"module 'warp_sg.brdf' has no attribute {name!r}")
 

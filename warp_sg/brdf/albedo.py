@@ -45,9 +45,12 @@ import warp as wp
 
 from ..sg_irradiance import sg_irradiance_norm
 from ..sg_wp import sg_integral
-from .material_sample_wp import brdf_pdf, brdf_sample
 from .material_struct import Material
-from .material_variants import material_funcs
+from .material_variants import brdf_pdf, brdf_sample, material_funcs
+from .models.ggx import GGX
+
+#: GGX's code: an isotropic GGX material's roughness map sets αx = αy (``textured_material``)
+_GGX = GGX.CODE
 
 NMU = 32
 NQ = 8
@@ -112,7 +115,7 @@ def albedo_kernel(models):
         elif m.albedo_kind == KIND_ISO:
             v = _q_value(m.albedo_q0, m.albedo_q1, q, m.albedo_nq)
             p1 = m.params[1]
-            if m.model == 10 and m.params[1] == m.params[0]:  # isotropic GGX: a roughness map sets αx = αy
+            if m.model == _GGX and m.params[1] == m.params[0]:  # isotropic GGX: a roughness map sets αx = αy
                 p1 = v
             m.params = wp.vec4(v, p1, m.params[2], m.params[3])
         m.ks = wp.vec3(1.0, 1.0, 1.0)

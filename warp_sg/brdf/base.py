@@ -20,12 +20,16 @@ from .helpers import (COS_EPS, INV_PI, as_rgb, as_roughness, as_scalar, closest,
 
 
 class BRDF:
-    """Base class. Subclasses set ``NAME``, ``MODEL_ID``, ``PARAMS`` and implement ``diffuse`` and,
-    for specular models, ``mo`` and ``ndf``."""
+    """Base class. A model (:mod:`warp_sg.brdf.registry`) sets ``NAME``, ``CODE``, ``PARAMS`` and
+    ``KERNEL`` (its ``@wp.func`` functions) and implements ``diffuse`` and, for specular models, ``mo`` and
+    ``ndf``."""
 
     NAME = "base"
-    MODEL_ID = -1
+    #: the kernel code (``Material.model``), unique per registered model
+    CODE = -1
     PARAMS: tuple[str, ...] = ()
+    #: the kernel side (:class:`warp_sg.brdf.registry.Kernel`), set by the model's module
+    KERNEL = None
     is_specular = False
 
     kd = np.zeros(3)
@@ -77,7 +81,7 @@ class BRDF:
         """
         kind, a, b = self.fresnel_record()
         return {
-            "model": self.MODEL_ID,
+            "model": self.CODE,
             "kd": tuple(float(x) for x in self.kd),
             "ks": tuple(float(x) for x in self.ks),
             "params": tuple(float(x) for x in self.kernel_params()),
@@ -111,3 +115,10 @@ class SpecularBRDF(BRDF):
         from .fit import ndf_sg_for
 
         return ndf_sg_for(self, n_lobes, method)
+
+    def table_lobes(self, n_lobes=1, method="analytic"):
+        """The NDF lobes stored in the kernel's lobe table (``material_struct.material_lobes``):
+        ``ndf_sg`` with the model's lobe count (:func:`warp_sg.brdf.fit.lobe_count`)."""
+        from .fit import lobe_count
+
+        return self.ndf_sg(lobe_count(self, n_lobes), method)

@@ -27,10 +27,10 @@ import functools
 import numpy as np
 
 from ..errors import InputError
+from ..sg import EPSILON  # noqa: F401  (ε of supplement eq. 14, for the models' layouts)
 from .helpers import half_vector, suggest
-from .warp import WARP_COS_EPS
+from .spherical_warp import WARP_COS_EPS
 
-from ..sg import EPSILON  # noqa: E402,F401  (ε of supplement eq. 14)
 METHODS = ("analytic", "fit")
 
 
@@ -57,29 +57,22 @@ def aniso_lobes(n_lobes, lam, theta_v, wide_x, ndf, normalise=False):
 
 
 def aniso_setup(model):
-    """``(lam, theta_v, wide_x)`` of the anisotropic construction for AS / Ward."""
-    name = model.NAME
-    if name == "ashikhmin_shirley":
-        nmin, nmax = min(model.nu, model.nv), max(model.nu, model.nv)
-        theta_v = np.arccos(EPSILON ** (1.0 / (nmin + 1.0)))
-        return nmax, theta_v, model.nu < model.nv  # wide along x when the x exponent is smaller
-    if name == "ward":
-        amin, amax = min(model.alpha_x, model.alpha_y), max(model.alpha_x, model.alpha_y)
-        theta_v = np.arctan(amax * np.sqrt(-np.log(EPSILON)))
-        return 2.0 / amin**2, theta_v, model.alpha_x > model.alpha_y
-    if name == "ggx":
-        return model.aniso_lambda(), model.aniso_extent(), model.alpha_x > model.alpha_y
-    raise InputError(f"model '{name}' has no anisotropic construction", where="model")
+    """``(lam, theta_v, wide_x)`` of the anisotropic construction: the model's ``aniso_layout``
+    hook (Ashikhmin–Shirley, Ward, GGX)."""
+    layout = getattr(model, "aniso_layout", None)
+    if layout is None:
+        raise InputError(f"model '{model.NAME}' has no anisotropic construction", where="model")
+    return layout()
 
 
 def is_anisotropic(model):
-    return model.NAME in ("ashikhmin_shirley", "ward", "ggx") and not model.isotropic
+    """The model has an anisotropic layout (``aniso_layout``) and is not isotropic."""
+    return hasattr(model, "aniso_layout") and not model.isotropic
 
 
 def lobe_count(model, n_lobes):
-    """Number of NDF lobes used for ``model`` when ``n_lobes`` is asked for."""
-    if model.NAME == "lafortune":
-        return len(model.N)
+    """Number of NDF lobes used for ``model`` when ``n_lobes`` is asked for (a model's own count,
+    ``own_lobes``, wins)."""
     if getattr(model, "own_lobes", None):
         return int(model.own_lobes)
     n = int(n_lobes)
@@ -260,7 +253,7 @@ def fit_isotropic(ndf_theta, lam0, n_lobes, prev=None, theta_max=None, positive=
 
     ``prev``: the ``(λ, μ)`` of this NDF's (K−1)-lobe fit, if already known (K > 2; saves
     refitting the chain; the result is the same). ``theta_max``: the θ range of the fit (default
-    ``min(π/2, 10/√λ0)``; GGX covers its long tail, :meth:`warp_sg.brdf.ggx.GGX.ndf_fit_extent`).
+    ``min(π/2, 10/√λ0)``; GGX covers its long tail, :meth:`warp_sg.brdf.models.ggx.GGX.ndf_fit_extent`).
     ``positive``: all amplitudes ``≥ 0`` instead of alternating signs — for NDFs that are log-convex
     in u, where a sum of non-negative exponentials is the natural fit: GGX,
     ``D̂ = 1/(1 − u(2 − u)(1 − 1/α²))²`` with its heavy ``(α/θ)⁴`` tail."""
@@ -491,7 +484,7 @@ def fit_error(model, n_lobes=1, method="analytic", **kw):
 
 def warp_error(model, n_lobes=1, method="analytic", **kw):
     """eq. 11 error of the spherically warped SG slice (paper eq. 22; supplement Fig. 9), ks = 1."""
-    from .warp import eval_slice, slice_lobes_numpy
+    from .spherical_warp import eval_slice, slice_lobes_numpy
 
     def approx(O, I):
         o = O[:, 0, :]

@@ -247,6 +247,18 @@ def ggx_table_lobe(mat: Material, k: int, alpha: float):
 
 
 @wp.func
+def aniso_axis(n: int, k: int, theta_v: float, wide_x: int) -> wp.vec3:
+    """Axis of lobe k of the anisotropic layout of supplement eq. 14: n lobes spaced 2θv/(n + 1)
+    along the wide axis (x if ``wide_x`` else y)."""
+    theta_i = 2.0 * theta_v / float(n + 1)
+    a = (float(k) - 0.5 * float(n - 1)) * theta_i
+    axis = wp.vec3(0.0, wp.sin(a), wp.cos(a))
+    if wide_x == 1:
+        axis = wp.vec3(wp.sin(a), 0.0, wp.cos(a))
+    return axis
+
+
+@wp.func
 def _aniso_overlap(n: int, k: int, lam: float, theta_v: float) -> float:
     """Σ_j e^{−λ(1 − cos((k − j)θi))}, θi = 2θv/(n + 1): the overlap of the layout's lobes at lobe k
     (GGX divides its amplitudes by it; fit.aniso_lobes)."""

@@ -1,7 +1,8 @@
 r"""Importance sampling side of the kernel BRDF contract (:mod:`warp_sg.brdf.material_wp`, which
-re-exports every name and documents each model's sampling): ``brdf_sample`` / ``brdf_pdf`` of the
-specular part and their building blocks (cosine, cosine-power, Beckmann, Ashikhmin–Shirley and SG
-mixture directions with their densities).
+re-exports every name and documents each model's sampling): the building blocks of the models'
+``sample`` / ``pdf`` hooks (cosine, cosine-power, Beckmann, Ashikhmin–Shirley, GGX visible-normal
+and SG mixture directions with their densities). ``brdf_sample`` / ``brdf_pdf`` themselves switch
+on the model and are generated from the registry (:mod:`~warp_sg.brdf.material_variants`).
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the @wp.func / struct annotations.
 import warp as wp
@@ -19,6 +20,20 @@ def cosine_dir(u: wp.vec2) -> wp.vec3:
     r = wp.sqrt(u[0])
     phi = TWO_PI * u[1]
     return wp.vec3(r * wp.cos(phi), r * wp.sin(phi), wp.sqrt(wp.max(1.0 - u[0], 0.0)))
+
+
+@wp.func
+def cosine_sample(mat: Material, o: wp.vec3, u: wp.vec2) -> wp.vec3:
+    """The sampling of a diffuse-only model: cosine-distributed directions."""
+    return cosine_dir(u)
+
+
+@wp.func
+def cosine_pdf(mat: Material, o: wp.vec3, i: wp.vec3) -> float:
+    """The density of :func:`cosine_sample`: ``max(i_z, 0)/π``."""
+    if i[2] <= 0.0:
+        return 0.0
+    return i[2] * INV_PI
 
 
 @wp.func
@@ -42,14 +57,6 @@ def cos_power_pdf(a: wp.vec3, n: float, v: wp.vec3) -> float:
 @wp.func
 def reflect_about(o: wp.vec3, h: wp.vec3) -> wp.vec3:
     return 2.0 * wp.dot(o, h) * h - o
-
-
-@wp.func
-def beckmann_alphas(mat: Material) -> wp.vec2:
-    m = mat.model
-    if m == 6:
-        return wp.vec2(mat.params[0], mat.params[1])
-    return wp.vec2(mat.params[0], mat.params[0])
 
 
 @wp.func
@@ -151,109 +158,3 @@ def sg_mixture_pdf(mat: Material, h: wp.vec3) -> float:
     if den <= 0.0:
         return 0.0
     return num / den
-
-
-@wp.func
-def brdf_sample(mat: Material, o: wp.vec3, u_in: wp.vec2) -> wp.vec3:
-    """A direction i drawn from the specular sampling density ``brdf_pdf(mat, o, ·)``."""
-    m = mat.model
-    u = wp.vec2(wp.clamp(u_in[0], 0.0, 0.99999994), wp.clamp(u_in[1], 0.0, 0.99999994))
-    if m <= 1:
-        return cosine_dir(u)
-    if m == 2:
-        return cos_power_dir(reflect_z(o), mat.params[0], u)
-    if m == 8:
-        nl = wp.max(mat.lobe_count, 1)
-        q = wp.min(int(u[0] * float(nl)), nl - 1)
-        uu = wp.vec2(u[0] * float(nl) - float(q), u[1])
-        j = mat.lobe_start + q
-        v = wp.cw_mul(mat.lobe_axis[j], o)
-        if wp.length(v) <= 0.0:
-            return cosine_dir(uu)
-        return cos_power_dir(wp.normalize(v), mat.lobe_sharpness[j], uu)
-    if m == 10:
-        if o[2] <= 0.0:
-            return cosine_dir(u)
-        return reflect_about(o, ggx_vndf_h(o, mat.params[0], mat.params[1], u))
-    h = wp.vec3(0.0, 0.0, 1.0)
-    if m == 3:
-        ct = wp.pow(wp.max(u[0], 1.0e-30), 1.0 / (mat.params[0] + 2.0))
-        st = wp.sqrt(wp.max(1.0 - ct * ct, 0.0))
-        phi = TWO_PI * u[1]
-        h = wp.vec3(st * wp.cos(phi), st * wp.sin(phi), ct)
-    elif m == 4 or m == 5 or m == 6:
-        al = beckmann_alphas(mat)
-        h = beckmann_h(al[0], al[1], u)
-    elif m == 7:
-        h = as_h(mat.params[0], mat.params[1], u)
-    elif m == 9:
-        total = float(0.0)
-        for k in range(mat.lobe_count):
-            total += sg_lobe_weight(mat, mat.lobe_start + k)
-        if total <= 0.0:
-            return cosine_dir(u)
-        t = u[0] * total
-        chosen = mat.lobe_start
-        acc = float(0.0)
-        lo = float(0.0)
-        found = int(0)
-        for k in range(mat.lobe_count):
-            w = sg_lobe_weight(mat, mat.lobe_start + k)
-            if found == 0 and (t < acc + w or k == mat.lobe_count - 1):
-                chosen = mat.lobe_start + k
-                lo = acc
-                found = 1
-            acc += w
-        wsel = sg_lobe_weight(mat, chosen)
-        uu = wp.vec2(wp.clamp((t - lo) / wp.max(wsel, 1.0e-30), 0.0, 0.99999994), u[1])
-        h = sg_sample_dir(mat.lobe_axis[chosen], mat.lobe_sharpness[chosen], uu)
-    return reflect_about(o, h)
-
-
-@wp.func
-def brdf_pdf(mat: Material, o: wp.vec3, i: wp.vec3) -> float:
-    """Solid-angle density of ``brdf_sample(mat, o, ·)`` at i."""
-    m = mat.model
-    if m <= 1:
-        if i[2] <= 0.0:
-            return 0.0
-        return i[2] * INV_PI
-    if m == 2:
-        return cos_power_pdf(reflect_z(o), mat.params[0], i)
-    if m == 8:
-        nl = wp.max(mat.lobe_count, 1)
-        s = float(0.0)
-        for k in range(mat.lobe_count):
-            j = mat.lobe_start + k
-            v = wp.cw_mul(mat.lobe_axis[j], o)
-            if wp.length(v) <= 0.0:
-                s += wp.max(i[2], 0.0) * INV_PI
-            else:
-                s += cos_power_pdf(wp.normalize(v), mat.lobe_sharpness[j], i)
-        return s / float(nl)
-    if m == 10 and o[2] <= 0.0:
-        if i[2] <= 0.0:
-            return 0.0
-        return i[2] * INV_PI
-    hh = o + i
-    l = wp.length(hh)
-    if l <= 0.0:
-        return 0.0
-    h = hh / l
-    oh = wp.dot(o, h)
-    if oh <= 0.0:
-        return 0.0
-    ph = float(0.0)
-    if m == 3:
-        if h[2] > 0.0:
-            ph = (mat.params[0] + 2.0) / TWO_PI * wp.exp((mat.params[0] + 1.0) * log_cos_theta(h))
-    elif m == 4 or m == 5 or m == 6:
-        al = beckmann_alphas(mat)
-        ph = beckmann_pdf_h(al[0], al[1], h)
-    elif m == 7:
-        ph = as_pdf_h(mat.params[0], mat.params[1], h)
-    elif m == 9:
-        ph = sg_mixture_pdf(mat, h)
-    elif m == 10:
-        return ggx_pdf_i(o, h, mat.params[0], mat.params[1])
-    return ph / (4.0 * wp.max(oh, 1.0e-6))

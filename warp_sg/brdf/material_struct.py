@@ -1,4 +1,4 @@
-"""The kernel-side material record: the ``Material`` ``@wp.struct``, its model and Fresnel codes, and
+"""The kernel-side material record: the ``Material`` ``@wp.struct``, its Fresnel codes, and
 :func:`pack_materials` (BRDF models → a :class:`MaterialTable` on a device). Part of the BRDF
 contract of :mod:`warp_sg.brdf.material_wp`, which re-exports every name; the ``@wp.func``s that
 read the struct are in :mod:`~warp_sg.brdf.material_eval_wp` and :mod:`~warp_sg.brdf.material_sample_wp`.
@@ -12,19 +12,7 @@ import warp as wp
 from ..errors import InputError
 from ..sg import EPSILON
 from .fit import is_anisotropic as _is_anisotropic
-from .fit import lobe_count as _lobe_count
-
-MODEL_LAMBERT = wp.constant(0)
-MODEL_OREN_NAYAR = wp.constant(1)
-MODEL_PHONG = wp.constant(2)
-MODEL_BLINN_PHONG = wp.constant(3)
-MODEL_COOK_TORRANCE = wp.constant(4)
-MODEL_TORRANCE_SPARROW = wp.constant(5)
-MODEL_WARD = wp.constant(6)
-MODEL_ASHIKHMIN_SHIRLEY = wp.constant(7)
-MODEL_LAFORTUNE = wp.constant(8)
-MODEL_MEASURED = wp.constant(9)
-MODEL_GGX = wp.constant(10)
+from .registry import analytic_codes
 
 FRESNEL_NONE = wp.constant(0)
 FRESNEL_SCHLICK = wp.constant(1)
@@ -38,10 +26,6 @@ TWO_PI = wp.constant(6.283185307179586)
 LN_EPS = wp.constant(math.log(EPSILON))
 #: grazing guard of the spherical warp (|pD·o| ≥ 1e-4)
 WARP_COS_EPS = wp.constant(1.0e-4)
-
-#: analytic in-kernel lobes are supported for these models
-_ANALYTIC = {2, 3, 4, 5, 6, 7, 10}
-
 
 @wp.struct
 class Material:
@@ -112,11 +96,7 @@ def material_lobes(model, n_lobes=1, method="analytic"):
     """NDF lobes stored in the table for ``model``: (axes (K,3), sharpness (K,), amplitude (K,))."""
     if not model.is_specular:
         return np.zeros((0, 3)), np.zeros(0), np.zeros(0)
-    if model.MODEL_ID == 8:
-        return model.C.copy(), np.maximum(model.N, 0.0), np.ones(len(model.N))
-    if model.MODEL_ID == 9:
-        return model.ndf_sg(getattr(model, "lobes", n_lobes) or n_lobes, "fit")
-    return model.ndf_sg(_lobe_count(model, n_lobes), method)
+    return model.table_lobes(n_lobes, method)  # the model's hook (base.SpecularBRDF.table_lobes)
 
 
 def pack_materials(models, n_lobes=1, device="cpu", method="analytic"):
@@ -153,7 +133,7 @@ def pack_materials(models, n_lobes=1, device="cpu", method="analytic"):
         # in-kernel lobes only where they equal the numpy analytic construction: one isotropic
         # lobe, or the anisotropic construction (multi-lobe isotropic "analytic" falls back to fits)
         aniso = _is_anisotropic(model)
-        rec["analytic"] = 1 if (method == "analytic" and rec["model"] in _ANALYTIC
+        rec["analytic"] = 1 if (method == "analytic" and rec["model"] in analytic_codes()
                                 and (aniso or len(lam) == 1)) else 0
         rec["anisotropic"] = bool(aniso)
         table = model.kernel_lobe_table(method) if hasattr(model, "kernel_lobe_table") else None

@@ -37,31 +37,34 @@ The ``Material`` struct carries the (shared) lobe tables and measured-data array
 fields, so every function takes just ``mat``. Ashikhmin–Shirley and anisotropic Ward lobe axes are
 in the local tangent frame (x = tangent).
 
+Each model's own ``@wp.func`` functions live in its file in :mod:`warp_sg.brdf.models` (its
+``KERNEL``, :class:`warp_sg.brdf.registry.Kernel`); the model code of a material is its class's
+``CODE`` (``warp_sg.brdf.MODELS[name].CODE``).
+
 Files: this module is the public entry (``from warp_sg.brdf import material_wp as M``) and
-re-exports every name of :mod:`~warp_sg.brdf.material_struct` (the struct, model codes and
-packing), :mod:`~warp_sg.brdf.material_eval_wp` (model-independent building blocks),
-:mod:`~warp_sg.brdf.material_variants` (the functions that switch on ``mat.model``: the generic
-all-model ones here, and ``material_funcs(models)`` for kernels specialised to a set of models)
-and :mod:`~warp_sg.brdf.material_sample_wp` (importance sampling) — the same objects, so kernels
-may use either.
+re-exports every name of :mod:`~warp_sg.brdf.material_struct` (the struct and packing),
+:mod:`~warp_sg.brdf.material_eval_wp` (model-independent building blocks),
+:mod:`~warp_sg.brdf.material_variants` (the functions that switch on ``mat.model``, generated from
+the registry: the generic all-model ones here, and ``material_funcs(models)`` for kernels
+specialised to a set of models) and :mod:`~warp_sg.brdf.material_sample_wp` (importance sampling
+building blocks) — the same objects, so kernels may use either.
 """
 from .material_struct import (  # noqa: F401
-    _ANALYTIC, FRESNEL_CONDUCTOR, FRESNEL_DIELECTRIC, FRESNEL_NONE, FRESNEL_SCHLICK, INV_PI, LN_EPS, Material,
-    material_lobes, MaterialTable, MODEL_ASHIKHMIN_SHIRLEY, MODEL_BLINN_PHONG, MODEL_COOK_TORRANCE,
-    MODEL_GGX, MODEL_LAFORTUNE, MODEL_LAMBERT, MODEL_MEASURED, MODEL_OREN_NAYAR, MODEL_PHONG, MODEL_TORRANCE_SPARROW,
-    MODEL_WARD, pack_materials, PI, TWO_PI, WARP_COS_EPS,
+    FRESNEL_CONDUCTOR, FRESNEL_DIELECTRIC, FRESNEL_NONE, FRESNEL_SCHLICK, INV_PI, LN_EPS, Material,
+    material_lobes, MaterialTable, pack_materials, PI, TWO_PI, WARP_COS_EPS,
 )
 from .material_eval_wp import (  # noqa: F401
-    COS_MIN, above, as_exponent_log, cos_pow, expm1_neg_f, fresnel_eval, from_axis, g_over_cos, ggx_extent, ggx_g1,
-    ggx_g2_over_cos, ggx_lambda_cos, ggx_ndf_peak1, ggx_table_lobe, half_vec, lafortune_lobe, log1p_f,
-    log_cos_theta, lum, oren_nayar_params, reflect_z, sin2_theta, warp_axis,
+    COS_MIN, above, aniso_axis, as_exponent_log, cos_pow, expm1_neg_f, fresnel_eval, from_axis, g_over_cos,
+    ggx_extent, ggx_g1, ggx_g2_over_cos, ggx_lambda_cos, ggx_ndf_peak1, ggx_table_lobe, half_vec, lafortune_lobe,
+    log1p_f, log_cos_theta, lum, oren_nayar_params, reflect_z, sin2_theta, warp_axis,
 )
 from .material_variants import (  # noqa: F401
-    _aniso_lobe, ALL_MODELS, brdf_diffuse, brdf_eval, brdf_mo, brdf_ndf, brdf_specular, diffuse_at, material_funcs,
-    mo_raw, ndf_lobe, shading_slice_lobe, slice_lobe, slice_lobe_count, variant_tag, warp_lobe,
+    _aniso_lobe, ALL_MODELS, all_models, brdf_diffuse, brdf_eval, brdf_mo, brdf_ndf, brdf_pdf, brdf_sample,
+    brdf_specular, diffuse_at, material_funcs, mo_raw, ndf_lobe, shading_slice_lobe, slice_lobe, slice_lobe_count,
+    texel_param0, variant_tag, warp_lobe,
 )
 from .material_sample_wp import (  # noqa: F401
-    as_h, as_pdf_h, beckmann_alphas, beckmann_h, beckmann_pdf_h, brdf_pdf, brdf_sample, cos_power_dir,
-    cos_power_pdf, cosine_dir, ggx_pdf_i, ggx_vndf_h, reflect_about, sg_lobe_weight, sg_mixture_pdf, sg_sample_dir,
+    as_h, as_pdf_h, beckmann_h, beckmann_pdf_h, cos_power_dir, cos_power_pdf, cosine_dir, cosine_pdf, cosine_sample,
+    ggx_pdf_i, ggx_vndf_h, reflect_about, sg_lobe_weight, sg_mixture_pdf, sg_sample_dir,
 )
 from .measured_wp import fresnel_dielectric, measured_mo, merl_eval  # noqa: F401

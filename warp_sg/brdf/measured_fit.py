@@ -1,5 +1,5 @@
-r"""The fit behind :class:`warp_sg.brdf.measured.Measured` (paper §4.2, supplement §4; the model, the
-alternating fit and the error measure are described in :mod:`warp_sg.brdf.measured`, which
+r"""The fit behind :class:`warp_sg.brdf.models.measured.Measured` (paper §4.2, supplement §4; the model, the
+alternating fit and the error measure are described in :mod:`warp_sg.brdf.models.measured`, which
 re-exports these names): the MERL cell geometry, the PCA basis of 1-D shadowing curves, the SG
 mixture fits of an NDF (Levenberg–Marquardt about z+, L-BFGS-B with free axes), the vectorized
 microfacet fit of (kd, ks, S, D) and supplement eq. 11.

@@ -11,7 +11,7 @@ r"""Kernel-side measured (MERL) BRDF functions, used by :mod:`warp_sg.brdf.mater
   - indices ``ih = ⌊√(θh/(π/2)) · 90⌋``, ``id = ⌊θd/(π/2) · 90⌋``, ``ip = ⌊φd/π · 180⌋`` (each clamped),
     cell ``ip + 180 (id + 90 ih)``; the three channel blocks (R, G, B) of ``90·90·180`` values follow
     each other from ``data[offset]`` and are already scaled (1/1500, 1.15/1500, 1.66/1500) by
-    :meth:`warp_sg.brdf.measured.Measured.merl_table`.
+    :meth:`warp_sg.brdf.models.measured.Measured.merl_table`.
 
   θ's use ``atan2`` rather than ``acos`` because in float32 ``acos(hz)`` near the normal is off by
   ~3e-4 rad, which is more than one √θh bin.

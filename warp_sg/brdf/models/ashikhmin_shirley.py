@@ -15,14 +15,66 @@ definition of θv, so we use the definition) — spacing ``θi = 2θv/(N+1)``, l
 ``(k − (N−1)/2) θi`` from the normal, amplitude ``μi = D(pi)``. Axes are in the local frame
 (x = tangent), so they are not symmetric about z.
 ``fresnel``: anything :func:`parse_fresnel` accepts (default: none, F = 1).
+
+Kernel side (float32, same forms): the analytic lobes, and their quadrant sampling with
+``p(h) = √((nu+1)(nv+1))/(2π) (n·h)^{nu cos²φ + nv sin²φ}``.
 """
-from __future__ import annotations
-
+# NOTE: no ``from __future__ import annotations`` — Warp reads the @wp.func annotations.
 import numpy as np
+import warp as wp
 
-from ..errors import InputError
-from .base import SpecularBRDF, as_rgb, as_scalar, dirs, half_vector
-from .fresnel import parse_fresnel
+from ...errors import InputError
+from ...sg import EPSILON
+from ..base import SpecularBRDF, as_rgb, as_scalar, dirs, half_vector
+from ..fresnel import parse_fresnel
+from ..material_eval_wp import aniso_axis, as_exponent_log, expm1_neg_f, fresnel_eval, half_vec
+from ..material_sample_wp import as_h, as_pdf_h, reflect_about
+from ..material_struct import LN_EPS, PI, Material
+from ..registry import Kernel, register
+
+
+@wp.func
+def ashikhmin_shirley_ndf(mat: Material, h: wp.vec3) -> float:
+    return wp.exp(as_exponent_log(h, mat.params[0], mat.params[1]))
+
+
+@wp.func
+def ashikhmin_shirley_mo(mat: Material, o: wp.vec3, i: wp.vec3) -> wp.vec3:
+    p = mat.params
+    h = half_vec(o, i)
+    ih = wp.max(wp.dot(i, h), 1.0e-12)
+    cmax = wp.max(wp.max(i[2], o[2]), 1.0e-12)
+    val = wp.sqrt((p[0] + 1.0) * (p[1] + 1.0)) / (8.0 * PI * ih * cmax)
+    return fresnel_eval(mat, ih) * val
+
+
+@wp.func
+def ashikhmin_shirley_lobe(mat: Material, k: int):
+    """One lobe λ = n (isotropic), else the layout of supplement eq. 14 (sharpness max(nu, nv),
+    θv = arccos(ε^{1/(nmin+1)}))."""
+    p = mat.params
+    if p[0] == p[1]:
+        return wp.vec3(0.0, 0.0, 1.0), wp.max(p[0], 1.0e-6), 1.0
+    nmin = wp.min(p[0], p[1])
+    nmax = wp.max(p[0], p[1])
+    # θv = arccos(ε^{1/(nmin+1)}) = 2 asin(√((1 − ε^{1/(nmin+1)})/2))
+    omc = expm1_neg_f(-LN_EPS / (nmin + 1.0))
+    theta_v = 2.0 * wp.asin(wp.sqrt(0.5 * omc))
+    wide_x = int(0)
+    if p[0] < p[1]:
+        wide_x = 1
+    axis = aniso_axis(mat.lobe_count, k, theta_v, wide_x)
+    return axis, nmax, ashikhmin_shirley_ndf(mat, axis)
+
+
+@wp.func
+def ashikhmin_shirley_sample(mat: Material, o: wp.vec3, u: wp.vec2) -> wp.vec3:
+    return reflect_about(o, as_h(mat.params[0], mat.params[1], u))
+
+
+@wp.func
+def ashikhmin_shirley_pdf_h(mat: Material, h: wp.vec3) -> float:
+    return as_pdf_h(mat.params[0], mat.params[1], h)
 
 
 def aniso_log_cos(h):
@@ -38,9 +90,12 @@ def aniso_log_cos(h):
     return L, hx2, hy2
 
 
+@register
 class AshikhminShirley(SpecularBRDF):
     NAME = "ashikhmin_shirley"
-    MODEL_ID = 7
+    CODE = 7
+    KERNEL = Kernel(ndf=ashikhmin_shirley_ndf, mo=ashikhmin_shirley_mo, analytic_lobe=ashikhmin_shirley_lobe,
+                    sample=ashikhmin_shirley_sample, pdf_h=ashikhmin_shirley_pdf_h)
     PARAMS = ("kd", "ks", "nu", "nv", "fresnel", "lobes")
 
     def __init__(self, kd=(0.0, 0.0, 0.0), ks=(1.0, 1.0, 1.0), nu=100.0, nv=100.0, fresnel=None, lobes=7):
@@ -77,6 +132,13 @@ class AshikhminShirley(SpecularBRDF):
 
     def ndf_analytic_lambda(self):
         return max(self.nu, self.nv, 1e-6)
+
+    def aniso_layout(self):
+        """``(λ, θv, wide_x)`` of the anisotropic layout (supplement eq. 14): ``max(nu, nv)``,
+        ``θv = arccos(ε^{1/(nmin+1)})``, wide along x when the x exponent is smaller."""
+        nmin, nmax = min(self.nu, self.nv), max(self.nu, self.nv)
+        theta_v = np.arccos(EPSILON ** (1.0 / (nmin + 1.0)))
+        return nmax, theta_v, self.nu < self.nv
 
     def kernel_params(self):
         return (self.nu, self.nv, 0.0, 0.0)

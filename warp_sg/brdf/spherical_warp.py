@@ -44,13 +44,13 @@ def slice_lobes_numpy(model, o, n_lobes=1, method="analytic"):
     if not model.is_specular:
         return np.zeros(lead + (0, 3)), np.zeros(lead + (0,)), np.zeros(lead + (0, 3))
     ks = np.asarray(model.ks)
-    if model.NAME == "lafortune":
+    if hasattr(model, "slice_sg"):  # a model with its own slice lobes (Lafortune)
         a, lam, amp = model.slice_sg(o)
         return a, np.array(lam), amp[..., None] * ks
     axes, lam, mu = model.ndf_sg(n_lobes, method)
     K = len(lam)
     O = np.broadcast_to(o[..., None, :], lead + (K, 3))
-    if model.NAME == "phong":
+    if getattr(model, "slice_about_mirror", False):  # Phong
         r = O * np.array([-1.0, -1.0, 1.0])
         # rotate lobes (axis z for isotropic fits) to the mirror direction
         amp = ks * (model.n + 2.0) / (2.0 * np.pi) * mu[:, None]

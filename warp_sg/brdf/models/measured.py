@@ -45,30 +45,95 @@ The microfacet fit and the PCA are cached with :func:`warp_sg.cache.load_or_buil
 ``measured_fit``, keyed by the table's content hash, ``eta`` and ``pca_terms``); the SG fit of the
 NDF (milliseconds) is redone for each lobe count.
 
+Kernel side: ``brdf_eval`` is the data itself (``merl_eval``), ``Mo`` the PCA-compressed shadowing
+table (``measured_mo``), the NDF and its sampling the SG mixture of the lobe table
+(``1 − cos θ = −log1p(−u (1 − e^{−2λ}))/λ``, one lobe drawn by its weight).
+
 Files: this module holds the model class :class:`Measured` and the report; the fit itself is in
 :mod:`warp_sg.brdf.measured_fit` (re-exported here).
 """
-from __future__ import annotations
-
+# NOTE: no ``from __future__ import annotations`` — Warp reads the @wp.func annotations.
 import hashlib
 from pathlib import Path
 
 import numpy as np
+import warp as wp
 
-from ..cache import content_key, load_or_build
-from ..errors import InputError
-from . import merl
-from .base import SpecularBRDF, as_scalar, dirs, half_vector, upper
-from .fresnel import fresnel_eq14, fresnel_normalised  # noqa: F401  (eq. 14, normalised at normal incidence)
-from .measured_fit import (  # noqa: F401  (the fit, re-exported)
+from ...cache import content_key, load_or_build
+from ...errors import InputError
+from .. import merl
+from ..base import SpecularBRDF, as_scalar, dirs, half_vector, upper
+from ..fresnel import fresnel_eq14, fresnel_normalised  # noqa: F401  (eq. 14, normalised at normal incidence)
+from ..material_sample_wp import cosine_dir, reflect_about, sg_lobe_weight, sg_mixture_pdf, sg_sample_dir
+from ..material_struct import Material
+from ..measured_fit import (  # noqa: F401  (the fit, re-exported)
     COS_MIN, D_SOLID_ANGLE, D_THETA, FIT_VERSION, N_S, S_THETA, _cell_geometry, _hat, _interp_S, compress_shadowing,
     eq11, fit_microfacet, fit_ndf_sg, fit_ndf_sg_anisotropic, sg_mixture, shadowing_basis,
 )
+from ..measured_wp import measured_mo, merl_eval
+from ..registry import Kernel, register
+
+
+@wp.func
+def measured_ndf(mat: Material, h: wp.vec3) -> float:
+    """The NDF SG mixture of the lobe table."""
+    d = float(0.0)
+    for k in range(mat.lobe_count):
+        j = mat.lobe_start + k
+        a = mat.lobe_axis[j]
+        dd = h - a
+        d += mat.lobe_amplitude[j] * wp.exp(-mat.lobe_sharpness[j] * 0.5 * wp.dot(dd, dd))
+    return d
+
+
+@wp.func
+def measured_mo_of(mat: Material, o: wp.vec3, i: wp.vec3) -> wp.vec3:
+    return measured_mo(mat.mo_tables, mat.table_index, mat.fresnel_a, o, i)
+
+
+@wp.func
+def measured_eval(mat: Material, o: wp.vec3, i: wp.vec3) -> wp.vec3:
+    """The tabulated data (zero below the horizon)."""
+    if o[2] <= 0.0 or i[2] <= 0.0:
+        return wp.vec3(0.0, 0.0, 0.0)
+    return merl_eval(mat.merl_data, mat.data_offset, o, i)
+
+
+@wp.func
+def measured_sample(mat: Material, o: wp.vec3, u: wp.vec2) -> wp.vec3:
+    """A half vector from the SG mixture (one lobe drawn by its weight), reflected."""
+    total = float(0.0)
+    for k in range(mat.lobe_count):
+        total += sg_lobe_weight(mat, mat.lobe_start + k)
+    if total <= 0.0:
+        return cosine_dir(u)
+    t = u[0] * total
+    chosen = mat.lobe_start
+    acc = float(0.0)
+    lo = float(0.0)
+    found = int(0)
+    for k in range(mat.lobe_count):
+        w = sg_lobe_weight(mat, mat.lobe_start + k)
+        if found == 0 and (t < acc + w or k == mat.lobe_count - 1):
+            chosen = mat.lobe_start + k
+            lo = acc
+            found = 1
+        acc += w
+    wsel = sg_lobe_weight(mat, chosen)
+    uu = wp.vec2(wp.clamp((t - lo) / wp.max(wsel, 1.0e-30), 0.0, 0.99999994), u[1])
+    h = sg_sample_dir(mat.lobe_axis[chosen], mat.lobe_sharpness[chosen], uu)
+    return reflect_about(o, h)
+
+
+@wp.func
+def measured_pdf_h(mat: Material, h: wp.vec3) -> float:
+    return sg_mixture_pdf(mat, h)
 
 
 # --------------------------------------------------------------------------------------------
 # the model class
 # --------------------------------------------------------------------------------------------
+@register
 class Measured(SpecularBRDF):
     """A measured (MERL) BRDF with its fitted microfacet model and NDF SG mixture.
 
@@ -87,7 +152,9 @@ class Measured(SpecularBRDF):
     """
 
     NAME = "measured"
-    MODEL_ID = 9
+    CODE = 9
+    KERNEL = Kernel(ndf=measured_ndf, mo=measured_mo_of, eval=measured_eval, sample=measured_sample,
+                    pdf_h=measured_pdf_h)
     PARAMS = ("file", "lobes", "eta", "pca_terms")
 
     def __init__(self, file=None, lobes=1, eta=1.33, pca_terms=8, *, table=None, cache=True):
@@ -152,6 +219,10 @@ class Measured(SpecularBRDF):
         return load_or_build("measured_fit", key, self._build)
 
     # -- contract ---------------------------------------------------------------------------
+    def table_lobes(self, n_lobes=1, method="analytic"):
+        """The kernel's lobe table: the fitted NDF SG mixture with the model's own lobe count."""
+        return self.ndf_sg(getattr(self, "lobes", n_lobes) or n_lobes, "fit")
+
     def merl_table(self):
         """The scaled data as one flat float32 array: R, G, B blocks of 90·90·180 (``merl_eval``)."""
         return self.table.astype(np.float32).reshape(-1)
@@ -268,7 +339,7 @@ def fit_file(path, lobes=1, eta=1.33, pca_terms=8):
 
 
 # --------------------------------------------------------------------------------------------
-# report (docs/measured.md): python -m warp_sg.brdf.measured [OUT_DIR]
+# report (docs/measured.md): python -m warp_sg.brdf.models.measured [OUT_DIR]
 # --------------------------------------------------------------------------------------------
 def synthetic_materials():
     """Analytic BRDFs standing in for MERL measurements (no downloads): name -> (model, note)."""

@@ -36,21 +36,31 @@ anisotropic; odd when anisotropic).
 Sampling (Heitz 2018): the visible-normal density ``D_o(h) = G1(o) max(0, o·h) D(h)/(n·o)``,
 ``i = 2(o·h)h − o``, so ``pdf(i) = G1(o) D(h)/(4 (n·o))``.
 ``fresnel``: anything :func:`parse_fresnel` accepts (default: none, F = 1).
+
+Kernel side (float32, same forms): ``D̂``, the height-correlated ``G2/((n·i)(n·o))``, the
+isotropic node table interpolated at the texel's α (``ggx_table_lobe``), the anisotropic layout
+with overlap-normalised amplitudes, fitted lobes rescaled by the curvature ratio of a textured α,
+and visible-normal sampling (cosine samples for ``n·o ≤ 0``).
 """
-from __future__ import annotations
-
+# NOTE: no ``from __future__ import annotations`` — Warp reads the @wp.func annotations.
 import numpy as np
+import warp as wp
 
-from ..errors import InputError
-from .base import SpecularBRDF, as_rgb, as_roughness, dirs, half_vector
-from .fresnel import parse_fresnel
+from ...errors import InputError
+from ..base import SpecularBRDF, as_rgb, as_roughness, dirs, half_vector
+from ..fresnel import parse_fresnel
+from ..material_eval_wp import (_aniso_overlap, aniso_axis, fresnel_eval, ggx_extent, ggx_g2_over_cos, ggx_ndf_peak1,
+                                ggx_table_lobe, half_vec)
+from ..material_sample_wp import cosine_dir, ggx_pdf_i, ggx_vndf_h, reflect_about
+from ..material_struct import INV_PI, PI, Material
+from ..registry import Kernel, register
 
 #: default number of NDF lobes (isotropic; see docs/ggx.md for the error against lobe count)
 DEFAULT_LOBES = 3
 #: default number of NDF lobes for anisotropic GGX (the Ashikhmin–Shirley layout needs odd N)
 DEFAULT_ANISO_LOBES = 9
 #: ε of the anisotropic extent θv (supplement eq. 14)
-from ..sg import EPSILON  # noqa: E402
+from ...sg import EPSILON  # noqa: E402
 #: the isotropic multi-lobe fit covers θ ∈ [0, min(π/2, FIT_EXTENT α)]
 FIT_EXTENT = 25.0
 #: roughness nodes of the shipped isotropic fits (ggx_lobe_table.py): α = TABLE_A0 + TABLE_STEP·n
@@ -70,7 +80,7 @@ def _curvature(alpha):
 
 def node_fit(alpha, k):
     """The K-lobe least-squares fit at one table node: ``(λ/(1/α² − 1), μ)`` (``fit`` method)."""
-    from .fit import ndf_sg_for
+    from ..fit import ndf_sg_for
 
     _, lam, mu = ndf_sg_for(GGX(alpha=alpha, lobes=k), k, "fit")
     return lam / _curvature(alpha), mu
@@ -83,7 +93,7 @@ def table_lobes(alpha, k):
     first node the normalised fit is that of the first node (the NDF is a function of tan θ/α
     there); above the last the lobes flatten with the curvature, to constant ones at α = 1. Interpolated fits stay within ~2× of a fresh fit's error (docs/ggx.md).
     Returns ``(λ (K,), μ (K,))``; the kernel does the same (``material_eval_wp.ggx_table_lobe``)."""
-    from .ggx_lobe_table import LAMBDA_NORM, MU
+    from ..ggx_lobe_table import LAMBDA_NORM, MU
 
     ln_t, mu_t = np.asarray(LAMBDA_NORM[k]), np.asarray(MU[k])
     a1 = TABLE_A0 + TABLE_STEP * (TABLE_N - 1)
@@ -163,9 +173,83 @@ def _lobe_count(lobes, anisotropic):
     return n
 
 
+@wp.func
+def ggx_ndf(mat: Material, h: wp.vec3) -> float:
+    return ggx_ndf_peak1(h, mat.params[0], mat.params[1])
+
+
+@wp.func
+def ggx_mo(mat: Material, o: wp.vec3, i: wp.vec3) -> wp.vec3:
+    p = mat.params
+    h = half_vec(o, i)
+    val = ggx_g2_over_cos(o, i, p[0], p[1]) / (4.0 * PI * p[0] * p[1])
+    return fresnel_eval(mat, wp.dot(i, h)) * val
+
+
+@wp.func
+def ggx_lobe(mat: Material, k: int):
+    """Isotropic material: the node table at the texel's α; anisotropic: the layout of supplement
+    eq. 14 with sharpness 2/min(α)², extent ``ggx_extent`` and overlap-normalised amplitudes."""
+    p = mat.params
+    if p[2] == p[3]:  # isotropic material: the node table (any per-texel α)
+        lam_t, mu_t = ggx_table_lobe(mat, k, wp.sqrt(p[0] * p[1]))
+        return wp.vec3(0.0, 0.0, 1.0), lam_t, mu_t
+    wide_x = int(0)
+    if p[0] > p[1]:
+        wide_x = 1
+    amin = wp.min(p[0], p[1])
+    lam_g = 2.0 / (amin * amin)
+    theta_g = ggx_extent(wp.max(p[0], p[1]))
+    ax_g = aniso_axis(mat.lobe_count, k, theta_g, wide_x)
+    mu_g = ggx_ndf(mat, ax_g)
+    return ax_g, lam_g, mu_g / _aniso_overlap(mat.lobe_count, k, lam_g, theta_g)
+
+
+@wp.func
+def ggx_fitted_lobe(mat: Material, k: int):
+    """A fitted lobe of the table: GGX fits scale with the NDF's curvature 1/α² − 1
+    (D̂ = 1 − 2(1/α² − 1)θ² + …): fitted for (αx, αy) = (p[2], p[3]); a textured α rescales the
+    sharpness (factor 1 when untextured)."""
+    p = mat.params
+    j = mat.lobe_start + k
+    lam = mat.lobe_sharpness[j]
+    c_fit = wp.max(1.0 / (p[2] * p[3]) - 1.0, 1.0e-6)
+    c_tex = wp.max(1.0 / (p[0] * p[1]) - 1.0, 1.0e-6)
+    lam = lam * c_tex / c_fit
+    return mat.lobe_axis[j], lam, mat.lobe_amplitude[j]
+
+
+@wp.func
+def ggx_sample(mat: Material, o: wp.vec3, u: wp.vec2) -> wp.vec3:
+    """Visible normals (Heitz 2018); cosine samples for n·o ≤ 0."""
+    if o[2] <= 0.0:
+        return cosine_dir(u)
+    return reflect_about(o, ggx_vndf_h(o, mat.params[0], mat.params[1], u))
+
+
+@wp.func
+def ggx_pdf(mat: Material, o: wp.vec3, i: wp.vec3) -> float:
+    """The density of :func:`ggx_sample`: ``G1(o) D(h)/(4 (n·o))`` (cosine for n·o ≤ 0)."""
+    if o[2] <= 0.0:
+        if i[2] <= 0.0:
+            return 0.0
+        return i[2] * INV_PI
+    hh = o + i
+    ln = wp.length(hh)
+    if ln <= 0.0:
+        return 0.0
+    h = hh / ln
+    if wp.dot(o, h) <= 0.0:
+        return 0.0
+    return ggx_pdf_i(o, h, mat.params[0], mat.params[1])
+
+
+@register
 class GGX(SpecularBRDF):
     NAME = "ggx"
-    MODEL_ID = 10
+    CODE = 10
+    KERNEL = Kernel(ndf=ggx_ndf, mo=ggx_mo, analytic_lobe=ggx_lobe, table_lobe=ggx_fitted_lobe, sample=ggx_sample,
+                    pdf=ggx_pdf)
     PARAMS = ("kd", "ks", "alpha", "alpha_x", "alpha_y", "fresnel", "lobes")
 
     def __init__(self, kd=(0.0, 0.0, 0.0), ks=(1.0, 1.0, 1.0), alpha=None, alpha_x=None, alpha_y=None,
@@ -251,13 +335,17 @@ class GGX(SpecularBRDF):
         lobes from the table (isotropic, ``analytic``, K in :data:`TABLE_LOBES`), else None."""
         if not (self.isotropic and method == "analytic" and self.lobes in TABLE_LOBES):
             return None
-        from .ggx_lobe_table import LAMBDA_NORM, MU
+        from ..ggx_lobe_table import LAMBDA_NORM, MU
 
         return np.asarray(LAMBDA_NORM[self.lobes]).reshape(-1), np.asarray(MU[self.lobes]).reshape(-1)
 
     def ndf_analytic_lambda(self):
         a = min(self.alpha_x, self.alpha_y)
         return max(4.0 / (a * a) - 4.0, 1e-3)
+
+    def aniso_layout(self):
+        """``(λ, θv, wide_x)`` of the anisotropic layout (supplement eq. 14)."""
+        return self.aniso_lambda(), self.aniso_extent(), self.alpha_x > self.alpha_y
 
     def aniso_lambda(self):
         """Common sharpness of the anisotropic N-lobe layout: ``2/min(αx, αy)²``."""

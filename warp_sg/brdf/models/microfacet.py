@@ -15,13 +15,69 @@ which stays finite at grazing angles.
   ``λ = 2/m²``, ``μ = 1``) and ``Mo = F G/(4π m² (n·i)(n·o) cos⁴θh)``. Energy conserving.
 
 ``fresnel`` is anything :func:`warp_sg.brdf.fresnel.parse_fresnel` accepts (default: none, F = 1).
+
+Kernel side (float32, same forms): analytic lobe ``λ = 2/m²``; both sample the Beckmann slope
+distribution (Walter et al. 2007) with ``p(h) = exp(−tan²θh/m²)/(π m² cos³θh)``.
 """
-from __future__ import annotations
-
+# NOTE: no ``from __future__ import annotations`` — Warp reads the @wp.func annotations.
 import numpy as np
+import warp as wp
 
-from .base import SpecularBRDF, as_rgb, as_scalar, dirs, half_vector, sin2_theta, theta_of
-from .fresnel import parse_fresnel
+from ...fastmath import fast_atan2
+from ..base import SpecularBRDF, as_rgb, as_scalar, dirs, half_vector, sin2_theta, theta_of
+from ..fresnel import parse_fresnel
+from ..material_eval_wp import fresnel_eval, half_vec
+from ..material_eval_wp import g_over_cos as g_over_cos_f
+from ..material_eval_wp import sin2_theta as sin2_theta_f
+from ..material_sample_wp import beckmann_h, beckmann_pdf_h, reflect_about
+from ..material_struct import INV_PI, Material
+from ..registry import Kernel, register
+
+
+@wp.func
+def cook_torrance_ndf(mat: Material, h: wp.vec3) -> float:
+    t = fast_atan2(wp.sqrt(sin2_theta_f(h)), h[2]) / mat.params[0]  # the angle of h (2e-6 rad)
+    return wp.exp(-t * t)
+
+
+@wp.func
+def cook_torrance_mo(mat: Material, o: wp.vec3, i: wp.vec3) -> wp.vec3:
+    h = half_vec(o, i)
+    val = g_over_cos_f(o, i, h) * INV_PI
+    return fresnel_eval(mat, wp.dot(i, h)) * val
+
+
+@wp.func
+def torrance_sparrow_ndf(mat: Material, h: wp.vec3) -> float:
+    p = mat.params
+    return wp.exp(-sin2_theta_f(h) / (h[2] * h[2]) / (p[0] * p[0]))
+
+
+@wp.func
+def torrance_sparrow_mo(mat: Material, o: wp.vec3, i: wp.vec3) -> wp.vec3:
+    p = mat.params
+    h = half_vec(o, i)
+    val = g_over_cos_f(o, i, h) * INV_PI
+    hz = wp.max(h[2], 1.0e-6)
+    hz2 = hz * hz
+    val = val / (4.0 * p[0] * p[0] * hz2 * hz2)
+    return fresnel_eval(mat, wp.dot(i, h)) * val
+
+
+@wp.func
+def microfacet_lobe(mat: Material, k: int):
+    p = mat.params
+    return wp.vec3(0.0, 0.0, 1.0), 2.0 / (p[0] * p[0]), 1.0
+
+
+@wp.func
+def beckmann_sample(mat: Material, o: wp.vec3, u: wp.vec2) -> wp.vec3:
+    return reflect_about(o, beckmann_h(mat.params[0], mat.params[0], u))
+
+
+@wp.func
+def beckmann_pdf(mat: Material, h: wp.vec3) -> float:
+    return beckmann_pdf_h(mat.params[0], mat.params[0], h)
 
 
 def g_over_cos(o, i, h):
@@ -57,9 +113,12 @@ class _Microfacet(SpecularBRDF):
         return (self.m, 0.0, 0.0, 0.0)
 
 
+@register
 class CookTorrance(_Microfacet):
     NAME = "cook_torrance"
-    MODEL_ID = 4
+    CODE = 4
+    KERNEL = Kernel(ndf=cook_torrance_ndf, mo=cook_torrance_mo, analytic_lobe=microfacet_lobe, sample=beckmann_sample,
+                    pdf_h=beckmann_pdf)
 
     def mo(self, o, i):
         o, i = dirs(o, i)
@@ -73,9 +132,12 @@ class CookTorrance(_Microfacet):
         return np.where(h[..., 2] > 0, np.exp(-t * t), 0.0)
 
 
+@register
 class TorranceSparrow(_Microfacet):
     NAME = "torrance_sparrow"
-    MODEL_ID = 5
+    CODE = 5
+    KERNEL = Kernel(ndf=torrance_sparrow_ndf, mo=torrance_sparrow_mo, analytic_lobe=microfacet_lobe,
+                    sample=beckmann_sample, pdf_h=beckmann_pdf)
 
     def mo(self, o, i):
         o, i = dirs(o, i)

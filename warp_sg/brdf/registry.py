@@ -1,0 +1,140 @@
+r"""The one registry of BRDF models: scene-file name → model class, and model code → class.
+
+A model is one class (a :class:`~warp_sg.brdf.base.BRDF` subclass in a module of
+:mod:`warp_sg.brdf.models`) that declares
+
+* ``NAME`` — its scene-file name (``model = "ward"``), ``CODE`` — its kernel code (the
+  ``Material.model`` field; a small distinct integer, ``0 ≤ CODE < MAX_CODES``) and ``PARAMS`` —
+  its scene-file parameters;
+* its numpy evaluation (``diffuse``, ``mo``, ``ndf``, ``specular``) and its fit hooks
+  (``ndf_analytic_lambda``, ``aniso_layout``, ``table_lobes``, ... see
+  :mod:`warp_sg.brdf.fit`);
+* ``KERNEL`` — a :class:`Kernel` of its ``@wp.func``\ s: what the kernel switch
+  (:mod:`warp_sg.brdf.material_variants`) calls for a material of this code;
+
+and is registered by :func:`register` (a class decorator). Everything that switches on the model
+— the kernel functions ``brdf_eval``, ``brdf_sample``, ``brdf_pdf``, ``slice_lobe`` ..., the
+specialised kernel variants, the textured-parameter rule, the material packing and the NDF fits
+— is generated from, or asks, this registry; so adding a model is adding its file to
+``warp_sg/brdf/models/`` (imported with the package) and a test.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from typing import Any
+
+#: model codes are bits of the kernel's model masks (``material_variants``): at most this many
+MAX_CODES = 31
+
+#: scene-file name -> model class, in code order
+MODELS: dict[str, type] = {}
+#: kernel code -> model class
+BY_CODE: dict[int, type] = {}
+
+
+@dataclass(frozen=True)
+class Kernel:
+    r"""The ``@wp.func``\ s of one model (all optional; local frame, z+ = normal, float32).
+
+    The kernel switch calls a hook for a material of the model's code, else its default:
+
+    * ``ndf(mat, h) -> float`` — ``D(h)`` of ``ρs = Mo · D`` (peak 1), for ``h_z > 0``
+      (default 0: no specular lobe);
+    * ``mo(mat, o, i) -> vec3`` — ``Mo(o, i)`` without ``ks``, for ``o_z, i_z > 0`` (default 0);
+    * ``specular(mat, o, i) -> vec3`` — ``ρs`` without ``ks`` when it is not ``Mo · D(h)``
+      (default ``mo(o, i) · ndf(h)``), for ``o_z, i_z > 0``;
+    * ``diffuse(mat, o, i) -> vec3`` — the diffuse part, for ``o_z, i_z > 0`` (default ``kd/π``);
+    * ``eval(mat, o, i) -> vec3`` — the whole BRDF when it is not ``diffuse + ks ∘ specular``;
+    * ``analytic_lobe(mat, k) -> (axis, λ, μ)`` — NDF lobe k from the parameters
+      (``mat.analytic == 1``; default: the lobe table);
+    * ``table_lobe(mat, k) -> (axis, λ, μ)`` — NDF lobe k from the lobe table (default: as stored);
+    * ``slice(mat, o, k) -> (axis, λ, amplitude vec3)`` — lobe k of the slice ``ks ρs(o, ·)``
+      when it is not a warped NDF lobe (default: ``slice_of_lobe`` of ``ndf_lobe``);
+    * ``slice_of_lobe(mat, o, axis, λ, μ) -> (axis, λ, amplitude vec3)`` — the slice lobe of an
+      NDF lobe (default: the spherical warp, paper eq. 17–22);
+    * ``sample(mat, o, u) -> vec3`` / ``pdf(mat, o, i) -> float`` — importance sampling of the
+      specular part and its solid-angle density (``u`` in [0, 1)²; diffuse-only models default to
+      cosine sampling); or ``pdf_h(mat, h) -> float``: the half-vector density, turned into
+      ``p(i) = p(h)/(4 |o·h|)``;
+    * ``texel_param0(mat, p, v) -> vec4`` — the parameters with the first one set from a texel
+      value ``v`` (default ``(max(v, 1e-4), p1, p2, p3)``).
+    """
+
+    ndf: Any = None
+    mo: Any = None
+    specular: Any = None
+    diffuse: Any = None
+    eval: Any = None
+    analytic_lobe: Any = None
+    table_lobe: Any = None
+    slice: Any = None
+    slice_of_lobe: Any = None
+    sample: Any = None
+    pdf: Any = None
+    pdf_h: Any = None
+    texel_param0: Any = None
+
+    def hooks(self) -> tuple[str, ...]:
+        """The names of the hooks this model defines."""
+        return tuple(f.name for f in fields(self) if getattr(self, f.name) is not None)
+
+
+def register(cls):
+    """Class decorator: add the model ``cls`` to :data:`MODELS` and :data:`BY_CODE` (its ``NAME``,
+    ``CODE``, ``PARAMS`` and ``KERNEL`` are checked; a name or code taken by another class is refused)."""
+    name, code = getattr(cls, "NAME", None), getattr(cls, "CODE", None)
+    if not isinstance(name, str) or not name or name == "base":
+        raise ValueError(f"{cls.__name__}: a registered model needs a NAME")
+    if isinstance(code, bool) or not isinstance(code, int) or not 0 <= code < MAX_CODES:
+        raise ValueError(f"{cls.__name__}: CODE must be an integer in [0, {MAX_CODES}), got {code!r}")
+    if not isinstance(getattr(cls, "KERNEL", None), Kernel):
+        raise ValueError(f"{cls.__name__}: KERNEL must be a warp_sg.brdf.registry.Kernel")
+    if not isinstance(getattr(cls, "PARAMS", None), tuple):
+        raise ValueError(f"{cls.__name__}: PARAMS must be a tuple of parameter names")
+    for other in (MODELS.get(name), BY_CODE.get(code)):
+        if other is not None and other is not cls:
+            raise ValueError(f"{cls.__name__}: model name '{name}' or code {code} is taken by {other.__name__}")
+    MODELS[name] = cls
+    BY_CODE[code] = cls
+    order = sorted(MODELS.values(), key=lambda c: c.CODE)
+    MODELS.clear()
+    MODELS.update((c.NAME, c) for c in order)
+    return cls
+
+
+def unregister(cls) -> None:
+    """Remove a registered model (tests that register a model of their own)."""
+    if MODELS.get(cls.NAME) is cls:
+        del MODELS[cls.NAME]
+    if BY_CODE.get(cls.CODE) is cls:
+        del BY_CODE[cls.CODE]
+
+
+def codes() -> frozenset:
+    """Every registered model code."""
+    return frozenset(BY_CODE)
+
+
+def model_of(code: int):
+    """The model class of kernel code ``code`` (``KeyError`` if none)."""
+    return BY_CODE[int(code)]
+
+
+def code_of(name: str) -> int:
+    """The kernel code of the model called ``name``."""
+    return MODELS[name].CODE
+
+
+def constant_diffuse(model_codes) -> bool:
+    """True when every model of ``model_codes`` has the diffuse part ``kd/π`` (no ``diffuse`` hook),
+    so ρd does not depend on the directions (the shading's per-vertex diffuse shortcuts)."""
+    return all(BY_CODE[int(c)].KERNEL.diffuse is None for c in model_codes)
+
+
+def analytic_codes() -> frozenset:
+    """The codes of the models with in-kernel analytic NDF lobes (``Kernel.analytic_lobe``)."""
+    return frozenset(c for c, cls in BY_CODE.items() if cls.KERNEL.analytic_lobe is not None)
+
+
+__all__ = ["BY_CODE", "Kernel", "MAX_CODES", "MODELS", "analytic_codes", "code_of", "codes", "constant_diffuse",
+           "model_of", "register", "unregister"]
