@@ -48,8 +48,8 @@ Scene file schema (keys beyond DESIGN.md's are marked +)::
                 type = "directional": direction, radius, intensity
                 type = "environment": file | procedural ("sky" | "constant"), options+ (table),
                 scale, rotation+ (degrees about +Y)
-    [render]    shadows, supersampling, antialias, lobes, env_lobes, env_peaks, visibility_budget,
-                pca_terms, ssdf_resolution, gamma_levels, gamma_resolution, fh, background, device
+    [render]    the renderer's quality settings (keys, ranges and meanings: ``warp-sg schema``,
+                the scene-file model of :mod:`warp_sg.scene_schema`)
 
 Files: this module is the public entry and re-exports every name; the data model is in
 :mod:`warp_sg.scene_model`, the TOML loader in :mod:`warp_sg.scene_toml`, the typed models of the

@@ -147,36 +147,16 @@ Light = PointLight | DirectionalLight | EnvironmentLight
 RENDER_INT_RANGES = {"supersampling": (1, 16), "antialias": (1, 8), "lobes": (1, 16), "env_lobes": (1, 64),
                      "env_peaks": (0, 16), "visibility_budget": (0, 10_000_000), "pca_terms": (1, 256),
                      "ssdf_resolution": (4, 1024), "gamma_levels": (0, 64), "gamma_resolution": (4, 1024)}
+#: the string settings of ``[render]`` and their choices (``RenderSettings.validate`` and the scene schema)
+RENDER_CHOICES = {"fh": ("table", "sigmoid"), "visibility_sampling": ("vertex", "pixel")}
 
 
 @dataclass
 class RenderSettings:
-    """The ``[render]`` table: quality knobs of the SG renderer.
-
-    * ``shadows`` — SSDF visibility (eq. 23–31); off → V = 1 and no SSDF precompute.
-    * ``supersampling`` — k: raster and shade at k·H × k·W, box-resolved.
-    * ``antialias`` — a (default 4; 1 = off; used when ``supersampling`` is 1): coverage at a×a
-      sub-pixels, shading edge-adaptive (interior pixels once, edge pixels once per triangle they
-      see, weighted by coverage; contrasting pixels at every sub-pixel).
-    * ``lobes`` — SG lobes of the NDF of isotropic models (anisotropic Ashikhmin-Shirley uses its
-      own ``lobes`` parameter).
-    * ``env_lobes`` — SG mixture of the environment for the diffuse term (eq. 39), < 10 in the paper.
-    * ``env_peaks`` — at most this many sharp peaks of the environment (a sun) are separated from
-      the map and shaded as directional lights (``precompute.env_peaks``; 0 = off).
-    * ``visibility_budget`` — with shadows, the mesh is refined where its visibility changes, up to
-      this many vertices (``precompute.refine_for_visibility``; 0 = use the mesh as given).
-    * ``pca_terms``, ``ssdf_resolution`` — SSDF compression (NV) and map resolution.
-    * ``gamma_levels`` — number of λ levels of the ΓL pyramid (0 = precompute's default ladder,
-      λ0 = 0.5 growing by √2 up to the map's resolution); ``gamma_resolution`` — largest cube face.
-    * ``fh`` — ``"table"`` (exact, tabulated) or ``"sigmoid"`` (paper appendix).
-    * ``visibility_sampling`` — ``"vertex"`` (default): the SSDF is read once per vertex for the
-      directions that do not depend on the view — each environment lobe (its visible fraction) and
-      each light (its SSDF deficit) — cached and interpolated (:mod:`warp_sg.vertex_visibility`),
-      and so is the diffuse environment sum where a triangle's check allows it; ``"pixel"``: one
-      SSDF lookup per lobe and light per pixel, the diffuse environment sum per pixel.
-    * ``background`` — pixels that see no object show the environment.
-    * ``device`` — default device for ``ws.render(scene)`` ("cpu", "cuda", "auto").
-    """
+    """The ``[render]`` table: quality knobs of the SG renderer. The keys' meanings, ranges and
+    choices are documented once, in the scene-file model ``warp_sg.scene_schema.RenderTable``
+    (``warp-sg schema``, ``docs/scene.schema.json``); the ranges and choices are
+    :data:`RENDER_INT_RANGES` and :data:`RENDER_CHOICES`."""
 
     shadows: bool = True
     supersampling: int = 1
@@ -204,11 +184,10 @@ class RenderSettings:
         for k in ("shadows", "background"):
             if not isinstance(getattr(self, k), bool):
                 raise SceneError(f"{where} key '{k}' must be true or false, got {getattr(self, k)!r}")
-        if self.fh not in ("table", "sigmoid"):
-            raise SceneError(f"{where} key 'fh' must be 'table' or 'sigmoid', got {self.fh!r}")
-        if self.visibility_sampling not in ("vertex", "pixel"):
-            raise SceneError(f"{where} key 'visibility_sampling' must be 'vertex' or 'pixel', "
-                             f"got {self.visibility_sampling!r}")
+        for k, options in RENDER_CHOICES.items():
+            if getattr(self, k) not in options:
+                raise SceneError(f"{where} key '{k}' must be {' or '.join(repr(o) for o in options)}, "
+                                 f"got {getattr(self, k)!r}")
         if not isinstance(self.device, str):
             raise SceneError(f"{where} key 'device' must be a string, got {self.device!r}")
 
@@ -316,4 +295,4 @@ def _suggest(name, options) -> str:
 
 
 __all__ = ["Scene", "SceneObject", "Material", "Transform", "RenderSettings", "Light", "COLOUR_PARAMS",
-           "NON_TEXTURE_PARAMS", "RENDER_KEYS", "RENDER_INT_RANGES"]
+           "NON_TEXTURE_PARAMS", "RENDER_KEYS", "RENDER_INT_RANGES", "RENDER_CHOICES"]

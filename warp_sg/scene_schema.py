@@ -42,7 +42,7 @@ from .errors import InputError
 from .gltf import GLTF_SUFFIXES, is_gltf
 from .lights import ENV_PROCEDURAL, DirectionalLight, EnvironmentLight, PointLight
 from .primitives import PRIMITIVE_PARAMS, PRIMITIVES
-from .scene_model import RENDER_INT_RANGES, RenderSettings, _suggest
+from .scene_model import RENDER_CHOICES, RENDER_INT_RANGES, RenderSettings, _suggest
 from .scene_values import (Table, anything, boolean, choice, fail, int_or_ints, integer, number, number_or_vector,
                            path, require_tag, rgb, string, tagged, vector)
 
@@ -380,20 +380,28 @@ def _light_branch(v) -> str:
 LightTable = tagged(LIGHT_MODELS, _light_branch, _light_tag)
 
 _RS = _defaults(RenderSettings)
+#: the one documentation of the ``[render]`` keys (``RenderSettings`` points here)
 _RENDER_DOC = {
-    "shadows": "SSDF soft shadows (off: visibility 1, no SSDF precompute)",
+    "shadows": "SSDF soft shadows, eq. 23–31 (off: visibility 1, no SSDF precompute)",
     "supersampling": "k: raster and shade at k·H × k·W, box-resolved",
-    "antialias": "a: coverage at a×a sub-pixels, shading edge-adaptive (1 = off; used when supersampling = 1)",
-    "lobes": "SG lobes of the NDF of isotropic models",
-    "env_lobes": "SG lobes of the environment for the diffuse term (eq. 39)",
-    "env_peaks": "sharp environment peaks (a sun) shaded as directional lights (0 = off)",
-    "visibility_budget": "with shadows: refine the mesh where visibility changes, up to this many vertices",
-    "pca_terms": "SSDF PCA terms",
+    "antialias": "a: coverage at a×a sub-pixels, shading edge-adaptive: interior pixels once, edge pixels once "
+                 "per triangle they see, weighted by coverage, contrasting pixels at every sub-pixel "
+                 "(1 = off; used when supersampling = 1)",
+    "lobes": "SG lobes of the NDF of isotropic models (anisotropic Ashikhmin-Shirley uses its own 'lobes')",
+    "env_lobes": "SG lobes of the environment for the diffuse term (eq. 39; < 10 in the paper)",
+    "env_peaks": "at most this many sharp environment peaks (a sun) separated from the map and shaded as "
+                 "directional lights (precompute.env_peaks; 0 = off)",
+    "visibility_budget": "with shadows: refine the mesh where visibility changes, up to this many vertices "
+                         "(precompute.refine_for_visibility; 0 = the mesh as given)",
+    "pca_terms": "SSDF PCA terms (NV)",
     "ssdf_resolution": "SSDF map resolution",
-    "gamma_levels": "λ levels of the ΓL pyramid (0 = default ladder)",
+    "gamma_levels": "λ levels of the ΓL pyramid (0 = default ladder: λ0 = 0.5 growing by √2 up to the map's "
+                    "resolution)",
     "gamma_resolution": "largest cube face of the ΓL pyramid",
     "fh": "Fh: 'table' (exact, tabulated) or 'sigmoid' (paper appendix)",
-    "visibility_sampling": "SSDF of environment lobes and lights, and the diffuse environment sum: 'vertex' (per vertex, cached, interpolated) or 'pixel'",
+    "visibility_sampling": "SSDF of the directions that do not depend on the view (environment lobes, lights) "
+                           "and the diffuse environment sum: 'vertex' (once per vertex, cached, interpolated; "
+                           "warp_sg.vertex_visibility) or 'pixel' (one SSDF lookup per lobe and light per pixel)",
     "background": "pixels that see no object show the environment",
     "device": "default device: 'cpu', 'cuda', 'cuda:N' or 'auto'",
 }
@@ -404,10 +412,8 @@ def _render_type(k):
     doc, default = _RENDER_DOC.get(k, k), _RS[k]
     if k in RENDER_INT_RANGES:
         return integer(*RENDER_INT_RANGES[k], description=doc)
-    if k == "fh":
-        return choice(("table", "sigmoid"), doc)
-    if k == "visibility_sampling":
-        return choice(("vertex", "pixel"), doc)
+    if k in RENDER_CHOICES:
+        return choice(RENDER_CHOICES[k], doc)
     if isinstance(default, bool):
         return boolean(doc)
     if isinstance(default, int):

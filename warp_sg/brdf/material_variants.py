@@ -84,9 +84,10 @@ class MaterialFuncs(NamedTuple):
 
 
 def variant_tag(models) -> str:
-    """Name suffix of a model set: ``""`` for every registered model, else ``"_m4"``, ``"_m0_10"``, …"""
+    """Name suffix of a model set: ``""`` for :data:`ALL_MODELS` (the generic functions), else
+    ``"_m4"``, ``"_m0_10"``, … (a model registered later makes a new set, never the generic names)."""
     ms = frozenset(int(m) for m in models)
-    return "" if ms == all_models() else "_m" + "_".join(str(m) for m in sorted(ms))
+    return "" if ms == ALL_MODELS else "_m" + "_".join(str(m) for m in sorted(ms))
 
 
 # ------------------------------------------------------------------------------------------------
