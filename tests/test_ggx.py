@@ -155,7 +155,7 @@ def test_bad_parameters_raise_input_errors_naming_the_field():
     with pytest.raises(InputError, match="alpah"):
         make_model("ggx", alpah=0.2)
     m = make_model("ggx", alpha=0.2, fresnel={"schlick": [0.9, 0.6, 0.2]}, kd=[0.1, 0.2, 0.3])
-    assert np.allclose(m.fresnel(1.0), [0.9, 0.6, 0.2]) and m.lobes == B.ggx.DEFAULT_LOBES
+    assert np.allclose(m.fresnel(1.0), [0.9, 0.6, 0.2]) and m.lobes == B.models.ggx.DEFAULT_LOBES
 
 
 def test_multi_lobe_fits_are_non_negative_and_improve_with_lobe_count():
@@ -181,9 +181,9 @@ def ndf_l2(alpha, lam, mu):
 @pytest.mark.parametrize("node, k", [(3, 3), (26, 2)])
 def test_shipped_node_table_matches_a_fresh_fit(node, k):
     # the stored fits (scripts/ggx_lobe_table.py) are as good as refitting the node now
-    alpha = B.ggx.TABLE_A0 + B.ggx.TABLE_STEP * node
-    lam_s, mu_s = B.ggx.table_lobes(alpha, k)
-    ln, mu = B.ggx.node_fit(alpha, k)
+    alpha = B.models.ggx.TABLE_A0 + B.models.ggx.TABLE_STEP * node
+    lam_s, mu_s = B.models.ggx.table_lobes(alpha, k)
+    ln, mu = B.models.ggx.node_fit(alpha, k)
     lam_f = ln * (1 / alpha**2 - 1)
     assert ndf_l2(alpha, lam_s, mu_s) <= 1.05 * ndf_l2(alpha, lam_f, mu) + 1e-9
     np.testing.assert_allclose(lam_s, lam_f, rtol=0.02)
@@ -192,7 +192,7 @@ def test_shipped_node_table_matches_a_fresh_fit(node, k):
 def test_interpolated_table_lobes_fit_between_the_nodes():
     # midway between nodes, the interpolated lobes stay close to a fit made at that α
     for alpha in (0.0125, 0.2125, 0.5125, 0.8875):
-        lam, mu = B.ggx.table_lobes(alpha, 3)
+        lam, mu = B.models.ggx.table_lobes(alpha, 3)
         assert ndf_l2(alpha, lam, mu) < 5e-4, alpha
 
 
@@ -281,7 +281,7 @@ def test_kernel_matches_numpy_eval_pdf_sample_and_slice_lobes(device):
         # textured α = 0.45 (params[0:2] per texel): the kernel's NDF lobes follow it
         lam_t, mu_t = out["tex_lam"][s][0, :nk].astype(np.float64), out["tex_mu"][s][0, :nk].astype(np.float64)
         if m.isotropic and nk <= 4:  # the node table interpolated at the texel's α
-            lam_n, mu_n = B.ggx.table_lobes(0.45, nk)
+            lam_n, mu_n = B.models.ggx.table_lobes(0.45, nk)
             np.testing.assert_allclose(lam_t, lam_n, rtol=1e-4)
             np.testing.assert_allclose(mu_t, mu_n, rtol=1e-4, atol=1e-6)
             if nk > 1:  # a good fit of the texel's NDF (a single fitted lobe: 6e-2)

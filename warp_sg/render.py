@@ -237,7 +237,7 @@ class Renderer(EnvironmentSetup):
     def _env_visible_vertex(self) -> bool:
         """The diffuse environment term as the exact irradiance times the per-vertex visible fraction
         (``visibility_sampling = "vertex"`` with shadows shown; needs ρd = kd/π, no Oren–Nayar)."""
-        return self._vertex_sampled() and S.env_visible_vertex_ok(self.env_diffuse_mode, self.material_table.models)
+        return self.features().env_visible_vertex  # (gated by shading.Features)
 
     def _vertex_visibility(self, es):
         """The per-vertex caches, brought up to date (:func:`warp_sg.vertex_visibility.update_caches`)."""
@@ -310,10 +310,9 @@ class Renderer(EnvironmentSetup):
             textures=self.has_textures,
             normal_maps=self.has_normal_maps,
             fh_sigmoid=self.scene.render.fh == "sigmoid",
-            env_vis_vertex=(self._vertex_sampled() and self.env_diffuse_mode == S.ENV_SG
-                            and not self._env_visible_vertex()),
+            env_vis_vertex=self._vertex_sampled() and self.env_diffuse_mode == S.ENV_SG,
             light_vis_vertex=self._vertex_sampled() and len(self.shading_lights) > 0,
-            env_visible_vertex=self._env_visible_vertex(),
+            env_visible_vertex=self._vertex_sampled(),
             models=self.material_table.models,
             emission=self.has_emission, occlusion=self.has_occlusion, coat=self.has_coat,
             vertex_colors=self.geometry.colors is not None, cutouts=self.cutouts is not None,

@@ -354,6 +354,14 @@ class Features:
 
     def __post_init__(self):
         object.__setattr__(self, "models", tuple(sorted({int(m) for m in self.models})))
+        # the per-vertex visibility gating, decided here once (the renderer's caches and the kernel
+        # variant read these fields): only with shadows; the visible fraction of the diffuse
+        # environment sum where ``env_visible_vertex_ok``, else the per-lobe cache
+        evis = bool(self.env_visible_vertex) and bool(self.shadows) and env_visible_vertex_ok(self.env_diffuse,
+                                                                                               self.models)
+        object.__setattr__(self, "env_visible_vertex", evis)
+        object.__setattr__(self, "env_vis_vertex", bool(self.env_vis_vertex) and bool(self.shadows) and not evis)
+        object.__setattr__(self, "light_vis_vertex", bool(self.light_vis_vertex) and bool(self.shadows))
 
 
 _KERNELS: dict = {}
@@ -392,10 +400,10 @@ def shade_kernel(f: Features):
     TEX = bool(f.textures)
     NMAP = bool(f.normal_maps)
     FH = 1 if f.fh_sigmoid else 0
-    VVIS = bool(f.env_vis_vertex) and SHADOWS == 1
-    LVIS = bool(f.light_vis_vertex) and SHADOWS == 1
+    VVIS = bool(f.env_vis_vertex)  # (Features gates the per-vertex caches)
+    LVIS = bool(f.light_vis_vertex)
     RHO_D_CONST = constant_diffuse(f.models)  # no Oren–Nayar: ρd = kd/π, whatever the directions
-    EVIS = bool(f.env_visible_vertex) and env_visible_vertex_ok(f.env_diffuse, f.models) and SHADOWS == 1
+    EVIS = bool(f.env_visible_vertex)
     # per-pixel SSDF reads outside the specular loop (lights without the deficit cache, diffuse
     # lobes without the visibility cache): the SSDF point is built for every pixel
     Q_EARLY = SHADOWS == 1 and ((LIGHTS and not LVIS) or (ENV_D == 1 and not VVIS and not EVIS))

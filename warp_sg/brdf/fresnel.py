@@ -49,7 +49,7 @@ def _c(c):
 def fresnel_eq14(eta, c):
     """Paper eq. 14: ``g = √(η² + c² − 1)``, ``F = (g−c)²/(2(g+c)²) (1 + ((c(g+c)−1)/(c(g−c)+1))²)``,
     1 under total internal reflection (``g² ≤ 0``); ``c`` clipped to [0, 1]; broadcasts ``eta``
-    against ``c``. The one numpy implementation (:class:`Dielectric`, ``brdf.measured``)."""
+    against ``c``. The one numpy implementation (:class:`Dielectric`, ``brdf.models.measured``)."""
     c = np.clip(np.asarray(c, dtype=np.float64), 0.0, 1.0)
     eta = np.asarray(eta, dtype=np.float64)
     g2 = eta * eta + c * c - 1.0
