@@ -296,7 +296,7 @@ def _shade_sample(
     return L
 
 
-@wp.kernel
+@wp.kernel(enable_backward=False)  # forward only (no gradients of the reference)
 def _reference_pass(
     geo: Geometry,
     materials: wp.array(dtype=M.Material),
