@@ -38,6 +38,7 @@ LAYERS = (
               "warp_sg.lazy", "warp_sg.image_io", "warp_sg.cache", "warp_sg.watchdog")),
     ("math", ("warp_sg.fastmath", "warp_sg.sg", "warp_sg.sg_wp", "warp_sg.frames", "warp_sg.clamped_cosine", "warp_sg.fh",
               "warp_sg.sg_irradiance", "warp_sg.ssdf_product", "warp_sg.anisotropy", "warp_sg.pca",
+              "warp_sg.rigid_motion",
               "warp_sg.brdf", "warp_sg.brdf.*")),
     ("scene", ("warp_sg.scene", "warp_sg.scene_model", "warp_sg.scene_toml", "warp_sg.scene_schema",
                "warp_sg.scene_values", "warp_sg.geometry", "warp_sg.camera", "warp_sg.culling",
@@ -65,8 +66,9 @@ LAYERS = (
     # cut-outs by the precompute's visibility rays)
     ("engines", ("raster", "raster.*", "precompute", "precompute.*", "warp_sg.surface", "warp_sg.surface_layers",
                  "warp_sg.cutout", "warp_sg.shading",
-                 "warp_sg.vertex_visibility", "warp_sg.silhouette", "warp_sg.background")),
+                 "warp_sg.vertex_visibility", "warp_sg.silhouette", "warp_sg.background", "warp_sg.motion_wp")),
     ("render", ("warp_sg.render", "warp_sg.render_environment", "warp_sg.costs", "warp_sg.antialias",
+                "warp_sg.dynamic_objects",
                 "warp_sg.reference", "warp_sg.reference_wp",
                 "warp_sg.sampling", "warp_sg.regions")),
 )

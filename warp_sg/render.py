@@ -111,6 +111,7 @@ class Renderer(EnvironmentSetup):
         with wp.ScopedDevice(self.device):
             self._setup_env_peaks()
             self._setup_geometry()
+            self.dynamic = self._setup_dynamic()
             self._setup_visibility()
             self._setup_materials()
             self._setup_environment()
@@ -182,6 +183,19 @@ class Renderer(EnvironmentSetup):
         self.cut = CutoutScene(g, self.scene.materials, ga.positions, d)
         self.cutouts = self.cut.data
 
+    def _setup_dynamic(self):
+        """The moving objects (:mod:`warp_sg.dynamic_objects`), None in a static scene."""
+        from .motion_wp import no_proxies
+
+        self._proxies = no_proxies(self.device)
+        if not any(ob.dynamic for ob in self.scene.objects):
+            return None
+        from .dynamic_objects import DynamicObjects
+
+        dyn = DynamicObjects(self)
+        self._proxies = dyn.px
+        return dyn
+
     def _setup_visibility(self):
         rs = self.scene.render
         g = self.geometry
@@ -200,14 +214,19 @@ class Renderer(EnvironmentSetup):
             pre = self._precomputed
             if pre is not None and pre.get("ssdf") is not None:
                 from precompute.ssdf import ssdf_key
+                from precompute.ssdf_groups import ssdf_groups_key
 
                 self.ssdf = pre["ssdf"]
                 want = ssdf_key(g.vertices, g.triangles, g.normals, resolution=rs.ssdf_resolution,
                                 ray_resolution=self.ssdf.ray_resolution, pca_terms=rs.pca_terms,
-                                cutouts=self.cutouts)
+                                cutouts=self.cutouts) if self.dynamic is None else ssdf_groups_key(
+                    g.vertices, g.triangles, g.normals, self.dynamic.tri_group, resolution=rs.ssdf_resolution,
+                    ray_resolution=self.ssdf.ray_resolution, pca_terms=rs.pca_terms)
                 if want != self.ssdf.key:
                     raise InputError("precomputed SSDFs are for a different mesh or SSDF settings",
                                      where="precomputed")
+            elif self.dynamic is not None:  # per group: static objects, each dynamic one alone
+                self.ssdf = self.dynamic.ssdf(self)
             else:
                 self.ssdf = precompute.ssdf_for_mesh(g.vertices, g.triangles, g.normals,
                                                      resolution=rs.ssdf_resolution, pca_terms=rs.pca_terms, device=d,
@@ -226,7 +245,10 @@ class Renderer(EnvironmentSetup):
             vis.cones = wp.array(no_cones(1), dtype=wp.vec4, device=d)
             vis.cone_band = 1.0
         vis.light_deficit = wp.zeros((1, 1), dtype=float, device=d)
+        vis.frame_t = vis.frame_b = wp.zeros(1, dtype=wp.vec3, device=d)  # (the frames of the normals)
         self.vis = vis
+        if self.dynamic is not None and self.shadows:
+            self.dynamic.attach(self)  # the vertices' SSDF frames, which turn with their objects
 
     def _vertex_sampled(self) -> bool:
         """Visibility of fixed directions sampled per vertex (``[render] visibility_sampling =
@@ -242,7 +264,10 @@ class Renderer(EnvironmentSetup):
         """The per-vertex caches, brought up to date (:func:`warp_sg.vertex_visibility.update_caches`)."""
         from .vertex_visibility import update_caches
 
-        return update_caches(self, es)
+        es = update_caches(self, es)
+        if self.dynamic is not None:  # the moved vertices' rows
+            self.dynamic.patch_caches(self, es)
+        return es
 
     def _setup_materials(self):
         from .brdf.material_wp import pack_materials
@@ -314,6 +339,7 @@ class Renderer(EnvironmentSetup):
             models=self.material_table.models,
             emission=self.has_emission, occlusion=self.has_occlusion, coat=self.has_coat,
             vertex_colors=self.geometry.colors is not None, cutouts=self.cutouts is not None,
+            moving=self.dynamic is not None and self.shadows and self.show_shadows,
         )
 
     # ------------------------------------------------------------------ dynamic changes
@@ -390,6 +416,19 @@ class Renderer(EnvironmentSetup):
         self.env_light.scale = float(scale)
         self._setup_lights()
 
+    def set_object_transform(self, obj, matrix) -> None:
+        """Move dynamic object ``obj`` (index or label; ``[[objects]] dynamic = true``) by the 4×4
+        rigid ``matrix`` (rotation, translation, uniform scale; :mod:`warp_sg.rigid_motion`) applied
+        after its own translate/scale/rotate. The next frame shows it moved with its shading and the
+        shadows it casts and receives; no precompute is re-run (:mod:`warp_sg.dynamic_objects`)."""
+        if self.dynamic is None:
+            from .dynamic_objects import object_index
+
+            k = object_index(self.scene, obj)
+            raise SceneError(f"object '{self.scene.objects[k].label(k)}' is not dynamic (give its [[objects]] "
+                             f"table dynamic = true)", where="set_object_transform")
+        self.dynamic.set_transform(self.scene, obj, matrix)
+
     def set_camera(self, **fields) -> None:
         """Change camera fields (origin, target, up, fov, width, height)."""
         cam = self.scene.camera
@@ -441,6 +480,7 @@ class Renderer(EnvironmentSetup):
         disagree, at every sub-pixel (:mod:`warp_sg.antialias`) — antialiased silhouettes at a
         fraction of the cost of shading every sub-pixel."""
         rs = self.scene.render
+        self._move()
         if rs.supersampling == 1 and rs.antialias > 1:
             return self._render_adaptive(int(rs.antialias))
         d = self.device
@@ -505,6 +545,7 @@ class Renderer(EnvironmentSetup):
         (used by the pyvista preview). Unreferenced vertices get 0."""
         from .geometry import vertex_samples
 
+        self._move()
         d, nv = self.device, len(self.geometry.vertices)
         owner, bary = vertex_samples(self.geometry.triangles, nv)
         tri_id = wp.array(owner.reshape(1, nv), dtype=int, device=d)
@@ -514,6 +555,14 @@ class Renderer(EnvironmentSetup):
         out = wp.empty((1, nv), dtype=wp.vec3, device=d)
         self._launch_shade(tri_id, bary_w, bg, eye, out)
         return out.numpy().reshape(nv, 3)
+
+    def _move(self) -> None:
+        """Dynamic objects' transforms into the device arrays (timed as ``timings["motion"]``)."""
+        if self.dynamic is not None:
+            t = time.perf_counter()
+            with wp.ScopedDevice(self.device):
+                self.dynamic.apply(self)
+            self.timings["motion"] = time.perf_counter() - t
 
     def _launch_shade(self, tri_id, bary, bg, eye, out):
         d = self.device
@@ -532,7 +581,7 @@ class Renderer(EnvironmentSetup):
         self.layers.n_local = len(self.scene.local_lights)  # (the rest are the environment's peaks)
         args = [tri_id, bary, *self._bg.kernel_args(bg), wp.vec3(*np.asarray(eye, np.float32)), self.geo_arrays,
                 self.material_table.materials, self.material_textures, self.irr_table, self.light_arrays, es, gamma,
-                self.vis, self.layers, self.cut.arrays, self.cut.mesh_id, self._bg.params(*self._bg_args(1)), out]
+                self.vis, self._proxies, self.layers, self.cut.arrays, self.cut.mesh_id, self._bg.params(*self._bg_args(1)), out]
         parallel.launch(kern, n, args, d, min_chunk=2048, per_thread=S.PIXELS_PER_THREAD)
 
 

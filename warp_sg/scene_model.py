@@ -87,6 +87,11 @@ class SceneObject:
     #: (V, 3) factor it puts on ks (glTF COLOR_0, :func:`warp_sg.gltf_material.vertex_colour_factors`)
     colors: np.ndarray | None = None
     specular_colors: np.ndarray | None = None
+    #: may move after the precompute (``[[objects]] dynamic = true``; :mod:`warp_sg.dynamic_objects`)
+    dynamic: bool = False
+    #: (4, 4) rigid motion (rotation, translation, uniform scale) applied after ``transform``
+    #: (``Renderer.set_object_transform``; None: none)
+    motion: np.ndarray | None = None
 
     def label(self, index: int) -> str:
         return self.name or (Path(self.mesh).name if self.mesh is not None else self.primitive) or f"objects[{index}]"
@@ -304,6 +309,7 @@ def _expand_assets(objects: list, materials: dict, where: str) -> tuple[list, di
                                  f"by the scene (give the object another name)", where=where)
             mats[key] = Material(name=key, **spec)
         out.extend(SceneObject(material=ob.material or p.material, transform=ob.transform, name=p.name,
+                               dynamic=ob.dynamic, motion=ob.motion,
                                vertices=p.vertices, triangles=p.triangles, normals=p.normals, uvs=p.uvs,
                                tangents=p.tangents, colors=p.colors, specular_colors=p.specular_colors)
                    for p in parts)

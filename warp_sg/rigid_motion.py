@@ -1,0 +1,77 @@
+r"""Rigid motions of scene objects: a 4×4 matrix ``M = [s·R | t; 0 0 0 1]`` (rotation ``R``,
+uniform scale ``s > 0``, translation ``t``), applied after an object's own ``translate`` / ``scale``
+/ ``rotate`` (``SceneObject.motion``, ``Renderer.set_object_transform``)::
+
+    P' = s R P + t,     n' = R n,     tangent' = R tangent
+
+Only similarity transforms keep per-vertex visibility valid under the motion: an object's own
+SSDF (angles between directions) is invariant under ``s R`` and rotates with ``R``
+(:mod:`warp_sg.dynamic_objects`). :func:`check_motion` refuses anything else (shear, mirror,
+non-uniform scale, a projective row) with a one-line :class:`~warp_sg.errors.SceneError`.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import SceneError
+
+#: tolerance on ``(A/s)ᵀ(A/s) = I`` (a matrix typed with 6 significant digits passes)
+ORTHO_TOL = 1e-4
+
+
+def check_motion(matrix, where: str = "transform") -> tuple[np.ndarray, float, np.ndarray]:
+    """``(R (3, 3), s, t (3,))`` of a 4×4 rigid motion with uniform scale; a 3×4 matrix (the top
+    rows) is accepted too. Raises :class:`SceneError` naming ``where`` otherwise."""
+    try:
+        M = np.asarray(matrix, np.float64)
+    except (TypeError, ValueError):
+        raise SceneError(f"must be a 4x4 matrix of numbers, got {matrix!r}", where=where) from None
+    if M.shape == (3, 4):
+        M = np.vstack([M, [0.0, 0.0, 0.0, 1.0]])
+    if M.shape != (4, 4):
+        raise SceneError(f"must be a 4x4 matrix, got shape {M.shape}", where=where)
+    if not np.all(np.isfinite(M)):
+        raise SceneError("has a non-finite entry", where=where)
+    if not np.allclose(M[3], [0.0, 0.0, 0.0, 1.0], atol=1e-9):
+        raise SceneError(f"last row must be [0, 0, 0, 1], got {M[3].tolist()}", where=where)
+    A = M[:3, :3]
+    det = float(np.linalg.det(A))
+    if not det > 0.0:
+        raise SceneError(f"must be a rotation with a positive uniform scale (determinant {det:.3g})", where=where)
+    s = det ** (1.0 / 3.0)
+    R = A / s
+    if np.max(np.abs(R.T @ R - np.eye(3))) > ORTHO_TOL:
+        raise SceneError("must be rigid: a rotation, a translation and one uniform scale (no shear, no "
+                         "per-axis scale)", where=where)
+    # the nearest rotation (SVD), so the normals stay unit after many frames
+    U, _, Vt = np.linalg.svd(R)
+    return U @ Vt, float(s), M[:3, 3].copy()
+
+
+def motion_matrix(rotation=None, translation=(0.0, 0.0, 0.0), scale: float = 1.0) -> np.ndarray:
+    """The 4×4 matrix of ``P' = scale · rotation · P + translation`` (rotation default identity)."""
+    M = np.eye(4)
+    M[:3, :3] = float(scale) * (np.eye(3) if rotation is None else np.asarray(rotation, np.float64))
+    M[:3, 3] = np.asarray(translation, np.float64)
+    return M
+
+
+def rotation_about(axis, degrees: float) -> np.ndarray:
+    """(3, 3) rotation by ``degrees`` about ``axis`` (right-handed, Rodrigues)."""
+    a = np.asarray(axis, np.float64)
+    a = a / np.linalg.norm(a)
+    th = np.radians(float(degrees))
+    K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    return np.eye(3) + np.sin(th) * K + (1.0 - np.cos(th)) * (K @ K)
+
+
+def apply_motion(matrix, vertices, normals=None, tangents=None):
+    """``(vertices, normals, tangents)`` moved by ``matrix`` (float32; None stays None)."""
+    R, s, t = check_motion(matrix)
+    v = (np.asarray(vertices, np.float64) @ (s * R).T + t).astype(np.float32)
+    n = None if normals is None else (np.asarray(normals, np.float64) @ R.T).astype(np.float32)
+    tg = None if tangents is None else (np.asarray(tangents, np.float64) @ R.T).astype(np.float32)
+    return v, n, tg
+
+
+__all__ = ["check_motion", "motion_matrix", "rotation_about", "apply_motion", "ORTHO_TOL"]
