@@ -11,10 +11,15 @@ way). Seen from a point ``P``:
 * a **plane** (unit normal ``m``, offset ``h``: ``m·x + h = 0``, the side of ``P`` visible)
   occludes the half-sphere behind it: SSDF ``asin(σ d·m)``, ``σ = sign(m·P + h)`` — exact for an
   infinite plane, used for flat static objects (a floor) while ``P`` projects inside their
-  bounding disk.
+  bounding disk; the diffuse term sees the flat object's own outline (a convex polygon,
+  :func:`plane_outline`, its cosine-weighted solid angle by Lambert's formula).
 
 The SSDF of a union of occluders is the minimum of theirs, so a proxy set combines with a
 precomputed SSDF by ``min`` before the SSDF × SG product (eq. 30).
+
+The diffuse environment term integrates what a proxy hides, and the caps of a sphere set overlap
+(counted once each, a compact object would hide several times its solid angle): it sees one
+sphere per object instead, of the object's mean projected area (:func:`diffuse_sphere`).
 
 Fitting (:func:`object_proxies`): a flat object (every vertex within 10⁻⁴ of the bounding diagonal
 from its least-squares plane) gets a plane; an object whose vertices lie within 2 % of one sphere
@@ -43,8 +48,12 @@ class ObjectProxies:
     ``plane`` (4,) ``(m, h)`` with its bounding ``disk`` (4,) ``(centre, radius)``."""
 
     spheres: np.ndarray = field(default_factory=lambda: np.zeros((0, 4), np.float32))
+    #: (4,) the one sphere the diffuse term sees (:func:`diffuse_sphere`); None for a plane
+    diffuse: np.ndarray | None = None
     plane: np.ndarray | None = None
     disk: np.ndarray | None = None
+    #: (P, 3) the flat object's outline: its vertices' convex hull in the plane, in order
+    polygon: np.ndarray | None = None
 
 
 def fit_sphere(points) -> tuple[np.ndarray, float, float]:
@@ -91,6 +100,31 @@ def sphere_set(vertices, triangles, max_spheres: int = MAX_SPHERES, resolution: 
     return np.hstack([cent[keep], r[:, None]]).astype(np.float32)
 
 
+def diffuse_sphere(vertices, triangles) -> np.ndarray:
+    """(4,) float32: the sphere of the same mean projected area as the object (Cauchy: a convex
+    body's mean shadow area is a quarter of its surface area, so ``r = √(A/4π)``) at its area
+    centroid. The diffuse environment term integrates the occluder's solid angle, which a union of
+    overlapping spheres would count once per sphere; this one sphere holds it (exact for a sphere)."""
+    V = np.asarray(vertices, np.float64)
+    F = np.asarray(triangles, np.int64)
+    a = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
+    c = (a[:, None] * V[F].mean(1)).sum(0) / max(a.sum(), 1e-30)
+    return np.array([*c, np.sqrt(a.sum() / (4.0 * np.pi))], np.float32)
+
+
+def plane_outline(points, m) -> np.ndarray:
+    """(P, 3) the convex hull of coplanar ``points`` (plane normal ``m``), counter-clockwise about m."""
+    from scipy.spatial import ConvexHull
+
+    X = np.asarray(points, np.float64)
+    m = np.asarray(m, np.float64)
+    e1 = np.cross(m, [1.0, 0.0, 0.0] if abs(m[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(m, e1)
+    uv = np.stack([(X - X.mean(0)) @ e1, (X - X.mean(0)) @ e2], 1)
+    return X[ConvexHull(uv).vertices]  # (2-D hulls are counter-clockwise in (e1, e2), i.e. about m)
+
+
 def object_proxies(vertices, triangles, normals=None, max_spheres: int = MAX_SPHERES,
                    allow_plane: bool = True) -> ObjectProxies:
     """The proxies of one object (module docstring); ``allow_plane`` False: a flat object gets
@@ -101,11 +135,13 @@ def object_proxies(vertices, triangles, normals=None, max_spheres: int = MAX_SPH
     if allow_plane and dev <= PLANE_TOL * max(diag, 1e-30):
         c = V.mean(0)
         rad = float(np.max(np.linalg.norm(V - c, axis=1)))
-        return ObjectProxies(plane=np.array([*m, h], np.float32), disk=np.array([*c, rad], np.float32))
+        return ObjectProxies(plane=np.array([*m, h], np.float32), disk=np.array([*c, rad], np.float32),
+                             polygon=plane_outline(V, m).astype(np.float32))
     c, r, rms = fit_sphere(V)
     if rms <= SPHERE_TOL * r and np.all(np.linalg.norm(V - c, axis=1) <= 1.5 * r):
-        return ObjectProxies(spheres=np.array([[*c, r]], np.float32))
-    return ObjectProxies(spheres=sphere_set(V, triangles, max_spheres))
+        one = np.array([*c, r], np.float32)
+        return ObjectProxies(spheres=one[None], diffuse=one)
+    return ObjectProxies(spheres=sphere_set(V, triangles, max_spheres), diffuse=diffuse_sphere(V, triangles))
 
 
 def sphere_ssdf(P, d, spheres) -> np.ndarray:
@@ -123,5 +159,5 @@ def sphere_ssdf(P, d, spheres) -> np.ndarray:
     return np.where(dist <= S[:, 3], -0.5 * np.pi, ang - alpha).min(-1)
 
 
-__all__ = ["ObjectProxies", "object_proxies", "fit_sphere", "fit_plane", "sphere_set", "sphere_ssdf",
+__all__ = ["ObjectProxies", "object_proxies", "fit_sphere", "fit_plane", "sphere_set", "sphere_ssdf", "diffuse_sphere",
            "SPHERE_TOL", "PLANE_TOL", "MAX_SPHERES"]

@@ -55,6 +55,38 @@ def object_index(scene, obj) -> int:
     raise SceneError(f"no object '{obj}'{_suggest(obj, labels)}", where="set_object_transform")
 
 
+def scene_with_transforms(scene, transforms: dict):
+    """A copy of ``scene`` with dynamic objects moved (``{object (index or label): 4×4 matrix}``,
+    as :meth:`Renderer.set_object_transform`): what ``ws.reference`` renders at those transforms."""
+    import copy
+
+    out = copy.deepcopy(scene)
+    for obj, matrix in transforms.items():
+        k = object_index(out, obj)
+        if not out.objects[k].dynamic:
+            raise SceneError(f"object '{out.objects[k].label(k)}' is not dynamic (give its [[objects]] table "
+                             f"dynamic = true)", where="transform")
+        R, s, t = check_motion(matrix, where=f"transform of '{out.objects[k].label(k)}'")
+        M = np.eye(4)
+        M[:3, :3], M[:3, 3] = s * R, t
+        out.objects[k].motion = M
+    out.invalidate_geometry()
+    return out
+
+
+def parse_transform_argument(text: str) -> tuple:
+    """``"OBJECT=m00,m01,...,m33"`` (16 numbers, row-major) → ``(object, (4, 4) matrix)``; an
+    object that is a number is an index."""
+    name, sep, nums = str(text).partition("=")
+    try:
+        vals = [float(x) for x in nums.split(",")]
+    except ValueError:
+        vals = []
+    if not sep or not name or len(vals) != 16:
+        raise SceneError(f"expected OBJECT=16 comma-separated numbers, got {text!r}", where="--transform")
+    return (int(name) if name.isdigit() else name), np.asarray(vals).reshape(4, 4)
+
+
 def _rest_motion(ob) -> np.ndarray:
     return np.eye(4) if ob.motion is None else np.asarray(ob.motion, np.float64)
 
@@ -88,7 +120,9 @@ class DynamicObjects:
         # the pose the geometry was built in (a scene may come with motions set)
         self.rest_motion = {k: _rest_motion(scene.objects[k]) for k in self.ids}
         self.motion = {k: m.copy() for k, m in self.rest_motion.items()}
-        spheres, sowner, planes, disks, powner = [], [], [], [], []
+        spheres, sowner, planes, disks, powner, outlines = [], [], [], [], [], []
+        self.rest_blobs = np.zeros((max(self.n_objects, 1), 4))
+        self.blob_owner = np.full(max(self.n_objects, 1), -1, np.int64)
         for k in range(self.n_objects):
             sel = to == k
             if not sel.any():
@@ -98,15 +132,19 @@ class DynamicObjects:
                                allow_plane=not self.flags[k])
             spheres.append(p.spheres)
             sowner += [k] * len(p.spheres)
+            if p.diffuse is not None:
+                self.rest_blobs[k], self.blob_owner[k] = p.diffuse, k
             if p.plane is not None:
                 planes.append(p.plane)
                 disks.append(p.disk)
                 powner.append(k)
+                outlines.append(p.polygon)
         self.rest_spheres = np.concatenate(spheres).astype(np.float64) if spheres else np.zeros((0, 4))
         self.sphere_owner = np.asarray(sowner, np.int64)
         self.planes = np.asarray(planes, np.float32).reshape(-1, 4)
         self.disks = np.asarray(disks, np.float32).reshape(-1, 4)
         self.plane_owner = np.asarray(powner, np.int64)
+        self.outlines = outlines
         self.version = 0  # bumped by set_transform
         self._applied = 0  # the version written into the device arrays
         self._patched = {}  # cache name -> (array identity, version) of the last row patch
@@ -144,11 +182,18 @@ class DynamicObjects:
         px.spheres = wp.array(S.astype(np.float32), dtype=wp.vec4, device=d)
         px.sphere_owner = wp.array(self.sphere_owner.astype(np.int32) if len(self.sphere_owner)
                                    else np.array([-1], np.int32), dtype=int, device=d)
+        px.blobs = wp.array(self.rest_blobs.astype(np.float32), dtype=wp.vec4, device=d)
+        px.blob_owner = wp.array(self.blob_owner.astype(np.int32), dtype=int, device=d)
         n_pl = len(self.planes)
         px.planes = wp.array(self.planes if n_pl else np.zeros((1, 4), np.float32), dtype=wp.vec4, device=d)
         px.disks = wp.array(self.disks if n_pl else np.zeros((1, 4), np.float32), dtype=wp.vec4, device=d)
         px.plane_owner = wp.array(self.plane_owner.astype(np.int32) if n_pl else np.array([-1], np.int32),
                                   dtype=int, device=d)
+        cnt = np.array([len(o) for o in self.outlines] or [0], np.int32)
+        px.outline = wp.array(np.concatenate(self.outlines).astype(np.float32) if self.outlines
+                              else np.zeros((1, 3), np.float32), dtype=wp.vec3, device=d)
+        px.outline_start = wp.array(np.concatenate([[0], np.cumsum(cnt)[:-1]]).astype(np.int32), dtype=int, device=d)
+        px.outline_count = wp.array(cnt, dtype=int, device=d)
         px.behind = placeholder_table(d)
         px.behind_axis = wp.vec3(0.0, 0.0, 0.0)
         return px
@@ -206,6 +251,7 @@ class DynamicObjects:
         vis_frames = self.rest_cones is not None  # (with shadows)
         C = self.rest_cones.copy() if vis_frames else np.zeros((len(V), 4))
         S = self.rest_spheres.copy()
+        B = self.rest_blobs.copy()
         for k, ids in self.ids.items():
             delta = self.motion[k] @ np.linalg.inv(self.rest_motion[k])  # from the pose the geometry was built in
             R, s, t = check_motion(delta)
@@ -216,6 +262,8 @@ class DynamicObjects:
             own = self.sphere_owner == k
             S[own, :3] = self.rest_spheres[own, :3] @ (s * R).T + t
             S[own, 3] = self.rest_spheres[own, 3] * s
+            B[k, :3] = self.rest_blobs[k, :3] @ (s * R).T + t
+            B[k, 3] = self.rest_blobs[k, 3] * s
         f32 = lambda a: np.ascontiguousarray(a, np.float32)  # noqa: E731
         ga = r.geo_arrays
         ga.positions.assign(f32(V))
@@ -227,6 +275,7 @@ class DynamicObjects:
             r.vis.cones.assign(f32(C))
         if len(S):
             self.px.spheres.assign(f32(S))
+        self.px.blobs.assign(f32(B))
         r.geometry = replace(r.geometry, vertices=f32(V), normals=f32(N), tangents=f32(Tg))
         r._vb_key = None  # the visibility buffer
         if r._culling is not None:
@@ -260,4 +309,4 @@ class DynamicObjects:
                 self._patched[name] = (ident, self.version)
 
 
-__all__ = ["DynamicObjects", "object_index"]
+__all__ = ["DynamicObjects", "object_index", "scene_with_transforms", "parse_transform_argument"]

@@ -11,8 +11,9 @@ object only itself). Per shading point ``P`` (normal ``n``):
   union of occluders, ``min``, before the SSDF × SG product (eq. 30) — used for lights and for the
   specular lobes (and the diffuse lobes of the per-pixel path).
 * **Diffuse environment** (:func:`proxy_diffuse`): the visible fraction ``F`` of the irradiance is
-  multiplied by ``Π_j (1 − O_j/E(n))`` (occlusions combined as independent, Ren et al. 2006's
-  product of visibilities). A sphere's occluded irradiance is ``O = L(a) · Ω⊥(θ, α)``: the
+  multiplied by ``Π_j (1 − O_j/E(n))`` over the objects (occlusions combined as independent, Ren
+  et al. 2006's product of visibilities), each object seen as its one diffuse sphere
+  (``precompute.proxies.diffuse_sphere``). A sphere's occluded irradiance is ``O = L(a) · Ω⊥(θ, α)``: the
   residual map's radiance at the cap's axis times the cap's cosine-weighted solid angle, exact
   also where the cap straddles the horizon (Snyder 1996, "Area light sources for real-time
   graphics", in the form of Lagarde & de Rousiers 2014, "Moving Frostbite to PBR", eq. 18)::
@@ -22,7 +23,10 @@ object only itself). Per shading point ``P`` (normal ``n``):
       x = √(1/sin²α − 1),  y = −x cos θ / sin θ
 
   A plane's is the irradiance of the residual map behind it, ``E_m(n)`` (a second irradiance
-  table of the map masked to ``d·m < 0``, ``Proxies.behind``; exact for an infinite plane).
+  table of the map masked to ``d·m < 0``, ``Proxies.behind``), times the share of the half-space's
+  cosine-weighted solid angle ``π(1 − σ n·m)/2`` that the flat object's outline covers (Lambert's
+  formula on the outline clipped to the receiver's horizon, :func:`polygon_cosine_solid_angle`):
+  a finite floor leaves the ground near the horizon visible.
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the @wp.func annotations.
 import warp as wp
@@ -47,9 +51,14 @@ class Proxies:
     dynamic: wp.array(dtype=int)  # (objects,) 1 for a dynamic object
     spheres: wp.array(dtype=wp.vec4)  # (K,) centre, radius
     sphere_owner: wp.array(dtype=int)  # (K,) object; -1: none (placeholder)
+    blobs: wp.array(dtype=wp.vec4)  # (objects,) the one sphere the diffuse term sees (proxies.diffuse_sphere)
+    blob_owner: wp.array(dtype=int)  # (objects,) object; -1: none (a plane, or no such object)
     planes: wp.array(dtype=wp.vec4)  # (L,) unit normal m, offset h (m·x + h = 0)
     disks: wp.array(dtype=wp.vec4)  # (L,) the plane's bounding disk: centre, radius
     plane_owner: wp.array(dtype=int)  # (L,) object; -1: none
+    outline: wp.array(dtype=wp.vec3)  # the planes' outlines (convex polygons), one after the other
+    outline_start: wp.array(dtype=int)  # (L,) first vertex of plane i's outline
+    outline_count: wp.array(dtype=int)  # (L,) its vertex count
     #: irradiance (unit scale) of the residual map behind the plane normal ``behind_axis`` (d·m < 0)
     behind: IrradianceTable
     behind_axis: wp.vec3
@@ -138,6 +147,46 @@ def cap_cosine_solid_angle(cos_t: float, sin2: float) -> float:
 
 
 @wp.func
+def _edge_term(a: wp.vec3, b: wp.vec3, n: wp.vec3) -> float:
+    """θ_e (n·u_e) of the edge from direction a to b (u_e the unit normal of their great circle)."""
+    c = wp.cross(wp.normalize(a), wp.normalize(b))
+    s = wp.length(c)
+    if s < 1.0e-9:
+        return 0.0
+    return wp.atan2(s, wp.dot(wp.normalize(a), wp.normalize(b))) * wp.dot(c / s, n)
+
+
+@wp.func
+def polygon_cosine_solid_angle(verts: wp.array(dtype=wp.vec3), start: int, count: int, P: wp.vec3,
+                               n: wp.vec3) -> float:
+    """``∫ max(n·d, 0) dd`` over the directions from ``P`` to a convex polygon: Lambert's formula
+    ``½ |Σ_e θ_e (n·u_e)|`` over the polygon clipped to the half-space ``n·(x − P) ≥ 0`` (the
+    clipped part's closing edge lies in that plane)."""
+    total = float(0.0)
+    exit_p = wp.vec3(0.0, 0.0, 0.0)
+    entry_p = wp.vec3(0.0, 0.0, 0.0)
+    n_cut = int(0)
+    for k in range(count):
+        a = verts[start + k] - P
+        b = verts[start + (k + 1) % count] - P
+        da = wp.dot(a, n)
+        db = wp.dot(b, n)
+        if da >= 0.0 and db >= 0.0:
+            total += _edge_term(a, b, n)
+        elif da >= 0.0:  # leaves the half-space
+            exit_p = a + (b - a) * (da / (da - db))
+            total += _edge_term(a, exit_p, n)
+            n_cut += 1
+        elif db >= 0.0:  # enters it
+            entry_p = a + (b - a) * (da / (da - db))
+            total += _edge_term(entry_p, b, n)
+            n_cut += 1
+    if n_cut == 2:
+        total += _edge_term(exit_p, entry_p, n)
+    return 0.5 * wp.abs(total)
+
+
+@wp.func
 def proxy_diffuse(px: Proxies, tri: int, P: wp.vec3, n: wp.vec3, radiance: wp.array2d(dtype=wp.vec3),
                   exact: IrradianceTable) -> wp.vec3:
     """Per channel ``Π_j (1 − O_j/E(n))``: the fraction of the diffuse environment irradiance at
@@ -147,9 +196,9 @@ def proxy_diffuse(px: Proxies, tri: int, P: wp.vec3, n: wp.vec3, radiance: wp.ar
         return f
     recv = px.tri_object[tri]
     E = irradiance_unscaled(exact, n)
-    for i in range(px.spheres.shape[0]):
-        if _pair(px, recv, px.sphere_owner[i]) != 0:
-            s = px.spheres[i]
+    for i in range(px.blobs.shape[0]):
+        if _pair(px, recv, px.blob_owner[i]) != 0:
+            s = px.blobs[i]
             v = wp.vec3(s[0], s[1], s[2]) - P
             dist = wp.max(wp.length(v), 1.0e-12)
             a = v / dist
@@ -167,8 +216,14 @@ def proxy_diffuse(px: Proxies, tri: int, P: wp.vec3, n: wp.vec3, radiance: wp.ar
                 B = irradiance_unscaled(px.behind, n)  # behind +behind_axis
                 if sg * wp.dot(m, px.behind_axis) < 0.0:
                     B = E - B  # the point is on the other side: the other half is hidden
+                # the half-space's radiance, on the part the outline covers: Ω⊥(outline)/Ω⊥(half-space)
+                half = 0.5 * wp.pi * (1.0 - sg * wp.dot(n, m))
+                cover = float(0.0)
+                if half > 1.0e-6:
+                    cover = wp.clamp(polygon_cosine_solid_angle(px.outline, px.outline_start[i], px.outline_count[i],
+                                                                P, n) / half, 0.0, 1.0)
                 for c in range(3):
-                    f[c] = f[c] * (1.0 - wp.clamp(B[c] / wp.max(E[c], 1.0e-12), 0.0, 1.0))
+                    f[c] = f[c] * (1.0 - cover * wp.clamp(B[c] / wp.max(E[c], 1.0e-12), 0.0, 1.0))
     return f
 
 
@@ -180,11 +235,15 @@ def no_proxies(device) -> Proxies:
 
     px = Proxies()
     px.active = 0
-    px.tri_object = px.dynamic = px.sphere_owner = px.plane_owner = wp.full(1, -1, dtype=int, device=device)
-    px.spheres = px.planes = px.disks = wp.zeros(1, dtype=wp.vec4, device=device)
+    px.tri_object = px.dynamic = px.sphere_owner = px.plane_owner = px.blob_owner = wp.full(1, -1, dtype=int,
+                                                                                           device=device)
+    px.spheres = px.planes = px.disks = px.blobs = wp.zeros(1, dtype=wp.vec4, device=device)
+    px.outline = wp.zeros(1, dtype=wp.vec3, device=device)
+    px.outline_start = px.outline_count = wp.zeros(1, dtype=int, device=device)
     px.behind = placeholder_table(device)
     px.behind_axis = wp.vec3(0.0, 0.0, 0.0)
     return px
 
 
-__all__ = ["Proxies", "proxy_theta", "proxy_ratio", "proxy_diffuse", "cap_cosine_solid_angle", "no_proxies"]
+__all__ = ["Proxies", "proxy_theta", "proxy_ratio", "proxy_diffuse", "cap_cosine_solid_angle", "polygon_cosine_solid_angle",
+           "no_proxies"]

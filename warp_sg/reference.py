@@ -393,6 +393,9 @@ def add_cli_arguments(p) -> None:
     p.add_argument("--seed", type=int, default=0)
     add_device_argument(p)
     p.add_argument("--stderr", default=None, help="also write the per-pixel standard error image here")
+    p.add_argument("--transform", action="append", default=[], metavar="OBJECT=M00,...,M33",
+                   help="render with dynamic object OBJECT (label or index) moved by the 4x4 rigid matrix "
+                        "(16 numbers, row-major), as Renderer.set_object_transform; repeatable")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
 
@@ -407,6 +410,10 @@ def cli_main(args) -> int:
     out = check_output_path(args.output, create_parents=True)
     err_out = check_output_path(args.stderr, create_parents=True) if args.stderr else None
     scene = load_scene(args.scene)
+    if args.transform:
+        from .dynamic_objects import parse_transform_argument, scene_with_transforms
+
+        scene = scene_with_transforms(scene, dict(parse_transform_argument(a) for a in args.transform))
     res = render_reference(scene, spp=args.spp, device=device_for(args.device, scene), progress=not args.no_progress,
                            seed=args.seed)
     make_parents(out)

@@ -65,6 +65,59 @@ def rotation_about(axis, degrees: float) -> np.ndarray:
     return np.eye(3) + np.sin(th) * K + (1.0 - np.cos(th)) * (K @ K)
 
 
+#: the fields of a motion given by parts (a batch job's ``[frames.objects.NAME]``)
+MOTION_FIELDS = ("matrix", "translate", "rotate", "scale", "pivot")
+
+
+def motion_from_fields(fields: dict, where: str = "objects") -> np.ndarray:
+    """The 4×4 motion of ``{"matrix": 4×4}`` or of ``{"translate": t, "rotate": (x°, y°, z°),
+    "scale": s, "pivot": p}`` (each optional): ``P' = s R (P − p) + p + t`` with ``R = Rz·Ry·Rx``
+    (Euler degrees, as an object's own ``rotate``). Bad fields raise :class:`SceneError`."""
+    unknown = sorted(set(fields) - set(MOTION_FIELDS))
+    if unknown:
+        raise SceneError(f"unknown field(s) {', '.join(unknown)} (use {', '.join(MOTION_FIELDS)})", where=where)
+    if "matrix" in fields:
+        if len(fields) > 1:
+            raise SceneError("give either 'matrix' or translate/rotate/scale/pivot", where=where)
+        R, s, t = check_motion(fields["matrix"], where=f"{where}.matrix")
+        return motion_matrix(R, t, s)
+    from .scene_model import Transform
+
+    def vec(k, default):
+        try:
+            v = np.asarray(fields.get(k, default), np.float64).reshape(3)
+        except (TypeError, ValueError):
+            raise SceneError(f"must be 3 numbers, got {fields[k]!r}", where=f"{where}.{k}") from None
+        if not np.all(np.isfinite(v)):
+            raise SceneError(f"must be finite, got {v.tolist()}", where=f"{where}.{k}")
+        return v
+
+    t, p, rot = vec("translate", (0, 0, 0)), vec("pivot", (0, 0, 0)), vec("rotate", (0, 0, 0))
+    s = fields.get("scale", 1.0)
+    if isinstance(s, bool) or not isinstance(s, (int, float)) or not (s > 0 and np.isfinite(s)):
+        raise SceneError(f"must be a number > 0, got {s!r}", where=f"{where}.scale")
+    R = Transform(rotate=tuple(rot)).linear()
+    return motion_matrix(R, p + t - float(s) * R @ p, float(s))
+
+
+def motion_about(rotation, pivot, translation=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """The 4×4 motion turning by ``rotation`` about the point ``pivot``, then moving by
+    ``translation``: ``P' = R (P − pivot) + pivot + translation``."""
+    R = np.asarray(rotation, np.float64)
+    p = np.asarray(pivot, np.float64)
+    return motion_matrix(R, p - R @ p + np.asarray(translation, np.float64))
+
+
+def rolling(distance, direction=(1.0, 0.0, 0.0), radius: float = 0.5, centre=(0.0, 0.5, 0.0),
+            up=(0.0, 1.0, 0.0)) -> np.ndarray:
+    """A ball of ``radius`` (rest centre ``centre``) rolled without slipping by ``distance`` along
+    the floor direction ``direction``: turned by ``distance/radius`` about ``up × direction``."""
+    d = np.asarray(direction, np.float64)
+    d = d / np.linalg.norm(d)
+    R = rotation_about(np.cross(np.asarray(up, np.float64), d), np.degrees(float(distance) / float(radius)))
+    return motion_about(R, centre, float(distance) * d)
+
+
 def apply_motion(matrix, vertices, normals=None, tangents=None):
     """``(vertices, normals, tangents)`` moved by ``matrix`` (float32; None stays None)."""
     R, s, t = check_motion(matrix)
@@ -74,4 +127,5 @@ def apply_motion(matrix, vertices, normals=None, tangents=None):
     return v, n, tg
 
 
-__all__ = ["check_motion", "motion_matrix", "rotation_about", "apply_motion", "ORTHO_TOL"]
+__all__ = ["check_motion", "motion_matrix", "rotation_about", "apply_motion", "motion_from_fields", "motion_about", "rolling", "MOTION_FIELDS",
+           "ORTHO_TOL"]
