@@ -53,6 +53,7 @@ LAYERS = (
                "warp_sg.preview",
                "warp_sg.viewer",
                "warp_sg.viewer_widgets",
+               "warp_sg.viewer_objects",
                "raster.bench",
                "precompute.bench",
                "warp_sg.cluster",
