@@ -50,6 +50,7 @@ LAYERS = (
                "warp_sg.bench",
                "warp_sg.peer_mitsuba",
                "warp_sg.bench_scaling",
+               "warp_sg.bench_motion",
                "warp_sg.preview",
                "warp_sg.viewer",
                "warp_sg.viewer_widgets",

@@ -17,6 +17,8 @@ ratios are meant to carry over between machines):
    scene and on a plain-input scene (2-triangle floor, sun-sky EXR).
 5. **frame scaling** — warm frame time by pixel count and by triangle count, full shading
    (:mod:`warp_sg.bench_scaling`).
+6. **objects that move** — a frame after ``set_object_transform`` against a static frame and
+   against a new ``Renderer`` with a cold cache (:mod:`warp_sg.bench_motion`).
 
 The bench scene (:func:`bench_scene`) is a Torrance-Sparrow sphere, a Ward torus and a Lambert
 floor under the procedural sky with one point light and one directional light.
@@ -411,7 +413,14 @@ SECTIONS = {
     "equal error: SG renderer vs Monte-Carlo reference": equal_error_section,
     "frame scaling: pixels and triangles": lambda **kw: _scaling(**kw),
     "equal error: SG renderer vs Mitsuba 3": mitsuba_section,
+    "objects that move": lambda **kw: _motion(**kw),
 }
+
+
+def _motion(**kw):
+    from .bench_motion import motion_section
+
+    return motion_section(**kw)
 
 
 def _scaling(**kw):
