@@ -40,8 +40,9 @@ are taken, the most that fit after closure (binary search on the count).
 
 Every output vertex is a convex combination of at most three input vertices of its parent input
 triangle (``vertex_parent``, ``bary``), so any per-vertex attribute can be carried over with
-:meth:`Refinement.interpolate`. Everything is vectorised numpy; the only Python loops are over
-steps (levels, closure iterations, bisection rounds).
+:meth:`Refinement.interpolate`. Everything is vectorised numpy, but for the rays of the signatures
+and their world-direction comparison (Warp kernels); the only Python loops are over steps (levels,
+closure iterations, bisection rounds).
 """
 from __future__ import annotations
 
@@ -51,10 +52,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from warp_sg.errors import InputError
-from warp_sg.frames import to_local, to_world
 from warp_sg.meshcheck import weld_ids
 
-from .ssdf_wp import dir_to_concentric, texel_directions
+from .signature_wp import world_disagreement
 from .visibility import _tqdm, bbox_diagonal, hemisphere_visibility, validate_mesh
 
 #: Default uniform pre-split edge length, as a fraction of the bounding-box diagonal.
@@ -62,7 +62,6 @@ BASE_EDGE_FRACTION = 1.0 / 24.0
 #: Edges shorter than this fraction of the diagonal are never split for visibility.
 MIN_EDGE_FRACTION = 1.0 / 2000.0
 _S = np.int64(1) << np.int64(31)  # key stride: edge (lo, hi) -> lo * _S + hi
-_EDGE_CHUNK = 4096  # edges per signature-comparison chunk (bounds temporary memory)
 
 
 @dataclass
@@ -281,7 +280,7 @@ def _isin_sorted(x, sorted_keys):
 # signatures
 # ---------------------------------------------------------------------------------------------
 
-def _signature_difference(sig, normals, i, j, R):
+def _signature_difference(sig, normals, i, j, R, device="cpu"):
     """Fraction of directions in which the binary hemisphere maps of vertices i and j disagree.
 
     Equal normals (a plane): texel by texel. Otherwise both maps are compared in the same WORLD
@@ -290,7 +289,8 @@ def _signature_difference(sig, normals, i, j, R):
     horizon tilt and the tangent-frame seam of :mod:`warp_sg.frames` are not visibility
     changes), and a lookup disagrees only if it differs from all four texels around it (the
     resampling is uncertain by about a texel). Only parallax of near occluders and appearing or
-    vanishing occluders count.
+    vanishing occluders count. The world-direction comparison is a Warp kernel
+    (:mod:`precompute.signature_wp`, float32).
     """
     out = np.zeros(len(i))
     if not len(i):
@@ -300,20 +300,7 @@ def _signature_difference(sig, normals, i, j, R):
     direct = np.all(ni == nj, axis=1)
     out[direct] = (si[direct] != sj[direct]).mean(axis=1)
     rest = np.flatnonzero(~direct & ~(si.all(axis=1) & sj.all(axis=1)))  # all-visible pairs: 0
-    dloc = texel_directions(R).reshape(-1, 3)
-    for s in range(0, len(rest), _EDGE_CHUNK):
-        e = rest[s:s + _EDGE_CHUNK]
-        loc = to_local(to_world(dloc[None, :, :], ni[e][:, None, :]), nj[e][:, None, :])  # (E, R², 3)
-        ok = loc[..., 2] > 0.0
-        u, v = dir_to_concentric(loc)
-        x0 = np.clip(np.floor((u + 1.0) * 0.5 * R - 0.5).astype(np.int64), 0, R - 2)
-        y0 = np.clip(np.floor((v + 1.0) * 0.5 * R - 0.5).astype(np.int64), 0, R - 2)
-        sje, sie = sj[e], si[e]
-        agree = np.zeros(sie.shape, bool)
-        for dy in (0, 1):
-            for dx in (0, 1):
-                agree |= np.take_along_axis(sje, (y0 + dy) * R + x0 + dx, axis=1) == sie
-        out[e] = (~agree & ok).sum(axis=1) / np.maximum(ok.sum(axis=1), 1)
+    out[rest] = world_disagreement(sig, normals, i[rest], j[rest], R, device)
     return out
 
 
@@ -434,7 +421,7 @@ def refine_for_visibility(vertices, triangles, normals, *, budget: int = 20000, 
             ge = geid.ravel()[first]
             cand = glen[ge] > min_edge
             d = np.zeros(len(uk))
-            d[cand] = _signature_difference(sig, st.N, lo[cand], hi[cand], R)
+            d[cand] = _signature_difference(sig, st.N, lo[cand], hi[cand], R, device)
             if lights:  # a key light seen from one end and hidden from the other: a shadow edge
                 la, lb = lsig[lo], lsig[hi]
                 edge = np.any(((la == 0) & (lb == 1)) | ((la == 1) & (lb == 0)), axis=1)
@@ -464,7 +451,7 @@ def refine_for_visibility(vertices, triangles, normals, *, budget: int = 20000, 
 
 
 _FIELDS = ("vertices", "normals", "triangles", "parent_tri", "vertex_parent", "bary", "input_triangles")
-_VERSION = "refine-v1"
+_VERSION = "refine-v2"  # v2: signature comparison in a float32 kernel
 
 
 def refine_cached(vertices, triangles, normals, *, budget: int = 20000, device="cpu", progress=False,

@@ -8,7 +8,11 @@ Per vertex, on the concentric map of the upper hemisphere (:mod:`precompute.ssdf
 with directions below the horizon invisible. Pipeline per batch of vertices, all in Warp kernels
 on the device (:func:`compute_ssdf`):
 
-1. binary visibility at ``ray_resolution²`` texels by BVH ray casts (:mod:`precompute.visibility`);
+1. binary visibility at ``ray_resolution²`` texels by BVH ray casts (:mod:`precompute.visibility`):
+   coarse first and refined where the visibility changes (:mod:`precompute.adaptive_rays`, the
+   default ``rays = "adaptive"``: about a third of the rays), or one ray per texel (``"full"``);
+   a vertex whose map is uniform (all visible or all blocked) skips steps 2–4 (its SSDF is one of
+   two fixed maps);
 2. **boundary seeds**: every pair of 4-neighbour texels with different visibility contributes the
    boundary point ``normalize(d_a + d_b)`` (midpoint on the sphere); each texel keeps its nearest;
 3. **jump flooding** (Rong & Tan 2006) on the concentric grid with the angular metric: passes with
@@ -26,7 +30,9 @@ Then all vertices are compressed with PCA (:mod:`warp_sg.pca`, eq. 24) and cache
 """
 from __future__ import annotations
 
+import contextlib
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -36,7 +42,9 @@ from warp_sg import cache as _cache
 from warp_sg.device import resolve_device
 from warp_sg.errors import InputError
 from warp_sg.pca import pca
+from warp_sg.stage_clock import StageClock, thread_cpu
 
+from .adaptive_rays import adaptive_visibility, levels
 from .occluder_cone import occluder_cones
 from .ssdf_wp import texel_directions
 from .visibility import OFFSET_SCALE, _MeshContext, _tqdm, launch_visibility, run_batches, validate_mesh
@@ -45,10 +53,20 @@ from .visibility import OFFSET_SCALE, _MeshContext, _tqdm, launch_visibility, ru
 DEFAULT_RESOLUTION = 32
 DEFAULT_RAY_RESOLUTION = 64
 DEFAULT_PCA_TERMS = 24
+#: how the binary visibility maps are cast: coarse first and refined where the visibility changes
+#: (:mod:`precompute.adaptive_rays`), or one ray per texel
+RAYS = ("adaptive", "full")
+DEFAULT_RAYS = "adaptive"
 
 _HALF_PI = wp.constant(0.5 * math.pi)
+#: "no boundary point yet": its dot product with any texel direction (z ≥ 1/(2Rr) > 1e-4) is
+#: below −1, so every real boundary point wins over it, and the signed distance it gives is the
+#: clamp π/2 (acos(−1) = π, then min with π/2): the same as no seed at all
+NO_SEED = wp.constant(wp.vec3(0.0, 0.0, -1.0e4))
 #: Cache format of the "ssdf" kind; bump when the SSDF definition changes.
 SSDF_VERSION = 2  # 2: per-vertex occluder cones (precompute.occluder_cone)
+#: version of the adaptive ray schedule (precompute.adaptive_rays), part of the cache key
+ADAPTIVE_VERSION = 1
 
 
 # ---------------------------------------------------------------------------------------------
@@ -67,13 +85,14 @@ def _consider(d: wp.vec3, da: wp.vec3, best: wp.vec3, best_dot: float):
 @wp.kernel
 def _seed_kernel(vis: wp.array2d(dtype=wp.uint8), dirs: wp.array(dtype=wp.vec3), R: int,
                  seeds: wp.array2d(dtype=wp.vec3)):
-    """Nearest boundary midpoint among the 4-neighbour pairs of differing visibility (else 0)."""
+    """Nearest boundary midpoint among the 4-neighbour pairs of differing visibility (else
+    :data:`NO_SEED`)."""
     k, tex = wp.tid()
     j = tex // R
     i = tex - j * R
     me = vis[k, tex]
     d = dirs[tex]
-    best = wp.vec3(0.0, 0.0, 0.0)
+    best = NO_SEED
     best_dot = float(-2.0)
     if i > 0:
         if vis[k, tex - 1] != me:
@@ -99,9 +118,7 @@ def _jfa_kernel(src: wp.array2d(dtype=wp.vec3), dirs: wp.array(dtype=wp.vec3), R
     i = tex - j * R
     d = dirs[tex]
     best = src[k, tex]
-    best_dot = float(-2.0)
-    if wp.length_sq(best) > 0.25:
-        best_dot = wp.dot(d, best)
+    best_dot = wp.dot(d, best)  # NO_SEED's dot loses to every boundary point's (≥ −1)
     for dj in range(-1, 2):
         jj = j + dj * step
         if jj >= 0 and jj < R:
@@ -109,11 +126,10 @@ def _jfa_kernel(src: wp.array2d(dtype=wp.vec3), dirs: wp.array(dtype=wp.vec3), R
                 ii = i + di * step
                 if ii >= 0 and ii < R and (di != 0 or dj != 0):
                     s = src[k, jj * R + ii]
-                    if wp.length_sq(s) > 0.25:
-                        c = wp.dot(d, s)
-                        if c > best_dot:
-                            best_dot = c
-                            best = s
+                    c = wp.dot(d, s)
+                    if c > best_dot:
+                        best_dot = c
+                        best = s
     dst[k, tex] = best
 
 
@@ -162,6 +178,13 @@ def _jfa_steps(R: int) -> list[int]:
 # per-vertex SSDFs
 # ---------------------------------------------------------------------------------------------
 
+def _check_rays(rays):
+    rays = DEFAULT_RAYS if rays is None else rays
+    if rays not in RAYS:
+        raise InputError(f"rays must be one of {', '.join(RAYS)}, got {rays!r}", where="rays")
+    return rays
+
+
 def _check_resolutions(resolution, ray_resolution):
     if int(resolution) != resolution or resolution < 2:
         raise InputError(f"SSDF resolution must be an integer >= 2, got {resolution}", where="ssdf_resolution")
@@ -170,11 +193,9 @@ def _check_resolutions(resolution, ray_resolution):
                          f"({resolution})", where="ray_resolution")
 
 
-def _ssdf_batch(ctx, dirs, Rr, R, points, normals, s, e, device, out_vis=None):
-    B = e - s
-    N = Rr * Rr
-    vis = wp.empty((B, N), dtype=wp.uint8, device=device)
-    launch_visibility(ctx, points, normals, s, dirs, vis)
+def _fit_maps(vis, dirs, Rr, R, device):
+    """(B, R²) SSDFs of the (B, Rr²) visibility maps ``vis`` (steps 2–5 of the module docstring)."""
+    B, N = int(vis.shape[0]), Rr * Rr
     a = wp.empty((B, N), dtype=wp.vec3, device=device)
     b = wp.empty((B, N), dtype=wp.vec3, device=device)
     wp.launch(_seed_kernel, dim=(B, N), device=device, inputs=[vis, dirs, Rr, a])
@@ -183,30 +204,92 @@ def _ssdf_batch(ctx, dirs, Rr, R, points, normals, s, e, device, out_vis=None):
         a, b = b, a
     sd = wp.empty((B, N), dtype=float, device=device)
     wp.launch(_signed_kernel, dim=(B, N), device=device, inputs=[vis, a, dirs, sd])
+    if Rr != R:
+        ds = wp.empty((B, R * R), dtype=float, device=device)
+        wp.launch(_downsample_kernel, dim=(B, R * R), device=device, inputs=[sd, R, Rr // R, ds])
+        sd = ds
+    return sd.numpy()
+
+
+_UNIFORM: dict = {}
+
+
+def _uniform_maps(dirs, Rr, R, device):
+    """The SSDFs of an all-occluded and an all-visible map (rows 0 and 1), through the same kernels:
+    a vertex with uniform visibility has no boundary to search for (−π/2, resp. its horizon bound)."""
+    key = (Rr, R, str(device))
+    if key not in _UNIFORM:
+        vis = wp.array(np.stack([np.zeros(Rr * Rr, np.uint8), np.ones(Rr * Rr, np.uint8)]), dtype=wp.uint8,
+                       device=device)
+        _UNIFORM[key] = _fit_maps(vis, dirs, Rr, R, device)
+    return _UNIFORM[key]
+
+
+def _ssdf_batch(ctx, dirs, Rr, R, points, normals, s, e, device, out_vis=None, clock=None, rays=None, adaptive=None):
+    """SSDFs ``(e − s, R²)`` of vertices ``s..e−1`` of ``points``/``normals``: binary visibility
+    (``rays = "adaptive"``: :mod:`precompute.adaptive_rays`; ``"full"``: a ray per texel), then the
+    distance search (skipped for vertices whose map is uniform: their SSDF is one of two fixed maps)."""
+    rays = DEFAULT_RAYS if rays is None else rays
+    B = e - s
+    N = Rr * Rr
+    w0, c0 = time.perf_counter(), thread_cpu()
+    if rays == "adaptive" and len(levels(Rr)) > 1 and ctx.cutouts is None:
+        vis, n_rays = adaptive_visibility(ctx, dirs, Rr, points, normals, s, B, device, **(adaptive or {}))
+    else:  # a ray per texel (and, through cut-outs' holes, the cut-out kernel: launch_visibility)
+        vis = wp.empty((B, N), dtype=wp.uint8, device=device)
+        launch_visibility(ctx, points, normals, s, dirs, vis)
+        n_rays = B * N
+    vn = vis.numpy()
+    w1, c1 = time.perf_counter(), thread_cpu()
     if out_vis is not None:
-        out_vis[s:e] = vis.numpy()
-    if Rr == R:
-        return sd.numpy()
-    ds = wp.empty((B, R * R), dtype=float, device=device)
-    wp.launch(_downsample_kernel, dim=(B, R * R), device=device, inputs=[sd, R, Rr // R, ds])
-    return ds.numpy()
+        out_vis[s:e] = vn
+    lo, hi = vn.min(axis=1), vn.max(axis=1)
+    mixed = np.flatnonzero(lo != hi)
+    if len(mixed) == B or not wp.get_device(device).is_cpu:
+        out = _fit_maps(vis, dirs, Rr, R, device)
+    else:
+        out = np.empty((B, R * R), np.float32)
+        out[:] = _uniform_maps(dirs, Rr, R, device)[np.minimum(lo, 1).astype(np.int64)]
+        if len(mixed):
+            out[mixed] = _fit_maps(wp.array(vn[mixed], dtype=wp.uint8, device=device), dirs, Rr, R, device)
+    if clock is not None:
+        clock.add("rays", w1 - w0, c1 - c0)
+        clock.add("ssdf_fit", time.perf_counter() - w1, thread_cpu() - c1)
+        clock.count("rays_cast", n_rays)
+        clock.count("uniform_vertices", B - len(mixed))
+    return out
 
 
 def compute_ssdf(vertices, triangles, normals, *, resolution: int = DEFAULT_RESOLUTION,
                  ray_resolution: int = DEFAULT_RAY_RESOLUTION, device="cpu", vertex_ids=None,
-                 progress: bool = True, batch: int = 256, return_visibility: bool = False, cutouts=None):
+                 progress: bool = True, batch: int = 256, return_visibility: bool = False, clock=None,
+                 rays: str = None, adaptive: dict | None = None, out=None, cutouts=None):
     """Uncompressed SSDFs ``(n, R, R)`` float32 (radians) of the selected vertices (default all).
 
     With ``return_visibility`` also returns the binary maps ``(n, Rr, Rr)`` uint8 at ray resolution.
-    ``cutouts``: the mesh's alpha cut-outs (:class:`warp_sg.cutout.CutoutData`; rays pass through holes).
+    ``rays``: ``"adaptive"`` (default, :data:`DEFAULT_RAYS`; :mod:`precompute.adaptive_rays`) or
+    ``"full"`` (a ray per texel, the reference the adaptive maps are measured against);
+    ``adaptive``: keyword arguments of :func:`precompute.adaptive_rays.adaptive_visibility`
+    (``coarse_factor``, ``depth_ratio``: the ray budget; ``ssdf_for_mesh`` uses the defaults).
+    ``out``: a float32 ``(n, R²)`` array (e.g. a ``numpy.memmap``) the rows are written into
+    batch by batch (and which is returned, reshaped); default a new array.
+    ``clock`` (:class:`warp_sg.stage_clock.StageClock`): adds the stages ``bvh``, ``rays`` and
+    ``ssdf_fit`` (CPU: the sum over the worker threads; wall: summed per batch too, so over the
+    threads) and the counts ``rays_cast`` and ``uniform_vertices``.
+    ``cutouts``: the mesh's alpha cut-outs (:class:`warp_sg.cutout.CutoutData`; rays pass through
+    holes). A mesh with cut-outs casts a ray per texel (the adaptive levels test hits without them).
     """
     device = resolve_device(device)
     _check_resolutions(resolution, ray_resolution)
+    rays = _check_rays(rays)
     v, f, n = validate_mesh(vertices, triangles, normals)
     if n is None:
         raise InputError("compute_ssdf needs per-vertex normals")
     ids = np.arange(len(v)) if vertex_ids is None else np.asarray(vertex_ids, np.int64)
+    w0, c0 = time.perf_counter(), time.process_time()
     ctx = _MeshContext(v, f, n, device, cutouts)
+    if clock is not None:
+        clock.add("bvh", time.perf_counter() - w0, time.process_time() - c0)
     R, Rr = int(resolution), int(ray_resolution)
     dirs = wp.array(texel_directions(Rr).reshape(-1, 3).astype(np.float32), dtype=wp.vec3, device=device)
     pts = wp.array(v[ids].astype(np.float32), dtype=wp.vec3, device=device)
@@ -215,12 +298,18 @@ def compute_ssdf(vertices, triangles, normals, *, resolution: int = DEFAULT_RESO
     if device != "cpu":
         batch = max(batch, int(2 ** 24 // (Rr * Rr)))  # bigger batches on GPUs
     bar = _tqdm(len(ids), "SSDF", progress and len(ids) * Rr * Rr > 1_000_000)
-    parts = run_batches(len(ids), batch,
-                        lambda s, e: _ssdf_batch(ctx, dirs, Rr, R, pts, nrm, s, e, device, vis_out),
-                        device, bar)
+    if out is None:
+        out = np.empty((len(ids), R * R), np.float32)
+    elif out.shape != (len(ids), R * R) or out.dtype != np.float32:
+        raise InputError(f"out must be float32 of shape {(len(ids), R * R)}, got {out.dtype} {out.shape}", where="out")
+
+    def work(s, e):  # each batch writes its own rows: nothing is held twice
+        out[s:e] = _ssdf_batch(ctx, dirs, Rr, R, pts, nrm, s, e, device, vis_out, clock, rays, adaptive)
+
+    run_batches(len(ids), batch, work, device, bar)
     if bar is not None:
         bar.close()
-    out = (np.concatenate(parts) if parts else np.zeros((0, R * R), np.float32)).reshape(len(ids), R, R)
+    out = out.reshape(len(ids), R, R)
     if return_visibility:
         return out, vis_out.reshape(len(ids), Rr, Rr)
     return out
@@ -249,6 +338,10 @@ class SSDFData:
     #: (V, 4) per-vertex occluder cones (:func:`precompute.occluder_cone.occluder_cones`); empty:
     #: unknown (no lookup is skipped)
     cones: np.ndarray = field(default_factory=lambda: np.zeros((0, 4), np.float32))
+    #: ``{stage: (wall s, CPU s)}`` of the build (``bvh``, ``rays``, ``ssdf_fit``, ``pca``, ``cones``;
+    #: :class:`warp_sg.stage_clock.StageClock`) and counts (``rays_cast``, ``uniform_vertices``: ints);
+    #: empty when the data came from the cache
+    stats: dict = field(default_factory=dict)
 
     @property
     def pca_terms(self) -> int:
@@ -296,23 +389,57 @@ def decompress_budget() -> int:
     return max(int(mb * (1 << 20)), 0)
 
 
-def _ssdf_params(resolution, ray_resolution, pca_terms, cutouts=None):
+def memory_budget() -> int:
+    """Bytes of uncompressed SSDFs ``ssdf_for_mesh`` keeps in memory (``WARP_SG_SSDF_MEMORY_MB``,
+    default 1024 MiB); beyond, the rows go to a temporary file in the cache folder and PCA and the
+    occluder cones read them back in chunks (out of core: 1 M vertices at 32² are 4 GiB on disk)."""
+    import os
+
+    raw = os.environ.get("WARP_SG_SSDF_MEMORY_MB", "1024")
+    try:
+        mb = float(raw)
+    except ValueError:
+        raise InputError(f"WARP_SG_SSDF_MEMORY_MB must be a number of MiB, got {raw!r}",
+                         where="WARP_SG_SSDF_MEMORY_MB") from None
+    return max(int(mb * (1 << 20)), 0)
+
+
+@contextlib.contextmanager
+def _disk_rows(n: int, d: int):
+    """A float32 ``(n, d)`` ``numpy.memmap`` in a temporary file of the cache folder, deleted after."""
+    import tempfile
+
+    folder = _cache.cache_dir()
+    folder.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="ssdf-rows-", dir=folder) as tmp:
+        mm = np.memmap(f"{tmp}/rows.f32", dtype=np.float32, mode="w+", shape=(int(n), int(d)))
+        try:
+            yield mm
+        finally:
+            del mm
+
+
+def _ssdf_params(resolution, ray_resolution, pca_terms, rays=None, cutouts=None):
     if ray_resolution is None:
         ray_resolution = 2 * int(resolution)
     _check_resolutions(resolution, ray_resolution)
     if int(pca_terms) != pca_terms or pca_terms < 1:
         raise InputError(f"pca_terms must be a positive integer, got {pca_terms}", where="pca_terms")
+    rays = _check_rays(rays)
+    if rays == "adaptive" and (len(levels(int(ray_resolution))) == 1 or cutouts is not None):
+        rays = "full"  # no coarse level at this ray resolution (or cut-outs: compute_ssdf): the same maps
     params = {"kind": "ssdf", "version": SSDF_VERSION, "resolution": int(resolution),
-              "ray_resolution": int(ray_resolution), "pca_terms": int(pca_terms), "offset": OFFSET_SCALE}
+              "ray_resolution": int(ray_resolution), "pca_terms": int(pca_terms), "offset": OFFSET_SCALE,
+              "rays": rays if rays == "full" else f"adaptive-{ADAPTIVE_VERSION}"}
     if cutouts is not None:  # (the key of a mesh without cut-outs is unchanged)
         params.update(cutouts.key())
     return params
 
 
 def ssdf_key(vertices, triangles, normals, *, resolution: int = DEFAULT_RESOLUTION, ray_resolution: int | None = None,
-             pca_terms: int = DEFAULT_PCA_TERMS, cutouts=None) -> str:
+             pca_terms: int = DEFAULT_PCA_TERMS, rays: str | None = None, cutouts=None) -> str:
     """The cache key of :func:`ssdf_for_mesh` for these arguments (a content hash; no SSDF is computed)."""
-    params = _ssdf_params(resolution, ray_resolution, pca_terms, cutouts)
+    params = _ssdf_params(resolution, ray_resolution, pca_terms, rays, cutouts)
     v, f, n = validate_mesh(vertices, triangles, normals)
     if n is None:
         raise InputError("ssdf_for_mesh needs per-vertex normals")
@@ -321,7 +448,8 @@ def ssdf_key(vertices, triangles, normals, *, resolution: int = DEFAULT_RESOLUTI
 
 def ssdf_for_mesh(vertices, triangles, normals, *, resolution: int = DEFAULT_RESOLUTION,
                   ray_resolution: int | None = None, pca_terms: int = DEFAULT_PCA_TERMS,
-                  device="cpu", progress: bool = True, use_cache: bool = True, compute=None, cutouts=None) -> SSDFData:
+                  device="cpu", progress: bool = True, use_cache: bool = True, compute=None,
+                  rays: str | None = None, cutouts=None) -> SSDFData:
     """Per-vertex SSDFs of a (merged) mesh, PCA-compressed (eq. 23–24), cached on disk.
 
     ``ray_resolution`` defaults to ``2 × resolution`` (paper: 4×, 512 → 128). The cache key is a
@@ -329,11 +457,13 @@ def ssdf_for_mesh(vertices, triangles, normals, *, resolution: int = DEFAULT_RES
     ``compute``). ``compute`` replaces :func:`compute_ssdf` (same keyword arguments: ``resolution``,
     ``ray_resolution``, ``device``, ``progress``), e.g. the Dask version of
     :mod:`warp_sg.distributed_precompute`; it must return the same per-vertex SSDFs, so a
-    distributed result and a local one are the same cache entry. PCA and the cache write run here.
-    ``cutouts``: the mesh's alpha cut-outs (:class:`warp_sg.cutout.CutoutData`; the SSDF's rays pass
-    through holes; passed on to ``compute`` as ``cutouts=`` when given).
+    distributed result and a local one are the same cache entry; it casts the default ``rays``
+    (:data:`DEFAULT_RAYS`). PCA and the cache write run here. ``stats`` of the result: the build's
+    stages and counts (:meth:`compute_ssdf`'s ``clock``; empty on a cache hit). ``cutouts``: the
+    mesh's alpha cut-outs (:class:`warp_sg.cutout.CutoutData`; the SSDF's rays pass through holes;
+    passed on to ``compute`` as ``cutouts=`` when given).
     """
-    params = _ssdf_params(resolution, ray_resolution, pca_terms, cutouts)
+    params = _ssdf_params(resolution, ray_resolution, pca_terms, rays, cutouts)
     ray_resolution = params["ray_resolution"]
     v, f, n = validate_mesh(vertices, triangles, normals)
     if n is None:
@@ -341,17 +471,31 @@ def ssdf_for_mesh(vertices, triangles, normals, *, resolution: int = DEFAULT_RES
     key = _cache.content_key(v.astype(np.float32), f.astype(np.int32), n.astype(np.float32), params)
     compute = compute_ssdf if compute is None else compute
 
+    clock = StageClock()
+
     def build():
-        cut = {} if cutouts is None else {"cutouts": cutouts}
-        X = compute(v, f, n, resolution=resolution, ray_resolution=ray_resolution, device=device,
-                    progress=progress, **cut).reshape(len(v), -1)
-        p = pca(X, int(pca_terms))
         R = int(resolution)
+        kw = {"clock": clock, "rays": rays} if compute is compute_ssdf else {}
+        if cutouts is not None:
+            kw["cutouts"] = cutouts
+        if compute is not compute_ssdf and _check_rays(rays) != DEFAULT_RAYS:
+            raise InputError(f"rays={rays!r} needs the local compute_ssdf", where="rays")
+        with contextlib.ExitStack() as stack:
+            if compute is compute_ssdf and len(v) * R * R * 4 > memory_budget():
+                kw["out"] = stack.enter_context(_disk_rows(len(v), R * R))
+            with clock.stage("ssdf_total"):
+                X = compute(v, f, n, resolution=resolution, ray_resolution=ray_resolution, device=device,
+                            progress=progress, **kw).reshape(len(v), -1)
+            with clock.stage("pca"):
+                p = pca(X, int(pca_terms))
+            with clock.stage("cones"):
+                cones = occluder_cones(X, n, R)
+            del X
         return {"mean": p.mean.reshape(R, R), "basis": p.basis.reshape(-1, R, R), "weights": p.weights,
-                "pca_rms_error": p.rms_error, "cones": occluder_cones(X, n, R)}
+                "pca_rms_error": p.rms_error, "cones": cones}
 
     data = _cache.load_or_build("ssdf", key, build) if use_cache else build()
     return SSDFData(resolution=int(resolution), mean=data["mean"].astype(np.float32),
                     basis=data["basis"].astype(np.float32), weights=data["weights"].astype(np.float32),
                     ray_resolution=int(ray_resolution), pca_rms_error=np.asarray(data["pca_rms_error"]), key=key,
-                    cones=np.asarray(data["cones"], np.float32))
+                    cones=np.asarray(data["cones"], np.float32), stats={**clock.as_dict(), **clock.counts})

@@ -70,6 +70,43 @@ def needs_visibility(vertices, triangles, shadows: bool = True) -> bool:
 # kernel
 # ---------------------------------------------------------------------------------------------
 
+#: hit distance :func:`ray_hit_distance` returns for a ray that escapes
+NO_HIT = wp.constant(1.0e30)
+
+
+@wp.func
+def ray_blocked(mesh: wp.uint64, o: wp.vec3, d: wp.vec3, max_t: float) -> bool:
+    """Whether the ray ``o + s·d``, ``s ∈ (0, max_t)``, hits the mesh (any hit). Every visibility
+    ray of the precompute goes through this function or :func:`ray_hit_distance`: the one place a
+    hit test that looks at more than the triangle (e.g. an alpha mask) changes."""
+    return wp.mesh_query_ray_anyhit(mesh, o, d, max_t)
+
+
+@wp.func
+def ray_hit_distance(mesh: wp.uint64, o: wp.vec3, d: wp.vec3, max_t: float) -> float:
+    """Distance to the nearest hit of the ray ``o + s·d`` (:data:`NO_HIT` if it escapes): the
+    same hits as :func:`ray_blocked` (``ray_hit_distance < NO_HIT ⇔ ray_blocked``)."""
+    q = wp.mesh_query_ray(mesh, o, d, max_t)
+    if q.result:
+        return q.t
+    return NO_HIT
+
+
+@wp.func
+def vertex_ray_origin(points: wp.array(dtype=wp.vec3), normals: wp.array(dtype=wp.vec3), vi: int,
+                      offset: float) -> wp.vec3:
+    """Origin of vertex ``vi``'s visibility rays: ``x + ε n``."""
+    return points[vi] + offset * normals[vi]
+
+
+@wp.func
+def vertex_ray_direction(normals: wp.array(dtype=wp.vec3), vi: int, local: wp.vec3) -> wp.vec3:
+    """World direction of local hemisphere direction ``local`` at vertex ``vi`` (frame of
+    :mod:`warp_sg.frames`)."""
+    n = normals[vi]
+    return local_to_world(local, frame_tangent(n), frame_bitangent(n), n)
+
+
 @wp.kernel
 def _visibility_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp.array(dtype=wp.vec3),
                        first: int, dirs: wp.array(dtype=wp.vec3), offset: float, max_t: float,
@@ -77,12 +114,8 @@ def _visibility_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals
     """out[k, texel] = 1 if the ray from vertex first+k along local dir[texel] escapes."""
     k, tex = wp.tid()
     vi = first + k
-    n = normals[vi]
-    t = frame_tangent(n)
-    b = frame_bitangent(n)
-    d = local_to_world(dirs[tex], t, b, n)
-    o = points[vi] + offset * n
-    hit = wp.mesh_query_ray_anyhit(mesh, o, d, max_t)
+    d = vertex_ray_direction(normals, vi, dirs[tex])
+    hit = ray_blocked(mesh, vertex_ray_origin(points, normals, vi, offset), d, max_t)
     out[k, tex] = wp.where(hit, wp.uint8(0), wp.uint8(1))
 
 
@@ -232,7 +265,7 @@ def _ray_kernel(mesh: wp.uint64, origins: wp.array(dtype=wp.vec3), normals: wp.a
     d = dirs[k]
     vis = wp.uint8(0)
     if wp.dot(d, n) > 0.0:
-        if not wp.mesh_query_ray_anyhit(mesh, origins[k] + offset * n, d, max_t):
+        if not ray_blocked(mesh, origins[k] + offset * n, d, max_t):
             vis = wp.uint8(1)
     out[k] = vis
 

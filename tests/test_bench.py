@@ -52,5 +52,13 @@ def test_quick_bench_prints_every_section_with_its_columns(cache_dir):
     sc = res.sections["frame scaling: pixels and triangles"]
     assert [r["grows with"] for r in sc] == ["pixels", "pixels", "triangles", "triangles"]
     assert sc[2]["triangles"] < sc[3]["triangles"] and all(r["new view s"] > 0 and r["re-shade s"] > 0 for r in sc)
+    budget = res.sections["SSDF error vs ray budget"]
+    full, adaptive = budget[0], budget[1]
+    assert full["case"].endswith("full (a ray per texel)") and full["ray_ratio"] == 1.0
+    assert adaptive["ray_ratio"] < 0.5 and adaptive["err_vs_full_rad"] < 1e-3
+    assert adaptive["err_vs_256_rad"] <= 1.02 * full["err_vs_256_rad"] + 1e-5
+    first = res.sections["time to first image"]
+    assert first[0]["case"].startswith("generated textured helmet")
+    assert all(first[0][k] > 0 for k in ("cold_s", "cold_cpu_s", "first_frame_s", "shadows_s", "warm_s"))
     md = res.to_markdown()
     assert md.count("### ") == len(SECTIONS)

@@ -35,7 +35,7 @@ LAYER_ORDER = ("base", "math", "scene", "engines", "render", "tools")
 #: match wins (so the bench modules of ``raster``/``precompute`` are tools, the rest engines).
 LAYERS = (
     ("base", ("warp_sg.errors", "warp_sg.device", "warp_sg.atomic", "warp_sg.workers", "warp_sg.meshcheck",
-              "warp_sg.lazy", "warp_sg.image_io", "warp_sg.cache", "warp_sg.watchdog")),
+              "warp_sg.lazy", "warp_sg.image_io", "warp_sg.cache", "warp_sg.stage_clock", "warp_sg.watchdog")),
     ("math", ("warp_sg.fastmath", "warp_sg.sg", "warp_sg.sg_wp", "warp_sg.frames", "warp_sg.clamped_cosine", "warp_sg.fh",
               "warp_sg.sg_irradiance", "warp_sg.ssdf_product", "warp_sg.anisotropy", "warp_sg.pca",
               "warp_sg.rigid_motion",
@@ -44,13 +44,16 @@ LAYERS = (
                "warp_sg.scene_values", "warp_sg.geometry", "warp_sg.camera", "warp_sg.culling",
                "warp_sg.envmap", "warp_sg.primitives", "warp_sg.textures", "warp_sg.lights",
                "warp_sg.plain_scenes", "warp_sg.gltf", "warp_sg.gltf_checks", "warp_sg.gltf_material",
-               "warp_sg.material_layers", "warp_sg.asset_scene")),
+               "warp_sg.material_layers", "warp_sg.asset_scene", "warp_sg.lobe_extent")),
     # the public facade ``warp_sg`` (``ws.render``, ``ws.reference``: lazy) sits on top with the tools
     ("tools", ("warp_sg", "warp_sg.cli", "warp_sg.report",
                "warp_sg.bench",
                "warp_sg.peer_mitsuba",
                "warp_sg.bench_scaling",
                "warp_sg.bench_motion",
+               "warp_sg.bench_assets",
+               "warp_sg.bench_first_image",
+               "warp_sg.spp_curve",
                "warp_sg.preview",
                "warp_sg.viewer",
                "warp_sg.viewer_widgets",
@@ -69,9 +72,9 @@ LAYERS = (
     ("engines", ("raster", "raster.*", "precompute", "precompute.*", "warp_sg.surface", "warp_sg.surface_layers",
                  "warp_sg.cutout", "warp_sg.shading",
                  "warp_sg.vertex_visibility", "warp_sg.silhouette", "warp_sg.background", "warp_sg.motion_wp")),
-    ("render", ("warp_sg.render", "warp_sg.render_environment", "warp_sg.costs", "warp_sg.antialias",
+    ("render", ("warp_sg.render", "warp_sg.render_environment", "warp_sg.costs", "warp_sg.progressive",
                 "warp_sg.dynamic_objects",
-                "warp_sg.reference", "warp_sg.reference_wp",
+                "warp_sg.visibility_setup", "warp_sg.antialias", "warp_sg.reference", "warp_sg.reference_wp",
                 "warp_sg.sampling", "warp_sg.regions")),
 )
 

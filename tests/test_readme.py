@@ -258,11 +258,13 @@ def test_render_your_own_asset_renders_and_prints_a_scene_that_loads(tmp_path):
     from warp_sg.cli import build_parser
     from warp_sg.scene import load_scene
 
-    render, printed, preview = _asset_commands()
+    render, printed, first, preview = _asset_commands()
     assert preview[0] == "preview" and preview[1:] == render[1:render.index("-o")]  # the same asset, the same sky
-    for argv in (render, printed, preview):
+    for argv in (render, printed, first, preview):
         args = build_parser(argv[0]).parse_args(argv)
         assert (ROOT / args.scene).is_file() and (args.env is None or (ROOT / args.env).is_file())
+    args = build_parser(first[0]).parse_args(first)  # the progressive render (tests/test_progressive.py)
+    assert args.first_frame and args.output and args.first_frame != args.output
     assert "--env" in render and render[render.index("--env") + 1].endswith(".hdr")
     out = tmp_path / "out" / "still_life.png"
     argv = _redirect(render, tmp_path)

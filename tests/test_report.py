@@ -52,8 +52,8 @@ def test_tiny_report_writes_csv_markdown_plots_with_decreasing_mc_error(tmp_path
     from warp_sg.bench import bench_scene
 
     sc = bench_scene(12, 9, quick=True)
-    rep = run_report(sc, tmp_path / "rep", quick=True, truth_spp=64, mc_max_spp=8,
-                     knobs=["lobes", "supersampling"], progress=False)
+    rep = run_report(sc, tmp_path / "rep", quick=True, truth_spp=1024, mc_max_spp=128,
+                     knobs=["lobes", "supersampling"], progress=False)  # per pixel; 4×4 sub-pixels
     umask = os.umask(0)
     os.umask(umask)
     for key in ("csv", "markdown", "plot", "plot_psnr", "images", "json"):
@@ -63,14 +63,14 @@ def test_tiny_report_writes_csv_markdown_plots_with_decreasing_mc_error(tmp_path
     with open(rep.files["csv"]) as f:
         rows = list(csv.DictReader(f))
     kinds = [r["knob"] for r in rows]
-    assert kinds.count("mc_reference") == 4  # spp 1, 2, 4, 8
+    assert kinds.count("mc_reference") == 4  # spp 1, 2, 4, 8 per sub-pixel
     assert kinds.count("default") == 1
     assert kinds.count("lobes") == len(KNOBS["lobes"][1]) and kinds.count("supersampling") == len(KNOBS["supersampling"][1])
     for r in rows:
         for k in ("frame_s", "rel_mse", "psnr_db", "max_err"):
             assert math.isfinite(float(r[k])) or r[k] == "inf", (k, r)
     mc = [r for r in rep.rows if r["knob"] == "mc_reference"]
-    assert [r["spp"] for r in mc] == [1, 2, 4, 8]
+    assert [r["spp"] for r in mc] == [16, 32, 64, 128] and rep.truth_spp == 1024
     assert mc[-1]["rel_mse"] < mc[0]["rel_mse"] / 2  # MC error falls like 1/spp
     assert mc[-1]["psnr_db"] > mc[0]["psnr_db"]
     assert all(b["total_s"] >= a["total_s"] for a, b in zip(mc, mc[1:]))  # progressive: time grows
@@ -96,3 +96,30 @@ def test_region_errors_give_bias_per_channel_and_count_pixels_off_by_three_times
     assert e["bias"] == pytest.approx(0.88)  # the worst channel (red)
     assert e["off3"] == pytest.approx(1 / 5)
     np.testing.assert_allclose(e["rel_mse"], np.sum((img[m] - 1) ** 2) / 15)
+
+
+def test_reused_precompute_gives_the_rows_of_a_fresh_cache_per_setting(tmp_path, cache_dir):
+    """The sweep's settings share one cache (each stage built once per distinct input): the
+    images, hence the error columns, are those of the slow path that rebuilds everything per
+    setting, and every row still counts a whole precompute (what it reused at its build time)."""
+    from warp_sg.bench import bench_scene
+    from warp_sg.cache import record_builds
+
+    sc = bench_scene(12, 9, quick=True)
+    knobs = ["ssdf_resolution", "pca_terms", "env_lobes", "lobes"]
+    kw = dict(quick=True, truth_spp=256, mc_max_spp=32, knobs=knobs, progress=False, frames=1)
+    with record_builds() as ledger:
+        fast = run_report(sc, tmp_path / "fast", **kw).rows
+    slow = run_report(sc, tmp_path / "slow", reuse=False, **kw).rows
+    assert [(r["knob"], r["value"]) for r in fast] == [(r["knob"], r["value"]) for r in slow]
+    for a, b in zip(fast, slow):
+        for k in ("rel_mse", "psnr_db", "max_err"):
+            assert a[k] == b[k], (a["knob"], a["value"], k)
+    sweep = [r for r in fast if r["knob"] != "mc_reference"]
+    assert all(r["precompute_s"] > 0 for r in sweep)
+    # one SSDF build per SSDF resolution, PCA per term count; one environment fit per lobe count
+    builds = [k for k, _, built in ledger.events if built]
+    # default (16², 8 terms) also stands for ssdf_resolution 16; then 32², 4 terms, 16 terms
+    assert builds.count("ssdf") == 4
+    assert builds.count("ssdf_raw") == 2  # rays and distance search at 16² and 32² only
+    assert builds.count("env_sg_fit") == 3  # 4 (default), 2 and 6 lobes

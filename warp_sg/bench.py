@@ -17,7 +17,13 @@ ratios are meant to carry over between machines):
    scene and on a plain-input scene (2-triangle floor, sun-sky EXR).
 5. **frame scaling** — warm frame time by pixel count and by triangle count, full shading
    (:mod:`warp_sg.bench_scaling`).
-6. **objects that move** — a frame after ``set_object_transform`` against a static frame and
+6. **equal error vs Mitsuba 3** — with the optional ``[compare]`` extra.
+7. **SSDF error vs ray budget** — adaptive visibility rays against a ray per texel
+   (:mod:`warp_sg.bench_first_image`).
+8. **time to first image** — cold first image (final and progressive) and warm frame of the
+   generated textured helmet and the shared assets, and Mitsuba's at equal error
+   (:mod:`warp_sg.bench_first_image`).
+9. **objects that move** — a frame after ``set_object_transform`` against a static frame and
    against a new ``Renderer`` with a cold cache (:mod:`warp_sg.bench_motion`).
 
 The bench scene (:func:`bench_scene`) is a Torrance-Sparrow sphere, a Ward torus and a Lambert
@@ -36,6 +42,7 @@ import numpy as np
 
 from .device import add_device_argument, device_for
 from .errors import InputError
+from .spp_curve import spp_for_error
 
 
 @dataclass
@@ -236,22 +243,6 @@ def _rows_from(res, name):
     return [{"case": name, "value": str(res)}]
 
 
-def spp_for_error(curve, target):
-    """Samples per pixel at which the MC error curve [(spp, rel_mse, seconds)] reaches ``target``
-    (log-log interpolation; extrapolated with slope −1 past the last point). Returns (spp, seconds)."""
-    curve = sorted(curve)
-    for (s0, e0, t0), (s1, e1, t1) in zip(curve, curve[1:]):
-        if e1 <= target <= e0 and e0 > e1 > 0:
-            f = (math.log(e0) - math.log(target)) / (math.log(e0) - math.log(e1))
-            spp = math.exp(math.log(s0) + f * (math.log(s1) - math.log(s0)))
-            return spp, t0 + (t1 - t0) * (spp - s0) / (s1 - s0)
-    s, e, t = curve[-1]
-    if target >= curve[0][1]:
-        return curve[0][0], curve[0][2]
-    spp = s * e / target  # MC: error ∝ 1/spp
-    return spp, t * spp / s
-
-
 #: per run: the SG renderer's measurements and the truths, shared by the equal-error sections
 _CASES: dict = {}
 
@@ -413,6 +404,8 @@ SECTIONS = {
     "equal error: SG renderer vs Monte-Carlo reference": equal_error_section,
     "frame scaling: pixels and triangles": lambda **kw: _scaling(**kw),
     "equal error: SG renderer vs Mitsuba 3": mitsuba_section,
+    "SSDF error vs ray budget": lambda **kw: _first_image("ray_budget_section", **kw),
+    "time to first image": lambda **kw: _first_image("first_image_section", **kw),
     "objects that move": lambda **kw: _motion(**kw),
 }
 
@@ -421,6 +414,12 @@ def _motion(**kw):
     from .bench_motion import motion_section
 
     return motion_section(**kw)
+
+
+def _first_image(name, **kw):
+    from . import bench_first_image
+
+    return getattr(bench_first_image, name)(**kw)
 
 
 def _scaling(**kw):

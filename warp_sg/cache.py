@@ -13,6 +13,9 @@ fit; ``precompute.cache`` re-exports it.
   ``os.replace``) and carry a SHA-256 checksum of their own contents (``__checksum__``); a file
   that is truncated, corrupt, or whose checksum does not match is never trusted: it is deleted,
   a warning is issued, and the entry is rebuilt.
+* :func:`record_builds` — a :class:`BuildLedger` of the builds and hits of a ``with`` block, with
+  the wall and CPU seconds of every build: what an entry found in the cache would have cost
+  (``warp-sg report`` reuses entries across its settings and still reports fresh-cache times).
 """
 from __future__ import annotations
 
@@ -22,6 +25,8 @@ import io
 import json
 import os
 import tempfile
+import threading
+import time
 import warnings
 import zipfile
 from pathlib import Path
@@ -181,10 +186,13 @@ def load_or_build(
     """
     data = load(kind, key)
     if data is not None:
+        note_hit(kind, key)
         return data
     if progress:
         print(f"warp-sg: building {kind} (cache miss {key[:12]})", flush=True)
+    w0, c0 = time.perf_counter(), time.process_time()
     built = builder()
+    note_build(kind, key, time.perf_counter() - w0, time.process_time() - c0)
     arrays = {}
     for k, v in dict(built).items():
         if k.startswith("__"):
@@ -195,3 +203,69 @@ def load_or_build(
     except OSError as e:  # read-only cache folder etc.: still return the result
         warnings.warn(f"warp-sg cache: cannot write {entry_path(kind, key)} ({e})", RuntimeWarning, stacklevel=2)
     return arrays
+
+
+# --------------------------------------------------------------------------------------------
+# build ledger
+# --------------------------------------------------------------------------------------------
+_LEDGERS: list = []
+
+
+class BuildLedger:
+    """Builds and hits of :func:`load_or_build` (and of callers that report their own, e.g. an
+    in-memory memo: :meth:`built` / :meth:`hit` with their own ``kind``) while it is recording.
+
+    ``fresh[(kind, key)] = (wall s, CPU s)`` of the entry's build (nested builds included);
+    ``events``: ``(kind, key, built)`` in order. :meth:`mark` / :meth:`hit_cost` give what the
+    hits since a mark would have cost to build (the entries must have been built while recording)."""
+
+    def __init__(self):
+        self.fresh: dict = {}
+        self.events: list = []
+        self._lock = threading.Lock()
+
+    def built(self, kind: str, key: str, wall: float, cpu: float) -> None:
+        with self._lock:
+            self.fresh[(kind, key)] = (float(wall), float(cpu))
+            self.events.append((kind, key, True))
+
+    def hit(self, kind: str, key: str) -> None:
+        with self._lock:
+            self.events.append((kind, key, False))
+
+    def mark(self) -> int:
+        return len(self.events)
+
+    def hit_cost(self, since: int = 0) -> tuple[float, float]:
+        """(wall, CPU) seconds the entries hit since ``since`` (a :meth:`mark`) took to build."""
+        w = c = 0.0
+        with self._lock:
+            for kind, key, built in self.events[since:]:
+                if not built:
+                    fw, fc = self.fresh.get((kind, key), (0.0, 0.0))
+                    w += fw
+                    c += fc
+        return w, c
+
+
+def note_build(kind: str, key: str, wall: float, cpu: float) -> None:
+    """Enter a build (of the cache or of a caller's own memo) in every recording ledger."""
+    for ledger in list(_LEDGERS):
+        ledger.built(kind, key, wall, cpu)
+
+
+def note_hit(kind: str, key: str) -> None:
+    """Enter a reuse in every recording ledger."""
+    for ledger in list(_LEDGERS):
+        ledger.hit(kind, key)
+
+
+@contextlib.contextmanager
+def record_builds():
+    """Record :func:`load_or_build`'s builds and hits in a :class:`BuildLedger` for the duration."""
+    ledger = BuildLedger()
+    _LEDGERS.append(ledger)
+    try:
+        yield ledger
+    finally:
+        _LEDGERS.remove(ledger)

@@ -112,6 +112,9 @@ def add_render_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--width", type=_positive_int("--width"), default=None, help="override the camera width")
     p.add_argument("--height", type=_positive_int("--height"), default=None, help="override the camera height")
     p.add_argument("--no-shadows", action="store_true", help="render without SSDF visibility")
+    p.add_argument("--first-frame", default=None, metavar="OUT",
+                   help="also write the first frame, without SSDF shadows, here (.exr or .png) as soon as it "
+                        "is ready; the shadows are computed meanwhile and the final frame goes to -o")
     p.add_argument("--no-progress", action="store_true", help="hide progress bars")
     p.add_argument("--timings", action="store_true", help="print precompute / raster / shade timings")
     p.add_argument("--cluster", default=None, metavar="local:N|tcp://HOST:PORT",
@@ -156,6 +159,13 @@ def render_main(args) -> int:
     if args.output is None and not args.print_scene:
         raise _Fail("the following argument is required: -o/--output")
     out = None if args.output is None else check_output_path(args.output, create_parents=True)
+    first = None
+    if getattr(args, "first_frame", None) is not None:
+        if args.output is None:
+            raise _Fail("--first-frame needs -o/--output (the final frame)")
+        if args.cluster:
+            raise _Fail("--first-frame computes the shadows on this machine; it cannot be combined with --cluster")
+        first = check_output_path(args.first_frame, create_parents=True)
     scene, text = _render_scene(args, args.width, args.height)
     if args.print_scene:
         print(text, end="" if text.endswith("\n") else "\n")
@@ -175,13 +185,27 @@ def render_main(args) -> int:
 
         r = renderer(scene, device=args.device, progress=not args.no_progress, cluster=args.cluster)
     else:
-        r = Renderer(scene, device=args.device, progress=not args.no_progress)
-    img = _finite_image(r.render(), "the rendered radiance overflows (an environment or light too bright?)")
-    if args.exposure:
-        import numpy as np
+        r = Renderer(scene, device=args.device, progress=not args.no_progress and first is None,
+                     progressive=first is not None)
+    import numpy as np
 
+    with np.errstate(over="ignore"):  # a gain beyond float32 is reported below
+        gain = np.float32(2.0 ** args.exposure) if args.exposure else None
+
+    def frame():
+        img = _finite_image(r.render(), "the rendered radiance overflows (an environment or light too bright?)")
+        if gain is None:
+            return img
         with np.errstate(over="ignore", invalid="ignore"):  # overflow is reported below
-            img = _finite_image(img * np.float32(2.0 ** args.exposure), f"--exposure {args.exposure:g} overflows")
+            return _finite_image(img * gain, f"--exposure {args.exposure:g} overflows")
+
+    img = frame()
+    if first is not None:
+        make_parents(first)
+        save_image(first, img)
+        print(f"first frame written to {first}", file=sys.stderr)
+        r.wait()
+        img = frame()
     make_parents(out)  # only now: a failed render leaves nothing behind
     save_image(out, img)
     if args.timings:

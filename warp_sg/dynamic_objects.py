@@ -87,15 +87,13 @@ def parse_transform_argument(text: str) -> tuple:
     return (int(name) if name.isdigit() else name), np.asarray(vals).reshape(4, 4)
 
 
-def _rest_motion(ob) -> np.ndarray:
-    return np.eye(4) if ob.motion is None else np.asarray(ob.motion, np.float64)
-
-
 class DynamicObjects:
-    """The moving objects of one renderer (module docstring): built after the renderer's geometry,
-    it owns the rest pose, the proxies and the transforms."""
+    """The moving objects of one renderer (module docstring): built with each geometry the renderer
+    installs (the input mesh, then the refined one), it owns the rest pose, the proxies and the
+    transforms. ``rest_motions``: ``{object: SceneObject.motion}`` when the renderer was built (the
+    pose its geometry is in); ``previous``: the last install's, whose transforms carry over."""
 
-    def __init__(self, r):
+    def __init__(self, r, rest_motions: dict, previous=None):
         scene, g, d = r.scene, r.geometry, r.device
         from precompute.proxies import object_proxies
 
@@ -118,8 +116,10 @@ class DynamicObjects:
         self.rest_t = np.asarray(g.tangents, np.float64)
         self.rest_ft, self.rest_fb = frame_from_normal(self.rest_n)
         # the pose the geometry was built in (a scene may come with motions set)
-        self.rest_motion = {k: _rest_motion(scene.objects[k]) for k in self.ids}
-        self.motion = {k: m.copy() for k, m in self.rest_motion.items()}
+        self.rest_motion = {k: np.eye(4) if rest_motions.get(k) is None else np.asarray(rest_motions[k], np.float64)
+                            for k in self.ids}
+        self.motion = {k: (previous.motion[k] if previous is not None else m).copy()
+                       for k, m in self.rest_motion.items()}
         spheres, sowner, planes, disks, powner, outlines = [], [], [], [], [], []
         self.rest_blobs = np.zeros((max(self.n_objects, 1), 4))
         self.blob_owner = np.full(max(self.n_objects, 1), -1, np.int64)
@@ -145,8 +145,8 @@ class DynamicObjects:
         self.disks = np.asarray(disks, np.float32).reshape(-1, 4)
         self.plane_owner = np.asarray(powner, np.int64)
         self.outlines = outlines
-        self.version = 0  # bumped by set_transform
-        self._applied = 0  # the version written into the device arrays
+        self.version = 0 if previous is None else previous.version  # bumped by set_transform
+        self._applied = self.version if previous is None else -1  # the version in the device arrays
         self._patched = {}  # cache name -> (array identity, version) of the last row patch
         self._behind_key = None
         self.px = self._proxies_struct(r)

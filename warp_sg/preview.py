@@ -72,8 +72,11 @@ class Viewer:
         return None
 
     def screenshot(self, path) -> Path:
-        """The window as a PNG, written atomically."""
+        """The window as a PNG, written atomically (with the shadows: a progressive renderer's
+        precompute is waited for)."""
         out = Path(path)
+        if self.renderer.wait():
+            self.viewport.invalidate()
         self.viewport.draw()
         with atomic_output(out, suffix=".png") as tmp:  # umask permissions, never a partial file
             self.plotter.screenshot(tmp)
@@ -93,18 +96,24 @@ def _in_notebook() -> bool:
 
 
 def open_viewer(scene, device=None, off_screen: bool = False, window_size=None, exposure: float = 0.0,
-                widgets: bool = True, progress: bool = True, hud: bool = True, screenshot_dir=".") -> Viewer:
+                widgets: bool = True, progress: bool = True, hud: bool = True, screenshot_dir=".",
+                progressive: bool | None = None) -> Viewer:
     """Precompute ``scene`` once (progress bars) and build the viewer; nothing is shown yet.
 
     ``window_size`` (W, H) defaults to the scene camera's resolution, so the first frame is the
-    scene's ``warp-sg render`` image. ``hud``: show the frame time."""
+    scene's ``warp-sg render`` image. ``hud``: show the frame time. ``progressive`` (default: on
+    screen, not off screen): the window opens with unshadowed frames while the SSDFs are computed
+    on a background thread, and switches to shadowed frames when they are ready
+    (``Renderer(..., progressive=True)``; the viewport checks four times a second)."""
     pv = _pyvista()
     from .render import Renderer
     from .viewer import Viewport, quiet_vtk
 
     if off_screen:
         quiet_vtk()
-    r = Renderer(scene, device=device, progress=progress)
+    if progressive is None:
+        progressive = not off_screen
+    r = Renderer(scene, device=device, progress=progress and not progressive, progressive=progressive)
     cam = scene.camera
     size = tuple(int(v) for v in window_size) if window_size else (int(cam.width), int(cam.height))
     pl = pv.Plotter(off_screen=off_screen, window_size=list(size))

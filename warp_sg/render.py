@@ -19,7 +19,8 @@ Data flow (DESIGN.md): ``scene → precompute (cached) → raster (visibility bu
 k×k blocks. Changing materials, textures, lights, the environment rotation/scale or the camera
 (the setters below) re-renders without re-running precompute. Per-frame timings (seconds) are in
 ``Renderer.timings``: ``precompute`` (construction; cache hits included), ``raster``, ``shade``,
-``resolve``, ``frame`` (last ``render()``), and ``precompute_parts`` (ssdf, env_fit, env_prefilter).
+``resolve``, ``frame`` (last ``render()``), ``precompute_parts`` (wall seconds of refine, ssdf,
+env_peaks, env_fit, env_prefilter) and ``precompute_cpu`` (their CPU seconds, all threads).
 """
 from __future__ import annotations
 
@@ -36,39 +37,16 @@ from .cutout import CutoutScene, cutout_data
 from .device import resolve_device
 from .errors import InputError, SceneError
 from .lights import DirectionalLight, EnvironmentLight, PointLight, light_arrays
-from .geometry import refined_geometry
 from .scene import COLOUR_PARAMS, Geometry, Material, Scene
 from .surface import material_texture_slots
 from . import shading as S
 from .textures import Texture, build_atlas
+from .brdf.term_mask import TermMask
+from .progressive import ShadowJob
 from .render_environment import EnvironmentSetup
 from .vertex_visibility import caches
-
-
-def _refine_key(g: Geometry, budget: int, lights=()) -> str:
-    from .cache import content_key
-
-    return content_key(np.asarray(g.vertices), np.asarray(g.triangles), np.asarray(g.normals),
-                       {"budget": int(budget), "lights": [(k, np.ravel(v).tolist()) for k, v in lights]})
-
-
-class _TermMask:
-    """A BRDF model seen with its kd and/or ks zeroed (:meth:`Renderer.set_terms`); everything
-    else (lobes, tables, parameters) is the model's own."""
-
-    def __init__(self, model, diffuse: bool, specular: bool):
-        self._model, self._diffuse, self._specular = model, diffuse, specular
-
-    def __getattr__(self, name):
-        return getattr(self._model, name)
-
-    def material_record(self):
-        rec = dict(self._model.material_record())
-        if not self._diffuse:
-            rec["kd"] = (0.0, 0.0, 0.0)
-        if not self._specular:
-            rec["ks"] = (0.0, 0.0, 0.0)
-        return rec
+from .lobe_extent import gamma_reach
+from .visibility_setup import refine_key, visibility_arrays
 
 
 def _timer(device):
@@ -84,16 +62,22 @@ class Renderer(EnvironmentSetup):
     version, :mod:`warp_sg.distributed_precompute`). ``precomputed``: :meth:`precomputed` of a
     renderer of a scene with the same geometry and visibility settings (refinement and SSDFs are
     reused instead of recomputed; a mismatch is an :class:`InputError`): how batch workers share
-    one precompute.
+    one precompute. ``progressive``: the mesh refinement and SSDFs run on a background thread
+    (:mod:`warp_sg.progressive`); frames are unshadowed (those of ``[render] shadows = false``)
+    until they are installed (:meth:`poll`, called by :meth:`render`; :meth:`wait`;
+    :attr:`shadows_pending`), then equal to a non-progressive renderer's, bit for bit.
     """
 
+    #: compute the refinement and SSDFs on a thread beside the environment fit and ΓL prefilter
+    #: (the same data; False: one after the other, so each part's CPU time is its own)
+    overlap_precompute = True
     #: terms of eq. 36 shown (:meth:`set_terms`; the viewer's check boxes)
     show_diffuse = True
     show_specular = True
     show_shadows = True
 
     def __init__(self, scene: Scene, device: str | None = None, progress: bool = False, *, ssdf_compute=None,
-                 precomputed: dict | None = None):
+                 precomputed: dict | None = None, progressive: bool = False):
         if not isinstance(scene, Scene):
             raise InputError(f"expected a warp_sg.Scene, got {type(scene).__name__}", where="scene")
         self.scene = scene
@@ -101,35 +85,53 @@ class Renderer(EnvironmentSetup):
         self._precomputed = precomputed
         self.device = resolve_device(device if device is not None else scene.render.device)
         self.progress = progress
-        self.timings: dict = {"precompute_parts": {}}
+        self.progressive = bool(progressive)
+        self._job = None  # the background shadow precompute (progressive)
+        self.timings: dict = {"precompute_parts": {}, "precompute_cpu": {}}
         self._env_arrays_key = ()  # (see _env_arrays; () = not built yet)
         self._env_sg_arrays = None
+        self._gamma_capped, self._gamma_reach = False, 0.0  # (_ensure_gamma)
         self.env_vis_cache, self.light_vis_cache, self.env_visible_cache = caches()  # (_vertex_visibility)
+        self._bg = BackgroundCache(self.device)  # what pixels that see no object show
+        self._aa = None  # antialiasing's caches between frames (warp_sg.antialias.AntialiasCache)
+        self._vb_key = self._vb = self._culling = None
+        self.dynamic = None  # objects that move (warp_sg.dynamic_objects; _setup_dynamic)
+        self._rest_motions = {k: ob.motion for k, ob in enumerate(scene.objects) if ob.dynamic}  # the built pose
         t0 = time.perf_counter()
         check_frame_costs(scene, scene.geometry(), shadows=scene.render.shadows,  # the watchdog, before any work
                           specular=any(getattr(m.brdf, "is_specular", True) for m in scene.materials.values()))
         with wp.ScopedDevice(self.device):
             self._setup_env_peaks()
             self._setup_geometry()
-            self.dynamic = self._setup_dynamic()
-            self._setup_visibility()
             self._setup_materials()
             self._setup_environment()
             self._ensure_gamma()
             self._setup_lights()
+        if self.progressive and self._job is not None:  # the shadows now get the cores the setup had
+            self._job = self._job()
+        elif self._job is not None:  # computed beside the environment setup: install them now
+            self.wait()
         wp.synchronize_device(self.device)
         self.timings["precompute"] = time.perf_counter() - t0
-        self._bg = BackgroundCache(self.device)  # what pixels that see no object show
-        self._aa = None  # antialiasing's caches between frames (warp_sg.antialias.AntialiasCache)
-        self._vb_key = self._vb = self._culling = None
+
+    @staticmethod
+    def _tick():
+        return time.perf_counter(), time.process_time()
+
+    def _tock(self, part: str, t0) -> None:
+        """Record part ``part`` begun at ``t0 = _tick()``: wall seconds in ``precompute_parts``, CPU
+        seconds of the process (all threads) in ``precompute_cpu``."""
+        self.timings["precompute_parts"][part] = time.perf_counter() - t0[0]
+        self.timings["precompute_cpu"][part] = time.process_time() - t0[1]
 
     def precomputed(self) -> dict:
         """The mesh refinement and SSDFs of this renderer (plain numpy data, picklable), for
         ``Renderer(scene', precomputed=...)`` of a scene with the same geometry and visibility
         settings (camera, materials, lights and environment may differ)."""
+        self.wait()
         g = self.input_geometry
         budget = self.scene.render.visibility_budget
-        return {"refine_key": _refine_key(g, budget, self._refine_lights()) if self._refined is not None else None,
+        return {"refine_key": refine_key(g, budget, self._refine_lights()) if self._refined is not None else None,
                 "refinement": self._refined, "ssdf": self.ssdf}
 
     # ------------------------------------------------------------------ setup
@@ -137,39 +139,35 @@ class Renderer(EnvironmentSetup):
         """The scene's flattened mesh; with shadows, refined where the visibility changes
         (``precompute.refine_for_visibility``, ``[render] visibility_budget`` vertices at most) so
         the per-vertex SSDFs do not depend on how the user tessellated (a floor exported as two
-        triangles still gets its shadows). Raster, SSDF precompute and shading use the refined mesh."""
+        triangles still gets its shadows), and its SSDFs (:mod:`warp_sg.visibility_setup`). Raster,
+        SSDF precompute and shading use the refined mesh. ``progressive``: the refinement and SSDFs
+        are computed on a background thread (:mod:`warp_sg.progressive`) and installed by
+        :meth:`poll`; until then the input mesh is shaded without shadows."""
+        from .visibility_setup import compute_visibility, needs_shadows
+
         g = self.scene.geometry()
-        rs = self.scene.render
-        d = self.device
-        self.shadows = False
-        if rs.shadows:
-            import precompute
-
-            self.shadows = bool(precompute.needs_visibility(g.vertices, g.triangles, shadows=True))
         self.input_geometry = g
-        self.refinement = None
+        self.shadows = False
+        self.ssdf = None
         self._refined = None
-        if self.shadows and rs.visibility_budget > len(g.vertices):
-            from precompute.refine import refine_cached
+        self._install_geometry(g, None)
+        if not needs_shadows(self.scene, g):
+            return
+        args = (self.scene, g, self.device)
+        kw = {"progress": self.progress, "compute": self._ssdf_compute, "precomputed": self._precomputed,
+              "lights": self._refine_lights(), "cutouts": lambda geo: cutout_data(geo, self.scene.materials),
+              "dynamic": [bool(ob.dynamic) for ob in self.scene.objects]}  # (per-group SSDFs where any)
+        if self.progressive:  # started once the first frame's own precompute is done (__init__)
+            self._job = lambda: ShadowJob(lambda: compute_visibility(*args, **kw))
+        elif self.overlap_precompute:  # beside the environment fit and ΓL (single-threaded parts)
+            self._job = ShadowJob(lambda: compute_visibility(*args, **kw))
+        else:
+            self._install_shadows(compute_visibility(*args, **kw))
 
-            t = time.perf_counter()
-            pre = self._precomputed
-            if pre is not None:
-                if pre.get("refinement") is None or (pre.get("refine_key")
-                                                     != _refine_key(g, rs.visibility_budget, self._refine_lights())):
-                    raise InputError("precomputed data is for a different mesh or visibility_budget",
-                                     where="precomputed")
-                ref = pre["refinement"]
-            else:
-                ref = refine_cached(g.vertices, g.triangles, g.normals, budget=rs.visibility_budget, device=d,
-                                    lights=self._refine_lights(), progress=self.progress,
-                                    cutouts=cutout_data(g, self.scene.materials))
-            self._refined = ref
-            self.timings["precompute_parts"]["refine"] = time.perf_counter() - t
-            if len(ref.vertices) > len(g.vertices):
-                self.refinement = ref
-                g = refined_geometry(g, ref)
+    def _install_geometry(self, g, ref):
+        self.refinement = ref if ref is not None and len(ref.vertices) > len(self.input_geometry.vertices) else None
         self.geometry = g
+        d = self.device
         ga = S.GeometryArrays()
         ga.positions = wp.array(g.vertices, dtype=wp.vec3, device=d)
         ga.normals = wp.array(g.normals, dtype=wp.vec3, device=d)
@@ -182,73 +180,72 @@ class Renderer(EnvironmentSetup):
         # alpha cut-outs of the (refined) geometry: camera rays continue through their holes
         self.cut = CutoutScene(g, self.scene.materials, ga.positions, d)
         self.cutouts = self.cut.data
+        self.vis = visibility_arrays(None, ga.normals, len(g.vertices), d)
+        self._setup_dynamic()
 
     def _setup_dynamic(self):
-        """The moving objects (:mod:`warp_sg.dynamic_objects`), None in a static scene."""
+        """The moving objects of the installed geometry (:mod:`warp_sg.dynamic_objects`; their
+        transforms carried over from the last install), None in a static scene."""
         from .motion_wp import no_proxies
 
         self._proxies = no_proxies(self.device)
-        if not any(ob.dynamic for ob in self.scene.objects):
-            return None
-        from .dynamic_objects import DynamicObjects
+        if self._rest_motions:
+            from .dynamic_objects import DynamicObjects
 
-        dyn = DynamicObjects(self)
-        self._proxies = dyn.px
-        return dyn
+            self.dynamic = DynamicObjects(self, self._rest_motions, self.dynamic)
+            self._proxies = self.dynamic.px
 
-    def _setup_visibility(self):
-        rs = self.scene.render
-        g = self.geometry
-        d = self.device
-        vis = S.Visibility()
-        from precompute.occluder_cone import no_cones, texel_half_diagonal
-
-        from .fh import fh_table_array
-
-        vis.fh_table = fh_table_array(d)
-        vis.normals = self.geo_arrays.normals
-        if self.shadows:
-            import precompute
-
-            t = time.perf_counter()
-            pre = self._precomputed
-            if pre is not None and pre.get("ssdf") is not None:
-                from precompute.ssdf import ssdf_key
-                from precompute.ssdf_groups import ssdf_groups_key
-
-                self.ssdf = pre["ssdf"]
-                want = ssdf_key(g.vertices, g.triangles, g.normals, resolution=rs.ssdf_resolution,
-                                ray_resolution=self.ssdf.ray_resolution, pca_terms=rs.pca_terms,
-                                cutouts=self.cutouts) if self.dynamic is None else ssdf_groups_key(
-                    g.vertices, g.triangles, g.normals, self.dynamic.tri_group, resolution=rs.ssdf_resolution,
-                    ray_resolution=self.ssdf.ray_resolution, pca_terms=rs.pca_terms)
-                if want != self.ssdf.key:
-                    raise InputError("precomputed SSDFs are for a different mesh or SSDF settings",
-                                     where="precomputed")
-            elif self.dynamic is not None:  # per group: static objects, each dynamic one alone
-                self.ssdf = self.dynamic.ssdf(self)
-            else:
-                self.ssdf = precompute.ssdf_for_mesh(g.vertices, g.triangles, g.normals,
-                                                     resolution=rs.ssdf_resolution, pca_terms=rs.pca_terms, device=d,
-                                                     progress=self.progress, compute=self._ssdf_compute,
-                                                     cutouts=self.cutouts)
-            vis.mean, vis.basis, vis.weights = self.ssdf.device_arrays(d, precompute.ssdf.decompress_budget())
-            cones = self.ssdf.cones if len(self.ssdf.cones) == len(g.vertices) else no_cones(len(g.vertices))
-            vis.cones = wp.array(cones, dtype=wp.vec4, device=d)
-            vis.cone_band = texel_half_diagonal(self.ssdf.resolution)
-            self.timings["precompute_parts"]["ssdf"] = time.perf_counter() - t
-        else:
-            self.ssdf = None
-            vis.mean = wp.zeros((2, 2), dtype=float, device=d)
-            vis.basis = wp.zeros((2, 2, 0), dtype=float, device=d)
-            vis.weights = wp.zeros((1, 1), dtype=float, device=d)
-            vis.cones = wp.array(no_cones(1), dtype=wp.vec4, device=d)
-            vis.cone_band = 1.0
-        vis.light_deficit = wp.zeros((1, 1), dtype=float, device=d)
-        vis.frame_t = vis.frame_b = wp.zeros(1, dtype=wp.vec3, device=d)  # (the frames of the normals)
-        self.vis = vis
-        if self.dynamic is not None and self.shadows:
+    def _install_shadows(self, result):
+        """Install :func:`warp_sg.visibility_setup.compute_visibility`'s result: the refined mesh,
+        its SSDFs and the shading visibility."""
+        ref, g, ssdf, parts = result
+        for name, (w, c) in parts.items():
+            self.timings["precompute_parts"][name] = w
+            self.timings["precompute_cpu"][name] = c
+        self._refined = ref
+        self._install_geometry(g, ref)
+        self.shadows = True
+        self.ssdf = ssdf
+        self.vis = visibility_arrays(ssdf, self.geo_arrays.normals, len(g.vertices), self.device)
+        if self.dynamic is not None:
             self.dynamic.attach(self)  # the vertices' SSDF frames, which turn with their objects
+
+    @property
+    def shadows_pending(self) -> bool:
+        """A progressive renderer whose SSDFs are not installed yet (:meth:`poll`)."""
+        return self._job is not None
+
+    def shadows_ready(self) -> bool:
+        """Whether nothing is left to wait for: no background precompute, or one that has finished
+        (installed by the next :meth:`poll`)."""
+        return self._job is None or self._job.done()
+
+    def poll(self) -> bool:
+        """Install the background shadow precompute's result if it has finished (``progressive``):
+        True when this call switched the renderer to shadowed frames. Never waits; an error of
+        the precompute is raised here. ``render()`` calls it first."""
+        job = self._job
+        if job is None or not job.done():
+            return False
+        self._job = None
+        result = job.result()
+        with wp.ScopedDevice(self.device):
+            self._install_shadows(result)
+            self._setup_materials()
+        self.timings["shadows_ready"] = job.seconds
+        self.env_vis_cache, self.light_vis_cache, self.env_visible_cache = caches()
+        self._aa = None
+        self._vb_key = self._vb = self._culling = None
+        return True
+
+    def wait(self, timeout: float | None = None) -> bool:
+        """Block until the shadows are installed (``progressive``; at most ``timeout`` seconds):
+        whether they are. A renderer built without ``progressive`` has them already."""
+        job = self._job
+        if job is not None and not job.wait(timeout):
+            return False
+        self.poll()
+        return True
 
     def _vertex_sampled(self) -> bool:
         """Visibility of fixed directions sampled per vertex (``[render] visibility_sampling =
@@ -280,8 +277,10 @@ class Renderer(EnvironmentSetup):
         lays = [m.layers for m in mats]
         coats, coat_index = coat_models(lays)  # the clear coats, packed after the materials
         models = [m.brdf for m in mats] + coats
+        # the ΓL ladder's reach: the sharpest NDF lobe (a clear coat: the whole ladder)
+        self._gamma_need = gamma_reach(scene, names) if not coats else float("inf")
         if not (self.show_diffuse and self.show_specular):
-            models = [_TermMask(b, self.show_diffuse, self.show_specular) for b in models]
+            models = [TermMask(b, self.show_diffuse, self.show_specular) for b in models]
         try:
             self.material_table = pack_materials(models, rs.lobes, self.device)
         except InputError as e:
@@ -478,9 +477,11 @@ class Renderer(EnvironmentSetup):
         object at similar depth is shaded once (at its centre), an edge pixel once per triangle its
         sub-pixels see, weighted by coverage, a contrasting one at 4 probes and, where they
         disagree, at every sub-pixel (:mod:`warp_sg.antialias`) — antialiased silhouettes at a
-        fraction of the cost of shading every sub-pixel."""
-        rs = self.scene.render
+        fraction of the cost of shading every sub-pixel. A ``progressive`` renderer first installs
+        its shadows if they have become ready (:meth:`poll`)."""
+        self.poll()
         self._move()
+        rs = self.scene.render
         if rs.supersampling == 1 and rs.antialias > 1:
             return self._render_adaptive(int(rs.antialias))
         d = self.device
@@ -545,6 +546,7 @@ class Renderer(EnvironmentSetup):
         (used by the pyvista preview). Unreferenced vertices get 0."""
         from .geometry import vertex_samples
 
+        self.poll()
         self._move()
         d, nv = self.device, len(self.geometry.vertices)
         owner, bary = vertex_samples(self.geometry.triangles, nv)

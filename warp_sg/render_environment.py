@@ -7,7 +7,6 @@ rebuilt only when the environment's rotation or scale changes.
 """
 from __future__ import annotations
 
-import time
 
 import numpy as np
 import warp as wp
@@ -44,9 +43,9 @@ class EnvironmentSetup:
         from precompute.env_peaks import extract_peaks
 
         self.env_base = env.base_radiance()  # what the background shows
-        t = time.perf_counter()
+        t = self._tick()
         self.env_residual, self.env_peaks = extract_peaks(self.env_base, max_peaks=self.scene.render.env_peaks)
-        self.timings["precompute_parts"]["env_peaks"] = time.perf_counter() - t
+        self._tock("env_peaks", t)
 
     def _refine_lights(self) -> list:
         """The key lights the mesh refinement places shadow edges for: the scene's point and
@@ -75,14 +74,14 @@ class EnvironmentSetup:
         if env is None:
             return
         base = self.env_base
-        t = time.perf_counter()
+        t = self._tick()
         from precompute.env_irradiance import cell_radiance, irradiance_cubemap
 
         self.env_irradiance = irradiance_cubemap(self.env_residual, device=self.device)
         self.env_texel_radiance = wp.array(cell_radiance(self.env_residual).astype(np.float32), dtype=wp.vec3,
                                            device=self.device)
-        self.timings["precompute_parts"]["env_irradiance"] = time.perf_counter() - t
-        t = time.perf_counter()
+        self._tock("env_irradiance", t)
+        t = self._tick()
         if env.procedural == "constant":
             # a constant map is exactly one SG of vanishing sharpness: no fit needed
             rad = np.asarray(base.reshape(-1, 3)[0], np.float64)
@@ -91,31 +90,36 @@ class EnvironmentSetup:
         else:
             self._env_sg_base = self._fit_env(self.env_residual, rs.env_lobes)
         self.env_diffuse_mode = S.ENV_SG
-        self.timings["precompute_parts"]["env_fit"] = time.perf_counter() - t
+        self._tock("env_fit", t)
 
     def _ensure_gamma(self):
         """Prefilter the environment (ΓL pyramid, eq. 35) when the scene needs it: a specular
-        material or prefiltered diffuse. Done lazily so diffuse-only scenes skip it."""
+        material. Done lazily so diffuse-only scenes skip it. The default λ ladder ends at the
+        first level at or above the scene's sharpest NDF lobe (:mod:`warp_sg.lobe_extent`); a
+        material edit that needs a sharper level rebuilds it."""
         env = self.env_light
-        if env is None or self.gamma is not None:
+        if env is None or not self.has_specular:
             return
-        if not self.has_specular:
+        if self.gamma is not None and (not self._gamma_capped or self._gamma_need <= self._gamma_reach):
             return
         import precompute
+        from precompute.prefilter import default_ladder
 
         rs = self.scene.render
         base = self.env_residual
-        t = time.perf_counter()
+        t = self._tick()
+        lams, _, _ = default_ladder(base.shape[0], base_face=rs.gamma_resolution)
         kw = {}
         if rs.gamma_levels > 0:
-            from precompute.prefilter import default_ladder
-
-            lams, _, _ = default_ladder(base.shape[0], base_face=rs.gamma_resolution)
             kw["lambdas"] = np.geomspace(lams[0], lams[-1], rs.gamma_levels)
+        elif 0.0 < self._gamma_need < lams[-2]:
+            kw["lambdas"] = lams[:max(int(np.searchsorted(lams, self._gamma_need)) + 1, 2)]
+        self._gamma_capped = "lambdas" in kw and rs.gamma_levels == 0
+        self._gamma_reach = float(kw.get("lambdas", lams)[-1])
         self.gamma = precompute.prefilter_environment(base, device=self.device, base_face=rs.gamma_resolution,
                                                       progress=self.progress, **kw)
         self.env_specular_mode = S.ENV_PREFILTERED
-        self.timings["precompute_parts"]["env_prefilter"] = time.perf_counter() - t
+        self._tock("env_prefilter", t)
 
     @staticmethod
     def _fit_env(base, n_lobes):
@@ -127,10 +131,11 @@ class EnvironmentSetup:
 
     def _env_arrays(self):
         """EnvSG (world axes: rotation applied; amplitudes scaled) on the device, rebuilt only when
-        the rotation or scale changes. Lobes that carry no energy (``|μ| ∫G`` below 1e-6 of the
+        the rotation, the scale or the geometry (a progressive renderer's refined mesh) changes. Lobes that carry no energy (``|μ| ∫G`` below 1e-6 of the
         mixture's, e.g. amplitudes the non-negative fit set to 0) are left out."""
         env = self.env_light
-        key = None if env is None or self._env_sg_base is None else (id(self._env_sg_base), float(env.rotation), float(env.scale))
+        key = None if env is None or self._env_sg_base is None else (id(self._env_sg_base), float(env.rotation), float(env.scale),
+                                                                     id(self.geometry))  # (smooth: per triangle)
         if self._env_arrays_key == key:
             return self._env_sg_arrays
         d = self.device

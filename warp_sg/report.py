@@ -4,14 +4,19 @@ For one scene it measures how the knobs that trade accuracy for speed move the r
 the error/time plane, next to the Monte-Carlo reference's own error-vs-samples curve:
 
 1. **Ground truth**: a high-sample :func:`warp_sg.reference` image (``truth_spp`` samples per
-   sub-pixel, seed 1). Its own noise (mean squared standard error) is reported as the noise floor.
+   pixel, spread over the k×k sub-pixel grid the truth resolves; seed 1). Its own noise (mean
+   squared standard error) is reported as the noise floor.
 2. **MC curve**: an independent progressive reference run (seed 2); after every power-of-two
    ``spp`` its error against the ground truth and its elapsed time are recorded.
 3. **Knob sweeps**: each render-setting knob the scene exposes (:data:`KNOBS`: SG lobes per NDF,
    clamped-cosine lobes, environment SG lobes, ΓL resolution and λ ladder, SSDF resolution and PCA
    terms, supersampling ...) is varied alone from the scene's settings; for every value the
-   precompute time (fresh cache folder, so nothing is reused) and the per-frame time (median of
-   warm frames) are measured separately, and the image error against the ground truth.
+   precompute time and the per-frame time (median of warm frames) are measured separately, and
+   the image error against the ground truth. The settings share one fresh cache: a precompute
+   stage (refinement, SSDF rays, PCA, environment fit, ΓL) is built once for each distinct input
+   and reused by every setting that does not change it; a row's precompute time is what it costs
+   with an empty cache (its own builds as measured plus the measured build time of what it
+   reused). Rows are written to ``report.csv`` as they finish.
 
 Errors (:func:`warp_sg.regions.image_errors`): relative MSE ``Σ(x − r)² / Σ r²`` on linear radiance, PSNR of the
 tone-mapped (``tonemap_srgb``) images, and the max absolute error (linear); for the scene's own
@@ -23,6 +28,7 @@ renderer, difference), ``report.json``.
 """
 from __future__ import annotations
 
+import contextlib
 import copy
 import csv
 import dataclasses
@@ -35,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .cache import fresh_cache
+from .cache import content_key, fresh_cache, note_build, note_hit, record_builds
 
 from .atomic import atomic_output
 from .device import add_device_argument, device_for
@@ -58,6 +64,10 @@ KNOBS: dict[str, tuple[list, list]] = {
     "supersampling": ([1, 2, 3], [1, 2]),
     "antialias": ([1, 4, 6], [1, 4]),
 }
+
+#: samples per pixel of the ground truth (its noise floor is printed in the report; at the default
+#: sweep's 6×6 grid that is 113 samples per sub-pixel)
+DEFAULT_TRUTH_SPP = 4096
 
 CSV_FIELDS = ["knob", "value", "precompute_s", "frame_s", "total_s", "rel_mse", "psnr_db", "max_err", "spp"]
 
@@ -112,25 +122,68 @@ def with_setting(scene, knob, value):
     return sc
 
 
-def time_renderer(scene, device="cpu", frames=3):
+def time_renderer(scene, device="cpu", frames=3, ledger=None, memo=None):
     """(image, precompute seconds, per-frame seconds) for ``scene`` with an empty cache.
 
-    Uses ``warp_sg.render.Renderer`` (precompute once, then ``frames`` warm frames; median)."""
+    Uses ``warp_sg.render.Renderer`` (precompute once, then ``frames`` warm frames; median).
+    With a ``ledger`` (:func:`warp_sg.cache.record_builds`, recording into the report's one cache)
+    the precompute reuses what earlier settings built, and its time is the measured construction
+    plus the build time of every entry it found (what an empty cache would have cost); ``memo``:
+    the report's :class:`RawSSDFMemo`. The precompute stages run one after the other
+    (``Renderer.overlap_precompute`` off), so that a setting's time is the sum of its stages'."""
     from .render import Renderer
 
-    with fresh_cache():
+    def run():
+        mark = ledger.mark() if ledger is not None else 0
         t0 = time.perf_counter()
-        r = Renderer(scene, device=device)
-        if hasattr(r, "precompute"):
-            r.precompute()
+        overlap, Renderer.overlap_precompute = Renderer.overlap_precompute, False  # stage times add up
+        try:
+            r = Renderer(scene, device=device, ssdf_compute=memo)
+        finally:
+            Renderer.overlap_precompute = overlap
         t_pre = time.perf_counter() - t0
+        if ledger is not None:
+            t_pre += ledger.hit_cost(mark)[0]
         img = np.asarray(r.render())  # first frame: compiles / uploads (not counted as a frame)
         times = []
         for _ in range(max(1, frames)):
             t1 = time.perf_counter()
             img = np.asarray(r.render())
             times.append(time.perf_counter() - t1)
-    return img, t_pre, statistics.median(times)
+        return img, t_pre, statistics.median(times)
+
+    if ledger is not None:
+        return run()
+    with fresh_cache():
+        return run()
+
+
+class RawSSDFMemo:
+    """The report's ``ssdf_compute``: the uncompressed SSDFs (rays and distance search,
+    ``precompute.compute_ssdf``) of a mesh at a resolution are computed once, so settings that
+    change only their compression (``pca_terms``) or nothing of them re-run PCA only. The same
+    function with the same arguments: the same SSDFs. Computations and reuses are entered in the
+    recording ledgers (:func:`warp_sg.cache.note_build`, kind ``ssdf_raw``) so the reused ones count
+    at their build time."""
+
+    def __init__(self):
+        self._memo: dict = {}
+
+    def __call__(self, vertices, triangles, normals, *, resolution, ray_resolution, device="cpu", progress=True):
+        from precompute.ssdf import compute_ssdf
+
+        key = content_key(np.asarray(vertices, np.float32), np.asarray(triangles, np.int32),
+                          np.asarray(normals, np.float32), {"resolution": int(resolution),
+                                                            "ray_resolution": int(ray_resolution)})
+        if key in self._memo:
+            note_hit("ssdf_raw", key)
+            return self._memo[key]
+        w0, c0 = time.perf_counter(), time.process_time()
+        X = compute_ssdf(vertices, triangles, normals, resolution=resolution, ray_resolution=ray_resolution,
+                         device=device, progress=progress)
+        note_build("ssdf_raw", key, time.perf_counter() - w0, time.process_time() - c0)
+        self._memo[key] = X
+        return X
 
 
 # --------------------------------------------------------------------------------------------
@@ -145,16 +198,18 @@ class Report:
     files: dict
 
 
-def mc_curve(scene, truth, device="cpu", max_spp=64, seed=2, progress=True):
-    """Error-vs-time rows of a progressive reference run at every power of two up to ``max_spp``."""
+def mc_curve(scene, truth, device="cpu", max_spp=64, seed=2, progress=True, per_sample: int = 1):
+    """Error-vs-time rows of a progressive reference run at every power of two up to ``max_spp``
+    samples per sub-pixel of ``scene``; ``per_sample``: sub-pixels per pixel (the rows' ``spp``
+    count samples per pixel)."""
     from .reference import render_reference
 
     rows = []
 
     def cb(spp, seconds, img, se):
         if spp & (spp - 1) == 0 or spp == max_spp:
-            rows.append({"knob": "mc_reference", "value": spp, "precompute_s": 0.0, "frame_s": seconds,
-                         "total_s": seconds, "spp": spp, **image_errors(img, truth)})
+            rows.append({"knob": "mc_reference", "value": spp * per_sample, "precompute_s": 0.0, "frame_s": seconds,
+                         "total_s": seconds, "spp": spp * per_sample, **image_errors(img, truth)})
 
     render_reference(scene, spp=max_spp, device=device, progress=progress, seed=seed, callback=cb)
     return rows
@@ -175,8 +230,15 @@ def with_resolution(scene, width=None, height=None):
 
 
 def run_report(scene, out_dir, device=None, quick=False, truth_spp=None, mc_max_spp=None, knobs=None,
-               progress=True, frames=None, width=None, height=None, cluster=None) -> Report:
+               progress=True, frames=None, width=None, height=None, cluster=None, reuse=True) -> Report:
     """Run the sweep for ``scene`` (a Scene or a path) and write the report into ``out_dir``.
+
+    ``reuse`` (default): the settings share one fresh cache, so each precompute stage is built
+    once per distinct input and reused by the settings that do not change it (the uncompressed
+    SSDFs too, :class:`RawSSDFMemo`); a row's ``precompute_s`` is its measured construction plus
+    the build time of everything it reused, i.e. what it costs with an empty cache. ``reuse=False``:
+    a fresh cache for every setting (the same rows, each precompute measured whole). ``report.csv``
+    is rewritten after every row.
 
     ``cluster`` (a Dask cluster spec / Client, :mod:`warp_sg.distributed`): the ground truth's
     samples are split across its workers (same image bit for bit); ``None``: all local, no Dask.
@@ -194,7 +256,7 @@ def run_report(scene, out_dir, device=None, quick=False, truth_spp=None, mc_max_
         raise InputError(f"cannot create the output folder ({e.strerror})", where=str(out)) from None
     if not os.access(out, os.W_OK):
         raise InputError("output folder is not writable", where=str(out))
-    truth_spp = int(truth_spp or (64 if quick else 1024))
+    truth_spp = int(truth_spp or (64 if quick else DEFAULT_TRUTH_SPP))
     mc_max_spp = int(mc_max_spp or max(1, truth_spp // 8))
     frames = frames or (1 if quick else 3)
 
@@ -209,48 +271,52 @@ def run_report(scene, out_dir, device=None, quick=False, truth_spp=None, mc_max_
     k_truth = max([int(rs0.supersampling)] + [int(v) for k, v in sweep if k == "supersampling"] + aa)
     truth_scene = scene if k_truth == _settings(scene).supersampling else with_setting(scene, "supersampling", k_truth)
 
+    per = k_truth * k_truth  # the spp counts are per pixel, spread over the k×k sub-pixels
+    sub_spp = max(1, truth_spp // per)
     t0 = time.perf_counter()
     if cluster is not None:
         from .distributed import render_reference_distributed
 
-        truth = render_reference_distributed(truth_scene, spp=truth_spp, cluster=cluster, device=device,
+        truth = render_reference_distributed(truth_scene, spp=sub_spp, cluster=cluster, device=device,
                                              progress=progress, seed=1)
     else:
-        truth = render_reference(truth_scene, spp=truth_spp, device=device, progress=progress, seed=1)
+        truth = render_reference(truth_scene, spp=sub_spp, device=device, progress=progress, seed=1)
     truth_time = time.perf_counter() - t0
     floor = float(np.sum(truth.stderr.astype(np.float64) ** 2) / max(np.sum(truth.image.astype(np.float64) ** 2),
                                                                         1e-300))
-    rows = mc_curve(truth_scene, truth.image, device, mc_max_spp, progress=progress)
+    rows = mc_curve(truth_scene, truth.image, device, max(1, mc_max_spp // per), progress=progress, per_sample=per)
+    write_rows_csv(out, rows)
     base_img = None
-    it = sweep
     bar = None
     if progress:
         from tqdm.auto import tqdm
 
         bar = tqdm(total=len(sweep) + 1, desc="report sweep", unit="setting", leave=False)
-    try:
-        img, tp, tf = time_renderer(scene, device, frames)
-        base_img = img
-        rows.append({"knob": "default", "value": "scene", "precompute_s": tp, "frame_s": tf, "total_s": tp + tf,
-                     "spp": "", **image_errors(img, truth.image)})
+    with contextlib.ExitStack() as stack:
+        ledger = memo = None
+        if reuse:  # one cache for the sweep: a setting rebuilds only what it changes
+            stack.enter_context(fresh_cache())
+            ledger = stack.enter_context(record_builds())
+            memo = RawSSDFMemo()
         if bar is not None:
-            bar.update(1)
-        for knob, value in it:
-            img, tp, tf = time_renderer(with_setting(scene, knob, value), device, frames)
+            stack.callback(bar.close)
+        for knob, value in [("default", "scene")] + sweep:
+            sc = scene if knob == "default" else with_setting(scene, knob, value)
+            img, tp, tf = time_renderer(sc, device, frames, ledger=ledger, memo=memo)
+            if knob == "default":
+                base_img = img
             rows.append({"knob": knob, "value": value, "precompute_s": tp, "frame_s": tf, "total_s": tp + tf,
                          "spp": "", **image_errors(img, truth.image)})
+            write_rows_csv(out, rows)  # each row as it finishes
             if bar is not None:
                 bar.update(1)
-    finally:
-        if bar is not None:
-            bar.close()
 
     from .regions import region_errors, scene_regions
 
     regions = region_errors(base_img, truth.image, scene_regions(scene, device=device)) if base_img is not None else None
-    files = write_outputs(out, rows, truth.image, base_img, truth_spp, floor, truth_time, scene, k_truth,
+    files = write_outputs(out, rows, truth.image, base_img, sub_spp * per, floor, truth_time, scene, k_truth,
                           regions=regions)
-    return Report(out, rows, truth_spp, floor, files)
+    return Report(out, rows, sub_spp * per, floor, files)
 
 
 # --------------------------------------------------------------------------------------------
@@ -355,16 +421,20 @@ def plot_images(truth, img, path):
     _save_figure(fig, path)
 
 
-def write_outputs(out: Path, rows, truth, base_img, truth_spp, floor, truth_time, scene=None, k_truth=1,
-                  regions=None) -> dict:
-    files = {}
-    p = out / "report.csv"
+def write_rows_csv(out: Path, rows) -> Path:
+    """``report.csv`` of the rows so far (rewritten atomically: readers see whole files)."""
+    p = Path(out) / "report.csv"
     with atomic_output(p) as tmp, open(tmp, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=CSV_FIELDS, extrasaction="ignore")
         w.writeheader()
         for r in rows:
             w.writerow({k: r.get(k, "") for k in CSV_FIELDS})
-    files["csv"] = p
+    return p
+
+
+def write_outputs(out: Path, rows, truth, base_img, truth_spp, floor, truth_time, scene=None, k_truth=1,
+                  regions=None) -> dict:
+    files = {"csv": write_rows_csv(out, rows)}
     plot_error_vs_time(rows, out / "error_vs_time.png", floor)
     files["plot"] = out / "error_vs_time.png"
     plot_error_vs_time(rows, out / "psnr_vs_time.png", metric="psnr_db")
@@ -381,10 +451,13 @@ def write_outputs(out: Path, rows, truth, base_img, truth_spp, floor, truth_time
     else:
         lines += [f"Image: {w}×{h} pixels.", ""]
     lines += [
-        f"Ground truth: Monte-Carlo reference with {truth_spp} samples per sub-pixel, supersampling {k_truth} "
+        f"Ground truth: Monte-Carlo reference with {truth_spp} samples per pixel ({truth_spp // (k_truth * k_truth)} "
+        f"per sub-pixel of a {k_truth}×{k_truth} grid) "
         f"({truth_time:.1f} s); its noise floor (Σ stderr² / Σ ref²) is {floor:.3g} in relative MSE. "
         f"The MC curve is an independent progressive run at the same supersampling.",
-        "Precompute times use an empty cache; frame times are the median of warm frames.",
+        "Precompute times are those of an empty cache with the stages one after the other (each stage built "
+        "once and reused by the settings that do not change it, counted at its build time); frame times "
+        "are the median of warm frames.",
         "",
     ]
     if base and mc:
@@ -426,7 +499,8 @@ def add_cli_arguments(p) -> None:
     p.add_argument("-o", "--output", required=True, help="output folder")
     add_device_argument(p)
     p.add_argument("--quick", action="store_true", help="small sweep (smoke test)")
-    p.add_argument("--truth-spp", type=int, default=None, help="samples per pixel of the ground truth")
+    p.add_argument("--truth-spp", type=int, default=None,
+                   help=f"samples per pixel of the ground truth (default {DEFAULT_TRUTH_SPP}; --quick: 64)")
     p.add_argument("--width", type=int, default=None, help="override the camera width (keeps the aspect)")
     p.add_argument("--height", type=int, default=None, help="override the camera height")
     p.add_argument("--no-progress", action="store_true")

@@ -20,6 +20,10 @@
   frame's time / k² — fits ``budget_s``; edge antialiasing off), drawn stretched with bilinear
   texture filtering; the full frame follows when the interaction ends, or when the view rests
   for ``rest_ms`` with the button still down (a one-shot interactor timer).
+* **Shadows arrive later** with a progressive renderer (``Renderer(..., progressive=True)``, the
+  viewer's default on screen): a repeating timer (:data:`SHADOW_POLL_MS`) checks
+  ``Renderer.shadows_ready()``; when the background precompute is done the frame is redrawn, and
+  that render installs the SSDFs. Until then frames are unshadowed and interaction never waits.
 * Nothing here runs precompute: only the ``Renderer`` setters (camera, materials, lights,
   environment) are used. The last frame's time is shown in the upper-right corner.
 """
@@ -33,6 +37,8 @@ from .image_io import tonemap_srgb
 
 #: coarse resolution divisors tried while interacting, finest first
 COARSE_STEPS = (1, 2, 4, 8)
+#: how often the viewport checks whether a progressive renderer's shadows are ready
+SHADOW_POLL_MS = 250
 
 
 def quiet_vtk() -> None:
@@ -88,6 +94,7 @@ class Viewport:
         self._rest = False
         self._last_coarse_t = 0.0
         self._vimg = None
+        self._shadow_timer = None  # repeating timer while a progressive renderer computes its SSDFs
         self._texture = vtk.vtkTexture()
         self._texture.InterpolateOff()
         pl = plotter
@@ -189,8 +196,21 @@ class Viewport:
             # calls it instead of its own OnTimer, which in the rotate / pan state would repeat the
             # last mouse delta (the camera would keep spinning while the button is held still).
             style.AddObserver("TimerEvent", lambda *_: self._on_timer())
+        if self.renderer.shadows_pending and not self.plotter.off_screen:
+            self._shadow_timer = iren.interactor.CreateRepeatingTimer(SHADOW_POLL_MS)
+
+    def _stop_shadow_timer(self) -> None:
+        iren = self.plotter.iren
+        if iren is not None and self._shadow_timer is not None:
+            iren.interactor.DestroyTimer(self._shadow_timer)
+        self._shadow_timer = None
 
     def _on_timer(self) -> None:
+        if self._shadow_timer is not None and self.renderer.shadows_ready():
+            self._stop_shadow_timer()
+            self.invalidate()  # the next frame installs the shadows (Renderer.poll)
+            self.draw()
+            return
         if self.interacting and self._shown and self._shown[1] > 1 \
                 and time.perf_counter() - self._last_coarse_t >= 0.9 * self.rest_ms / 1000.0:
             self._rest = True

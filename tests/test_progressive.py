@@ -1,0 +1,121 @@
+"""``Renderer(..., progressive=True)``: unshadowed frames at once, the shadows from a background
+thread, then the frames of a non-progressive renderer bit for bit (warp_sg.progressive)."""
+from __future__ import annotations
+
+import threading
+import numpy as np
+import pytest
+
+from precompute.ssdf import compute_ssdf
+from warp_sg.bench import bench_scene
+from warp_sg.errors import InputError
+from warp_sg.render import Renderer
+
+
+def _scene(shadows=True):
+    return bench_scene(64, 48, quick=True, shadows=shadows)
+
+
+def test_first_frame_is_the_unshadowed_render_and_the_final_one_the_non_progressive_render(cache_dir):
+    r = Renderer(_scene(), progressive=True)
+    first = r.render()
+    unshadowed = Renderer(_scene(shadows=False)).render()
+    r.wait()
+    assert not r.shadows_pending and r.ssdf is not None and r.shadows
+    final = r.render()
+    reference = Renderer(_scene()).render()
+    if r.shadows_pending:  # pragma: no cover - wait() installs them
+        pytest.fail("shadows still pending after wait()")
+    assert np.array_equal(final, reference)
+    assert not np.array_equal(unshadowed, final)  # the shadows change the image
+    # the first frame may have been rendered after the job finished (then it is shadowed); with
+    # the job held back (next test) it is always the unshadowed one
+    assert np.array_equal(first, unshadowed) or np.array_equal(first, final)
+
+
+def test_frames_do_not_wait_for_the_shadows_and_switch_when_they_are_ready(cache_dir):
+    release = threading.Event()
+    started = threading.Event()
+
+    def slow_ssdf(*args, **kw):  # the real computation, held back until the test lets it go
+        started.set()
+        assert release.wait(120)
+        return compute_ssdf(*args, **kw)
+
+    r = Renderer(_scene(), progressive=True, ssdf_compute=slow_ssdf)
+    assert started.wait(120)
+    unshadowed = Renderer(_scene(shadows=False)).render()
+    for _ in range(2):  # several frames while the precompute is held: all unshadowed
+        assert np.array_equal(r.render(), unshadowed)
+        assert r.shadows_pending and not r.shadows_ready()
+    assert not r.wait(timeout=0.05)
+    r.set_camera(width=40, height=30)  # edits work meanwhile
+    assert r.render().shape == (30, 40, 3)
+    r.set_camera(width=64, height=48)
+    release.set()
+    assert r.wait(120)
+    assert np.array_equal(r.render(), Renderer(_scene()).render())
+    assert r.timings["shadows_ready"] > 0 and "ssdf" in r.timings["precompute_parts"]
+
+
+def test_an_error_of_the_background_precompute_is_raised_by_the_next_frame(cache_dir):
+    def broken(*args, **kw):
+        raise InputError("no rays today", where="ssdf")
+
+    r = Renderer(_scene(), progressive=True, ssdf_compute=broken)
+    r._job.wait(60)
+    with pytest.raises(InputError, match="no rays today"):
+        r.render()
+
+
+def test_a_scene_without_shadows_has_nothing_pending(cache_dir):
+    r = Renderer(_scene(shadows=False), progressive=True)
+    assert not r.shadows_pending and r.shadows_ready() and r.wait(0)
+
+
+def test_cli_first_frame_writes_the_unshadowed_frame_then_the_final_one(cache_dir, tmp_path):
+    from warp_sg.cli import main
+    from warp_sg.image_io import load_image
+
+    scene_file = tmp_path / "s.toml"
+    scene_file.write_text('''
+[camera]
+origin = [0.0, 1.6, 4.2]
+target = [0.0, 0.45, 0.0]
+fov = 38.0
+width = 48
+height = 36
+[[objects]]
+primitive = "sphere"
+center = [0.0, 0.5, 0.0]
+radius = 0.5
+resolution = [8, 16]
+material = "m"
+[[objects]]
+primitive = "plane"
+center = [0.0, 0.0, 0.0]
+size = [5.0, 5.0]
+resolution = [4, 4]
+material = "m"
+[materials.m]
+model = "lambert"
+kd = [0.6, 0.6, 0.6]
+[[lights]]
+type = "directional"
+direction = [-0.4, 1.0, 0.3]
+radius = 0.05
+intensity = [1.0, 1.0, 1.0]
+[render]
+ssdf_resolution = 16
+pca_terms = 8
+visibility_budget = 800
+''')
+    first, final, plain = tmp_path / "first.exr", tmp_path / "final.exr", tmp_path / "plain.exr"
+    assert main(["render", str(scene_file), "--first-frame", str(first), "-o", str(final), "--no-progress"]) == 0
+    assert main(["render", str(scene_file), "-o", str(plain), "--no-progress"]) == 0
+    flat = tmp_path / "flat.exr"
+    assert main(["render", str(scene_file), "-o", str(flat), "--no-shadows", "--no-progress"]) == 0
+    assert np.array_equal(load_image(final), load_image(plain))
+    a = load_image(first)
+    assert np.array_equal(a, load_image(flat)) or np.array_equal(a, load_image(plain))
+    assert main(["render", str(scene_file), "--first-frame", str(first)]) == 2  # needs -o
