@@ -81,8 +81,6 @@ def motion_from_fields(fields: dict, where: str = "objects") -> np.ndarray:
             raise SceneError("give either 'matrix' or translate/rotate/scale/pivot", where=where)
         R, s, t = check_motion(fields["matrix"], where=f"{where}.matrix")
         return motion_matrix(R, t, s)
-    from .scene_model import Transform
-
     def vec(k, default):
         try:
             v = np.asarray(fields.get(k, default), np.float64).reshape(3)
@@ -96,8 +94,18 @@ def motion_from_fields(fields: dict, where: str = "objects") -> np.ndarray:
     s = fields.get("scale", 1.0)
     if isinstance(s, bool) or not isinstance(s, (int, float)) or not (s > 0 and np.isfinite(s)):
         raise SceneError(f"must be a number > 0, got {s!r}", where=f"{where}.scale")
-    R = Transform(rotate=tuple(rot)).linear()
+    R = euler_rotation(rot)
     return motion_matrix(R, p + t - float(s) * R @ p, float(s))
+
+
+def euler_rotation(degrees) -> np.ndarray:
+    """``Rz·Ry·Rx`` of Euler angles (degrees) about X, then Y, then Z (an object's ``rotate``)."""
+    ax, ay, az = (np.radians(float(a)) for a in np.asarray(degrees, np.float64).reshape(3))
+    cx, sx, cy, sy, cz, sz = np.cos(ax), np.sin(ax), np.cos(ay), np.sin(ay), np.cos(az), np.sin(az)
+    Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    return Rz @ Ry @ Rx
 
 
 def motion_about(rotation, pivot, translation=(0.0, 0.0, 0.0)) -> np.ndarray:
@@ -127,5 +135,5 @@ def apply_motion(matrix, vertices, normals=None, tangents=None):
     return v, n, tg
 
 
-__all__ = ["check_motion", "motion_matrix", "rotation_about", "apply_motion", "motion_from_fields", "motion_about", "rolling", "MOTION_FIELDS",
+__all__ = ["check_motion", "motion_matrix", "rotation_about", "apply_motion", "motion_from_fields", "euler_rotation", "motion_about", "rolling", "MOTION_FIELDS",
            "ORTHO_TOL"]

@@ -7,7 +7,6 @@ of a whole scene happens in ``Scene.__post_init__``; the TOML file is read by
 from __future__ import annotations
 
 import difflib
-import math
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
@@ -34,13 +33,10 @@ class Transform:
     rotate: tuple = (0.0, 0.0, 0.0)
 
     def linear(self) -> np.ndarray:
-        ax, ay, az = (math.radians(float(a)) for a in self.rotate)
-        cx, sx, cy, sy, cz, sz = math.cos(ax), math.sin(ax), math.cos(ay), math.sin(ay), math.cos(az), math.sin(az)
-        Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
-        Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
-        Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+        from .rigid_motion import euler_rotation
+
         s = np.broadcast_to(np.asarray(self.scale, np.float64), (3,))
-        return Rz @ Ry @ Rx @ np.diag(s)
+        return euler_rotation(self.rotate) @ np.diag(s)
 
     def is_identity(self) -> bool:
         return (np.allclose(self.translate, 0) and np.allclose(self.scale, 1) and np.allclose(self.rotate, 0))
