@@ -141,6 +141,15 @@ class DynamicObjects:
                 outlines.append(p.polygon)
         self.rest_spheres = np.concatenate(spheres).astype(np.float64) if spheres else np.zeros((0, 4))
         self.sphere_owner = np.asarray(sowner, np.int64)
+        n = max(self.n_objects, 1)
+        self.sphere_count = np.bincount(self.sphere_owner, minlength=n)[:n] if len(sowner) else np.zeros(n, np.int64)
+        self.sphere_start = np.concatenate([[0], np.cumsum(self.sphere_count)[:-1]])
+        self.rest_bounds = np.zeros((n, 4))
+        self.rest_bounds[:, 3] = -1.0
+        for k in np.flatnonzero(self.sphere_count):  # a sphere around the object's spheres
+            S = self.rest_spheres[self.sphere_start[k]:self.sphere_start[k] + self.sphere_count[k]]
+            c = S[:, :3].mean(0)
+            self.rest_bounds[k] = [*c, float(np.max(np.linalg.norm(S[:, :3] - c, axis=1) + S[:, 3]))]
         self.planes = np.asarray(planes, np.float32).reshape(-1, 4)
         self.disks = np.asarray(disks, np.float32).reshape(-1, 4)
         self.plane_owner = np.asarray(powner, np.int64)
@@ -183,6 +192,9 @@ class DynamicObjects:
         px.sphere_owner = wp.array(self.sphere_owner.astype(np.int32) if len(self.sphere_owner)
                                    else np.array([-1], np.int32), dtype=int, device=d)
         px.blobs = wp.array(self.rest_blobs.astype(np.float32), dtype=wp.vec4, device=d)
+        px.bounds = wp.array(self.rest_bounds.astype(np.float32), dtype=wp.vec4, device=d)
+        px.sphere_start = wp.array(self.sphere_start.astype(np.int32), dtype=int, device=d)
+        px.sphere_count = wp.array(self.sphere_count.astype(np.int32), dtype=int, device=d)
         px.blob_owner = wp.array(self.blob_owner.astype(np.int32), dtype=int, device=d)
         n_pl = len(self.planes)
         px.planes = wp.array(self.planes if n_pl else np.zeros((1, 4), np.float32), dtype=wp.vec4, device=d)
@@ -252,6 +264,7 @@ class DynamicObjects:
         C = self.rest_cones.copy() if vis_frames else np.zeros((len(V), 4))
         S = self.rest_spheres.copy()
         B = self.rest_blobs.copy()
+        Bd = self.rest_bounds.copy()
         for k, ids in self.ids.items():
             delta = self.motion[k] @ np.linalg.inv(self.rest_motion[k])  # from the pose the geometry was built in
             R, s, t = check_motion(delta)
@@ -264,6 +277,8 @@ class DynamicObjects:
             S[own, 3] = self.rest_spheres[own, 3] * s
             B[k, :3] = self.rest_blobs[k, :3] @ (s * R).T + t
             B[k, 3] = self.rest_blobs[k, 3] * s
+            Bd[k, :3] = self.rest_bounds[k, :3] @ (s * R).T + t
+            Bd[k, 3] = self.rest_bounds[k, 3] * s if self.rest_bounds[k, 3] > 0 else -1.0
         f32 = lambda a: np.ascontiguousarray(a, np.float32)  # noqa: E731
         ga = r.geo_arrays
         ga.positions.assign(f32(V))
@@ -276,6 +291,7 @@ class DynamicObjects:
         if len(S):
             self.px.spheres.assign(f32(S))
         self.px.blobs.assign(f32(B))
+        self.px.bounds.assign(f32(Bd))
         r.geometry = replace(r.geometry, vertices=f32(V), normals=f32(N), tangents=f32(Tg))
         r._vb_key = None  # the visibility buffer
         if r._culling is not None:

@@ -49,8 +49,11 @@ class Proxies:
     active: int  # 0: a static scene (the funcs return "nothing occludes")
     tri_object: wp.array(dtype=int)  # (T,) the object of each triangle
     dynamic: wp.array(dtype=int)  # (objects,) 1 for a dynamic object
-    spheres: wp.array(dtype=wp.vec4)  # (K,) centre, radius
+    spheres: wp.array(dtype=wp.vec4)  # (K,) centre, radius, grouped by object
     sphere_owner: wp.array(dtype=int)  # (K,) object; -1: none (placeholder)
+    bounds: wp.array(dtype=wp.vec4)  # (objects,) a sphere around each object's spheres (radius < 0: none)
+    sphere_start: wp.array(dtype=int)  # (objects,) its first sphere
+    sphere_count: wp.array(dtype=int)  # (objects,) and how many
     blobs: wp.array(dtype=wp.vec4)  # (objects,) the one sphere the diffuse term sees (proxies.diffuse_sphere)
     blob_owner: wp.array(dtype=int)  # (objects,) object; -1: none (a plane, or no such object)
     planes: wp.array(dtype=wp.vec4)  # (L,) unit normal m, offset h (m·x + h = 0)
@@ -87,21 +90,29 @@ def _plane_side(px: Proxies, i: int, P: wp.vec3) -> float:
 
 
 @wp.func
-def proxy_theta(px: Proxies, tri: int, P: wp.vec3, d: wp.vec3) -> float:
+def _sphere_theta(s: wp.vec4, P: wp.vec3, d: wp.vec3) -> float:
+    """A sphere's SSDF seen from P at direction d: ∠(d, a) − α (−π/2 inside it)."""
+    v = wp.vec3(s[0], s[1], s[2]) - P
+    dist = wp.length(v)
+    if dist <= s[3]:
+        return -_HALF_PI
+    return wp.acos(wp.clamp(wp.dot(d, v) / dist, -1.0, 1.0)) - wp.asin(s[3] / dist)
+
+
+@wp.func
+def proxy_theta(px: Proxies, tri: int, P: wp.vec3, d: wp.vec3, reach: float) -> float:
     """``θp``: the SSDF at unit direction ``d`` of the proxies that occlude the point ``P`` of
-    triangle ``tri`` (module docstring); 4 (beyond any angle) where none does."""
+    triangle ``tri`` (module docstring), where it is below ``reach`` (an object whose bounding
+    sphere is ``reach`` or more from ``d`` is skipped); 4 (beyond any angle) where none is."""
     th = float(_FAR)
     recv = px.tri_object[tri]
-    for i in range(px.spheres.shape[0]):
-        if _pair(px, recv, px.sphere_owner[i]) != 0:
-            s = px.spheres[i]
-            v = wp.vec3(s[0], s[1], s[2]) - P
-            dist = wp.length(v)
-            if dist <= s[3]:
-                th = -_HALF_PI
-            else:
-                c = wp.clamp(wp.dot(d, v) / dist, -1.0, 1.0)
-                th = wp.min(th, wp.acos(c) - wp.asin(s[3] / dist))
+    for k in range(px.bounds.shape[0]):
+        b = px.bounds[k]
+        if b[3] > 0.0 and _pair(px, recv, k) != 0:
+            if _sphere_theta(b, P, d) < reach:
+                s0 = px.sphere_start[k]
+                for i in range(s0, s0 + px.sphere_count[k]):
+                    th = wp.min(th, _sphere_theta(px.spheres[i], P, d))
     for i in range(px.planes.shape[0]):
         if _pair(px, recv, px.plane_owner[i]) != 0:
             sg = _plane_side(px, i, P)
@@ -118,8 +129,9 @@ def proxy_ratio(fh_mode: int, table: wp.array2d(dtype=float), px: Proxies, tri: 
     leave (1 in a static scene, or where they clear the lobe by θmax(λ))."""
     if px.active == 0:
         return 1.0
-    th = proxy_theta(px, tri, P, d)
-    if th >= fh_theta_max_wp(lam):
+    tmax = fh_theta_max_wp(lam)
+    th = proxy_theta(px, tri, P, d, tmax)
+    if th >= tmax:
         return 1.0
     th_h = fast_asin(wp.clamp(wp.dot(d, ng), -1.0, 1.0))
     a = float(0.0)
@@ -237,7 +249,8 @@ def no_proxies(device) -> Proxies:
     px.active = 0
     px.tri_object = px.dynamic = px.sphere_owner = px.plane_owner = px.blob_owner = wp.full(1, -1, dtype=int,
                                                                                            device=device)
-    px.spheres = px.planes = px.disks = px.blobs = wp.zeros(1, dtype=wp.vec4, device=device)
+    px.spheres = px.planes = px.disks = px.blobs = px.bounds = wp.zeros(1, dtype=wp.vec4, device=device)
+    px.sphere_start = px.sphere_count = wp.zeros(1, dtype=int, device=device)
     px.outline = wp.zeros(1, dtype=wp.vec3, device=device)
     px.outline_start = px.outline_count = wp.zeros(1, dtype=int, device=device)
     px.behind = placeholder_table(device)

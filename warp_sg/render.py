@@ -263,7 +263,9 @@ class Renderer(EnvironmentSetup):
 
         es = update_caches(self, es)
         if self.dynamic is not None:  # the moved vertices' rows
+            t = time.perf_counter()
             self.dynamic.patch_caches(self, es)
+            self.timings["motion_caches"] = self.timings.get("motion_caches", 0.0) + time.perf_counter() - t
         return es
 
     def _setup_materials(self):
@@ -562,6 +564,7 @@ class Renderer(EnvironmentSetup):
         """Dynamic objects' transforms into the device arrays (timed as ``timings["motion"]``)."""
         if self.dynamic is not None:
             t = time.perf_counter()
+            self.timings["motion_caches"] = 0.0  # (the moved vertices' cache rows, summed over the frame)
             with wp.ScopedDevice(self.device):
                 self.dynamic.apply(self)
             self.timings["motion"] = time.perf_counter() - t
