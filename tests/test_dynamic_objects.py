@@ -249,3 +249,18 @@ def test_reference_cli_takes_a_transform(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "--transform" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "s.exr").exists()
+
+
+def test_a_transform_set_before_progressive_shadows_arrive_is_kept(tmp_path):
+    """A progressive renderer moved while its SSDFs are still computing: once they are installed
+    (the refined mesh replaces the input one) the frame equals a renderer built with them at once
+    and moved the same way."""
+    sc = _scene(tmp_path, size=24)
+    M = _roll(0.8, 0.2)
+    p = ws.Renderer(sc, progressive=True)
+    p.set_object_transform("object", M)
+    p.render()
+    assert p.wait(120)
+    r = ws.Renderer(_scene(tmp_path / "again", size=24))
+    r.set_object_transform("object", M)
+    assert np.array_equal(p.render(), r.render())
