@@ -345,6 +345,35 @@ def test_repository_cites_only_its_own_docs():
     assert not bad, f"cite DESIGN.md, which is not in the repository: {bad}"
 
 
+def _slug(heading: str) -> str:
+    """GitHub's anchor of a heading: lower case, punctuation dropped, spaces to hyphens."""
+    return "".join(ch for ch in heading.strip().lower() if ch.isalnum() or ch in "-_ ").replace(" ", "-")
+
+
+def _prose(text: str) -> str:
+    return re.sub(r"^```.*?^```", "", text, flags=re.S | re.M)
+
+
+def test_doc_links_reach_their_files_and_headings():
+    """Every relative link of the README and ``docs/*.md`` reaches a file of the repository, and a
+    ``#anchor`` one of that page's headings."""
+    bad = []
+    for page in [README, *sorted((ROOT / "docs").glob("*.md"))]:
+        for target in re.findall(r"\]\(([^)\s]+)\)", _prose(page.read_text(encoding="utf-8"))):
+            if target.startswith(("http://", "https://", "mailto:")):
+                continue
+            path, _, anchor = target.partition("#")
+            dest = (page.parent / path) if path else page
+            if not dest.exists():
+                bad.append(f"{page.relative_to(ROOT)}: {target} (no such file)")
+            elif anchor and dest.suffix == ".md":
+                heads = {_slug(ln.lstrip("#")) for ln in _prose(dest.read_text(encoding="utf-8")).splitlines()
+                         if ln.startswith("#")}
+                if anchor not in heads:
+                    bad.append(f"{page.relative_to(ROOT)}: {target} (no such heading)")
+    assert not bad, "links that lead nowhere:\n" + "\n".join(bad)
+
+
 # --------------------------------------------------------------------------------------------
 # the commands, run
 # --------------------------------------------------------------------------------------------
