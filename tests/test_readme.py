@@ -2,8 +2,9 @@
 of its "Using it" block are parsed by the real CLI, the cheap ones are run (at small sizes, via
 documented flags) with every output redirected into a temporary folder, and every file the README
 names exists in the repository. Every project name that the README, ``docs/*.md`` and the docstrings
-of the three packages and ``scripts/`` cite (``warp_sg.x.y``, ``precompute.x``, ``raster.x``,
-``module.function``, ``Class.member``) resolves by import and ``getattr`` (issue 29).
+of the three packages, ``scripts/``, ``examples/`` and ``tests/`` cite (``warp_sg.<module>.<name>``,
+``precompute.<name>``, ``raster.<name>``, ``<module>.<function>``, ``<Class>.<member>``) resolves by
+import and ``getattr`` (issue 29).
 
 Run in a fresh clone by CI (``.ci/run``), so this is the "newcomer" check of the README.
 """
@@ -195,7 +196,7 @@ _DOTTED = re.compile(r"(?<![\w./\-'\"])([A-Za-z_]\w*(?:\.[A-Za-z_]\w*)+)")
 
 def _project_modules() -> list[str]:
     """Every module of the three packages, found by walking their folders (so the check follows a
-    restructuring: a short name ``shading.x`` is looked up in whichever module ends in ``shading``)."""
+    restructuring: a short name ``shading.<name>`` is looked up in whichever module ends in ``shading``)."""
     out = []
     for pkg in PACKAGES:
         for path in sorted((ROOT / pkg).rglob("*.py")):
@@ -324,10 +325,11 @@ def test_docs_name_project_names_that_exist(names):
 
 
 def test_docstrings_name_project_names_that_exist(names):
-    """Every project name in the docstrings of ``warp_sg/``, ``raster/``, ``precompute/`` and
-    ``scripts/`` (in ``backticks`` or a ``:func:`` role, or rooted in a package) resolves."""
+    """Every project name in the docstrings of ``warp_sg/``, ``raster/``, ``precompute/``,
+    ``scripts/``, ``examples/`` and ``tests/`` (in ``backticks`` or a ``:func:`` role, or rooted in a
+    package) resolves."""
     bad = []
-    files = [p for pkg in (*PACKAGES, "scripts") for p in sorted((ROOT / pkg).rglob("*.py"))]
+    files = [p for pkg in (*PACKAGES, "scripts", "examples", "tests") for p in sorted((ROOT / pkg).rglob("*.py"))]
     for path in files:
         cited = set()
         for doc in _docstrings(path):
