@@ -1,4 +1,4 @@
-"""Import layering of the library (DESIGN.md "Layers": imports go down only, no circles).
+"""Import layering of the library (docs/architecture.md "Layers": imports go down only, no circles).
 
 Reads every module of ``warp_sg/``, ``raster/`` and ``precompute/`` with :mod:`ast` and builds the
 graph of their imports of each other: module-level and function-level ``import`` / ``from ...
@@ -9,7 +9,7 @@ otherwise at the module it comes from. The tests then require
 * no import cycle between modules (strongly connected components of more than one module; the
   failure shows one cycle of each),
 * no library module importing the command line (``warp_sg.cli``): the CLI sits on top,
-* every module in a layer (:data:`LAYERS`, DESIGN.md's table: base → math → scene → engines →
+* every module in a layer (:data:`LAYERS`, the table of docs/architecture.md "Layers": base → math → scene → engines →
   render → tools) and every import going to the same or a lower layer (the failure names the
   importing module, the line, and both layers), and
 * no library file longer than :data:`MAX_LINES` lines (one concept per file).
@@ -28,7 +28,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("warp_sg", "raster", "precompute")
 
-#: DESIGN.md "Layers", bottom to top: a module may import its own layer and the layers below.
+#: docs/architecture.md "Layers", bottom to top: a module may import its own layer and the layers below.
 LAYER_ORDER = ("base", "math", "scene", "engines", "render", "tools")
 
 #: (layer, modules): exact dotted names, or ``"pkg.*"`` for every module below ``pkg``; the first

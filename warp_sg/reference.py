@@ -2,7 +2,7 @@ r"""Monte-Carlo reference renderer: ``ws.reference(scene, spp=256, device="cpu")
 
 It renders exactly the light transport of :func:`warp_sg.render` — direct lighting, one bounce —
 with the exact (unfitted) BRDFs (``material_wp.brdf_eval``) and exact visibility (``wp.Mesh`` ray
-casts), so ``render`` vs ``reference`` measures only the SG approximation error (DESIGN.md).
+casts), so ``render`` vs ``reference`` measures only the SG approximation error (docs/architecture.md "Conventions").
 
 Per pixel
     Primary visibility by ray casting from the renderer's camera through the centres of the
@@ -19,7 +19,7 @@ Per shading point ``x`` (shading normal ``n``, view ``o``), one *sample* is
     combined by multiple importance sampling (power heuristic, β = 2, per light). Delta lights
     (radius 0) are evaluated directly. Shadow rays are exact ``wp.Mesh`` queries.
 
-Lights (DESIGN.md):
+Lights (docs/math.md "Lights"):
     * point light (position ``l``, radius ``r``, intensity ``s``): a sphere of uniform radiance
       ``s/(π r²)``, so its irradiance at distance ``d`` facing it is ``s/d²``;
     * directional light (direction, angular radius ``r``, irradiance ``E``): a cone of uniform
@@ -232,7 +232,7 @@ class _Prepared:
                 self.bg_image, spp, seed, sample_offset]
         n = self.n
         if self.device == "cpu" and threads > 1 and n >= 2 * threads:
-            # a CPU launch runs on one core: disjoint ranges from a thread pool scale (DESIGN.md)
+            # a CPU launch runs on one core: disjoint ranges from a thread pool scale (docs/raster.md "Performance")
             bounds = np.linspace(0, n, threads + 1).astype(int)
 
             def run(j):

@@ -1,4 +1,4 @@
-r"""Error per image region and as bias (issue 11; DESIGN.md "Error is reported per region").
+r"""Error per image region and as bias (issue 11; docs/rendering.md "Error per region and as bias").
 
 One image-wide relative MSE hides a 15 % dark floor behind a correct sky. :func:`scene_regions`
 splits a scene's pixels into

@@ -1,6 +1,6 @@
 r"""The renderer: ``ws.render(scene, device)`` and the stateful ``ws.Renderer``.
 
-Data flow (DESIGN.md): ``scene → precompute (cached) → raster (visibility buffer) → shading → image``.
+Data flow (docs/architecture.md "Conventions"): ``scene → precompute (cached) → raster (visibility buffer) → shading → image``.
 
 ``Renderer(scene, device)`` does the precompute once and keeps everything on the device:
 
@@ -591,8 +591,8 @@ class Renderer(EnvironmentSetup):
 
 
 def render(scene: Scene, device: str | None = None, progress: bool = False) -> np.ndarray:
-    """Render ``scene`` once: (H, W, 3) float32 linear radiance (DESIGN.md public interface).
-    ``device`` defaults to ``scene.render.device``."""
+    """Render ``scene`` once: (H, W, 3) float32 linear radiance (docs/architecture.md "Public interface").
+    ``device`` defaults to the scene's ``[render] device``."""
     return Renderer(scene, device, progress=progress).render()
 
 

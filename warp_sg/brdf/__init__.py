@@ -1,6 +1,6 @@
 r"""BRDF models (local frame, z+ = normal), their NDF SG fits and the kernel-side material records.
 
-``ρ(o, i) = kd/π + ks ρs(o, i)``, ``ρs = Mo(o, i) D(h)`` (DESIGN.md "BRDF"; paper eq. 8–9).
+``ρ(o, i) = kd/π + ks ρs(o, i)``, ``ρs = Mo(o, i) D(h)`` (docs/math.md "BRDF"; paper eq. 8–9).
 Models are keyed in :data:`MODELS` by their scene-file names; :func:`make_model` validates the
 parameter names (an unknown one raises :class:`~warp_sg.errors.InputError` naming the closest).
 The kernel side (``Material`` struct, ``brdf_eval``, ``slice_lobe`` ...) is in
