@@ -1,4 +1,4 @@
-"""precompute: everything cached on disk before rendering (DESIGN.md): per-vertex visibility by
+"""precompute: everything cached on disk before rendering (docs/precompute.md): per-vertex visibility by
 BVH ray queries, SSDFs with PCA, environment prefiltering and SG mixture fits.
 
 Names load on first use (PEP 562) so importing one step does not compile the others' kernels.

@@ -1,4 +1,4 @@
-r"""Refine a mesh where its per-vertex visibility needs samples (DESIGN.md, "Second round").
+r"""Refine a mesh where its per-vertex visibility needs samples (docs/rendering.md "Shading").
 
 Visibility (the SSDF) lives on vertices, so a user's floor exported as one quad (4 vertices) next
 to a ball cannot hold the ball's shadow. The renderer therefore treats the user's mesh as input,

@@ -374,6 +374,26 @@ class SSDFPoint:
 
 
 @wp.func
+def _frame_blend(q: SSDFPoint, b0: float, b1: float, b2: float) -> SSDFPoint:
+    """The shared-lookup and own-frame coefficients of :func:`ssdf_point` from its frames."""
+    ng = q.ng
+    # cos of the rotation angle between F_k and F: (trace(F_k^T F) − 1) / 2
+    a0 = wp.smoothstep(FRAME_COS_EXACT, FRAME_COS_FAST,
+                       0.5 * (wp.dot(q.t0, q.t) + wp.dot(q.s0, q.b) + wp.dot(q.n0, ng) - 1.0))
+    a1 = wp.smoothstep(FRAME_COS_EXACT, FRAME_COS_FAST,
+                       0.5 * (wp.dot(q.t1, q.t) + wp.dot(q.s1, q.b) + wp.dot(q.n1, ng) - 1.0))
+    a2 = wp.smoothstep(FRAME_COS_EXACT, FRAME_COS_FAST,
+                       0.5 * (wp.dot(q.t2, q.t) + wp.dot(q.s2, q.b) + wp.dot(q.n2, ng) - 1.0))
+    q.c0 = a0 * b0
+    q.c1 = a1 * b1
+    q.c2 = a2 * b2
+    q.e0 = (1.0 - a0) * b0
+    q.e1 = (1.0 - a1) * b1
+    q.e2 = (1.0 - a2) * b2
+    return q
+
+
+@wp.func
 def ssdf_point(normals: wp.array(dtype=wp.vec3), i0: int, i1: int, i2: int, b0: float, b1: float, b2: float,
                ng: wp.vec3) -> SSDFPoint:
     """The direction-independent part of :func:`ssdf_eval_world` for the point with barycentrics
@@ -395,20 +415,27 @@ def ssdf_point(normals: wp.array(dtype=wp.vec3), i0: int, i1: int, i2: int, b0: 
     q.s1 = frame_bitangent(q.n1)
     q.t2 = frame_tangent(q.n2)
     q.s2 = frame_bitangent(q.n2)
-    # cos of the rotation angle between F_k and F: (trace(F_k^T F) − 1) / 2
-    a0 = wp.smoothstep(FRAME_COS_EXACT, FRAME_COS_FAST,
-                       0.5 * (wp.dot(q.t0, q.t) + wp.dot(q.s0, q.b) + wp.dot(q.n0, ng) - 1.0))
-    a1 = wp.smoothstep(FRAME_COS_EXACT, FRAME_COS_FAST,
-                       0.5 * (wp.dot(q.t1, q.t) + wp.dot(q.s1, q.b) + wp.dot(q.n1, ng) - 1.0))
-    a2 = wp.smoothstep(FRAME_COS_EXACT, FRAME_COS_FAST,
-                       0.5 * (wp.dot(q.t2, q.t) + wp.dot(q.s2, q.b) + wp.dot(q.n2, ng) - 1.0))
-    q.c0 = a0 * b0
-    q.c1 = a1 * b1
-    q.c2 = a2 * b2
-    q.e0 = (1.0 - a0) * b0
-    q.e1 = (1.0 - a1) * b1
-    q.e2 = (1.0 - a2) * b2
-    return q
+    return _frame_blend(q, b0, b1, b2)
+
+
+@wp.func
+def ssdf_point_framed(normals: wp.array(dtype=wp.vec3), frame_t: wp.array(dtype=wp.vec3),
+                      frame_b: wp.array(dtype=wp.vec3), i0: int, i1: int, i2: int, b0: float, b1: float, b2: float,
+                      ng: wp.vec3) -> SSDFPoint:
+    """:func:`ssdf_point` with the vertex frames stored per vertex (``frame_t``, ``frame_b``: the
+    tangent and bitangent of the frame each vertex's SSDF is stored in, which turn with a moving
+    object, :mod:`warp_sg.dynamic_objects`); arrays of another length than ``normals`` (a
+    placeholder): the frames of the normals, exactly :func:`ssdf_point`."""
+    q = ssdf_point(normals, i0, i1, i2, b0, b1, b2, ng)
+    if frame_t.shape[0] != normals.shape[0]:
+        return q
+    q.t0 = frame_t[i0]
+    q.s0 = frame_b[i0]
+    q.t1 = frame_t[i1]
+    q.s1 = frame_b[i1]
+    q.t2 = frame_t[i2]
+    q.s2 = frame_b[i2]
+    return _frame_blend(q, b0, b1, b2)
 
 
 @wp.func

@@ -1,20 +1,15 @@
 #!/usr/bin/env bash
-# Wheels for the GPU machine, in parts that fit one device call each.
+# Wheels for a machine with a GPU but no network access, in parts of at most 55 MiB.
 #
-# The device tool's machine (docs/benchmarks.md "CUDA") has Python 3.12 with numpy, scipy, tqdm,
-# matplotlib, Pillow and OpenCV, but no warp-lang, trimesh, OpenEXR or pydantic, and no network.
-# They travel as wheels. warp-lang's wheel alone (~150 MB) is over one call's 64 MiB, so the
-# wheels are tarred and split into 55 MiB parts, one folder each (.gpu/p1, .gpu/p2, ...; ignored by
-# git), each carried by one call that stashes it on the (warm) machine; the last call assembles,
-# installs into /tmp/site and runs the checks:
+# Such a machine may have Python 3.12 with numpy, scipy, tqdm, matplotlib, Pillow and OpenCV but
+# no warp-lang, trimesh, OpenEXR or pydantic (docs/benchmarks.md "CUDA on a machine with a GPU").
+# They travel as wheels: tarred and split into 55 MiB parts, one folder each (.gpu/p1, .gpu/p2, ...;
+# ignored by git), which can be copied one at a time into one folder on that machine; there
 #
-#   bash scripts/gpu_bundle.sh                          # here, with network
-#   run(carry=[".gpu/p1"], command="mkdir -p /root/gpu_parts && cp .gpu/p1/* /root/gpu_parts/")
-#   run(carry=[".gpu/p2"], command="cp .gpu/p2/* /root/gpu_parts/")    # … every part, back to back
-#   run(command="bash scripts/gpu_check.sh --parts /root/gpu_parts $OUT", timeout_s=600)
+#   bash scripts/gpu_check.sh --parts DIR OUT_DIR
 #
-# (The machine goes back 30 s after a call: make the calls back to back, or carry everything
-# again.) Versions are the ones installed here, so the GPU run uses the code CI tests.
+# assembles them, installs into /tmp/site and runs the checks. Versions are the ones installed
+# here, so the GPU run uses the code CI tests.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PYV="${PYV:-3.12}"

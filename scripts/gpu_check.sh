@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
-# CUDA checks for a machine with a GPU (the device tool); about 5-8 minutes. Prints what it measures.
+# CUDA checks for a machine with a GPU; about 5-8 minutes. Prints what it measures.
 #   bash scripts/gpu_check.sh [--parts DIR] [OUT_DIR]
 # --parts DIR: install the wheels of scripts/gpu_bundle.sh (its parts, stashed in DIR by earlier
-# calls) into /tmp/site first; the device machine has no warp-lang, trimesh, OpenEXR or pydantic.
+# copies) into /tmp/site first, for a GPU machine without warp-lang, trimesh, OpenEXR or pydantic.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 if [ "${1:-}" = "--parts" ]; then

@@ -166,7 +166,7 @@ def _pct(e, key="bias"):
 
 def write_markdown(rows, path: Path, size: int, spp: int, figures_rel: str):
     lines = [
-        "# Accuracy on real inputs (issue 26)",
+        "# Accuracy on real inputs",
         "",
         "Poly Haven HDRIs (1024×512 Radiance files: a stiff clear-day sun with its halo, a low sunset sun, a",
         "night map of lamps, a soft sunrise, a black map with one spot) and glTF assets from three.js's examples,",

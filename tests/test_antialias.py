@@ -174,71 +174,64 @@ def test_contrast_pixels_are_probed_then_refined_at_every_sub_pixel_where_the_pr
     Direct3D's 4× MSAA pattern (for a = 2: all four sub-pixels), each weighted 1/4. Where the
     probes and the centre sample differ by more than ``PROBE_CONTRAST`` it is shaded at its other
     a² − 4 sub-pixels too and the pixel is the plain mean of all a² (a glint that a probe sees);
-    else the probes' mean stands (a flat pixel, a gentle gradient). Checked against numpy means of
-    a given colour per sub-pixel, through classify → gather → refine → resolve → gather_rest →
-    resolve as ``render_adaptive`` runs them."""
+    else the probes' mean stands (a flat pixel, a glint between the probes).
+
+    Run through ``render_adaptive`` itself on a real 1× raster (one triangle filling a 4×3 view, so
+    no pixel is an edge): the shading callback gives each sample the colour of the sub-pixel cell
+    its surface point projects to, and the frame is checked against numpy means of those colours."""
     import warp as wp
 
+    import raster
     from warp_sg import antialias as A
+    from warp_sg.background import background_params
+    from warp_sg.camera import Camera
 
-    W = 3  # pixel 0 flat, pixel 1 a glint on its first probe, pixel 2 a gentle gradient
-    cols, rows = np.meshgrid(np.arange(a * W), np.arange(a), indexing="xy")
-    colour = np.full((a, a * W, 3), 0.5, np.float32)
+    W, H = 4, 3
+    cam = Camera(origin=(0.0, 0.0, 1.0), target=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov=40.0, width=W, height=H)
+    verts = np.array([[-100.0, -100.0, 0.0], [100.0, -100.0, 0.0], [0.0, 100.0, 0.0]])
+    tris = np.array([[0, 1, 2]], np.int32)
+    pos, tri_arr = wp.array(verts, dtype=wp.vec3), wp.array(tris, dtype=wp.vec3i)
+    vb = raster.rasterize(pos, tri_arr, cam, "cpu", subsamples=a)
+    assert (vb.tri_id.numpy() == 0).all()
+
     probes = sorted({(int((8 + dy) * a // 16), int((8 + dx) * a // 16)) for dx, dy in D3D_4X})  # (row, col)
-    py, px = probes[0]
-    colour[py, a + px] = 10.0  # the glint, on a probe of pixel 1
-    colour[:, 2 * a:] = (0.5 + 0.05 * (cols[:, 2 * a:] - 2 * a) / a)[..., None]  # < PROBE_CONTRAST across
-    centre = np.full((W, 3), 0.5, np.float32)  # the pixels' 1× samples
-    tid = _per_pixel(wp.array(np.zeros((a, a * W), np.int32), dtype=int), a, int)
-    code = np.stack([cols, rows], -1).astype(np.float32) / 100.0  # bary = sub-pixel (column, row) / 100
-    bary = _per_pixel(wp.array(code, dtype=wp.vec2), a, None)
-    count = wp.array(np.zeros(W, np.int32), dtype=int)
-    cand = wp.array(np.full(W, A.CAND_CONTRAST, np.int32), dtype=int)
-    edge = wp.empty(W, dtype=int)
-    inv_depth = wp.array(np.ones((W, a * a), np.float32), dtype=float)
-    every = wp.array(np.arange(W, dtype=np.int32), dtype=int)
-    wp.launch(A.classify_kernel, dim=W, inputs=[0, every, cand, tid, inv_depth, wp.zeros(1, dtype=int), a,
-                                                A.EDGE_DEPTH_RESIDUAL, edge, count])
-    n_probe = 4 if a >= 3 else a * a
-    assert count.numpy().tolist() == [n_probe] * W and edge.numpy().sum() == 0
+    others = [(j, i) for j in range(a) for i in range(a) if (j, i) not in probes]
+    cell = np.full((H * a, W * a, 3), 0.5, np.float32)  # the colour of each sub-pixel cell
+    centre = np.full((H, W, 3), 0.5, np.float32)  # the 1× frame
+    (ay, ax), (by, bx) = (1, 1), (1, 2)
+    centre[ay, ax] = 2.0  # pixel A contrasts with its neighbours, and its probes agree with its centre ...
+    cell[ay * a:(ay + 1) * a, ax * a:(ax + 1) * a] = 2.0
+    if others:
+        cell[ay * a + others[0][0], ax * a + others[0][1]] = 10.0  # ... though a glint hides between them
+    cell[by * a + probes[0][0], bx * a + probes[0][1]] = 10.0  # pixel B: a glint on a probe
 
-    def gather(kernel, counts, extra):
-        n = counts.numpy()
-        offset = wp.array(np.concatenate([[0], np.cumsum(n)[:-1]]).astype(np.int32), dtype=int)
-        m = int(n.sum())
-        tri_s, bary_s = wp.empty((1, m), dtype=int), wp.empty((1, m), dtype=wp.vec2)
-        bg_s, w_s = wp.empty((1, m), dtype=wp.vec3), wp.empty(m, dtype=float)
-        wp.launch(kernel, dim=W, inputs=[0, every, tid, bary, _background(a, W), counts, offset, *extra, a, W,
-                                         tri_s, bary_s, bg_s, w_s])
-        sub = np.rint(bary_s.numpy()[0] * 100.0).astype(int)  # (column, row) of each sample
-        shaded = wp.array(colour[sub[:, 1], sub[:, 0]][None], dtype=wp.vec3)
-        return offset, sub, w_s.numpy(), shaded, wp.array(w_s.numpy(), dtype=float)
+    r, u, f = (np.asarray(v, np.float64) for v in cam.basis())
+    th = np.tan(np.radians(cam.fov) / 2)
 
-    offset, sub, w, shaded, w_s = gather(A.gather_kernel, count, [edge])
-    for k in range(W):
-        s = slice(k * n_probe, (k + 1) * n_probe)
-        got = sorted(zip(sub[s, 1], sub[s, 0] - k * a))
-        assert got == (probes if a >= 3 else [(j, i) for j in range(a) for i in range(a)])
-        assert np.allclose(w[s], 1.0 / n_probe)
-    img = wp.array(centre[None], dtype=wp.vec3)
-    rest = wp.empty(W, dtype=int)
-    wp.launch(A.refine_kernel, dim=W, inputs=[0, every, edge, count, offset, shaded, img, a, A.PROBE_CONTRAST, W,
-                                              rest])
-    refined = [0, a * a - 4, 0] if a >= 3 else [0, 0, 0]
-    assert rest.numpy().tolist() == refined
-    wp.launch(A.resolve_kernel, dim=W, inputs=[0, every, shaded, w_s, count, offset, W, 0.0, img])
-    if a >= 3:
-        offset3, sub3, w3, shaded3, w3_s = gather(A.gather_rest_kernel, rest, [])
-        assert sorted(zip(sub3[:, 1], sub3[:, 0] - a)) == [(j, i) for j in range(a) for i in range(a)
-                                                          if (j, i) not in probes]
-        assert np.allclose(w3, 1.0 / (a * a))
-        wp.launch(A.resolve_kernel, dim=W, inputs=[0, every, shaded3, w3_s, rest, offset3, W, 4.0 / (a * a), img])
-    got = img.numpy()[0]
-    block = [colour[:, k * a:(k + 1) * a] for k in range(W)]
-    probe_mean = [np.mean([b[j, i] for j, i in probes], 0) if a >= 3 else b.mean((0, 1)) for b in block]
-    assert np.allclose(got[0], 0.5, atol=1e-6)
-    assert np.allclose(got[1], block[1].mean((0, 1)), atol=1e-5)  # refined: all a² sub-pixels
-    assert np.allclose(got[2], probe_mean[2], atol=1e-6)  # the probes' mean stands
+    def shade(tri_s, bary_s, bg_s, out):
+        """The colour of the cell each sample's surface point projects to (0 for the background)."""
+        t, b = tri_s.numpy()[0], bary_s.numpy()[0].astype(np.float64)
+        P = (1 - b[:, :1] - b[:, 1:]) * verts[0] + b[:, :1] * verts[1] + b[:, 1:] * verts[2]
+        v = P - np.asarray(cam.origin)
+        x = ((v @ r) / (v @ f) / (th * cam.aspect) + 1) / 2 * W * a
+        y = (1 - (v @ u) / (v @ f) / th) / 2 * H * a
+        col = cell[np.clip(y.astype(int), 0, H * a - 1), np.clip(x.astype(int), 0, W * a - 1)]
+        out.assign(wp.array(np.where((t >= 0)[:, None], col, 0.0)[None].astype(np.float32), dtype=wp.vec3))
+
+    img = wp.array(centre, dtype=wp.vec3)
+    cache = A.AntialiasCache(pos, tri_arr, "cpu")
+    out, stats = A.render_adaptive(vb, img, cache, cam, wp.zeros(1, dtype=int), background_params(cam, a, None, None,
+                                   1.0, "cpu"), a, H, W, shade, "cpu")
+    got = out.numpy()
+    block = lambda y, x: cell[y * a:(y + 1) * a, x * a:(x + 1) * a]  # noqa: E731
+    want = centre.copy()  # flat pixels: the probes' mean is the centre's colour, candidates or not
+    want[ay, ax] = np.mean([block(ay, ax)[j, i] for j, i in probes], 0) if a >= 3 else block(ay, ax).mean((0, 1))
+    want[by, bx] = block(by, bx).mean((0, 1))  # refined (a ≥ 3), or its four probes (a = 2): all sub-pixels
+    np.testing.assert_allclose(got, want, atol=1e-5)
+    assert stats["edge_pixels"] == 0 and stats["contrast_pixels"] >= 2
+    assert stats["refined_pixels"] == (1 if a >= 3 else 0)
+    if others:
+        assert abs(float(got[ay, ax, 0]) - float(block(ay, ax)[..., 0].mean())) > 0.1  # A's glint is not seen
 
 
 def _background(a, W):

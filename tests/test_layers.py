@@ -1,4 +1,4 @@
-"""Import layering of the library (DESIGN.md "Layers": imports go down only, no circles).
+"""Import layering of the library (docs/architecture.md "Layers": imports go down only, no circles).
 
 Reads every module of ``warp_sg/``, ``raster/`` and ``precompute/`` with :mod:`ast` and builds the
 graph of their imports of each other: module-level and function-level ``import`` / ``from ...
@@ -9,7 +9,7 @@ otherwise at the module it comes from. The tests then require
 * no import cycle between modules (strongly connected components of more than one module; the
   failure shows one cycle of each),
 * no library module importing the command line (``warp_sg.cli``): the CLI sits on top,
-* every module in a layer (:data:`LAYERS`, DESIGN.md's table: base → math → scene → engines →
+* every module in a layer (:data:`LAYERS`, the table of docs/architecture.md "Layers": base → math → scene → engines →
   render → tools) and every import going to the same or a lower layer (the failure names the
   importing module, the line, and both layers), and
 * no library file longer than :data:`MAX_LINES` lines (one concept per file).
@@ -28,7 +28,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("warp_sg", "raster", "precompute")
 
-#: DESIGN.md "Layers", bottom to top: a module may import its own layer and the layers below.
+#: docs/architecture.md "Layers", bottom to top: a module may import its own layer and the layers below.
 LAYER_ORDER = ("base", "math", "scene", "engines", "render", "tools")
 
 #: (layer, modules): exact dotted names, or ``"pkg.*"`` for every module below ``pkg``; the first
@@ -38,6 +38,7 @@ LAYERS = (
               "warp_sg.lazy", "warp_sg.image_io", "warp_sg.cache", "warp_sg.stage_clock", "warp_sg.watchdog")),
     ("math", ("warp_sg.fastmath", "warp_sg.sg", "warp_sg.sg_wp", "warp_sg.frames", "warp_sg.clamped_cosine", "warp_sg.fh",
               "warp_sg.sg_irradiance", "warp_sg.ssdf_product", "warp_sg.anisotropy", "warp_sg.pca",
+              "warp_sg.rigid_motion",
               "warp_sg.brdf", "warp_sg.brdf.*")),
     ("scene", ("warp_sg.scene", "warp_sg.scene_model", "warp_sg.scene_toml", "warp_sg.scene_schema",
                "warp_sg.scene_values", "warp_sg.geometry", "warp_sg.camera", "warp_sg.culling",
@@ -49,12 +50,14 @@ LAYERS = (
                "warp_sg.bench",
                "warp_sg.peer_mitsuba",
                "warp_sg.bench_scaling",
+               "warp_sg.bench_motion",
                "warp_sg.bench_assets",
                "warp_sg.bench_first_image",
                "warp_sg.spp_curve",
                "warp_sg.preview",
                "warp_sg.viewer",
                "warp_sg.viewer_widgets",
+               "warp_sg.viewer_objects",
                "raster.bench",
                "precompute.bench",
                "warp_sg.cluster",
@@ -68,8 +71,9 @@ LAYERS = (
     # cut-outs by the precompute's visibility rays)
     ("engines", ("raster", "raster.*", "precompute", "precompute.*", "warp_sg.surface", "warp_sg.surface_layers",
                  "warp_sg.cutout", "warp_sg.shading",
-                 "warp_sg.vertex_visibility", "warp_sg.silhouette", "warp_sg.background")),
+                 "warp_sg.vertex_visibility", "warp_sg.silhouette", "warp_sg.background", "warp_sg.motion_wp")),
     ("render", ("warp_sg.render", "warp_sg.render_environment", "warp_sg.costs", "warp_sg.progressive",
+                "warp_sg.dynamic_objects",
                 "warp_sg.visibility_setup", "warp_sg.antialias", "warp_sg.reference", "warp_sg.reference_wp",
                 "warp_sg.sampling", "warp_sg.regions")),
 )

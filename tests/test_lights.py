@@ -95,17 +95,42 @@ def test_bad_light_values_raise_input_errors_naming_the_field():
         EnvironmentLight(procedural="moon")
 
 
-def test_environment_rotation_matches_precompute_envmap_rotation():
-    from precompute.envmap import rotate_envmap
+def _texel_centres(h, w):
+    """Unit directions of the texel centres, written from the convention of docs/environment.md:
+    ``d = (sin θ sin φ, cos θ, −sin θ cos φ)``, ``φ = 2πu``, ``θ = πv``."""
+    v, u = (np.arange(h) + 0.5) / h, (np.arange(w) + 0.5) / w
+    th, ph = np.pi * v[:, None], 2 * np.pi * u[None, :]
+    return np.stack([np.sin(th) * np.sin(ph), np.cos(th) * np.ones_like(ph), -np.sin(th) * np.cos(ph)], -1)
 
+
+def _rotation_about_y(deg):
+    """The right-handed rotation about +Y, written out."""
+    c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def test_environment_rotation_is_a_right_handed_turn_about_y():
+    """``rotation`` turns the sky right-handedly about +Y: ``L_out(d) = L_in(Rᵀ d)``. A turn by a
+    whole number of texels is an exact column shift (R_y(α)ᵀ adds α to φ, so 45° = 4 of 32 columns
+    reads the input 4 columns on), and any turn of a smooth sky matches the sky evaluated at
+    ``Rᵀ d`` up to the linear interpolation along u."""
     rng = np.random.default_rng(1)
     env = rng.random((16, 32, 3)).astype(np.float32)
-    # a rotation by a whole number of texels is an exact column shift in both implementations
-    ours = rotate_equirect(env, 45.0)  # 45° = 4 texels of 32
-    R = EnvironmentLight(data=env, rotation=45.0).rotation_matrix()
-    theirs = rotate_envmap(env, R, supersample=1)
-    np.testing.assert_allclose(ours, theirs, atol=1e-5)
-    assert not np.allclose(ours, env)
+    np.testing.assert_allclose(EnvironmentLight(data=env, rotation=45.0).rotation_matrix(), _rotation_about_y(45.0),
+                               atol=1e-12)
+    np.testing.assert_allclose(rotate_equirect(env, 45.0), np.roll(env, -4, axis=1), atol=1e-6)
+    np.testing.assert_allclose(rotate_equirect(env, -90.0), np.roll(env, 8, axis=1), atol=1e-6)
+
+    h, w = 64, 128  # a smooth sky: a broad lobe off the axis, in three colours
+    a = np.array([0.6, 0.3, -0.74]) / np.linalg.norm([0.6, 0.3, -0.74])
+    sky = lambda d: np.exp(np.array([1.0, 2.0, 3.0]) * (d @ a)[..., None])  # noqa: E731
+    d = _texel_centres(h, w)
+    R = _rotation_about_y(30.0)
+    got = rotate_equirect(sky(d).astype(np.float32), 30.0)
+    want = sky(d @ R)  # (Rᵀ d) for each row vector d is d R
+    assert np.max(np.abs(got - want) / want) < 5e-3  # linear interpolation over 2.8° texels
+    assert np.max(np.abs(got - sky(d)) / want) > 0.3  # the turn is not a no-op ...
+    assert np.max(np.abs(rotate_equirect(sky(d).astype(np.float32), -30.0) - want) / want) > 0.3  # ... nor the other way
 
 
 def test_constant_environment_and_scale():

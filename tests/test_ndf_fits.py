@@ -16,7 +16,7 @@ from warp_sg.errors import InputError
 
 # exact NDFs written out here from the supplement / lecture (ln D(θh), peak-normalised, isotropic)
 LN_NDF = {
-    "ct": lambda t, m: -(t / m) ** 2,  # Cook–Torrance as in DESIGN.md: exp(−(θh/m)²)
+    "ct": lambda t, m: -(t / m) ** 2,  # Cook–Torrance as in docs/math.md: exp(−(θh/m)²)
     "ts": lambda t, m: -(mp.tan(t) / m) ** 2,  # Torrance–Sparrow (Beckmann): exp(−tan²θh/m²)
     "ward": lambda t, a: -(mp.tan(t) / a) ** 2,  # Ward: exp(−tan²θh/α²)
     "cos": lambda t, n: n * mp.log(mp.cos(t)),  # (Blinn-)Phong, isotropic Ashikhmin–Shirley: cos^n θh

@@ -1,12 +1,19 @@
 """The README's commands work as written (issue 12): the shell commands of its first code block and
 of its "Using it" block are parsed by the real CLI, the cheap ones are run (at small sizes, via
 documented flags) with every output redirected into a temporary folder, and every file the README
-names exists in the repository.
+names exists in the repository. Every project name that the README, ``docs/*.md`` and the docstrings
+of the three packages, ``scripts/``, ``examples/`` and ``tests/`` cite (``warp_sg.<module>.<name>``,
+``precompute.<name>``, ``raster.<name>``, ``<module>.<function>``, ``<Class>.<member>``) resolves by
+import and ``getattr`` (issue 29).
 
 Run in a fresh clone by CI (``.ci/run``), so this is the "newcomer" check of the README.
 """
 from __future__ import annotations
 
+import ast
+import importlib
+import importlib.util
+import inspect
 import os
 import re
 import shlex
@@ -172,6 +179,201 @@ def test_python_snippet_names_exist():
     for name in ("load_scene", "Renderer", "render", "reference", "save_image"):
         assert callable(getattr(ws, name)), name
     assert callable(ws.Renderer.render)
+
+
+# --------------------------------------------------------------------------------------------
+# project names cited by the docs and the docstrings resolve
+# --------------------------------------------------------------------------------------------
+PACKAGES = ("warp_sg", "raster", "precompute")
+ALIASES = {"ws": "warp_sg"}  # ``import warp_sg as ws``, as the README and docs write it
+#: placeholders of the batch-job keys (``lights.INDEX.FIELD``), not names
+PLACEHOLDERS = {"NAME", "INDEX", "FIELD", "PARAM", "N", "KEY"}
+_FILE_SUFFIX = re.compile(r"\.(py|md|toml|ipynb|png|jpe?g|exr|hdr|glb|gltf|bin|obj|ply|stl|off|json|npz|npy"
+                          r"|binary|txt|sh|csv|ya?ml|log|html|pdf|xyz|so|whl|cfg|ini|zip|gz)$", re.I)
+#: a dotted identifier that is not part of a path, a longer dotted word or a quoted string
+_DOTTED = re.compile(r"(?<![\w./\-'\"])([A-Za-z_]\w*(?:\.[A-Za-z_]\w*)+)")
+
+
+def _project_modules() -> list[str]:
+    """Every module of the three packages, found by walking their folders (so the check follows a
+    restructuring: a short name ``shading.<name>`` is looked up in whichever module ends in ``shading``)."""
+    out = []
+    for pkg in PACKAGES:
+        for path in sorted((ROOT / pkg).rglob("*.py")):
+            parts = path.relative_to(ROOT).with_suffix("").parts
+            out.append(".".join(parts[:-1] if parts[-1] == "__init__" else parts))
+    return out
+
+
+def _project_classes(mods: list[str]) -> dict[str, list[str]]:
+    """Class name -> the modules that define it at top level (read with ``ast``, no import)."""
+    out: dict[str, list[str]] = {}
+    for m in mods:
+        path = ROOT / (m.replace(".", "/") + ".py")
+        if not path.exists():
+            path = ROOT / m.replace(".", "/") / "__init__.py"
+        for node in ast.parse(path.read_text(encoding="utf-8")).body:
+            if isinstance(node, ast.ClassDef):
+                out.setdefault(node.name, []).append(m)
+    return out
+
+
+def _members(cls) -> set[str]:
+    """Names an instance has beyond ``getattr(cls, ...)``: annotations, Warp struct fields and
+    ``self.x = ...`` assignments in the class's source."""
+    names = set(getattr(cls, "vars", {}) or {})  # a @wp.struct
+    for c in (inspect.getmro(cls) if inspect.isclass(cls) else [getattr(cls, "cls", cls)]):
+        names |= set(getattr(c, "__annotations__", {}))
+        try:
+            src = inspect.getsource(c)
+        except (OSError, TypeError):
+            continue
+        names |= set(re.findall(r"self\.(\w+)\s*(?::[^=\n]+)?=", src))
+    return names
+
+
+def _walk(obj, rest: list[str]) -> bool:
+    """``getattr`` along ``rest``, importing submodules that a package does not import itself."""
+    for i, part in enumerate(rest):
+        if hasattr(obj, part):
+            obj = getattr(obj, part)
+            continue
+        if inspect.ismodule(obj) and hasattr(obj, "__path__"):  # a package
+            sub = f"{obj.__name__}.{part}"
+            if importlib.util.find_spec(sub) is not None:
+                obj = importlib.import_module(sub)
+                continue
+        return i == len(rest) - 1 and not inspect.ismodule(obj) and part in _members(obj)
+    return True
+
+
+class _Names:
+    def __init__(self):
+        self.mods = _project_modules()
+        self.classes = _project_classes(self.mods)
+
+    def resolves(self, name: str) -> bool | None:
+        """None: not a project name; else whether it resolves."""
+        parts = name.split(".")
+        if any(p in PLACEHOLDERS for p in parts):
+            return None
+        parts[0] = ALIASES.get(parts[0], parts[0])
+        rooted = parts[0] in PACKAGES
+        for k in range(len(parts), 0, -1):  # the longest prefix that names a project module
+            prefix = ".".join(parts[:k])
+            cands = [m for m in self.mods if m == prefix or (not rooted and m.endswith("." + prefix))]
+            if cands:
+                break
+        else:
+            if parts[0] in self.classes:  # Class.member
+                return any(_walk(importlib.import_module(m), parts) for m in self.classes[parts[0]])
+            return None
+        if any(_walk(importlib.import_module(m), parts[k:]) for m in cands):
+            return True
+        if not rooted and importlib.util.find_spec(parts[0]) is not None:
+            try:  # a library of the same short name (``distributed.Client``)
+                return _walk(importlib.import_module(parts[0]), parts[1:]) or False
+            except ImportError:
+                return False
+        return False
+
+
+def _cited(text: str, ticks: str) -> set[str]:
+    """Dotted names in backticks, and names rooted in a package anywhere in ``text``."""
+    out = set()
+    for tok in re.findall(ticks, text):
+        out |= set(_DOTTED.findall(tok))
+    out |= {n for n in _DOTTED.findall(text) if n.split(".")[0] in PACKAGES + tuple(ALIASES)}
+    return {n for n in out if not _FILE_SUFFIX.search(n)}
+
+
+def _docstrings(path: Path) -> list[str]:
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    kinds = (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)
+    return [d for n in ast.walk(tree) if isinstance(n, kinds) and (d := ast.get_docstring(n, clean=False))]
+
+
+@pytest.fixture(scope="module")
+def names():
+    return _Names()
+
+
+def test_names_resolver_rejects_what_does_not_exist(names):
+    """The check can fail: a stale name, a stale member and a package-rooted typo are caught, and
+    what is not a project name (a library, a file, a placeholder) is left alone."""
+    assert names.resolves("warp_sg.sg.inner_product") is True
+    assert names.resolves("ws.sg.integral") is True
+    assert names.resolves("sg.inner_product") is True  # module.function by the module's short name
+    assert names.resolves("raster.rasterize") is True
+    assert names.resolves("sg.no_such_function") is False
+    assert names.resolves("warp_sg.no_such_module") is False
+    assert names.resolves("Renderer.no_such_member") is False
+    assert names.resolves("Renderer.render") is True
+    assert names.resolves("np.linspace") is None
+    assert names.resolves("lights.INDEX.FIELD") is None
+
+
+def test_docs_name_project_names_that_exist(names):
+    """Every project name the README and ``docs/*.md`` cite in backticks (and every name rooted in
+    a package anywhere) resolves."""
+    bad = []
+    for path in [README, *sorted((ROOT / "docs").glob("*.md"))]:
+        for n in sorted(_cited(path.read_text(encoding="utf-8"), r"`([^`\n]+)`")):
+            if names.resolves(n) is False:
+                bad.append(f"{path.relative_to(ROOT)}: {n}")
+    assert not bad, "docs name what does not exist:\n" + "\n".join(bad)
+
+
+def test_docstrings_name_project_names_that_exist(names):
+    """Every project name in the docstrings of ``warp_sg/``, ``raster/``, ``precompute/``,
+    ``scripts/``, ``examples/`` and ``tests/`` (in ``backticks`` or a ``:func:`` role, or rooted in a
+    package) resolves."""
+    bad = []
+    files = [p for pkg in (*PACKAGES, "scripts", "examples", "tests") for p in sorted((ROOT / pkg).rglob("*.py"))]
+    for path in files:
+        cited = set()
+        for doc in _docstrings(path):
+            cited |= _cited(doc, r"`+~?([^`\n]+)`+")
+        bad += [f"{path.relative_to(ROOT)}: {n}" for n in sorted(cited) if names.resolves(n) is False]
+    assert not bad, "docstrings name what does not exist:\n" + "\n".join(bad)
+
+
+def test_repository_cites_only_its_own_docs():
+    """No file of the repository sends the reader to a design card that is not in it."""
+    files = [p for p in ROOT.rglob("*") if p.suffix in {".py", ".md", ".toml", ".ipynb"}
+             and not any(part.startswith(".") for part in p.relative_to(ROOT).parts)
+             and p.name != "test_readme.py"]
+    bad = [str(p.relative_to(ROOT)) for p in files if "DESIGN" + ".md" in p.read_text(encoding="utf-8")]
+    assert not bad, f"cite DESIGN.md, which is not in the repository: {bad}"
+
+
+def _slug(heading: str) -> str:
+    """GitHub's anchor of a heading: lower case, punctuation dropped, spaces to hyphens."""
+    return "".join(ch for ch in heading.strip().lower() if ch.isalnum() or ch in "-_ ").replace(" ", "-")
+
+
+def _prose(text: str) -> str:
+    return re.sub(r"^```.*?^```", "", text, flags=re.S | re.M)
+
+
+def test_doc_links_reach_their_files_and_headings():
+    """Every relative link of the README and ``docs/*.md`` reaches a file of the repository, and a
+    ``#anchor`` one of that page's headings."""
+    bad = []
+    for page in [README, *sorted((ROOT / "docs").glob("*.md"))]:
+        for target in re.findall(r"\]\(([^)\s]+)\)", _prose(page.read_text(encoding="utf-8"))):
+            if target.startswith(("http://", "https://", "mailto:")):
+                continue
+            path, _, anchor = target.partition("#")
+            dest = (page.parent / path) if path else page
+            if not dest.exists():
+                bad.append(f"{page.relative_to(ROOT)}: {target} (no such file)")
+            elif anchor and dest.suffix == ".md":
+                heads = {_slug(ln.lstrip("#")) for ln in _prose(dest.read_text(encoding="utf-8")).splitlines()
+                         if ln.startswith("#")}
+                if anchor not in heads:
+                    bad.append(f"{page.relative_to(ROOT)}: {target} (no such heading)")
+    assert not bad, "links that lead nowhere:\n" + "\n".join(bad)
 
 
 # --------------------------------------------------------------------------------------------

@@ -1,4 +1,4 @@
-"""precompute.refine: conforming visibility-driven refinement (DESIGN.md "Second round")."""
+"""precompute.refine: conforming visibility-driven refinement (docs/rendering.md "Shading")."""
 from __future__ import annotations
 
 import numpy as np

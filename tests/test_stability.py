@@ -22,15 +22,41 @@ from hypothesis import strategies as st
 import warp_sg as ws
 from warp_sg import sg_wp
 
-SETTINGS = settings(deadline=None, max_examples=12, suppress_health_check=list(HealthCheck), derandomize=True)
+EXAMPLES = 12  # hypothesis examples per property test
+SETTINGS = settings(deadline=None, max_examples=EXAMPLES, suppress_health_check=list(HealthCheck), derandomize=True)
 BATCH = 1000  # parameter sets per hypothesis example
 EPS32 = float(np.finfo(np.float32).eps)
 
-DRAWS = {"count": 0}
+#: test name -> the parameter sets one run of it evaluates at least (:func:`draws`; each run checks
+#: its own count, so the total holds whatever the order or the split over workers)
+MIN_DRAWS: dict[str, int] = {}
 
 
-def _count(n):
-    DRAWS["count"] += int(n)
+def draws(minimum: int):
+    """Declare that one run of the test evaluates at least ``minimum`` parameter sets; the test
+    counts them with the :func:`drawn` fixture, which checks the count when the test ends."""
+    def mark(fn):
+        MIN_DRAWS[fn.__name__] = int(minimum)
+        return fn
+    return mark
+
+
+class _Draws:
+    def __init__(self):
+        self.count = 0
+
+    def add(self, n):
+        self.count += int(n)
+
+
+@pytest.fixture
+def drawn(request):
+    """This run's draw counter (shared by a hypothesis test's examples)."""
+    counter = _Draws()
+    yield counter
+    name = request.node.originalname
+    assert name in MIN_DRAWS, f"{name} counts draws but does not declare them with @draws"
+    assert counter.count >= MIN_DRAWS[name], f"{name} drew {counter.count} < {MIN_DRAWS[name]} parameter sets"
 
 
 def rand_unit(rng, n):
@@ -107,9 +133,10 @@ def _check_rel(got, exact, rtol, floor):
 # ------------------------------------------------------------------------------------------------
 # SG algebra (numpy public API)
 # ------------------------------------------------------------------------------------------------
+@draws(EXAMPLES * BATCH)
 @SETTINGS
 @given(seed=st.integers(0, 2**31 - 1))
-def test_sg_integral_is_finite_bounded_and_exact_for_sharpness_1e_minus4_to_1e6(seed):
+def test_sg_integral_is_finite_bounded_and_exact_for_sharpness_1e_minus4_to_1e6(drawn, seed):
     rng = np.random.default_rng(seed)
     lam = log_sharpness(rng, BATCH)
     mu = 10.0 ** rng.uniform(-3, 3, BATCH)
@@ -120,12 +147,13 @@ def test_sg_integral_is_finite_bounded_and_exact_for_sharpness_1e_minus4_to_1e6(
         assert np.all(v <= 4 * np.pi * mu.astype(dt) * (1 + 1e-6))  # ∫G ≤ 4π μ
         assert np.all(v > 0)
         _check_rel(ws.sg.integral(lam[:100].astype(dt)), exact, rtol, 1e-300 if dt == np.float64 else 1e-30)
-    _count(BATCH)
+    drawn.add(BATCH)
 
 
+@draws(EXAMPLES * BATCH)
 @SETTINGS
 @given(seed=st.integers(0, 2**31 - 1))
-def test_sg_inner_product_matches_mpmath_including_antipodal_lobes(seed):
+def test_sg_inner_product_matches_mpmath_including_antipodal_lobes(drawn, seed):
     rng = np.random.default_rng(seed)
     p1, l1, p2, l2 = sg_pairs(rng, BATCH)
     m = 150  # mpmath on a subset; everything else checked against bounds and float64
@@ -144,12 +172,13 @@ def test_sg_inner_product_matches_mpmath_including_antipodal_lobes(seed):
     ax, sh, amp = ws.sg.product(p1, l1, 1.0, p2, l2, 1.0)
     prod_int = np.array([float(mp.mpf(float(amp[j])) * mp_integral(sh[j])) for j in range(m)])
     _check_rel(prod_int, exact, 1e-9, 1e-290)
-    _count(BATCH)
+    drawn.add(BATCH)
 
 
+@draws(EXAMPLES * BATCH)
 @SETTINGS
 @given(seed=st.integers(0, 2**31 - 1))
-def test_sg_vector_product_equals_pointwise_product_in_both_precisions(seed):
+def test_sg_vector_product_equals_pointwise_product_in_both_precisions(drawn, seed):
     rng = np.random.default_rng(seed)
     p1, l1, p2, l2 = sg_pairs(rng, BATCH)
     # evaluation points near both axes and at random
@@ -170,12 +199,13 @@ def test_sg_vector_product_equals_pointwise_product_in_both_precisions(seed):
         assert np.all(rhs[~ok] < np.log(np.finfo(dt).tiny) + 1)
         tol = 64 * np.finfo(dt).eps * (L1 + L2).astype(np.float64) + 1e-6
         assert np.all(np.abs(lhs[ok] - rhs[ok]) <= tol[ok] + 1e-5 * np.abs(rhs[ok]))
-    _count(BATCH)
+    drawn.add(BATCH)
 
 
+@draws(EXAMPLES * BATCH)
 @SETTINGS
 @given(seed=st.integers(0, 2**31 - 1))
-def test_sg_evaluate_is_finite_and_in_0_1_for_any_direction(seed):
+def test_sg_evaluate_is_finite_and_in_0_1_for_any_direction(drawn, seed):
     rng = np.random.default_rng(seed)
     p = rand_unit(rng, BATCH)
     v = np.where(rng.random((BATCH, 1)) < 0.3, -p, rand_unit(rng, BATCH))
@@ -185,7 +215,7 @@ def test_sg_evaluate_is_finite_and_in_0_1_for_any_direction(seed):
         assert g.dtype == dt and np.all(np.isfinite(g)) and np.all((g >= 0) & (g <= 1))
         g0 = ws.sg.evaluate(p.astype(dt), p.astype(dt), lam.astype(dt))
         assert np.all(g0 == 1)  # exactly the amplitude on the axis
-    _count(BATCH)
+    drawn.add(BATCH)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -205,7 +235,8 @@ def _sg_kernel(p1: wp.array(dtype=wp.vec3), l1: wp.array(dtype=float), p2: wp.ar
     prod_scale[i] = c
 
 
-def test_sg_wp_twins_are_finite_and_within_float32_bounds_over_10k_draws(device):
+@draws(12_000)
+def test_sg_wp_twins_are_finite_and_within_float32_bounds_over_10k_draws(device, drawn):
     rng = np.random.default_rng(123)
     n = 12_000
     p1, l1, p2, l2 = sg_pairs(rng, n)
@@ -224,7 +255,7 @@ def test_sg_wp_twins_are_finite_and_within_float32_bounds_over_10k_draws(device)
     exact = np.array([float(mp_inner(p1[j], l1[j], p2[j], l2[j])) for j in range(m)])
     _check_rel(inner[:m], exact, 1e-4 + 4 * EPS32 * (l1[:m] + l2[:m]), 1e-30)
     assert np.all((sc >= 0) & (sc <= 1)) and np.all(sh > 0)
-    _count(n)
+    drawn.add(n)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -259,9 +290,10 @@ def _models(rng):
 RECIPROCAL = ("Lambert", "OrenNayar", "Phong", "BlinnPhong", "CookTorrance", "TorranceSparrow", "Ward")
 
 
+@draws(EXAMPLES * BATCH * 8)
 @SETTINGS
 @given(seed=st.integers(0, 2**31 - 1))
-def test_brdf_eval_is_finite_nonnegative_and_reciprocal_at_extremes(seed):
+def test_brdf_eval_is_finite_nonnegative_and_reciprocal_at_extremes(drawn, seed):
     rng = np.random.default_rng(seed)
     o = grazing_dirs(rng, BATCH)
     i = grazing_dirs(rng, BATCH)
@@ -276,12 +308,13 @@ def test_brdf_eval_is_finite_nonnegative_and_reciprocal_at_extremes(seed):
             np.testing.assert_allclose(f, g, rtol=1e-6, atol=1e-300, err_msg=name)
         below = model.eval(o, i * [1, 1, -1])
         assert np.all(below == 0), name
-    _count(BATCH * 8)
+    drawn.add(BATCH * 8)
 
 
+@draws(EXAMPLES * 20)
 @SETTINGS
 @given(seed=st.integers(0, 2**31 - 1))
-def test_blinn_phong_peak_and_ndf_fits_are_exact_for_exponents_up_to_1e5(seed):
+def test_blinn_phong_peak_and_ndf_fits_are_exact_for_exponents_up_to_1e5(drawn, seed):
     rng = np.random.default_rng(seed)
     ns = 10.0 ** rng.uniform(0, 5, 20)
     o = grazing_dirs(rng, 20)
@@ -296,7 +329,7 @@ def test_blinn_phong_peak_and_ndf_fits_are_exact_for_exponents_up_to_1e5(seed):
         np.testing.assert_allclose(lam, n, rtol=1e-6)
         pw, lw, mw = ws.brdf.spherical_warp(ax, lam, amp, oo)
         assert np.all(np.isfinite(pw)) and np.all(np.isfinite(lw)) and np.all(lw > 0)
-    _count(20)
+    drawn.add(20)
 
 
 def test_roughness_to_zero_keeps_microfacet_fits_and_slices_finite():
@@ -331,7 +364,8 @@ def _brdf_kernel(mats: wp.array(dtype=MW.Material), mi: wp.array(dtype=int), o: 
     spdf[t] = MW.brdf_pdf(m, o[t], d)
 
 
-def test_kernel_brdfs_are_finite_and_match_numpy_at_extreme_parameters_and_grazing_angles(device):
+@draws(12_000)
+def test_kernel_brdfs_are_finite_and_match_numpy_at_extreme_parameters_and_grazing_angles(device, drawn):
     rng = np.random.default_rng(7)
     B = ws.brdf
     models = [B.Lambert(kd=0.5), B.OrenNayar(kd=0.5, sigma=1.2), B.Phong(kd=0.1, ks=0.5, n=1e5),
@@ -374,7 +408,7 @@ def test_kernel_brdfs_are_finite_and_match_numpy_at_extreme_parameters_and_grazi
         err = np.abs(got - ref)
         ok = err <= tol * ref + 1e-5 * scale
         assert ok.mean() > 0.995, (type(model).__name__, float(np.max(err / (ref + 1e-5 * scale))))
-    _count(n)
+    drawn.add(n)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -391,8 +425,9 @@ def _ortho(n=6, extent=1.0):
     return o, np.broadcast_to([0.0, -1.0, 0.0], o.shape).copy()
 
 
+@draws(36 * 16)
 @pytest.mark.parametrize("case", ["inside", "delta-on-surface", "far", "very-far-tiny"])
-def test_point_lights_at_the_surface_or_very_far_are_finite_and_exact(device, case):
+def test_point_lights_at_the_surface_or_very_far_are_finite_and_exact(device, case, drawn):
     from warp_sg.reference import Light, ReferenceInputs, render_reference_inputs
 
     kd = 0.7
@@ -419,7 +454,7 @@ def test_point_lights_at_the_surface_or_very_far_are_finite_and_exact(device, ca
     assert np.all(np.isfinite(res.image)) and np.all(np.isfinite(res.stderr)) and np.all(res.image >= 0)
     if exact is not None:
         assert np.all(np.abs(res.image - exact) <= 5 * res.stderr + 2e-3 * exact), (res.image[0, 0], exact[0, 0])
-    _count(36 * 16)
+    drawn.add(36 * 16)
 
 
 def _small_scene(scale):
@@ -443,7 +478,8 @@ def _small_scene(scale):
                  render=RenderSettings(shadows=True, visibility_budget=3000, ssdf_resolution=16, pca_terms=8))
 
 
-def test_reference_is_the_same_image_for_a_scene_scaled_by_1e_minus4_and_1e4(device):
+@draws(3)
+def test_reference_is_the_same_image_for_a_scene_scaled_by_1e_minus4_and_1e4(device, drawn):
     from warp_sg.reference import render_reference
 
     imgs = {}
@@ -457,7 +493,7 @@ def test_reference_is_the_same_image_for_a_scene_scaled_by_1e_minus4_and_1e4(dev
         # identical random numbers: differences are float32 rounding (rare shadow-ray flips)
         assert np.mean(diff) <= 2e-3 * np.mean(base.image), k
         assert np.mean(diff <= 3 * base.stderr + 1e-4 * base.image) > 0.97, k
-    _count(3)
+    drawn.add(3)
 
 
 def test_renderer_is_the_same_image_for_a_scene_scaled_by_1e_minus4_and_1e4(device, cache_dir):
@@ -468,8 +504,9 @@ def test_renderer_is_the_same_image_for_a_scene_scaled_by_1e_minus4_and_1e4(devi
         np.testing.assert_allclose(imgs[k], imgs[1.0], rtol=2e-3, atol=2e-3 * float(imgs[1.0].mean()), err_msg=str(k))
 
 
+@draws(2 * 12 * 9)
 @pytest.mark.parametrize("material", ["cook_torrance_m1e-3", "blinn_phong_n1e5", "ashikhmin_shirley_1e5", "ward_1e-3"])
-def test_renderer_and_reference_stay_finite_with_extreme_materials_and_lights(device, cache_dir, material):
+def test_renderer_and_reference_stay_finite_with_extreme_materials_and_lights(device, cache_dir, material, drawn):
     from warp_sg.lights import PointLight
     from warp_sg.reference import render_reference
 
@@ -488,13 +525,17 @@ def test_renderer_and_reference_stay_finite_with_extreme_materials_and_lights(de
     ref = render_reference(sc, spp=4, device=device, progress=False)
     for im in (img, ref.image, ref.stderr):
         assert np.all(np.isfinite(im)) and np.all(im >= 0), material
-    _count(2 * img.size // 3)
+    drawn.add(2 * img.size // 3)
 
 
 # ------------------------------------------------------------------------------------------------
-# draw count (runs last in this file)
+# draw count
 # ------------------------------------------------------------------------------------------------
-def test_zz_suite_covered_at_least_1e4_parameter_draws():
-    if DRAWS["count"] == 0:
-        pytest.skip("run with the rest of the file")
-    assert DRAWS["count"] >= 10_000
+def test_suite_declares_at_least_1e4_parameter_draws_and_every_counting_test_checks_its_own():
+    """The draws are declared per test (:func:`draws`) and each run checks its own count when it
+    ends (:func:`drawn`), so this holds in any order and under pytest-xdist."""
+    import inspect
+
+    assert sum(MIN_DRAWS.values()) >= 10_000
+    for name in MIN_DRAWS:
+        assert "drawn" in inspect.signature(globals()[name]).parameters, f"{name} declares draws but counts none"

@@ -1,7 +1,7 @@
 """warp-sg: all-frequency rendering of dynamic, spatially-varying reflectance with spherical
 Gaussians (Wang et al. 2009) on NVIDIA Warp.
 
-Public interface (DESIGN.md)::
+Public interface (docs/architecture.md "Public interface")::
 
     import warp_sg as ws
     scene = ws.load_scene("scene.toml")

@@ -488,6 +488,10 @@ class AntialiasCache:
                                                       inv_depth=vb1.inv_depth))
         return self._contours[2]
 
+    def forget_frame(self) -> None:
+        """Drop the last frame's contours and coverage (the geometry moved; the edges stay)."""
+        self._contours, self._sub = (None, None, None), (None, None, None)
+
     def subsamples(self, vb, idx: wp.array):
         """``raster.subsample.subsample(vb, idx)``, reused when ``vb`` and the list are the last
         frame's (compared where they are: :func:`same_list`)."""

@@ -23,6 +23,8 @@ ratios are meant to carry over between machines):
 8. **time to first image** — cold first image (final and progressive) and warm frame of the
    generated textured helmet and the shared assets, and Mitsuba's at equal error
    (:mod:`warp_sg.bench_first_image`).
+9. **objects that move** — a frame after ``set_object_transform`` against a static frame and
+   against a new ``Renderer`` with a cold cache (:mod:`warp_sg.bench_motion`).
 
 The bench scene (:func:`bench_scene`) is a Torrance-Sparrow sphere, a Ward torus and a Lambert
 floor under the procedural sky with one point light and one directional light.
@@ -404,7 +406,14 @@ SECTIONS = {
     "equal error: SG renderer vs Mitsuba 3": mitsuba_section,
     "SSDF error vs ray budget": lambda **kw: _first_image("ray_budget_section", **kw),
     "time to first image": lambda **kw: _first_image("first_image_section", **kw),
+    "objects that move": lambda **kw: _motion(**kw),
 }
+
+
+def _motion(**kw):
+    from .bench_motion import motion_section
+
+    return motion_section(**kw)
 
 
 def _first_image(name, **kw):

@@ -1,4 +1,4 @@
-"""On-disk precompute cache (DESIGN.md "Conventions", architecture.md "Precompute contract").
+"""On-disk precompute cache (docs/precompute.md "Cache", docs/architecture.md "Precompute contract").
 
 Base layer: generic (arrays in, arrays out), used by the precompute engines and by the measured-BRDF
 fit; ``precompute.cache`` re-exports it.

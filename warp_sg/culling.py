@@ -42,6 +42,15 @@ class BackfaceCulling:
             self.corners[k] = [[(lo, hi)[i >> 2 & 1][0], (lo, hi)[i >> 1 & 1][1], (lo, hi)[i & 1][2]] for i in range(8)]
             self.closed[k] = bool(trimesh.Trimesh(V, F, process=True).is_volume)
 
+    def moved(self, geometry) -> None:
+        """Objects moved rigidly (``warp_sg.dynamic_objects``): new bounding boxes; closedness stays."""
+        V, T = np.asarray(geometry.vertices, np.float64), np.asarray(geometry.triangles)
+        for k in np.flatnonzero(self.closed):
+            used = V[np.unique(T[self.tri_object == k])]
+            lo, hi = used.min(0), used.max(0)
+            self.corners[k] = [[(lo, hi)[i >> 2 & 1][0], (lo, hi)[i >> 1 & 1][1], (lo, hi)[i & 1][2]] for i in range(8)]
+        self._cached = (None, False)
+
     def objects(self, camera) -> np.ndarray:
         """(objects,) bool: closed and entirely at view depth ≥ the near plane of ``camera``."""
         f = np.asarray(camera.basis()[2], np.float64)

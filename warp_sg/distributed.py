@@ -20,7 +20,8 @@ Faults (issue 16):
 
 Batch renders (:func:`render_many`): the client builds the precompute once (refinement and
 SSDFs, the SSDFs themselves on the cluster), scatters it and the scene to every worker, and each
-task renders one *variant* (camera / material / light / environment changes; see
+task renders one *variant* (camera / material / light / environment changes, dynamic objects'
+transforms; see
 :func:`normalize_variants`) with a worker-local :class:`~warp_sg.render.Renderer` built from the
 scattered precompute and changed through its setters, so no precompute runs per frame.
 
@@ -85,7 +86,22 @@ def _base_value(scene, section, name, key):
         if key not in _ENV_KEYS:
             raise InputError(f"unknown environment field (use {', '.join(_ENV_KEYS)})", where=where)
         return getattr(scene.environment, key)
-    raise InputError("unknown variant section (use camera, materials, lights, environment)", where=f"variant {section}")
+    if section == "objects":  # a dynamic object's motion (warp_sg.rigid_motion.motion_from_fields)
+        from .dynamic_objects import object_index
+        from .errors import SceneError
+        from .rigid_motion import MOTION_FIELDS
+
+        try:
+            k = object_index(scene, name)
+        except SceneError as e:
+            raise InputError(str(e).split(": ", 1)[-1], where=where) from None
+        if not scene.objects[k].dynamic:
+            raise InputError("the object is not dynamic (give its [[objects]] table dynamic = true)", where=where)
+        if key not in MOTION_FIELDS:
+            raise InputError(f"unknown object field (use {', '.join(MOTION_FIELDS)})", where=where)
+        return {"matrix": np.eye(4).tolist(), "scale": 1.0}.get(key, [0.0, 0.0, 0.0])
+    raise InputError("unknown variant section (use camera, materials, lights, environment, objects)",
+                     where=f"variant {section}")
 
 
 def _items(variant):
@@ -98,7 +114,7 @@ def _items(variant):
         if section in ("camera", "environment"):
             for k, v in body.items():
                 yield section, None, k, v
-        elif section in ("materials", "lights"):
+        elif section in ("materials", "lights", "objects"):
             for name, fields in body.items():
                 if section == "lights":
                     try:
@@ -122,7 +138,8 @@ def normalize_variants(scene, variants) -> list[dict]:
         {"camera": {"origin": (x, y, z), "target": ..., "up": ..., "fov": deg, "width": W, "height": H},
          "materials": {"NAME": {"PARAM": value, ...}},
          "lights": {INDEX: {"position" | "direction" | "radius" | "intensity": value}},  # local lights
-         "environment": {"rotation": degrees, "scale": s}}
+         "environment": {"rotation": degrees, "scale": s},
+         "objects": {"NAME": {"translate" | "rotate" | "scale" | "pivot" | "matrix": value}}}  # dynamic ones
 
     Geometry and render settings are shared by the whole batch (one precompute)."""
     variants = list(variants)
@@ -158,6 +175,13 @@ def apply_variant(renderer, variant: dict) -> None:
         renderer.set_environment_rotation(float(env["rotation"]))
     if "scale" in env:
         renderer.set_environment_scale(float(env["scale"]))
+    for name, fields in variant.get("objects", {}).items():
+        from .rigid_motion import motion_from_fields
+
+        if "matrix" in fields and len(fields) > 1:  # (full state: the base values of the other form)
+            ident = np.array_equal(np.asarray(fields["matrix"], np.float64), np.eye(4))
+            fields = {k: v for k, v in fields.items() if (k == "matrix") != ident}
+        renderer.set_object_transform(name, motion_from_fields(fields, where=f"objects.{name}"))
 
 
 def _render_variant(scene, pre, token, variant, device, version):
@@ -319,10 +343,11 @@ def dotted_variant(values: dict) -> dict:
         parts = str(dotted).split(".")
         if parts[0] in ("camera", "environment") and len(parts) == 2:
             out.setdefault(parts[0], {})[parts[1]] = v
-        elif parts[0] in ("materials", "lights") and len(parts) == 3:
+        elif parts[0] in ("materials", "lights", "objects") and len(parts) == 3:
             out.setdefault(parts[0], {}).setdefault(parts[1], {})[parts[2]] = v
         else:
-            raise InputError("expected camera.FIELD, environment.FIELD, materials.NAME.PARAM or lights.INDEX.FIELD",
+            raise InputError("expected camera.FIELD, environment.FIELD, materials.NAME.PARAM, lights.INDEX.FIELD or "
+                             "objects.NAME.FIELD",
                              where=f"key {dotted!r}")
     return out
 

@@ -1,5 +1,5 @@
 r"""Equirectangular environment maps: loading, the direction ↔ (u, v) convention, solid angles,
-a procedural all-frequency sky and dynamic rotation (DESIGN.md "Conventions", paper §6).
+a procedural all-frequency sky and dynamic rotation (docs/environment.md "Equirectangular maps", paper §6).
 
 Scene layer: what a map *is* (the lights, the engines and the reference all read it this way);
 ``precompute.envmap`` re-exports every name.

@@ -1,6 +1,6 @@
 r"""The hemisphere integral ``fh(θd, λ)`` of the SG × SSDF product (paper §5.3 eq. 30–31, appendix eq. 46–48).
 
-Definition (DESIGN.md "SSDF"): the visibility around an SG axis ``p`` is replaced by a hemisphere
+Definition (docs/precompute.md "fh"): the visibility around an SG axis ``p`` is replaced by a hemisphere
 whose boundary great circle passes ``θd`` away from ``p`` (``p`` visible when ``θd > 0``)::
 
     fh(θd, λ) = ∫_{i·n ≥ 0} G(i; p, λ, 1) di,      p·n = sin θd,     θd ∈ [−π/2, π/2].

@@ -354,6 +354,12 @@ def build_geometry(scene) -> Geometry:
     dropped = 0
     for i, ob in enumerate(scene.objects):
         m = object_mesh(ob, i, scene.path, eye=scene.camera.origin)
+        if getattr(ob, "motion", None) is not None:  # a dynamic object's rigid motion (warp_sg.rigid_motion)
+            from .rigid_motion import apply_motion
+
+            mv, mn, mt = apply_motion(ob.motion, m.vertices, m.normals, m.tangents)
+            m, dropped_here = replace(m, vertices=mv, normals=mn, tangents=mt), getattr(m, "dropped", 0)
+            m.dropped = dropped_here
         check_size("the scene", sum(len(x) for x in tris) + len(m.triangles), MAX_TRIANGLES,
                    f"too large at object #{i + 1}", "triangles", where=str(scene.path or "scene"), error=MeshError)
         vs.append(m.vertices)

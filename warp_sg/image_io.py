@@ -1,4 +1,4 @@
-r"""Image files: OpenEXR and Radiance HDR (linear float) and PNG/JPEG (8-bit sRGB), DESIGN.md "Conventions".
+r"""Image files: OpenEXR and Radiance HDR (linear float) and PNG/JPEG (8-bit sRGB), docs/environment.md "Image files".
 
 Images are ``(H, W, C)`` float32 numpy arrays of *linear* values, row 0 at the top, ``C`` in
 {1, 3, 4} (a 2-D array is one channel).

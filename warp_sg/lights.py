@@ -1,4 +1,4 @@
-r"""Light records and their SG forms (paper §6, eq. 32–35; DESIGN.md "Lights").
+r"""Light records and their SG forms (paper §6, eq. 32–35; docs/math.md "Lights").
 
 Records (what a scene holds; the Monte-Carlo reference reads the same records):
 
@@ -13,7 +13,7 @@ Records (what a scene holds; the Monte-Carlo reference reads the same records):
   degrees about +Y: ``L_world(d) = L_map(R_y(rotation)ᵀ d)``.
 
 SG lights (eq. 32–33), amplitude chosen so that the SG's integral is the light's irradiance
-(DESIGN.md keeps eq. 32 physical instead of literal)::
+(eq. 32 kept physical instead of literal, docs/math.md)::
 
     point:        p = (l − x)/d,  λ = fa⁻¹(2π r²/d²),  μ: ∫G = 2πμ(1 − e^{−2λ})/λ = s/d²
     directional:  p = l,          λ = fa⁻¹(2π r²),     μ: ∫G = E

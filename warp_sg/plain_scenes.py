@@ -91,13 +91,15 @@ def write_sky_exr(path: Path, width: int = 256, height: int = 128, sun_radiance:
 
 
 def write_plain_scene(folder, obj: str = "sphere", light: str = "sky", material: str = "lambert",
-                      size: int = 96, render: dict | None = None, floor_material: str = "lambert") -> Path:
+                      size: int = 96, render: dict | None = None, floor_material: str = "lambert",
+                      dynamic: bool = False) -> Path:
     """Write a plain-input scene into ``folder`` and return the path of its ``scene.toml``.
 
     ``obj``: "sphere" | "blob"; ``light``: "sky" (EXR with a sun) | "point" | "sun" (a
     directional light) | "sky+point"; ``material``: a key of :data:`MATERIALS` for the object, or a
     material table (dict of TOML values, e.g. ``{"model": "ggx", "alpha": 0.3}``);
-    ``render``: extra ``[render]`` keys.
+    ``render``: extra ``[render]`` keys; ``dynamic``: the object may move
+    (``[[objects]] dynamic = true``, ``Renderer.set_object_transform``).
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -112,6 +114,8 @@ def write_plain_scene(folder, obj: str = "sphere", light: str = "sky", material:
               "translate": [0.0, 0.5, 0.0]}
     else:
         raise ValueError(f"unknown object {obj!r}")
+    if dynamic:
+        ob["dynamic"] = True
     parts = [_table("camera", {"origin": [0.0, 2.2, 3.6], "target": [0.0, 0.35, 0.0], "fov": 40.0,
                                "width": size, "height": size})]
     parts.append(_table("objects", ob, array=True))

@@ -9,7 +9,7 @@ Every generator returns a :class:`MeshData` (numpy, float32/int32) in the object
   seen from the side the normal points to (``(v1 − v0) × (v2 − v0)`` along the normal).
 * UV seams duplicate vertices (u = 0 and u = 1 both exist), so textures do not smear.
 
-Parametrisations (+Y up, DESIGN.md conventions)::
+Parametrisations (+Y up, docs/architecture.md "Conventions")::
 
     sphere(θ ∈ [0, π], φ ∈ [0, 2π]):  P = c + r (sin θ sin φ, cos θ, sin θ cos φ),  u = φ/2π, v = θ/π
     plane (x, z) ∈ [−sx/2, sx/2] × [−sz/2, sz/2], normal +Y,           u = x/sx + ½, v = z/sz + ½

@@ -2,7 +2,7 @@ r"""Monte-Carlo reference renderer: ``ws.reference(scene, spp=256, device="cpu")
 
 It renders exactly the light transport of :func:`warp_sg.render` — direct lighting, one bounce —
 with the exact (unfitted) BRDFs (``material_wp.brdf_eval``) and exact visibility (``wp.Mesh`` ray
-casts), so ``render`` vs ``reference`` measures only the SG approximation error (DESIGN.md).
+casts), so ``render`` vs ``reference`` measures only the SG approximation error (docs/architecture.md "Conventions").
 
 Per pixel
     Primary visibility by ray casting from the renderer's camera through the centres of the
@@ -19,7 +19,7 @@ Per shading point ``x`` (shading normal ``n``, view ``o``), one *sample* is
     combined by multiple importance sampling (power heuristic, β = 2, per light). Delta lights
     (radius 0) are evaluated directly. Shadow rays are exact ``wp.Mesh`` queries.
 
-Lights (DESIGN.md):
+Lights (docs/math.md "Lights"):
     * point light (position ``l``, radius ``r``, intensity ``s``): a sphere of uniform radiance
       ``s/(π r²)``, so its irradiance at distance ``d`` facing it is ``s/d²``;
     * directional light (direction, angular radius ``r``, irradiance ``E``): a cone of uniform
@@ -232,7 +232,7 @@ class _Prepared:
                 self.bg_image, spp, seed, sample_offset]
         n = self.n
         if self.device == "cpu" and threads > 1 and n >= 2 * threads:
-            # a CPU launch runs on one core: disjoint ranges from a thread pool scale (DESIGN.md)
+            # a CPU launch runs on one core: disjoint ranges from a thread pool scale (docs/raster.md "Performance")
             bounds = np.linspace(0, n, threads + 1).astype(int)
 
             def run(j):
@@ -393,6 +393,9 @@ def add_cli_arguments(p) -> None:
     p.add_argument("--seed", type=int, default=0)
     add_device_argument(p)
     p.add_argument("--stderr", default=None, help="also write the per-pixel standard error image here")
+    p.add_argument("--transform", action="append", default=[], metavar="OBJECT=M00,...,M33",
+                   help="render with dynamic object OBJECT (label or index) moved by the 4x4 rigid matrix "
+                        "(16 numbers, row-major), as Renderer.set_object_transform; repeatable")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
 
@@ -407,6 +410,10 @@ def cli_main(args) -> int:
     out = check_output_path(args.output, create_parents=True)
     err_out = check_output_path(args.stderr, create_parents=True) if args.stderr else None
     scene = load_scene(args.scene)
+    if args.transform:
+        from .dynamic_objects import parse_transform_argument, scene_with_transforms
+
+        scene = scene_with_transforms(scene, dict(parse_transform_argument(a) for a in args.transform))
     res = render_reference(scene, spp=args.spp, device=device_for(args.device, scene), progress=not args.no_progress,
                            seed=args.seed)
     make_parents(out)

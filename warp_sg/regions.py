@@ -1,4 +1,4 @@
-r"""Error per image region and as bias (issue 11; DESIGN.md "Error is reported per region").
+r"""Error per image region and as bias (issue 11; docs/rendering.md "Error per region and as bias").
 
 One image-wide relative MSE hides a 15 % dark floor behind a correct sky. :func:`scene_regions`
 splits a scene's pixels into
@@ -183,6 +183,21 @@ def region_errors(img, ref, regions: dict[str, np.ndarray], stderr=None) -> dict
     return out
 
 
+def shadow_centroid(img, unoccluded, floor) -> np.ndarray:
+    """``(row, column)`` of the centroid of the darkening ``max(L(U) − L(I), 0)`` (luminance) over
+    the ``floor`` pixels, where ``U`` is the same view with the occluder taken away: where a moved
+    object's shadow lies (compare ours with the reference's, each with its own ``U``). Pixels
+    darkened by less than 20 % of ``U`` do not count (the reference's noise, the faint penumbra of
+    the sky)."""
+    dark = np.maximum(np.asarray(unoccluded, np.float64) @ LUMA - np.asarray(img, np.float64) @ LUMA, 0.0)
+    u = np.asarray(unoccluded, np.float64) @ LUMA
+    w = np.where(floor & (dark > 0.2 * u), dark, 0.0)
+    if w.sum() <= 0:
+        return np.array([np.nan, np.nan])
+    yy, xx = np.mgrid[:w.shape[0], :w.shape[1]]
+    return np.array([float((w * yy).sum() / w.sum()), float((w * xx).sum() / w.sum())])
+
+
 def format_region_table(errs: dict[str, dict]) -> str:
     """Markdown table of :func:`region_errors`."""
     rows = ["| region | pixels | rel. MSE | bias | off by >3× |", "|---|---|---|---|---|"]
@@ -193,4 +208,5 @@ def format_region_table(errs: dict[str, dict]) -> str:
     return "\n".join(rows)
 
 
-__all__ = ["REGIONS", "scene_regions", "box_reference", "image_errors", "region_errors", "format_region_table"]
+__all__ = ["REGIONS", "scene_regions", "box_reference", "image_errors", "region_errors", "format_region_table",
+           "shadow_centroid"]

@@ -1,6 +1,6 @@
 r"""The renderer: ``ws.render(scene, device)`` and the stateful ``ws.Renderer``.
 
-Data flow (DESIGN.md): ``scene → precompute (cached) → raster (visibility buffer) → shading → image``.
+Data flow (docs/architecture.md "Conventions"): ``scene → precompute (cached) → raster (visibility buffer) → shading → image``.
 
 ``Renderer(scene, device)`` does the precompute once and keeps everything on the device:
 
@@ -95,6 +95,8 @@ class Renderer(EnvironmentSetup):
         self._bg = BackgroundCache(self.device)  # what pixels that see no object show
         self._aa = None  # antialiasing's caches between frames (warp_sg.antialias.AntialiasCache)
         self._vb_key = self._vb = self._culling = None
+        self.dynamic = None  # objects that move (warp_sg.dynamic_objects; _setup_dynamic)
+        self._rest_motions = {k: ob.motion for k, ob in enumerate(scene.objects) if ob.dynamic}  # the built pose
         t0 = time.perf_counter()
         check_frame_costs(scene, scene.geometry(), shadows=scene.render.shadows,  # the watchdog, before any work
                           specular=any(getattr(m.brdf, "is_specular", True) for m in scene.materials.values()))
@@ -153,7 +155,8 @@ class Renderer(EnvironmentSetup):
             return
         args = (self.scene, g, self.device)
         kw = {"progress": self.progress, "compute": self._ssdf_compute, "precomputed": self._precomputed,
-              "lights": self._refine_lights(), "cutouts": lambda geo: cutout_data(geo, self.scene.materials)}
+              "lights": self._refine_lights(), "cutouts": lambda geo: cutout_data(geo, self.scene.materials),
+              "dynamic": [bool(ob.dynamic) for ob in self.scene.objects]}  # (per-group SSDFs where any)
         if self.progressive:  # started once the first frame's own precompute is done (__init__)
             self._job = lambda: ShadowJob(lambda: compute_visibility(*args, **kw))
         elif self.overlap_precompute:  # beside the environment fit and ΓL (single-threaded parts)
@@ -178,6 +181,19 @@ class Renderer(EnvironmentSetup):
         self.cut = CutoutScene(g, self.scene.materials, ga.positions, d)
         self.cutouts = self.cut.data
         self.vis = visibility_arrays(None, ga.normals, len(g.vertices), d)
+        self._setup_dynamic()
+
+    def _setup_dynamic(self):
+        """The moving objects of the installed geometry (:mod:`warp_sg.dynamic_objects`; their
+        transforms carried over from the last install), None in a static scene."""
+        from .motion_wp import no_proxies
+
+        self._proxies = no_proxies(self.device)
+        if self._rest_motions:
+            from .dynamic_objects import DynamicObjects
+
+            self.dynamic = DynamicObjects(self, self._rest_motions, self.dynamic)
+            self._proxies = self.dynamic.px
 
     def _install_shadows(self, result):
         """Install :func:`warp_sg.visibility_setup.compute_visibility`'s result: the refined mesh,
@@ -191,6 +207,8 @@ class Renderer(EnvironmentSetup):
         self.shadows = True
         self.ssdf = ssdf
         self.vis = visibility_arrays(ssdf, self.geo_arrays.normals, len(g.vertices), self.device)
+        if self.dynamic is not None:
+            self.dynamic.attach(self)  # the vertices' SSDF frames, which turn with their objects
 
     @property
     def shadows_pending(self) -> bool:
@@ -243,7 +261,12 @@ class Renderer(EnvironmentSetup):
         """The per-vertex caches, brought up to date (:func:`warp_sg.vertex_visibility.update_caches`)."""
         from .vertex_visibility import update_caches
 
-        return update_caches(self, es)
+        es = update_caches(self, es)
+        if self.dynamic is not None:  # the moved vertices' rows
+            t = time.perf_counter()
+            self.dynamic.patch_caches(self, es)
+            self.timings["motion_caches"] = self.timings.get("motion_caches", 0.0) + time.perf_counter() - t
+        return es
 
     def _setup_materials(self):
         from .brdf.material_wp import pack_materials
@@ -316,6 +339,7 @@ class Renderer(EnvironmentSetup):
             models=self.material_table.models,
             emission=self.has_emission, occlusion=self.has_occlusion, coat=self.has_coat,
             vertex_colors=self.geometry.colors is not None, cutouts=self.cutouts is not None,
+            moving=self.dynamic is not None and self.shadows and self.show_shadows,
         )
 
     # ------------------------------------------------------------------ dynamic changes
@@ -392,6 +416,19 @@ class Renderer(EnvironmentSetup):
         self.env_light.scale = float(scale)
         self._setup_lights()
 
+    def set_object_transform(self, obj, matrix) -> None:
+        """Move dynamic object ``obj`` (index or label; ``[[objects]] dynamic = true``) by the 4×4
+        rigid ``matrix`` (rotation, translation, uniform scale; :mod:`warp_sg.rigid_motion`) applied
+        after its own translate/scale/rotate. The next frame shows it moved with its shading and the
+        shadows it casts and receives; no precompute is re-run (:mod:`warp_sg.dynamic_objects`)."""
+        if self.dynamic is None:
+            from .dynamic_objects import object_index
+
+            k = object_index(self.scene, obj)
+            raise SceneError(f"object '{self.scene.objects[k].label(k)}' is not dynamic (give its [[objects]] "
+                             f"table dynamic = true)", where="set_object_transform")
+        self.dynamic.set_transform(self.scene, obj, matrix)
+
     def set_camera(self, **fields) -> None:
         """Change camera fields (origin, target, up, fov, width, height)."""
         cam = self.scene.camera
@@ -444,6 +481,7 @@ class Renderer(EnvironmentSetup):
         fraction of the cost of shading every sub-pixel. A ``progressive`` renderer first installs
         its shadows if they have become ready (:meth:`poll`)."""
         self.poll()
+        self._move()
         rs = self.scene.render
         if rs.supersampling == 1 and rs.antialias > 1:
             return self._render_adaptive(int(rs.antialias))
@@ -510,6 +548,7 @@ class Renderer(EnvironmentSetup):
         from .geometry import vertex_samples
 
         self.poll()
+        self._move()
         d, nv = self.device, len(self.geometry.vertices)
         owner, bary = vertex_samples(self.geometry.triangles, nv)
         tri_id = wp.array(owner.reshape(1, nv), dtype=int, device=d)
@@ -519,6 +558,15 @@ class Renderer(EnvironmentSetup):
         out = wp.empty((1, nv), dtype=wp.vec3, device=d)
         self._launch_shade(tri_id, bary_w, bg, eye, out)
         return out.numpy().reshape(nv, 3)
+
+    def _move(self) -> None:
+        """Dynamic objects' transforms into the device arrays (timed as ``timings["motion"]``)."""
+        if self.dynamic is not None:
+            t = time.perf_counter()
+            self.timings["motion_caches"] = 0.0  # (the moved vertices' cache rows, summed over the frame)
+            with wp.ScopedDevice(self.device):
+                self.dynamic.apply(self)
+            self.timings["motion"] = time.perf_counter() - t
 
     def _launch_shade(self, tri_id, bary, bg, eye, out):
         d = self.device
@@ -537,13 +585,13 @@ class Renderer(EnvironmentSetup):
         self.layers.n_local = len(self.scene.local_lights)  # (the rest are the environment's peaks)
         args = [tri_id, bary, *self._bg.kernel_args(bg), wp.vec3(*np.asarray(eye, np.float32)), self.geo_arrays,
                 self.material_table.materials, self.material_textures, self.irr_table, self.light_arrays, es, gamma,
-                self.vis, self.layers, self.cut.arrays, self.cut.mesh_id, self._bg.params(*self._bg_args(1)), out]
+                self.vis, self._proxies, self.layers, self.cut.arrays, self.cut.mesh_id, self._bg.params(*self._bg_args(1)), out]
         parallel.launch(kern, n, args, d, min_chunk=2048, per_thread=S.PIXELS_PER_THREAD)
 
 
 def render(scene: Scene, device: str | None = None, progress: bool = False) -> np.ndarray:
-    """Render ``scene`` once: (H, W, 3) float32 linear radiance (DESIGN.md public interface).
-    ``device`` defaults to ``scene.render.device``."""
+    """Render ``scene`` once: (H, W, 3) float32 linear radiance (docs/architecture.md "Public interface").
+    ``device`` defaults to the scene's ``[render] device``."""
     return Renderer(scene, device, progress=progress).render()
 
 

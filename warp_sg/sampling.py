@@ -3,7 +3,7 @@ r"""Importance sampling for the Monte-Carlo reference (:mod:`warp_sg.reference`)
 Host side (numpy, float64) builds the tables; the ``@wp.func``\ s sample and evaluate them in
 kernels (float32).
 
-Environment (DESIGN.md conventions, Mitsuba 3 ``envmap``): for a unit direction ``d``,
+Environment (docs/environment.md "Equirectangular maps", Mitsuba 3 ``envmap``): for a unit direction ``d``,
 ``u = atan2(d.x, −d.z)/(2π)`` wrapped to [0, 1), ``v = acos(d.y)/π``, row 0 at the top. The
 reference treats the map as **piecewise constant** (texel ``(r, c)`` covers
 ``θ ∈ [π r/H, π (r+1)/H]``, ``φ ∈ [2π c/W, 2π (c+1)/W]``), which is the exact radiance function of

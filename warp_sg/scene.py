@@ -1,6 +1,6 @@
 r"""Scenes: TOML files (``tomllib``) and the equivalent Python objects.
 
-``ws.load_scene(path)`` reads a scene file (schema in DESIGN.md, extended below) and returns a
+``ws.load_scene(path)`` reads a scene file (every key: docs/rendering.md "Scene files"; in brief below) and returns a
 :class:`Scene`; ``ws.Scene(camera=..., objects=[...], materials={...}, lights=[...])`` builds the
 same thing in Python. Every mistake is a :class:`~warp_sg.errors.SceneError` (or
 ``MeshError``/``ImageError`` for unusable files) whose message names the file, the table and the
@@ -33,7 +33,7 @@ Records (what the renderer *and* the Monte-Carlo reference read)
 
 All objects share one geometry, so they shadow each other (multi-object composition).
 
-Scene file schema (keys beyond DESIGN.md's are marked +)::
+Scene file schema in brief (``+`` marks the keys added to the first version's)::
 
     [camera]    origin, target, up, fov, width, height, near+, far+
     [[objects]] mesh = "file" | primitive = "sphere"|"plane"|"torus"; material; name+;
@@ -41,7 +41,7 @@ Scene file schema (keys beyond DESIGN.md's are marked +)::
                   sphere: center, radius, resolution = [n_theta, n_phi]
                   plane:  center, size = [sx, sz] (normal +Y), resolution = [nx, nz]
                   torus:  center, major_radius, minor_radius, resolution = [n_major, n_minor]
-    [materials.NAME]  model + the model's parameters (DESIGN.md table; each numeric parameter a
+    [materials.NAME]  model + the model's parameters (docs/rendering.md table; each numeric parameter a
                 constant, a texture path "file.png"/"file.exr", or {texture = "f.png", scale = 1,
                 offset = 0, srgb = bool}); normal_map+, tangent_map+ (texture paths or tables)
     [[lights]]  type = "point": position, radius, intensity

@@ -7,7 +7,6 @@ of a whole scene happens in ``Scene.__post_init__``; the TOML file is read by
 from __future__ import annotations
 
 import difflib
-import math
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
@@ -34,13 +33,10 @@ class Transform:
     rotate: tuple = (0.0, 0.0, 0.0)
 
     def linear(self) -> np.ndarray:
-        ax, ay, az = (math.radians(float(a)) for a in self.rotate)
-        cx, sx, cy, sy, cz, sz = math.cos(ax), math.sin(ax), math.cos(ay), math.sin(ay), math.cos(az), math.sin(az)
-        Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
-        Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
-        Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+        from .rigid_motion import euler_rotation
+
         s = np.broadcast_to(np.asarray(self.scale, np.float64), (3,))
-        return Rz @ Ry @ Rx @ np.diag(s)
+        return euler_rotation(self.rotate) @ np.diag(s)
 
     def is_identity(self) -> bool:
         return (np.allclose(self.translate, 0) and np.allclose(self.scale, 1) and np.allclose(self.rotate, 0))
@@ -87,6 +83,11 @@ class SceneObject:
     #: (V, 3) factor it puts on ks (glTF COLOR_0, :func:`warp_sg.gltf_material.vertex_colour_factors`)
     colors: np.ndarray | None = None
     specular_colors: np.ndarray | None = None
+    #: may move after the precompute (``[[objects]] dynamic = true``; :mod:`warp_sg.dynamic_objects`)
+    dynamic: bool = False
+    #: (4, 4) rigid motion (rotation, translation, uniform scale) applied after ``transform``
+    #: (``Renderer.set_object_transform``; None: none)
+    motion: np.ndarray | None = None
 
     def label(self, index: int) -> str:
         return self.name or (Path(self.mesh).name if self.mesh is not None else self.primitive) or f"objects[{index}]"
@@ -283,6 +284,7 @@ def _expand_assets(objects: list, materials: dict, where: str) -> tuple[list, di
                                  f"by the scene (give the object another name)", where=where)
             mats[key] = Material(name=key, **spec)
         out.extend(SceneObject(material=ob.material or p.material, transform=ob.transform, name=p.name,
+                               dynamic=ob.dynamic, motion=ob.motion,
                                vertices=p.vertices, triangles=p.triangles, normals=p.normals, uvs=p.uvs,
                                tangents=p.tangents, colors=p.colors, specular_colors=p.specular_colors)
                    for p in parts)

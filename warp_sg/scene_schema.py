@@ -215,6 +215,8 @@ _OBJECT_FIELDS = {
     "translate": (vector(description="translation (applied last)"), None),
     "scale": (number_or_vector(3, description="scale: a number or 3 numbers, > 0"), None),
     "rotate": (vector(description="Euler angles (degrees) about X, then Y, then Z"), None),
+    "dynamic": (boolean("the object may move after the precompute (Renderer.set_object_transform): its "
+                        "self-shadows are kept in its own frame, its shadows on others come from proxies"), None),
 }
 _PRIMITIVE_PARAM_TYPES = {
     "center": vector(description="centre"),

@@ -58,7 +58,7 @@ class _Builder:
             given = ob.model_dump(exclude_unset=True)
             prim = given.get("primitive")
             params = {k: v for k, v in given.items() if k in type(ob).model_fields and k not in
-                      ("mesh", "primitive", "material", "name", "translate", "scale", "rotate")}
+                      ("mesh", "primitive", "material", "name", "translate", "scale", "rotate", "dynamic")}
             tr = Transform()
             if "translate" in given:
                 tr.translate = given["translate"]
@@ -69,7 +69,7 @@ class _Builder:
                 tr.rotate = given["rotate"]
             mesh = self.file(tab, "mesh", given["mesh"]) if "mesh" in given else None
             out.append(SceneObject(material=ob.material, mesh=mesh, primitive=prim, params=params, transform=tr,
-                                   name=given.get("name")))
+                                   name=given.get("name"), dynamic=bool(given.get("dynamic", False))))
         return out
 
     def texture(self, table, key, v, *, colour: bool) -> Texture:

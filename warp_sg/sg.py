@@ -1,4 +1,4 @@
-r"""Spherical Gaussian algebra (numpy), paper §3 and DESIGN.md "Math".
+r"""Spherical Gaussian algebra (numpy), paper §3 and docs/math.md "SG algebra".
 
 An SG is ``G(v; p, λ, μ) = μ · exp(λ (v·p − 1))`` with unit axis ``p``, sharpness ``λ > 0`` and
 amplitude ``μ`` (a scalar or RGB: a trailing axis of size 3 on ``μ`` broadcasts like any other).

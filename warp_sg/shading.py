@@ -57,6 +57,7 @@ rotation about it to the mapped tangent. The BRDF and its slice are built in the
 
 Layers (:mod:`warp_sg.surface_layers`): ``a(o)·(R + Le) + Rcoat``, the coat's GGX lobe shaded like the
 specular terms in its frame; occlusion on the environment's diffuse term; cut-outs' holes seen through.
+Moving objects (``Features.moving``, :mod:`warp_sg.motion_wp`): each visibility is capped by the proxies' own.
 
 Kernel variants: the kernel is specialised by scene content (``Features``): environment diffuse
 (SG mixture | none), environment specular (ΓL | none), lights, specular materials, shadows
@@ -98,7 +99,8 @@ from .surface_layers import Layers, coat_setup, emission_at, occlusion_at, verte
 
 from precompute.env_irradiance import IrradianceTable, env_irradiance  # noqa: E402
 from precompute.occluder_cone import occluder_clearance  # noqa: E402
-from precompute.ssdf_wp import SSDFPoint, ssdf_at, ssdf_point  # noqa: E402
+from precompute.ssdf_wp import SSDFPoint, ssdf_at, ssdf_point_framed  # noqa: E402
+from .motion_wp import Proxies, proxy_diffuse, proxy_ratio  # noqa: E402  (moving objects' occluder proxies)
 
 ENV_NONE, ENV_SG, ENV_PREFILTERED = 0, 1, 2
 _HALF_PI_F = wp.constant(1.5707963267948966)
@@ -130,6 +132,8 @@ class Visibility:
     basis: wp.array3d(dtype=float)
     weights: wp.array2d(dtype=float)
     normals: wp.array(dtype=wp.vec3)  # the per-vertex normals (frames) the SSDFs were computed in
+    frame_t: wp.array(dtype=wp.vec3)  # (V,) their frames' tangent and bitangent where objects move
+    frame_b: wp.array(dtype=wp.vec3)  # (warp_sg.dynamic_objects); length 1: the frames of the normals
     fh_table: wp.array2d(dtype=float)
     cones: wp.array(dtype=wp.vec4)  # per-vertex occluder cones (precompute.occluder_cone)
     cone_band: float  # their texel margin h: the width of the skip's blend
@@ -351,6 +355,7 @@ class Features:
     coat: bool = False
     vertex_colors: bool = False
     cutouts: bool = False
+    moving: bool = False  # dynamic objects: their occluder proxies per pixel (warp_sg.motion_wp)
 
     def __post_init__(self):
         object.__setattr__(self, "models", tuple(sorted({int(m) for m in self.models})))
@@ -411,8 +416,8 @@ def shade_kernel(f: Features):
     brdf_eval, diffuse_at, slice_lobe_count = MF.brdf_eval, MF.diffuse_at, MF.slice_lobe_count
     shading_slice_lobe = MF.shading_slice_lobe
     USE_GAMMA = ENV_S == ENV_PREFILTERED
-    EMIT, OCC, COAT, VCOL, CUT = (bool(f.emission), bool(f.occlusion), bool(f.coat), bool(f.vertex_colors),
-                                  bool(f.cutouts))
+    EMIT, OCC, COAT, VCOL, CUT, MOVING = (bool(f.emission), bool(f.occlusion), bool(f.coat),
+                                          bool(f.vertex_colors), bool(f.cutouts), bool(f.moving))
     brdf_diffuse = MF.brdf_diffuse
     if USE_GAMMA:
         GammaT, gamma_mean = _gamma_parts()
@@ -421,7 +426,7 @@ def shade_kernel(f: Features):
 
     def shade(base: int, per: int, tri_id: wp.array2d(dtype=int), bary: wp.array2d(dtype=wp.vec2), background: wp.array2d(dtype=wp.vec3),
               rays: Background, use_rays: int, cam: wp.vec3, geo: GeometryArrays, mats: wp.array(dtype=Material), tex: MaterialTextures,
-              irr: wp.array2d(dtype=float), lights: LightArrays, env: EnvSG, gamma: GammaT, vis: Visibility,
+              irr: wp.array2d(dtype=float), lights: LightArrays, env: EnvSG, gamma: GammaT, vis: Visibility, px: Proxies,
               lay: Layers, cut: Cutouts, mesh: wp.uint64, env_bg: Background, out: wp.array2d(dtype=wp.vec3)):
         W = tri_id.shape[1]
         p0 = base + wp.tid() * per  # the thread's first row-major pixel index
@@ -494,16 +499,14 @@ def shade_kernel(f: Features):
             q = SSDFPoint()
             q.ng = ng
             if wp.static(Q_EARLY):
-                q = ssdf_point(vis.normals, i0, i1, i2, b0, b1, b2, ng)
+                q = ssdf_point_framed(vis.normals, vis.frame_t, vis.frame_b, i0, i1, i2, b0, b1, b2, ng)
 
             col = wp.vec3(0.0, 0.0, 0.0)
             has_kd = wp.length_sq(mat.kd) > 0.0
 
             # ---------------- local lights (eq. 42–43, exact where it is cheap) ----------------
-            # The unshadowed response to a point / spherical / directional light is the exact BRDF at
-            # the light's direction times its irradiance, weighted by the exact cosine of the light's
-            # SG over the hemisphere e(n·l, λ) (→ max(n·l, 0) for small lights; smooth at the horizon
-            # for large ones). The SSDF supplies only the occluded fraction (vis_ratio).
+            # exact BRDF × irradiance × the light's SG cosine e(n·l, λ); the SSDF (and the moving
+            # objects' proxies) supply only the occluded fraction (vis_ratio, proxy_ratio)
             if wp.static(LIGHTS):
                 for j in range(lights.count):
                     la, ll, E = light_irradiance(lights, j, P)
@@ -525,6 +528,7 @@ def shade_kernel(f: Features):
                                 vr = fh_fraction(FH, vis, th_h + dd, th_h, ll)
                         else:
                             vr = vis_ratio(SHADOWS, FH, vis, q, la, ll)
+                        if wp.static(MOVING): vr = wp.min(vr, proxy_ratio(FH, vis.fh_table, px, t, P, ng, la, ll))  # noqa: E701
                         if e > 0.0:
                             f = brdf_eval(mat, o_l, above(li))
                             if wp.static(OCC):  # the environment's peaks: occlusion on their diffuse part
@@ -536,11 +540,8 @@ def shade_kernel(f: Features):
                                 ccol += wp.cw_mul(brdf_eval(cm, oc_l, above(lc)), E) * (ec * vr)
 
             # ---------------- environment, diffuse (eq. 39) ----------------
-            # ρd E(n) with the exact irradiance of the map (precompute.env_irradiance) and its visible
-            # fraction: per vertex by quadrature of the SSDF weighted by the map (EVIS, the default),
-            # else from the mixture's lobes, Σ_j ρd μ_j ∫G_j e(n·p_j, λ_j) V_j (the exact irradiance
-            # of each SG, sg_irradiance, times the visible fraction of the product lobe C* ⊗ G_j)
-            # plus the part of E(n) the lobes miss, seen with their mean visibility.
+            # ρd E(n) times its visible fraction: per vertex by quadrature of the SSDF (EVIS, the
+            # default), else from the mixture's lobes and the part of E(n) they miss (module docstring)
             cd = wp.vec3(0.0, 0.0, 0.0)  # the environment's diffuse term (times the occlusion)
             if wp.static(ENV_D == 1 and SHADOWS == 0 and RHO_D_CONST):
                 if has_kd:  # nothing occludes: ρd E(n), no lobe
@@ -554,6 +555,7 @@ def shade_kernel(f: Features):
                     else:
                         fv = b0 * env.visible[i0] + b1 * env.visible[i1] + b2 * env.visible[i2]
                         cd += wp.cw_mul(wp.cw_mul(env_irradiance(env.exact, ns), fv), rho_d)
+                    if wp.static(MOVING): cd = wp.cw_mul(cd, proxy_diffuse(px, t, P, ns, env.radiance, env.exact))  # noqa: E701
             if wp.static(ENV_D == 1 and not (SHADOWS == 0 and RHO_D_CONST) and not EVIS):
                 if has_kd:
                     rho_d = diffuse_at(mat, o_l, wp.vec3(0.0, 0.0, 1.0))  # ρd at the normal
@@ -572,6 +574,7 @@ def shade_kernel(f: Features):
                                 vr = b0 * env.vis[i0, j] + b1 * env.vis[i1, j] + b2 * env.vis[i2, j]
                             else:
                                 vr = vis_ratio(SHADOWS, FH, vis, q, pe, le)
+                            if wp.static(MOVING): vr = wp.min(vr, proxy_ratio(FH, vis.fh_table, px, t, P, ng, pe, le))  # noqa: E701,E501
                             unocc += E
                             seen += E * vr
                             cd += wp.cw_mul(E, diffuse_at(mat, o_l, world_to_local(pe, ts, bs, ns))) * vr
@@ -580,11 +583,8 @@ def shade_kernel(f: Features):
             col += cd * occ
 
             # ---------------- environment, specular (eq. 41) ----------------
-            # For each slice lobe G_k (axis pW, λW, amplitude μ_k ∝ Mo): ∫ G_k(i) max(n·i, 0) L(i) di ≈
-            # [μ_k ∫G_k e(n·pW, λW)] · L̄, the lobe's exact cosine-weighted mass times the mean radiance
-            # L̄ = ΓL(p, λ)/∫G(λ) over the cosine-weighted lobe (p, λ) = C* ⊗ G_k (eq. 35). Exact for a
-            # constant environment and for sharp lobes, and bounded at grazing views, where the
-            # paper's C* ⊗ ρ*_k (0.14 of its peak at the horizon times Mo ∝ 1/(n·i)) grows as 1/(n·o).
+            # per slice lobe G_k: [μ_k ∫G_k e(n·pW, λW)] · L̄, the lobe's exact cosine-weighted mass times
+            # the mean radiance L̄ = ΓL(p, λ)/∫G(λ) over (p, λ) = C* ⊗ G_k (eq. 35; module docstring)
             if wp.static(SPEC and ENV_S == 2):
                 nspec = slice_lobe_count(mat)
                 ncoat = int(0)
@@ -593,7 +593,7 @@ def shade_kernel(f: Features):
                         ncoat = slice_lobe_count(cm)
                 if wp.static(SHADOWS == 1 and not Q_EARLY):
                     if nspec > 0 or ncoat > 0:
-                        q = ssdf_point(vis.normals, i0, i1, i2, b0, b1, b2, ng)
+                        q = ssdf_point_framed(vis.normals, vis.frame_t, vis.frame_b, i0, i1, i2, b0, b1, b2, ng)
                 spec = wp.vec3(0.0, 0.0, 0.0)
                 for k in range(nspec):
                     pw_l, lw, mw = shading_slice_lobe(mat, o_l, k)
@@ -603,6 +603,7 @@ def shade_kernel(f: Features):
                             pw = local_to_world(pw_l, ts, bs, ns)
                             pa, lam = sg_product_lobe(ns, CC_LAM, pw, lw)
                             vd = vis_ratio_depth(SHADOWS, FH, vis, q, pa, lam)
+                            if wp.static(MOVING): vd[0] = wp.min(vd[0], proxy_ratio(FH, vis.fh_table, px, t, P, ng, pa, lam))  # noqa: E701,E501
                             pv = pa
                             lv = lam
                             if vd[0] < 1.0:  # the mean radiance of the lobe's visible part
@@ -619,6 +620,7 @@ def shade_kernel(f: Features):
                         if e > 0.0 and wp.length_sq(mw) > 0.0:
                             pa, lam = sg_product_lobe(ns_c, CC_LAM, local_to_world(pw_l, ts_c, bs_c, ns_c), lw)
                             vd = vis_ratio_depth(SHADOWS, FH, vis, q, pa, lam)
+                            if wp.static(MOVING): vd[0] = wp.min(vd[0], proxy_ratio(FH, vis.fh_table, px, t, P, ng, pa, lam))  # noqa: E701,E501
                             pv, lv = pa, lam
                             if vd[0] < 1.0:
                                 pv, lv = visible_lobe(vis, q, pa, lam, vd[1])
@@ -631,7 +633,7 @@ def shade_kernel(f: Features):
             out[y, x] = wp.vec3(wp.max(col[0], 0.0), wp.max(col[1], 0.0), wp.max(col[2], 0.0))
 
     key = "shade_" + "_".join(str(int(v)) for v in (ENV_D, ENV_S, LIGHTS, SPEC, SHADOWS, TEX, NMAP, FH, VVIS, LVIS,
-                                                      EVIS, EMIT, OCC, COAT, VCOL, CUT)) + MF.tag
+                                                      EVIS, EMIT, OCC, COAT, VCOL, CUT, MOVING)) + MF.tag
     shade.__name__ = key
     shade.__qualname__ = key
     k = wp.kernel(shade, enable_backward=False, module="unique")

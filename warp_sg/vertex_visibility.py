@@ -59,7 +59,7 @@ import numpy as np
 import warp as wp
 
 from precompute.env_irradiance import irradiance_unscaled
-from precompute.ssdf_wp import concentric_to_dir_wp, ssdf_at, ssdf_point
+from precompute.ssdf_wp import concentric_to_dir_wp, ssdf_at, ssdf_point_framed
 
 from .fastmath import fast_asin
 from .frames import frame_bitangent, frame_tangent, local_to_world
@@ -85,28 +85,46 @@ def _texel_ssdf(vis: Visibility, v: int, y: int, x: int) -> float:
 
 
 @wp.func
+def _vertex_frame(vis: Visibility, v: int, n: wp.vec3):
+    """(t, b) of the frame vertex v's SSDF is stored in: the stored frame of a moving object's vertex
+    (``Visibility.frame_t``, ``frame_b``), else the frame of its normal."""
+    if vis.frame_t.shape[0] == vis.normals.shape[0]:
+        return vis.frame_t[v], vis.frame_b[v]
+    return frame_tangent(n), frame_bitangent(n)
+
+
+@wp.func
+def _vertex_id(k: int, ids: wp.array(dtype=int)) -> int:
+    """The vertex of thread ``k = base + tid``: k itself, or entry k of ``ids`` when given."""
+    v = k
+    if ids.shape[0] > 0:
+        v = ids[v]
+    return v
+
+
+@wp.func
 def _texel_dir(R: int, y: int, x: int) -> wp.vec3:
     """Local direction of texel (y, x) of an R×R equal-area concentric map."""
     return concentric_to_dir_wp((float(x) + 0.5) * 2.0 / float(R) - 1.0, (float(y) + 0.5) * 2.0 / float(R) - 1.0)
 
 
 @wp.kernel(enable_backward=False)
-def env_vertex_visibility_kernel(base: int, irr: wp.array2d(dtype=float), vis: Visibility, env: EnvSG,
-                                 out: wp.array2d(dtype=float)):
+def env_vertex_visibility_kernel(base: int, ids: wp.array(dtype=int), irr: wp.array2d(dtype=float), vis: Visibility,
+                                 env: EnvSG, out: wp.array2d(dtype=float)):
     """``out[v, j]`` = the visible fraction of the cosine-weighted lobe ``G_j max(n_v·i, 0)`` at vertex
     ``v = base + tid``, by quadrature of its SSDF over the R×R equal-area texels (module
     docstring): ``1 − Σ_t (1 − s_t) (n·d_t) G_j(d_t) Ω / (∫G_j e(n·p_j, λ_j))``, ``s_t =
     clamp(½ + θd_t/h, 0, 1)`` the texel's visible share from its SSDF value (h = the texel side).
-    Only texels inside the vertex's occluder cone are read; a vertex with no occluder is 1."""
-    v = base + wp.tid()
+    Only texels inside the vertex's occluder cone are read; a vertex with no occluder is 1. With
+    ``ids`` (non-empty) thread k computes vertex ``ids[base + k]`` only."""
+    v = _vertex_id(base + wp.tid(), ids)
     nj = out.shape[1]
     n = wp.normalize(vis.normals[v])
     for j in range(nj):
         out[v, j] = 0.0
     cone = vis.cones[v]
     if cone[3] >= 0.0:  # something occludes this vertex: integrate its occluded texels
-        t = frame_tangent(n)
-        b = frame_bitangent(n)
+        t, b = _vertex_frame(vis, v, n)
         R = vis.mean.shape[0]
         h = _SQRT_2PI / float(R)
         om = 2.0 * wp.pi / float(R * R)
@@ -132,8 +150,8 @@ def env_vertex_visibility_kernel(base: int, irr: wp.array2d(dtype=float), vis: V
 
 
 @wp.kernel(enable_backward=False)
-def light_vertex_deficit_kernel(base: int, fh_mode: int, vis: Visibility, positions: wp.array(dtype=wp.vec3),
-                                lights: LightArrays, out: wp.array2d(dtype=float)):
+def light_vertex_deficit_kernel(base: int, ids: wp.array(dtype=int), fh_mode: int, vis: Visibility,
+                                positions: wp.array(dtype=wp.vec3), lights: LightArrays, out: wp.array2d(dtype=float)):
     """``out[v, j] = min(θd_v(l_v) − θh_v(l_v), 0)``: vertex v's SSDF towards light j (direction
     ``l_v`` from the vertex, its own frame) less its horizon value ``asin(l_v·n_v)`` — 0 where no
     occluder is closer than the horizon (and where the occluder cone is clear: no lookup)."""
@@ -141,9 +159,11 @@ def light_vertex_deficit_kernel(base: int, fh_mode: int, vis: Visibility, positi
     nl = out.shape[1]
     v = e // nl
     j = e - v * nl
+    if ids.shape[0] > 0:
+        v = ids[v]
     n = wp.normalize(vis.normals[v])
     la, ll, E = light_irradiance(lights, j, positions[v])
-    q = ssdf_point(vis.normals, v, v, v, 1.0, 0.0, 0.0, n)
+    q = ssdf_point_framed(vis.normals, vis.frame_t, vis.frame_b, v, v, v, 1.0, 0.0, 0.0, n)
     th_h = fast_asin(wp.clamp(wp.dot(la, n), -1.0, 1.0))
     s = lookup_skip(fh_mode, vis, q, la, th_h, ll)
     d = float(0.0)
@@ -153,8 +173,8 @@ def light_vertex_deficit_kernel(base: int, fh_mode: int, vis: Visibility, positi
 
 
 @wp.kernel(enable_backward=False)
-def env_vertex_visible_kernel(base: int, vis: Visibility, env: EnvSG, out: wp.array(dtype=wp.vec3),
-                              out_irr: wp.array(dtype=wp.vec3)):
+def env_vertex_visible_kernel(base: int, ids: wp.array(dtype=int), vis: Visibility, env: EnvSG,
+                              out: wp.array(dtype=wp.vec3), out_irr: wp.array(dtype=wp.vec3)):
     """``out[v]`` = the visible fraction (RGB) of vertex ``v = base + tid``'s diffuse irradiance:
     ``1 − O/(O + S + max(E − O − S, 0))`` with ``O``, ``S`` the occluded and the visible parts of
     ``Σ_t (n·d_t) L̄(d_t) Ω_t`` over the texels inside the vertex's occluder cone (the texel's
@@ -162,15 +182,15 @@ def env_vertex_visible_kernel(base: int, vis: Visibility, env: EnvSG, out: wp.ar
     scale, ``env.radiance``) and ``E`` the exact irradiance (``env.exact`` at unit scale): the texels
     outside the cone are visible (none when the cone holds the whole hemisphere). 1 without a read
     where nothing occludes the vertex; exactly 0 where everything does. ``out_irr[v] = E ∘ F``, the
-    visible irradiance at unit scale (what smooth triangles interpolate)."""
-    v = base + wp.tid()
+    visible irradiance at unit scale (what smooth triangles interpolate). ``ids``: as in
+    :func:`env_vertex_visibility_kernel`."""
+    v = _vertex_id(base + wp.tid(), ids)
     n = wp.normalize(vis.normals[v])
     cone = vis.cones[v]
     f = wp.vec3(1.0, 1.0, 1.0)
     ex = irradiance_unscaled(env.exact, n)
     if cone[3] >= 0.0:
-        t = frame_tangent(n)
-        b = frame_bitangent(n)
+        t, b = _vertex_frame(vis, v, n)
         R = vis.mean.shape[0]
         h = _SQRT_2PI / float(R)
         om = 2.0 * wp.pi / float(R * R)
@@ -198,16 +218,27 @@ def env_vertex_visible_kernel(base: int, vis: Visibility, env: EnvSG, out: wp.ar
     out_irr[v] = wp.cw_mul(ex, f)
 
 
-def env_vertex_visible(vis: Visibility, env: EnvSG, n_vertices: int, device):
+def _ids(ids, device):
+    """(the id array, its length) for the kernels' ``ids`` argument (empty: every vertex)."""
+    if ids is None:
+        return wp.zeros(0, dtype=int, device=device), None
+    return ids, int(ids.shape[0])
+
+
+def env_vertex_visible(vis: Visibility, env: EnvSG, n_vertices: int, device, ids=None, into=None):
     """``(F, E ∘ F)``: the (V,) vec3 arrays of :func:`env_vertex_visible_kernel` (one thread per
-    vertex)."""
+    vertex). ``ids`` (a device int array) with ``into`` (an earlier ``(F, E ∘ F)``): recompute only
+    those vertices' rows, in place."""
     from raster import parallel
 
-    out = wp.zeros(max(int(n_vertices), 1), dtype=wp.vec3, device=device)
-    out_irr = wp.zeros(max(int(n_vertices), 1), dtype=wp.vec3, device=device)
-    if n_vertices > 0:
-        parallel.launch(env_vertex_visible_kernel, int(n_vertices), [vis, env, out, out_irr], device, min_chunk=64)
-    return out, out_irr
+    ida, n = _ids(ids, device)
+    if into is None:
+        into = (wp.zeros(max(int(n_vertices), 1), dtype=wp.vec3, device=device),
+                wp.zeros(max(int(n_vertices), 1), dtype=wp.vec3, device=device))
+    n = int(n_vertices) if n is None else n
+    if n > 0:
+        parallel.launch(env_vertex_visible_kernel, n, [ida, vis, env, *into], device, min_chunk=64)
+    return into
 
 
 #: the largest angle between the vertex normals of a triangle whose diffuse environment term is
@@ -229,31 +260,35 @@ def smooth_triangles(normals, triangles) -> np.ndarray:
     return (cmin >= np.cos(np.radians(SMOOTH_TRIANGLE_DEG))).astype(np.uint8)
 
 
-def _vertex_table(kernel, n_vertices: int, n_cols: int, inputs: list, device) -> wp.array2d:
-    """(V, n_cols) float array of a per-(vertex, column) ``kernel`` (element ``v·n_cols + j``;
-    CPU: thread pool); (1, 1) zeros when there is nothing to compute."""
+def light_vertex_deficit(vis: Visibility, positions, lights: LightArrays, n_vertices: int, fh_sigmoid: bool,
+                         device, ids=None, into=None) -> wp.array2d:
+    """(V, lights) array of :func:`light_vertex_deficit_kernel` (element ``v·lights + j``; CPU:
+    thread pool); (1, 1) zeros when there is nothing to compute. ``ids``/``into``: as in
+    :func:`env_vertex_visible`."""
     from raster import parallel
 
-    out = wp.zeros((max(int(n_vertices), 1), max(int(n_cols), 1)), dtype=float, device=device)
-    if n_cols > 0 and n_vertices > 0:
-        parallel.launch(kernel, int(n_vertices) * int(n_cols), [*inputs, out], device, min_chunk=1024)
+    ida, n = _ids(ids, device)
+    out = wp.zeros((max(int(n_vertices), 1), max(int(lights.count), 1)), dtype=float, device=device) \
+        if into is None else into
+    n = int(n_vertices) if n is None else n
+    if lights.count > 0 and n > 0:
+        parallel.launch(light_vertex_deficit_kernel, n * int(lights.count),
+                        [ida, 1 if fh_sigmoid else 0, vis, positions, lights, out], device, min_chunk=1024)
     return out
 
 
-def light_vertex_deficit(vis: Visibility, positions, lights: LightArrays, n_vertices: int, fh_sigmoid: bool,
-                         device) -> wp.array2d:
-    """(V, lights) array of :func:`light_vertex_deficit_kernel`."""
-    return _vertex_table(light_vertex_deficit_kernel, n_vertices, lights.count,
-                         [1 if fh_sigmoid else 0, vis, positions, lights], device)
-
-
-def env_vertex_visibility(irr, vis: Visibility, env: EnvSG, n_vertices: int, device) -> wp.array2d:
-    """(V, J) array of :func:`env_vertex_visibility_kernel` (one thread per vertex)."""
+def env_vertex_visibility(irr, vis: Visibility, env: EnvSG, n_vertices: int, device, ids=None,
+                          into=None) -> wp.array2d:
+    """(V, J) array of :func:`env_vertex_visibility_kernel` (one thread per vertex); ``ids``/``into``:
+    as in :func:`env_vertex_visible`."""
     from raster import parallel
 
-    out = wp.zeros((max(int(n_vertices), 1), max(int(env.count), 1)), dtype=float, device=device)
-    if env.count > 0 and n_vertices > 0:
-        parallel.launch(env_vertex_visibility_kernel, int(n_vertices), [irr, vis, env, out], device, min_chunk=64)
+    ida, n = _ids(ids, device)
+    out = wp.zeros((max(int(n_vertices), 1), max(int(env.count), 1)), dtype=float, device=device) \
+        if into is None else into
+    n = int(n_vertices) if n is None else n
+    if env.count > 0 and n > 0:
+        parallel.launch(env_vertex_visibility_kernel, n, [ida, irr, vis, env, out], device, min_chunk=64)
     return out
 
 

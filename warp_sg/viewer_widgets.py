@@ -88,6 +88,9 @@ class Editor:
         self._light_handles()
         self._toggles()
         self._keys()
+        from .viewer_objects import ObjectHandles
+
+        self.objects = ObjectHandles(self)  # dynamic objects: drag handles, 'o'/'O' turn
         self.plotter.track_click_position(self._on_click, side="left", viewport=True)
 
     # ------------------------------------------------------------------ edits

@@ -46,14 +46,16 @@ def _timed(parts: dict, name: str, fn):
 
 
 def compute_visibility(scene, g, device, *, progress=False, compute=None, precomputed=None, lights=(),
-                       cutouts=None):
+                       cutouts=None, dynamic=()):
     """``(refinement or None, refined geometry, SSDFData, parts)`` of the flattened input mesh ``g``
     of ``scene`` (shadows assumed on). ``precomputed``: :meth:`Renderer.precomputed` data to reuse
     (checked against the mesh and settings: a mismatch is an :class:`InputError`). ``parts``:
     ``{name: (wall s, CPU s)}`` of ``refine`` and ``ssdf`` (CPU: the whole process's). ``lights``:
     the key lights the refinement places shadow edges for (``Renderer._refine_lights``);
     ``cutouts``: a function of a geometry returning its alpha cut-outs
-    (:func:`warp_sg.cutout.cutout_data`), whose holes the refinement's and the SSDFs' rays pass."""
+    (:func:`warp_sg.cutout.cutout_data`), whose holes the refinement's and the SSDFs' rays pass.
+    ``dynamic``: per object, whether it may move (``SceneObject.dynamic``); with any, the SSDFs are
+    computed per group, each dynamic object alone (:mod:`precompute.ssdf_groups`)."""
     cut_of = cutouts if cutouts is not None else (lambda geo: None)
     import precompute
 
@@ -78,16 +80,30 @@ def compute_visibility(scene, g, device, *, progress=False, compute=None, precom
         gr = refined_geometry(g, ref) if ref is not None and len(ref.vertices) > len(g.vertices) else g
         cut = cut_of(gr)
 
+        groups = None
+        if any(dynamic):  # 0: the static objects, 1 + k: dynamic object k
+            to = np.asarray(gr.tri_object, np.int64)
+            groups = np.where(np.asarray(dynamic, bool)[to], 1 + to, 0)
+
         def ssdf():
             if precomputed is not None and precomputed.get("ssdf") is not None:
                 from precompute.ssdf import ssdf_key
+                from precompute.ssdf_groups import ssdf_groups_key
 
                 data = precomputed["ssdf"]
                 want = ssdf_key(gr.vertices, gr.triangles, gr.normals, resolution=rs.ssdf_resolution,
-                                ray_resolution=data.ray_resolution, pca_terms=rs.pca_terms, cutouts=cut)
+                                ray_resolution=data.ray_resolution, pca_terms=rs.pca_terms, cutouts=cut) \
+                    if groups is None else ssdf_groups_key(gr.vertices, gr.triangles, gr.normals, groups,
+                                                           resolution=rs.ssdf_resolution,
+                                                           ray_resolution=data.ray_resolution, pca_terms=rs.pca_terms)
                 if want != data.key:
                     raise InputError("precomputed SSDFs are for a different mesh or SSDF settings", where="precomputed")
                 return data
+            if groups is not None:
+                from precompute.ssdf_groups import ssdf_for_groups
+
+                return ssdf_for_groups(gr.vertices, gr.triangles, gr.normals, groups, resolution=rs.ssdf_resolution,
+                                       pca_terms=rs.pca_terms, device=device, progress=progress, compute=compute)
             return precompute.ssdf_for_mesh(gr.vertices, gr.triangles, gr.normals, resolution=rs.ssdf_resolution,
                                             pca_terms=rs.pca_terms, device=device, progress=progress, compute=compute,
                                             cutouts=cut)
@@ -121,6 +137,7 @@ def visibility_arrays(ssdf, normals, n_vertices: int, device) -> S.Visibility:
         vis.cones = wp.array(no_cones(1), dtype=wp.vec4, device=d)
         vis.cone_band = 1.0
     vis.light_deficit = wp.zeros((1, 1), dtype=float, device=d)
+    vis.frame_t = vis.frame_b = wp.zeros(1, dtype=wp.vec3, device=d)  # (the frames of the normals)
     return vis
 
 

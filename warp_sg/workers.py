@@ -1,7 +1,7 @@
 """Worker-count policy for CPU thread pools (base layer; shared by warp_sg, raster and precompute).
 
 Warp runs a CPU launch serially on one core; launching disjoint ranges of a kernel from a small
-thread pool scales (DESIGN.md "Performance facts"). :func:`cpu_workers` is the one answer to
+thread pool scales (docs/raster.md "Performance"). :func:`cpu_workers` is the one answer to
 "how many threads": 1 on a GPU device; else ``$WARP_SG_THREADS`` when set (the rasterizer also
 reads its older ``$RASTER_THREADS`` first); else the cores this process may run on, at most
 ``limit``.

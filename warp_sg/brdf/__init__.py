@@ -1,6 +1,6 @@
 r"""BRDF models (local frame, z+ = normal), their NDF SG fits and the kernel-side material records.
 
-``ρ(o, i) = kd/π + ks ρs(o, i)``, ``ρs = Mo(o, i) D(h)`` (DESIGN.md "BRDF"; paper eq. 8–9).
+``ρ(o, i) = kd/π + ks ρs(o, i)``, ``ρs = Mo(o, i) D(h)`` (docs/math.md "BRDF"; paper eq. 8–9).
 Models are keyed in :data:`MODELS` by their scene-file names, in one registry
 (:mod:`warp_sg.brdf.registry`: each model is one class in :mod:`warp_sg.brdf.models` that declares
 its name, kernel code, parameters, fit hooks and kernel ``@wp.func`` functions); :func:`make_model`

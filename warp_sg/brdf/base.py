@@ -1,7 +1,7 @@
 r"""Shared machinery of the BRDF model classes (numpy, float64).
 
 Every model is ``ρ(o, i) = kd/π + ks · ρs(o, i)`` in the local frame (z+ = normal, x = tangent),
-with directions pointing away from the surface (DESIGN.md "BRDF"). Specular models factor
+with directions pointing away from the surface (docs/math.md "BRDF"). Specular models factor
 ``ρs(o, i) = Mo(o, i) · D(h)``, ``h = (o + i)/‖o + i‖`` (paper eq. 9), keep ``Mo`` analytic and fit
 the NDF ``D`` by spherical Gaussians (supplement §2–3).
 
