@@ -80,8 +80,7 @@ import warp as wp
 from .background import Background, background_along, background_at
 from .cutout import Cutouts, see_behind
 from .brdf.albedo import albedo_correction
-from .brdf.material_wp import ALL_MODELS, Material, above, lum, material_funcs
-from .brdf.registry import constant_diffuse
+from .brdf.material_wp import ALL_MODELS, Material, above, constant_diffuse, lum, material_funcs
 from .fastmath import fast_asin
 from .fh import fh_ratio_table_pair, fh_theta_max_wp
 from .frames import local_to_world, world_to_local
@@ -359,14 +358,11 @@ class Features:
 
     def __post_init__(self):
         object.__setattr__(self, "models", tuple(sorted({int(m) for m in self.models})))
-        # the per-vertex visibility gating, decided here once (the renderer's caches and the kernel
-        # variant read these fields): only with shadows; the visible fraction of the diffuse
-        # environment sum where ``env_visible_vertex_ok``, else the per-lobe cache
-        evis = bool(self.env_visible_vertex) and bool(self.shadows) and env_visible_vertex_ok(self.env_diffuse,
-                                                                                               self.models)
+        # the per-vertex visibility gating, decided once here (the renderer's caches and the kernel read it)
+        evis = bool(self.env_visible_vertex and self.shadows) and env_visible_vertex_ok(self.env_diffuse, self.models)
         object.__setattr__(self, "env_visible_vertex", evis)
-        object.__setattr__(self, "env_vis_vertex", bool(self.env_vis_vertex) and bool(self.shadows) and not evis)
-        object.__setattr__(self, "light_vis_vertex", bool(self.light_vis_vertex) and bool(self.shadows))
+        object.__setattr__(self, "env_vis_vertex", bool(self.env_vis_vertex and self.shadows) and not evis)
+        object.__setattr__(self, "light_vis_vertex", bool(self.light_vis_vertex and self.shadows))
 
 
 _KERNELS: dict = {}
@@ -380,9 +376,7 @@ PIXELS_PER_THREAD = 16
 
 def env_visible_vertex_ok(env_diffuse: int, models) -> bool:
     """Whether the diffuse environment term can be the exact irradiance times the per-vertex visible
-    fraction (``EnvSG.visible``): an SG environment and ρd = kd/π whatever the directions (no
-    Oren–Nayar: its directional ρd takes the lobe path; ``registry.constant_diffuse``). The renderer
-    asks this before building the cache; the kernel variant before reading it."""
+    fraction (``EnvSG.visible``): an SG environment and ρd = kd/π (``brdf.registry.constant_diffuse``)."""
     return int(env_diffuse) == ENV_SG and constant_diffuse(models)
 
 
@@ -405,10 +399,8 @@ def shade_kernel(f: Features):
     TEX = bool(f.textures)
     NMAP = bool(f.normal_maps)
     FH = 1 if f.fh_sigmoid else 0
-    VVIS = bool(f.env_vis_vertex)  # (Features gates the per-vertex caches)
-    LVIS = bool(f.light_vis_vertex)
+    VVIS, LVIS, EVIS = bool(f.env_vis_vertex), bool(f.light_vis_vertex), bool(f.env_visible_vertex)  # Features gates
     RHO_D_CONST = constant_diffuse(f.models)  # no Oren–Nayar: ρd = kd/π, whatever the directions
-    EVIS = bool(f.env_visible_vertex)
     # per-pixel SSDF reads outside the specular loop (lights without the deficit cache, diffuse
     # lobes without the visibility cache): the SSDF point is built for every pixel
     Q_EARLY = SHADOWS == 1 and ((LIGHTS and not LVIS) or (ENV_D == 1 and not VVIS and not EVIS))

@@ -68,3 +68,4 @@ from .material_sample_wp import (  # noqa: F401
     ggx_pdf_i, ggx_vndf_h, reflect_about, sg_lobe_weight, sg_mixture_pdf, sg_sample_dir,
 )
 from .measured_wp import fresnel_dielectric, measured_mo, merl_eval  # noqa: F401
+from .registry import constant_diffuse  # noqa: F401
