@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 import warp_sg as ws
-from warp_sg.render import Renderer
+from warp_sg.renderer.renderer import Renderer
 
 HERE = Path(__file__).resolve().parent
 

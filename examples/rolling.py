@@ -8,7 +8,7 @@ from one precompute each, by ``Renderer.set_object_transform``.
   two triangles under the procedural sun-sky, without slipping (it turns by distance/radius about
   the axis up × direction), drifting a little sideways.
 * ``turntable``: the lumpy blob of ``examples/assets`` (it shadows itself) turns once on a
-  turntable, on the same floor under the sky EXR with a sun of :mod:`warp_sg.plain_scenes` (no
+  turntable, on the same floor under the sky EXR with a sun of :mod:`warp_sg.scene.plain_scenes` (no
   bunny ships with the project; the blob's self-shadows turn with it).
 
 Writes ``ball_000.png`` ..., ``turntable_000.png`` ... and prints each frame's time next to a
@@ -26,9 +26,9 @@ from pathlib import Path
 import numpy as np
 
 import warp_sg as ws
-from warp_sg.image_io import save_image
-from warp_sg.plain_scenes import write_plain_scene
-from warp_sg.rigid_motion import motion_about, rolling, rotation_about
+from warp_sg.core.image_io import save_image
+from warp_sg.scene.plain_scenes import write_plain_scene
+from warp_sg.numeric.rigid_motion import motion_about, rolling, rotation_about
 
 HERE = Path(__file__).resolve().parent
 
@@ -70,7 +70,7 @@ def sequence(name, scene, poses, out: Path, size: int, ref_spp: int, device: str
         paths.append(p)
         print(f"  frame {f:3d}: {1e3 * dt:6.0f} ms  (motion {1e3 * r.timings.get('motion', 0.0):.1f} ms)")
     if ref_spp:
-        from warp_sg.regions import box_reference, format_region_table, region_errors, scene_regions
+        from warp_sg.groundtruth.region_error import box_reference, format_region_table, region_errors, scene_regions
 
         r.set_object_transform(obj, poses[len(poses) // 2])
         img = r.render()

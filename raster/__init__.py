@@ -5,7 +5,7 @@ coverage_count=False) -> VisibilityBuffer`` (tri_id / bary / depth as ``wp.array
 ``interpolate(vb, triangles, attr)``; ``Camera`` (Mitsuba look_at + vertical fov).
 Stages: camera.py → setup.py → bin.py → coarse.py → fine.py, orchestrated by rasterize.py.
 """
-from .camera import Camera
+from warp_sg.scene.camera import Camera
 from .interpolate import interpolate
 from .rasterize import VisibilityBuffer, rasterize, tile_grid
 

@@ -24,7 +24,7 @@ import warp as wp
 wp.set_module_options({"enable_backward": False})
 
 from .fixed import TILE, count_tiles, pixel_bbox, sample_bbox, tile_overlaps  # noqa: F401
-from .setup import SubTri
+from .triangle_setup import SubTri
 
 @wp.kernel
 def bin_count_kernel(

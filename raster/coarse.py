@@ -20,7 +20,7 @@ import warp as wp
 wp.set_module_options({"enable_backward": False})
 
 from .fixed import TILE_BITS, sample_bbox, tile_overlaps
-from .setup import SubTri
+from .triangle_setup import SubTri
 
 
 @wp.kernel

@@ -26,7 +26,7 @@ import warp as wp
 wp.set_module_options({"enable_backward": False})
 
 from .fixed import SUBPIXEL, TILE, edge_eval, edge_topleft, eval_plane, eval_plane_at, pixel_bbox, sample_fixed
-from .setup import SubTri
+from .triangle_setup import SubTri
 
 
 @wp.func

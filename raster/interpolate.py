@@ -11,7 +11,7 @@ import warp as wp
 
 wp.set_module_options({"enable_backward": False})
 
-from warp_sg.errors import InputError
+from warp_sg.core.errors import InputError
 
 
 @wp.kernel

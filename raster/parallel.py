@@ -18,8 +18,8 @@ from concurrent.futures import ThreadPoolExecutor
 
 import warp as wp
 
-from warp_sg.workers import THREADS_ENV
-from warp_sg.workers import cpu_workers as _cpu_workers
+from warp_sg.core.workers import THREADS_ENV
+from warp_sg.core.workers import cpu_workers as _cpu_workers
 
 _POOL: ThreadPoolExecutor | None = None
 _LOADED: set = set()
@@ -34,7 +34,7 @@ def _ensure_loaded(kernel, device) -> None:
 
 
 def cpu_workers() -> int:
-    """Threads used for CPU launches (:func:`warp_sg.workers.cpu_workers`: ``RASTER_THREADS`` or
+    """Threads used for CPU launches (:func:`warp_sg.core.workers.cpu_workers`: ``RASTER_THREADS`` or
     ``WARP_SG_THREADS`` override; default = usable cores)."""
     return _cpu_workers("cpu", env=("RASTER_THREADS", THREADS_ENV))
 

@@ -25,16 +25,16 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from warp_sg.device import resolve_device
-from warp_sg.errors import InputError
-from warp_sg.meshcheck import check_mesh
+from warp_sg.core.device import resolve_device
+from warp_sg.core.errors import InputError
+from warp_sg.core.meshcheck import check_mesh
 
 from . import parallel
 from .bin import TILE, bin_count_kernel, scan_counts
-from .camera import Camera
+from warp_sg.scene.camera import Camera
 from .coarse import coarse_scatter_kernel
 from .fine import fine_pixel_kernel, fine_tile_kernel, resolve_kernel, resolve_pixel_kernel
-from .setup import MAX_RESOLUTION, SubTri, guard_factors, setup_extra_kernel, setup_kernel, vertex_kernel
+from .triangle_setup import MAX_RESOLUTION, SubTri, guard_factors, setup_extra_kernel, setup_kernel, vertex_kernel
 
 #: largest ``subsamples``: raster.subsample's edge functions take vertices in units of
 #: 1/(2a·256) px as int32 (|coordinates| ≤ 2a·32000·256 < 2³¹)
@@ -152,7 +152,7 @@ class VisibilityBuffer:
 
 def _as_numpy_mesh(vertices, triangles):
     """Validated contiguous (N,3) float32 / (M,3) int32 numpy copies (no copy when already so);
-    a flat index buffer (as ``wp.Mesh`` takes it) is accepted. Checks: :func:`warp_sg.meshcheck.check_mesh`."""
+    a flat index buffer (as ``wp.Mesh`` takes it) is accepted. Checks: :func:`warp_sg.core.meshcheck.check_mesh`."""
     if isinstance(vertices, wp.array):
         vertices = vertices.numpy()
     if isinstance(triangles, wp.array):

@@ -2,10 +2,10 @@
 
 * :func:`raycast_visibility` — the visibility buffer (triangle id, barycentrics, view-axis depth)
   of the same camera by one primary ray per (sub)pixel: what ``rasterize`` must reproduce;
-  :class:`RayCaster` keeps the BVH for repeated casts (``raster.bench`` times it).
+  :class:`RayCaster` keeps the BVH for repeated casts (``warp_sg.tools.bench_raster`` times it).
 * :func:`torus_mesh`, :func:`uv_sphere` — closed test meshes of a chosen size.
 
-Used by the tests and by ``raster.bench``; production code does not import this module.
+Used by the tests and by ``warp_sg.tools.bench_raster``; production code does not import this module.
 """
 from __future__ import annotations
 
@@ -17,10 +17,10 @@ import warp as wp
 
 wp.set_module_options({"enable_backward": False})
 
-from warp_sg.device import resolve_device  # noqa: E402
+from warp_sg.core.device import resolve_device  # noqa: E402
 
 from . import parallel  # noqa: E402
-from .camera import Camera  # noqa: E402
+from warp_sg.scene.camera import Camera  # noqa: E402
 
 
 @wp.kernel

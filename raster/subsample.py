@@ -26,7 +26,7 @@ wp.set_module_options({"enable_backward": False})
 from . import parallel  # noqa: E402
 from .fine import barycentrics_at, closer  # noqa: E402
 from .fixed import SUBPIXEL, TILE, TILE_BITS, edge_eval, edge_topleft, eval_plane_at, sample_bbox  # noqa: E402
-from .setup import SubTri  # noqa: E402
+from .triangle_setup import SubTri  # noqa: E402
 
 
 @wp.func

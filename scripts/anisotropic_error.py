@@ -2,7 +2,7 @@
 
 Writes docs/figures/aniso_error.csv, aniso_error.png (error vs N for Ashikhmin-Shirley and
 anisotropic Ward, NDF / warped-slice / rendered-sphere errors, analytic construction of supplement
-eq. 14 and L-BFGS-B fit) and aniso_spheres.png (exact vs N-lobe renders). See warp_sg/anisotropy.py.
+eq. 14 and L-BFGS-B fit) and aniso_spheres.png (exact vs N-lobe renders). See warp_sg/sg/anisotropy.py.
 
     python scripts/anisotropic_error.py [--quick]
 """
@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from warp_sg import anisotropy as A
+from warp_sg.sg import anisotropy as A
 
 ROOT = Path(__file__).resolve().parents[1]
 

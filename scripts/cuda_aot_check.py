@@ -32,7 +32,7 @@ def project_modules() -> list[str]:
 
 
 def shading_variants():
-    from warp_sg import shading as S
+    from warp_sg.shading import kernel as S
 
     full = S.Features(env_diffuse=S.ENV_SG, env_specular=S.ENV_PREFILTERED, lights=True, specular=True,
                       shadows=True, textures=True, normal_maps=True, fh_sigmoid=False, env_vis_vertex=True,

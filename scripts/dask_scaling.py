@@ -5,10 +5,10 @@ download pymeshlab --no-deps`` and ``unzip -p pymeshlab-*.whl '*/sample_meshes/b
 bunny.obj``) standing on a floor grid (``--floor K``: K×K vertices), so the scene has ~50 k vertices
 and real shadows. Any mesh trimesh reads works (``--mesh``).
 
-Per worker count: a LocalCluster of single-threaded worker processes (``warp_sg.cluster``), one
+Per worker count: a LocalCluster of single-threaded worker processes (``warp_sg.distributed.cluster``), one
 warm-up run on a few vertices (each worker loads its kernels and builds the BVH), then ``--repeats``
 timed runs (interleaved between the worker counts) of
-:class:`warp_sg.distributed_precompute.DaskSSDF` on the whole mesh (the distributed part) and the
+:class:`warp_sg.distributed.precompute.DaskSSDF` on the whole mesh (the distributed part) and the
 client's own part, PCA + atomic cache write (``ssdf_for_mesh`` with the SSDFs already computed).
 The workers' CPU seconds (``getrusage`` in each worker) and their share of the wall time show how
 much of a core each worker really got; the load average of the machine (``os.getloadavg``) is
@@ -32,7 +32,7 @@ def scene_mesh(path, floor: int):
     """(V, F, N) float64/int64: the mesh scaled to unit height on a ``floor``×``floor`` grid."""
     import trimesh
 
-    from warp_sg.primitives import plane
+    from warp_sg.scene.primitives import plane
 
     m = trimesh.load(path, process=True, force="mesh")
     v = np.asarray(m.vertices, np.float64)
@@ -78,10 +78,10 @@ def main(argv=None) -> int:
     ap.add_argument("-o", "--output", default=None, help="also write the markdown table here")
     args = ap.parse_args(argv)
 
-    from precompute.ssdf import ssdf_for_mesh
-    from warp_sg.cache import fresh_cache
-    from warp_sg.cluster import connect
-    from warp_sg.distributed_precompute import DaskSSDF
+    from precompute.visibility.ssdf import ssdf_for_mesh
+    from warp_sg.core.cache import fresh_cache
+    from warp_sg.distributed.cluster import connect
+    from warp_sg.distributed.precompute import DaskSSDF
 
     V, F, N = scene_mesh(args.mesh, args.floor)
     R, Rr = args.resolution, 2 * args.resolution
@@ -110,7 +110,7 @@ def main(argv=None) -> int:
                 print(f"{w} worker(s): {times[w][-1]:.2f} s, workers' CPU {cpu[w][-1]:.1f} s "
                       f"(load average {loads[w][-1]:.2f})", flush=True)
             if args.local:  # today's local path: one process, Warp launches from a thread pool over the cores
-                from precompute.ssdf import compute_ssdf
+                from precompute.visibility.ssdf import compute_ssdf
 
                 l0 = os.getloadavg()[0]
                 t0 = time.perf_counter()

@@ -12,7 +12,7 @@ within noise on these Lambert scenes (``tests/test_peer_mitsuba.py``). Then, in 
 * Mitsuba's curve: 1, 2, 4, … spp (median of 3 timed renders each, after a warm-up) until its
   net error is below ours; the time at our error by log-log interpolation (``bench.spp_for_error``).
 
-Prints a markdown table. Requires the optional ``[compare]`` extra (``warp_sg.peer_mitsuba``).
+Prints a markdown table. Requires the optional ``[compare]`` extra (``warp_sg.tools.peer_mitsuba``).
 """
 from __future__ import annotations
 
@@ -25,9 +25,9 @@ import numpy as np
 
 
 def scenes(size: int, which):
-    from warp_sg.bench import bench_scene
-    from warp_sg.plain_scenes import write_plain_scene
-    from warp_sg.scene import load_scene
+    from warp_sg.tools.bench import bench_scene
+    from warp_sg.scene.plain_scenes import write_plain_scene
+    from warp_sg.scene.loader import load_scene
 
     out = []
     with tempfile.TemporaryDirectory() as d:
@@ -45,10 +45,11 @@ def scenes(size: int, which):
 
 
 def measure(label, scene, truth_spp, seed=5):
-    from warp_sg import peer_mitsuba as pm
-    from warp_sg.bench import _frames, _net_of_floor, spp_for_error
-    from warp_sg.regions import image_errors
-    from warp_sg.render import Renderer
+    from warp_sg.tools import peer_mitsuba as pm
+    from warp_sg.tools.bench import _frames, _net_of_floor
+    from warp_sg.tools.spp_curve import spp_for_error
+    from warp_sg.groundtruth.region_error import image_errors
+    from warp_sg.renderer.renderer import Renderer
 
     t = time.perf_counter()
     truth, se = pm.mitsuba_mean(pm.mitsuba_scene(scene), spp=max(1, truth_spp // 4), batches=4, seed=seed)
@@ -74,7 +75,7 @@ def main(argv=None):
     a = ap.parse_args(argv)
     import warp as wp
 
-    from warp_sg import peer_mitsuba as pm
+    from warp_sg.tools import peer_mitsuba as pm
 
     wp.config.quiet = True
     ok, status = pm.mitsuba_status("cpu")

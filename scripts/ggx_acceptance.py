@@ -3,11 +3,11 @@ under a point light; the SG renderer against the Monte-Carlo reference.
 
     python scripts/ggx_acceptance.py [--size 64] [--spp 256] [--alphas 0.1,0.3,0.6] [--lobes 1,3]
 
-Scenes come from :func:`warp_sg.plain_scenes.write_plain_scene` (2-triangle floor, icosphere,
+Scenes come from :func:`warp_sg.scene.plain_scenes.write_plain_scene` (2-triangle floor, icosphere,
 sky EXR with a sun, or one spherical point light) with the material
 ``{model = "ggx", ks = 1, alpha = α, fresnel = "gold"}`` and ``lobes`` NDF lobes. Errors are the
 image-wide relative MSE ``Σ(x − r)²/Σr²`` and that of the ``object`` region
-(:mod:`warp_sg.regions`). Writes ``docs/figures/ggx_acceptance.md`` (the table of docs/ggx.md) and
+(:mod:`warp_sg.groundtruth.region_error`). Writes ``docs/figures/ggx_acceptance.md`` (the table of docs/ggx.md) and
 ``ggx_acceptance.png`` (reference above, SG renderer below, default lobe count).
 """
 from __future__ import annotations
@@ -20,10 +20,10 @@ import numpy as np
 from tqdm import tqdm
 
 import warp_sg as ws
-from warp_sg.atomic import atomic_output
+from warp_sg.core.files import atomic_output
 from warp_sg.brdf.models.ggx import DEFAULT_LOBES
-from warp_sg.plain_scenes import write_plain_scene
-from warp_sg.regions import box_reference, region_errors, scene_regions
+from warp_sg.scene.plain_scenes import write_plain_scene
+from warp_sg.groundtruth.region_error import box_reference, region_errors, scene_regions
 
 ROOT = Path(__file__).resolve().parents[1]
 

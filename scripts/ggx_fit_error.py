@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from warp_sg.atomic import atomic_output
+from warp_sg.core.files import atomic_output
 from warp_sg.brdf import GGX
 from warp_sg.brdf.fit import eq11_error
 from warp_sg.brdf.helpers import half_vector

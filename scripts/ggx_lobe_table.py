@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from warp_sg.atomic import atomic_output
+from warp_sg.core.files import atomic_output
 from warp_sg.brdf.models.ggx import GGX, TABLE_A0, TABLE_N, TABLE_STEP, node_fit
 
 ROOT = Path(__file__).resolve().parents[1]

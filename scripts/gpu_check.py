@@ -16,7 +16,7 @@ import numpy as np
 
 def agree() -> int:
     import warp_sg as ws
-    from warp_sg.plain_scenes import write_plain_scene
+    from warp_sg.scene.plain_scenes import write_plain_scene
 
     bad = 0
     for case in ("sphere:sky:lambert", "sphere:point:ward", "blob:sky:blinn_phong"):
@@ -40,8 +40,9 @@ def fps() -> int:
     import trimesh
 
     import warp_sg as ws
-    from warp_sg.lights import EnvironmentLight, PointLight
-    from warp_sg.scene import Camera, RenderSettings, Scene, SceneObject
+    from warp_sg.scene.lights import EnvironmentLight, PointLight
+    from warp_sg.scene.camera import Camera
+    from warp_sg.scene.model import RenderSettings, Scene, SceneObject
 
     knot = trimesh.creation.torus(major_radius=0.6, minor_radius=0.25, major_sections=1000, minor_sections=500)
     V, F = np.asarray(knot.vertices), np.asarray(knot.faces)

@@ -27,7 +27,7 @@ python3 -m pytest -q -o addopts="" -p no:cacheprovider --continue-on-collection-
 echo "== CPU vs CUDA agreement (render, reference)"
 python3 scripts/gpu_check.py agree || rc=1
 echo "== warp-sg bench --device cuda"
-python3 -m warp_sg.cli bench --device cuda -o "$OUT/bench_cuda.md" || rc=1
+python3 -m warp_sg.tools.cli bench --device cuda -o "$OUT/bench_cuda.md" || rc=1
 echo "== 1080p, ~1 M triangles, full shading"
 python3 scripts/gpu_check.py fps || rc=1
 exit $rc

@@ -2,7 +2,7 @@
 
     python scripts/kernel_registers.py [--arch 90]
 
-Builds the CUDA PTX of the shading kernel (``warp_sg.shading.shade_kernel``) with Warp's NVRTC for
+Builds the CUDA PTX of the shading kernel (``warp_sg.shading.kernel.shade_kernel``) with Warp's NVRTC for
 the features of ``examples/cook_torrance.toml`` (environment SG diffuse and prefiltered specular, a
 light, SSDF shadows, per-vertex environment visibility) and of its all-Lambert version, each as the
 generic all-model kernel and as the variant specialised to the scene's material models
@@ -62,7 +62,7 @@ def main(argv=None) -> int:
         return 1
     wp.config.quiet = True
     wp.init()
-    from warp_sg import shading as S
+    from warp_sg.shading import kernel as S
     from warp_sg.brdf.material_variants import ALL_MODELS
 
     ct = S.Features(env_diffuse=S.ENV_SG, env_specular=S.ENV_PREFILTERED, lights=True, specular=True, shadows=True,

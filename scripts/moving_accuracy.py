@@ -2,12 +2,12 @@
 
     python scripts/moving_accuracy.py [--size 256] [--spp 1024] [--cases ball,blob]
 
-Per case (a 2-triangle floor under the sky EXR with a sun, :mod:`warp_sg.plain_scenes`): ``ball``
+Per case (a 2-triangle floor under the sky EXR with a sun, :mod:`warp_sg.scene.plain_scenes`): ``ball``
 rolls across the floor (the icosphere, dynamic), ``blob`` (the lumpy example asset, dynamic) turns
 on a turntable. For several poses the precompute never saw, prints the per-region bias of the
 frame against the Monte-Carlo reference of the scene at that pose (``r.scene``), and the distance
 between the moved object's shadow centroid in ours and in the reference (each against its own
-image with the object taken away, :func:`warp_sg.regions.shadow_centroid`). Then the cost: a
+image with the object taken away, :func:`warp_sg.groundtruth.region_error.shadow_centroid`). Then the cost: a
 static frame (the camera nudged: raster and shade), a frame after ``set_object_transform``, and a
 new ``Renderer`` with a cold cache (its construction and first frame).
 """
@@ -21,9 +21,9 @@ import time
 import numpy as np
 
 import warp_sg as ws
-from warp_sg.plain_scenes import write_plain_scene
-from warp_sg.regions import box_reference, region_errors, scene_regions, shadow_centroid
-from warp_sg.rigid_motion import motion_about, rolling, rotation_about
+from warp_sg.scene.plain_scenes import write_plain_scene
+from warp_sg.groundtruth.region_error import box_reference, region_errors, scene_regions, shadow_centroid
+from warp_sg.numeric.rigid_motion import motion_about, rolling, rotation_about
 
 AWAY = np.eye(4)
 AWAY[:3, 3] = [400.0, 0.0, 0.0]  # the object taken away (far off the floor)
@@ -87,7 +87,7 @@ def run_case(case, size, spp, folder):
 def cold_construction(case, size, folder):
     """A new Renderer of the scene at a new pose, with an empty cache: construction + first frame."""
     sc = ws.load_scene(write_plain_scene(folder, obj="sphere" if case == "ball" else "blob", light="sky", size=size))
-    from warp_sg.dynamic_objects import scene_with_transforms  # noqa: F401  (same pose semantics)
+    from warp_sg.scene.dynamic_objects import scene_with_transforms  # noqa: F401  (same pose semantics)
 
     old = os.environ.get("WARP_SG_CACHE_DIR")
     with tempfile.TemporaryDirectory() as cache:

@@ -3,7 +3,7 @@
     python scripts/plain_accuracy.py [--size 96] [--spp 256] [--cases sphere:sky:lambert,...]
 
 Writes each case's scene into a temporary folder (2-triangle floor, icosphere/blob, sky EXR with a
-sun or a point light) and prints the per-region table of :mod:`warp_sg.regions`.
+sun or a point light) and prints the per-region table of :mod:`warp_sg.groundtruth.region_error`.
 """
 from __future__ import annotations
 
@@ -14,8 +14,8 @@ import time
 import numpy as np
 
 import warp_sg as ws
-from warp_sg.plain_scenes import write_plain_scene
-from warp_sg.regions import box_reference, format_region_table, region_errors, scene_regions
+from warp_sg.scene.plain_scenes import write_plain_scene
+from warp_sg.groundtruth.region_error import box_reference, format_region_table, region_errors, scene_regions
 
 DEFAULT = "sphere:sky:lambert,sphere:point:lambert,blob:sky:lambert,blob:sky:blinn_phong,sphere:sky:cook_torrance,sphere:point:ward"
 

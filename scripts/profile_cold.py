@@ -1,7 +1,7 @@
 """Profile the cold path of ``warp-sg render ASSET`` stage by stage (docs/benchmarks.md, "Cold path").
 
     python scripts/profile_cold.py ASSET [--env SKY.hdr] [--size 512 384] [--fresh-kernels] [--json OUT]
-    python scripts/profile_cold.py helmet   # the generated textured helmet (warp_sg.bench_assets)
+    python scripts/profile_cold.py helmet   # the generated textured helmet (warp_sg.tools.bench_assets)
     python scripts/profile_cold.py scene.toml --render visibility_budget=0   # a scene file, a setting changed
 
 A fresh precompute cache (a temporary ``WARP_SG_CACHE_DIR``) every run; with ``--fresh-kernels`` a
@@ -71,8 +71,8 @@ def main(argv=None) -> int:
 
     if a.fresh_kernels:
         wp.config.kernel_cache_dir = os.path.join(tmp, "kernels")
-    from warp_sg.device import resolve_device
-    from warp_sg.stage_clock import StageClock, load_average
+    from warp_sg.core.device import resolve_device
+    from warp_sg.core.stage_clock import StageClock, load_average
 
     tee = _Tee(sys.stdout)
     old = sys.stdout
@@ -87,17 +87,17 @@ def main(argv=None) -> int:
     load0 = load_average()
     asset = a.asset
     if asset == "helmet":
-        from warp_sg.bench_assets import textured_helmet
+        from warp_sg.tools.bench_assets import textured_helmet
 
         asset = str(textured_helmet(Path(tmp) / "helmet.glb"))
     sys.stdout = tee
     try:
         with clock.stage("load"):
-            from warp_sg.asset_scene import asset_scene
-            from warp_sg.render import Renderer
+            from warp_sg.scene.importers.asset import asset_scene
+            from warp_sg.renderer.renderer import Renderer
 
             if asset.endswith(".toml"):
-                from warp_sg.scene import load_scene
+                from warp_sg.scene.loader import load_scene
 
                 scene = load_scene(asset)
             else:

@@ -4,7 +4,7 @@
                                     [--repeat 5] [--visibility-sampling vertex|pixel] [--kernel-cache DIR]
 
 (``torus:N`` is the frame-scaling bench scene with a torus of about N triangles,
-``warp_sg.bench_scaling.scaling_scene``; ``lambert:SCENE.toml`` is the scene with every material
+``warp_sg.tools.bench_scaling.scaling_scene``; ``lambert:SCENE.toml`` is the scene with every material
 made Lambert with its own kd: a one-model scene with the same geometry and lights.)
 
 For each scene: precompute once, then
@@ -60,10 +60,10 @@ def profile(path, size, repeat, visibility_sampling=None):
 
     import raster
     import warp_sg as ws
-    from warp_sg.render import Renderer
+    from warp_sg.renderer.renderer import Renderer
 
     if path.startswith("torus:"):
-        from warp_sg.bench_scaling import scaling_scene
+        from warp_sg.tools.bench_scaling import scaling_scene
 
         scene = scaling_scene(int(path.split(":")[1]), size)
     elif path.startswith("lambert:"):
@@ -133,7 +133,7 @@ def _generic(f):
 
 def _compile_times(f):
     """CPU seconds to build (or load from the kernel cache) the scene's variant and the generic one."""
-    from warp_sg import shading as S
+    from warp_sg.shading import kernel as S
 
     S.resolve_box.module.load("cpu")  # the compiler's one-time start-up is not a variant's cost
     out = []

@@ -5,15 +5,15 @@ HDRIs and glTF assets a user brings (Poly Haven maps and three.js's glTF example
                                   [--cases sphere:ggx0.2:pedestrian_overpass_1k,...] [--out docs/report]
 
 Each case puts one object on a 2-triangle floor (the floor is named ``floor``: the lit floor and
-the shadow are regions of :mod:`warp_sg.regions`) under one HDRI, frames it as ``warp-sg render
-ASSET --env SKY`` does (:mod:`warp_sg.asset_scene`) and compares the default render with the
-box-filtered reference (:func:`warp_sg.regions.box_reference`). Objects: ``sphere`` (a 1280-triangle
+the shadow are regions of :mod:`warp_sg.groundtruth.region_error`) under one HDRI, frames it as ``warp-sg render
+ASSET --env SKY`` does (:mod:`warp_sg.scene.importers.asset`) and compares the default render with the
+box-filtered reference (:func:`warp_sg.groundtruth.region_error.box_reference`). Objects: ``sphere`` (a 1280-triangle
 icosphere, written by the script) or a file of the assets folder by its stem (``LeePerrySmith``,
 ``ShaderBall``, ...). Materials: a key of :data:`MATERIALS` overrides the file's (``own`` keeps a
 glTF's own materials). It writes ``real_assets.md`` with the per-region table (bias, relative MSE)
 of every case and, per case, ours / the reference / a heat map of the signed relative luminance
 error side by side (``real_assets/<case>.png``). With the ``[compare]`` extra installed the table
-also gives Mitsuba 3's error and time at the same spp (``warp_sg.peer_mitsuba``).
+also gives Mitsuba 3's error and time at the same spp (``warp_sg.tools.peer_mitsuba``).
 
 The files are not shipped with the repository (their licences differ): the script reads them from
 ``--assets`` (default ``../shared/assets`` beside the checkout) and skips the cases whose files are
@@ -61,7 +61,7 @@ VIEW = (30.0, 25.0)
 
 
 def _sphere_file(folder: Path) -> Path:
-    from warp_sg.plain_scenes import write_sphere_ply
+    from warp_sg.scene.plain_scenes import write_sphere_ply
 
     return write_sphere_ply(folder / "sphere.ply")
 
@@ -69,7 +69,7 @@ def _sphere_file(folder: Path) -> Path:
 def case_scene(case: str, assets: Path, folder: Path, size: int):
     """The :class:`~warp_sg.scene.Scene` of ``object:material:hdri`` (module docstring), or None with
     the reason when a file is missing."""
-    from warp_sg.asset_scene import asset_scene_dict, scene_from_dict
+    from warp_sg.scene.importers.asset import asset_scene_dict, scene_from_dict
 
     obj, mat, hdri = case.split(":")
     sky = assets / f"{hdri}.hdr"
@@ -99,7 +99,7 @@ def heat_map(img, ref, lim: float = 0.25):
     mean luminance are grey."""
     import matplotlib
 
-    from warp_sg.regions import LUMA
+    from warp_sg.core.image_io import LUMINANCE as LUMA
 
     li, lr = np.asarray(img) @ LUMA, np.asarray(ref) @ LUMA
     rel = np.where(lr > 0.01 * lr.mean(), li / np.maximum(lr, 1e-30) - 1.0, 0.0)
@@ -112,7 +112,7 @@ def heat_map(img, ref, lim: float = 0.25):
 def side_by_side(path: Path, img, ref, exposure: float):
     from PIL import Image
 
-    from warp_sg.image_io import tonemap_srgb
+    from warp_sg.core.image_io import tonemap_srgb
 
     a = (tonemap_srgb(img, exposure) * 255).astype(np.uint8)
     b = (tonemap_srgb(ref, exposure) * 255).astype(np.uint8)
@@ -122,7 +122,7 @@ def side_by_side(path: Path, img, ref, exposure: float):
 
 def run_case(case: str, assets: Path, size: int, spp: int, figures: Path | None, mitsuba: bool):
     import warp_sg as ws
-    from warp_sg.regions import box_reference, region_errors, scene_regions
+    from warp_sg.groundtruth.region_error import box_reference, region_errors, scene_regions
 
     with tempfile.TemporaryDirectory() as tmp:
         scene, why = case_scene(case, assets, Path(tmp), size)
@@ -142,7 +142,7 @@ def run_case(case: str, assets: Path, size: int, spp: int, figures: Path | None,
                "peaks": len(r.env_peaks), "vertices": int(len(r.geometry.vertices)), "regions": errs,
                "image_rel_mse": float(np.sum((img - ref) ** 2) / max(np.sum(ref ** 2), 1e-300))}
         if mitsuba:
-            from warp_sg import peer_mitsuba
+            from warp_sg.tools import peer_mitsuba
 
             ok, why = peer_mitsuba.mitsuba_status()
             if ok:
@@ -151,7 +151,7 @@ def run_case(case: str, assets: Path, size: int, spp: int, figures: Path | None,
             else:
                 row["mitsuba"] = why
         if figures is not None:
-            from warp_sg.regions import LUMA
+            from warp_sg.core.image_io import LUMINANCE as LUMA
 
             mean = float(np.mean(ref @ LUMA))
             exposure = math.log2(0.18 / mean) if mean > 0 else 0.0
@@ -173,7 +173,7 @@ def write_markdown(rows, path: Path, size: int, spp: int, figures_rel: str):
         "each object on a 2-triangle floor, framed as `warp-sg render ASSET --env SKY` frames it. Default render",
         f"settings, {size}×{size} pixels, against our Monte-Carlo reference box-filtered over each pixel ({spp} samples",
         "per pixel, exact BRDFs and ray-traced visibility). Bias = mean(render)/mean(reference) − 1, worst",
-        "channel; relative MSE net of the reference's own noise. Regions: `warp_sg.regions`.",
+        "channel; relative MSE net of the reference's own noise. Regions: `warp_sg.groundtruth.region_error`.",
         "",
         "Reproduce: `python scripts/real_assets.py` (the assets are read from `../shared/assets`; they are not",
         "shipped). Figures: ours | reference | signed relative luminance error (blue: ours darker, red: brighter,",

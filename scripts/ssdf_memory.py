@@ -5,7 +5,7 @@
 For each count V: V rows of synthetic SSDF maps (a smooth field plus per-vertex noise; the PCA and
 the occluder cones do not care what the rows mean) are written batch by batch into the
 out-of-core row file ``precompute.ssdf_for_mesh`` uses beyond ``WARP_SG_SSDF_MEMORY_MB``
-(``precompute.ssdf._disk_rows``), then PCA (32 terms) and the occluder cones run on it, as in
+(``precompute.visibility.ssdf._disk_rows``), then PCA (32 terms) and the occluder cones run on it, as in
 ``ssdf_for_mesh``. Printed per V: the peak of numpy's heap allocations (``tracemalloc``, which numpy
 reports to), the process's peak resident memory (``ru_maxrss``, monotone over the run; file pages
 of the row file count while mapped) and the CPU seconds of each step. The ray casting itself works
@@ -27,9 +27,9 @@ def main(argv=None) -> int:
     ap.add_argument("--resolution", type=int, default=32)
     ap.add_argument("--terms", type=int, default=32)
     a = ap.parse_args(argv)
-    from precompute.occluder_cone import occluder_cones
-    from precompute.ssdf import _disk_rows
-    from warp_sg.pca import pca
+    from precompute.visibility.occluder_cone import occluder_cones
+    from precompute.visibility.ssdf import _disk_rows
+    from warp_sg.numeric.pca import pca
 
     R = a.resolution
     D = R * R

@@ -55,7 +55,7 @@ def _plus(a, b):
 
 def measure(size: int, repeat: int) -> dict:
     import warp_sg as ws
-    from warp_sg.preview import open_viewer
+    from warp_sg.tools.preview import open_viewer
 
     v = open_viewer(ws.load_scene(ROOT / "examples" / "ward.toml"), off_screen=True, window_size=(size, size),
                     progress=False)

@@ -19,7 +19,7 @@ def main(argv=None):
 
     wp.config.quiet = True
     import warp_sg as ws
-    from warp_sg.preview import open_viewer
+    from warp_sg.tools.preview import open_viewer
 
     v = open_viewer(ws.load_scene(ROOT / "examples" / "ward.toml"), off_screen=True, window_size=(a.size, a.size),
                     progress=False)

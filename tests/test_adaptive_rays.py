@@ -1,15 +1,15 @@
-"""Adaptive visibility rays (``precompute.adaptive_rays``): the maps and SSDFs they give against a
+"""Adaptive visibility rays (``precompute.visibility.adaptive_rays``): the maps and SSDFs they give against a
 ray per texel (the reference: ``compute_ssdf(rays="full")``) and against a 256²-ray truth."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from precompute import ssdf as S
-from precompute.adaptive_rays import levels
-from precompute.bench import ssdf_error
-from precompute.reference_checks import plane_box_scene
-from warp_sg.stage_clock import StageClock
+from precompute.visibility import ssdf as S
+from precompute.visibility.adaptive_rays import levels
+from warp_sg.tools.bench_precompute import ssdf_error
+from precompute.visibility.reference_checks import plane_box_scene
+from warp_sg.core.stage_clock import StageClock
 
 
 def _plates_scene(gap: float, near: float = 1.0, far: float = 4.0):
@@ -109,7 +109,7 @@ def test_ssdf_cache_key_names_the_ray_schedule():
     V, F, N = plane_box_scene(6)
     assert S.ssdf_key(V, F, N, rays="adaptive") != S.ssdf_key(V, F, N, rays="full")
     assert S.ssdf_key(V, F, N) == S.ssdf_key(V, F, N, rays=S.DEFAULT_RAYS)
-    from warp_sg.errors import InputError
+    from warp_sg.core.errors import InputError
 
     with pytest.raises(InputError, match="rays"):
         S.ssdf_key(V, F, N, rays="sparse")

@@ -8,10 +8,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from warp_sg.regions import box_reference
-from warp_sg.render import Renderer
-from warp_sg.scene import Camera, EnvironmentLight, Material, RenderSettings, Scene, SceneObject
-from warp_sg.textures import Texture
+from warp_sg.groundtruth.region_error import box_reference
+from warp_sg.renderer.renderer import Renderer
+from warp_sg.scene.camera import Camera
+from warp_sg.scene.lights import EnvironmentLight
+from warp_sg.scene.model import Material, RenderSettings, Scene, SceneObject
+from warp_sg.scene.textures import Texture
 
 MODELS = {
     "ggx_0.05": ("ggx", {"alpha": 0.05, "fresnel": "gold"}),

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from warp_sg import anisotropy as A
+from warp_sg.sg import anisotropy as A
 
 Q = dict(n_o=12, n_phi_o=4, n_th=48, n_ph=32)  # small eq. 11 quadrature
 

@@ -1,4 +1,4 @@
-"""Edge- and contrast-adaptive antialiasing (``warp_sg.antialias``) against brute force: shading
+"""Edge- and contrast-adaptive antialiasing (``warp_sg.renderer.antialias``) against brute force: shading
 every one of the a×a sub-pixels (``supersampling = a``) and box-filtering."""
 from __future__ import annotations
 
@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 import warp_sg as ws
-from warp_sg.lights import DirectionalLight, EnvironmentLight
-from warp_sg.scene import Camera, RenderSettings, Scene, SceneObject
+from warp_sg.scene.lights import DirectionalLight, EnvironmentLight
+from warp_sg.scene.camera import Camera
+from warp_sg.scene.model import RenderSettings, Scene, SceneObject
 
 
 def _scene(**render):
@@ -110,7 +111,7 @@ def test_every_edge_of_a_full_subpixel_raster_is_a_candidate_pixel(cache_dir, ma
 
     import raster
     from raster import parallel
-    from warp_sg import antialias as A
+    from warp_sg.renderer import antialias as A
 
     r = ws.Renderer(make())
     r.render()
@@ -148,7 +149,7 @@ def test_the_device_reduction_of_the_frame_counts_matches_numpy():
     checked here by running that kernel once on the CPU (one launch: atomics are exact there)."""
     import warp as wp
 
-    from warp_sg import antialias as A
+    from warp_sg.renderer import antialias as A
 
     rng = np.random.default_rng(1)
     c = rng.integers(0, 4, 5000).astype(np.int32)
@@ -182,9 +183,9 @@ def test_contrast_pixels_are_probed_then_refined_at_every_sub_pixel_where_the_pr
     import warp as wp
 
     import raster
-    from warp_sg import antialias as A
-    from warp_sg.background import background_params
-    from warp_sg.camera import Camera
+    from warp_sg.renderer import antialias as A
+    from warp_sg.shading.background import background_params
+    from warp_sg.scene.camera import Camera
 
     W, H = 4, 3
     cam = Camera(origin=(0.0, 0.0, 1.0), target=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov=40.0, width=W, height=H)
@@ -236,8 +237,8 @@ def test_contrast_pixels_are_probed_then_refined_at_every_sub_pixel_where_the_pr
 
 def _background(a, W):
     """A disabled background (no environment): samples that see no object get 0."""
-    from warp_sg.background import background_params
-    from warp_sg.scene import Camera
+    from warp_sg.shading.background import background_params
+    from warp_sg.scene.camera import Camera
 
     return background_params(Camera(width=W, height=1), a, None, None, 1.0, "cpu")
 
@@ -248,7 +249,7 @@ def test_an_edge_pixel_is_shaded_once_per_triangle_at_its_sub_pixels_mean_with_t
     coverage-weighted mean of given sample colours."""
     import warp as wp
 
-    from warp_sg import antialias as A
+    from warp_sg.renderer import antialias as A
 
     a, W = 4, 1
     rng = np.random.default_rng(3)
@@ -292,8 +293,8 @@ def test_contour_marks_are_the_pixels_the_projected_edges_cross():
     sample falls in is marked, and nothing farther than ``MARK_EPS`` (+ 0.01 px) from an edge."""
     import warp as wp
 
-    from warp_sg import silhouette as SIL
-    from warp_sg.scene import Camera
+    from warp_sg.shading import silhouette as SIL
+    from warp_sg.scene.camera import Camera
 
     cam = Camera(origin=(0.1, 0.3, 2.0), target=(0.0, 0.0, 0.0), fov=50.0, width=37, height=29)
     V = np.array([[-0.7, -0.2, 0.1], [0.6, -0.5, -0.3], [0.05, 0.65, 0.2]], np.float32)
@@ -335,8 +336,8 @@ def test_contours_hidden_behind_a_nearer_surface_are_not_marked():
     import warp as wp
 
     import raster
-    from warp_sg import silhouette as SIL
-    from warp_sg.scene import Camera
+    from warp_sg.shading import silhouette as SIL
+    from warp_sg.scene.camera import Camera
 
     cam = Camera(origin=(0.0, 0.0, 3.0), target=(0.0, 0.0, 0.0), fov=50.0, width=48, height=40)
     quad = np.array([[-1.0, -0.8, 0.0], [1.0, -0.8, 0.0], [1.0, 0.8, 0.0], [-1.0, 0.8, 0.0]], np.float32)
@@ -365,7 +366,7 @@ def test_candidate_flags_and_list_match_their_definition_in_numpy(W):
     ``CONTRAST`` of the larger; and the candidate list against ``numpy.flatnonzero``."""
     import warp as wp
 
-    from warp_sg import antialias as A
+    from warp_sg.renderer import antialias as A
 
     H = 9
     rng = np.random.default_rng(W)
@@ -401,7 +402,7 @@ def test_candidate_lists_are_compared_on_their_device():
     path, one integer back) run here on the CPU against numpy."""
     import warp as wp
 
-    from warp_sg import antialias as A
+    from warp_sg.renderer import antialias as A
 
     x = np.arange(0, 5000, 7, dtype=np.int32)
     y = x.copy()

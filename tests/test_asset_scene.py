@@ -1,4 +1,4 @@
-"""``warp-sg render ASSET`` (issue 15, warp_sg.asset_scene): the scene made for an asset frames its
+"""``warp-sg render ASSET`` (issue 15, warp_sg.scene.importers.asset): the scene made for an asset frames its
 bounding box, puts a ground plane under it, lights it with the default sky or ``--env``, and
 ``--print-scene`` prints TOML that loads back into the same scene."""
 from __future__ import annotations
@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from warp_sg.asset_scene import asset_scene
-from warp_sg.cli import main
-from warp_sg.scene import load_scene
+from warp_sg.scene.importers.asset import asset_scene
+from warp_sg.tools.cli import main
+from warp_sg.scene.loader import load_scene
 
 
 @pytest.fixture
@@ -44,7 +44,7 @@ def test_camera_frames_every_bbox_corner_from_the_asked_direction(glb, view):
     d = (o - t) / np.linalg.norm(o - t)
     az, el = map(math.radians, view)
     np.testing.assert_allclose(d, [math.cos(el) * math.sin(az), math.sin(el), math.cos(el) * math.cos(az)], atol=1e-6)
-    # pinhole projection of the corners (independent of warp_sg.camera): inside the image
+    # pinhole projection of the corners (independent of warp_sg.scene.camera): inside the image
     f = (t - o) / np.linalg.norm(t - o)
     r = np.cross(f, [0, 1, 0])
     r /= np.linalg.norm(r)
@@ -73,7 +73,7 @@ def test_ground_plane_lies_under_the_bbox_and_extends_past_it(glb):
 def test_printed_scene_loads_back_into_the_same_scene(glb, tmp_path, capsys):
     path, _ = glb
     sky = tmp_path / "sky.exr"
-    from warp_sg.image_io import save_image
+    from warp_sg.core.image_io import save_image
 
     save_image(sky, np.full((8, 16, 3), 0.5, np.float32))
     rc = main(["render", str(path), "--env", str(sky), "--view", "45", "30", "--width", "96", "--height", "64",

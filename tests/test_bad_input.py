@@ -2,7 +2,7 @@
 naming the file / field / element at fault — never a traceback, never a partial output file,
 never a corrupt cache.
 
-CLI cases call ``warp_sg.cli.main(argv)`` in-process (faster than a subprocess); one case runs the
+CLI cases call ``warp_sg.tools.cli.main(argv)`` in-process (faster than a subprocess); one case runs the
 real ``warp-sg`` executable to check the installed entry point. The property tests at the end
 (hypothesis) generate malformed scenes, meshes, glTF files and maps and judge every answer.
 """
@@ -23,7 +23,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import warp_sg as ws
-from warp_sg.errors import ImageError, InputError, MeshError, SceneError
+from warp_sg.core.errors import ImageError, InputError, MeshError, SceneError
 
 BASE = """
 [camera]
@@ -79,7 +79,7 @@ def replace(old, new, text=BASE):
 
 def run_cli(argv, capsys):
     """(exit status, stdout, stderr) of ``warp-sg argv`` in-process."""
-    from warp_sg.cli import main
+    from warp_sg.tools.cli import main
 
     try:
         rc = main([str(a) for a in argv])
@@ -186,8 +186,9 @@ def test_bad_mesh_raises_mesh_or_scene_error_naming_the_file_or_element(tmp_path
 
 
 def test_nan_vertices_through_the_python_api_name_the_object_and_vertex():
-    from warp_sg.scene import Camera, Scene, SceneObject
-    from warp_sg.lights import DirectionalLight
+    from warp_sg.scene.camera import Camera
+    from warp_sg.scene.model import Scene, SceneObject
+    from warp_sg.scene.lights import DirectionalLight
 
     v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [np.nan, 1, 1]], float)
     t = np.array([[0, 1, 2], [1, 2, 3]])
@@ -250,7 +251,7 @@ def test_unknown_device_is_an_input_error(tmp_path):
 
 
 def test_report_into_a_non_writable_folder_is_an_input_error(tmp_path):
-    from warp_sg.report import run_report
+    from warp_sg.tools.report import run_report
 
     target = tmp_path / "file_not_dir"
     target.write_text("x")
@@ -308,8 +309,8 @@ def test_cli_output_in_a_read_only_folder_exits_2(unprivileged):
     ro.mkdir()
     ro.chmod(0o555)
     argv = ["reference", str(scene), "-o", str(ro / "o.exr"), "--spp", "1"]
-    setup = "import warp_sg.atomic, warp_sg.cli, warp_sg.image_io, warp_sg.reference, warp_sg.scene"
-    r = unprivileged.run(setup, f"sys.exit(warp_sg.cli.main({argv!r}))")
+    setup = "import warp_sg.core.files, warp_sg.tools.cli, warp_sg.core.image_io, warp_sg.groundtruth.reference, warp_sg.scene"
+    r = unprivileged.run(setup, f"sys.exit(warp_sg.tools.cli.main({argv!r}))")
     msg = assert_clean_failure(r.returncode, r.stderr, "o.exr", "writable")
     assert msg.startswith("warp-sg: error:")
     assert list(ro.iterdir()) == []
@@ -341,7 +342,7 @@ def test_cli_unknown_output_format_exits_2(tmp_path, capsys):
 
 
 def test_cli_cuda_device_without_cuda_exits_2(tmp_path, capsys):
-    from warp_sg.device import cuda_available
+    from warp_sg.core.device import cuda_available
 
     if cuda_available():
         pytest.skip("this machine has CUDA")
@@ -363,7 +364,7 @@ def test_cli_report_into_a_file_exits_2(tmp_path, capsys):
 
 def test_installed_entry_point_exits_2_without_traceback(tmp_path):
     exe = shutil.which("warp-sg")
-    cmd = [exe] if exe else [sys.executable, "-m", "warp_sg.cli"]
+    cmd = [exe] if exe else [sys.executable, "-m", "warp_sg.tools.cli"]
     p = write_scene(tmp_path, replace("m = 0.3", "rougness = 0.3"))
     r = subprocess.run([*cmd, "reference", str(p), "-o", str(tmp_path / "o.exr"), "--spp", "1"],
                        capture_output=True, text=True, timeout=120)
@@ -376,7 +377,7 @@ def test_installed_entry_point_exits_2_without_traceback(tmp_path):
 # the precompute cache: interruption and corruption never leave a bad entry
 # ------------------------------------------------------------------------------------------------
 def test_interrupted_precompute_leaves_no_cache_entry_and_the_next_run_rebuilds(cache_dir):
-    from precompute import cache
+    from warp_sg.core import cache
 
     key = cache.content_key("bad-input-test", np.arange(5))
 
@@ -392,7 +393,7 @@ def test_interrupted_precompute_leaves_no_cache_entry_and_the_next_run_rebuilds(
 
 
 def test_corrupt_cache_entry_is_rebuilt_not_trusted(cache_dir):
-    from precompute import cache
+    from warp_sg.core import cache
 
     key = cache.content_key("bad-input-test-2")
     cache.load_or_build("test_kind", key, lambda: {"x": np.ones(4)})
@@ -408,7 +409,7 @@ def test_corrupt_cache_entry_is_rebuilt_not_trusted(cache_dir):
 
 
 def test_truncated_cache_entry_is_rebuilt(cache_dir):
-    from precompute import cache
+    from warp_sg.core import cache
 
     key = cache.content_key("bad-input-test-3")
     cache.load_or_build("test_kind", key, lambda: {"x": np.ones(100)})
@@ -422,8 +423,8 @@ def test_truncated_cache_entry_is_rebuilt(cache_dir):
 def test_renderer_interrupted_during_precompute_leaves_a_clean_cache(tmp_path, cache_dir, monkeypatch):
     """Ctrl-C inside the SSDF precompute: nothing half-written in the cache; the next run rebuilds
     and renders the same image as an uninterrupted run."""
-    import precompute.ssdf as pss
-    from warp_sg.render import Renderer
+    import precompute.visibility.ssdf as pss
+    from warp_sg.renderer.renderer import Renderer
 
     # small SSDFs on the scene's own vertices: what is checked is the cache, not the shadows
     text = replace("shadows = false", "shadows = true\nvisibility_budget = 0\nssdf_resolution = 16\npca_terms = 8")
@@ -548,8 +549,8 @@ def test_gltf_texture_that_cannot_be_read_is_an_error_naming_material_and_image(
 
 def test_gltf_texture_that_reads_is_still_rendered(tmp_path):
     # the check above does not refuse good files: the texture's 200/255 sRGB reaches kd
-    from warp_sg.gltf import gltf_object_parts
-    from warp_sg.textures import srgb_to_linear
+    from warp_sg.scene.importers.gltf import gltf_object_parts
+    from warp_sg.scene.textures import srgb_to_linear
 
     _, specs = gltf_object_parts(write_gltf(tmp_path, texture=True), "a")
     (spec,) = specs.values()
@@ -597,7 +598,7 @@ def test_environment_map_far_from_2_to_1_exits_2_naming_its_size(tmp_path, capsy
 @pytest.mark.parametrize("options", [{"width": 2, "height": 20000}, {"width": 40000, "height": 2}])
 @pytest.mark.parametrize("procedural", ["sky", "constant"])
 def test_procedural_environment_of_a_bad_shape_is_refused_before_it_is_built(options, procedural):
-    from warp_sg.lights import EnvironmentLight
+    from warp_sg.scene.lights import EnvironmentLight
 
     with pytest.raises(ImageError, match=f"{options['width']}×{options['height']}"):
         EnvironmentLight(procedural=procedural, options=options).base_radiance()
@@ -606,8 +607,8 @@ def test_procedural_environment_of_a_bad_shape_is_refused_before_it_is_built(opt
 @pytest.mark.parametrize("shape", [(2, 20000), (20000, 2), (37, 211), (1001, 2003), (8, 16)])
 def test_sg_fit_working_map_is_bounded_and_keeps_the_energy_whatever_the_shape(shape):
     # the energy Σ L Ω is an integral of the piecewise-constant map: every resampling must keep it
-    from precompute.env_sg_fit import _working_map
-    from warp_sg.envmap import texel_solid_angles
+    from precompute.environment.sg_fit import _working_map
+    from warp_sg.scene.envmap import texel_solid_angles
 
     rows = 32
     env = np.random.default_rng(1).random(shape + (3,))
@@ -620,8 +621,8 @@ def test_sg_fit_working_map_is_bounded_and_keeps_the_energy_whatever_the_shape(s
 
 def test_area_resampling_of_a_divisible_map_is_the_box_mip():
     # the exact solid-angle average over 2×2 blocks is what downsample_envmap computes in closed form
-    from precompute.env_sg_fit import _area_resample
-    from warp_sg.envmap import downsample_envmap
+    from precompute.environment.sg_fit import _area_resample
+    from warp_sg.scene.envmap import downsample_envmap
 
     env = np.random.default_rng(2).random((64, 128, 3))
     np.testing.assert_allclose(_area_resample(env, 32, 64), downsample_envmap(env, 2), rtol=1e-12, atol=1e-14)
@@ -658,7 +659,7 @@ def test_environment_radiance_that_overflows_float32_is_refused_naming_the_texel
 
 def test_finite_exposure_still_scales_the_image(tmp_path, capsys):
     # the checks above refuse only what is not finite: +1 stop doubles every pixel
-    from warp_sg.image_io import load_image
+    from warp_sg.core.image_io import load_image
 
     p = write_scene(tmp_path)
     assert run_cli(["render", p, "-o", tmp_path / "a.exr", "--no-progress"], capsys)[0] == 0
@@ -685,7 +686,7 @@ def _sphere(path, *, invert=False):
 
 
 def _render_mesh_scene(tmp_path, capsys, mesh_name):
-    from warp_sg.image_io import load_image
+    from warp_sg.core.image_io import load_image
 
     p = write_scene(tmp_path, replace('primitive = "sphere"\ncenter = [0.0, 0.4, 0.0]\nradius = 0.4',
                                       f'mesh = "{mesh_name}"'), name=f"{mesh_name}.toml")
@@ -709,9 +710,9 @@ def test_inside_out_closed_mesh_is_flipped_with_one_warning_and_renders_like_the
 def test_closed_mesh_with_inward_normals_gets_them_flipped_with_one_warning():
     import trimesh
 
-    from warp_sg.errors import InputWarning
-    from warp_sg.geometry import object_mesh
-    from warp_sg.scene import SceneObject
+    from warp_sg.core.errors import InputWarning
+    from warp_sg.scene.geometry import object_mesh
+    from warp_sg.scene.model import SceneObject
 
     m = trimesh.creation.icosphere(subdivisions=2)
     ob = SceneObject(material="a", vertices=m.vertices, triangles=m.faces, normals=-m.vertex_normals, name="ball")
@@ -725,7 +726,7 @@ def test_closed_mesh_with_inward_normals_gets_them_flipped_with_one_warning():
 def test_signed_volume_and_closedness_match_closed_forms():
     import trimesh
 
-    from warp_sg.meshcheck import closed_and_oriented, signed_volume, weld_ids
+    from warp_sg.core.meshcheck import closed_and_oriented, signed_volume, weld_ids
 
     box = trimesh.creation.box(extents=(1.0, 2.0, 3.0))
     v, f = np.asarray(box.vertices), np.asarray(box.faces)
@@ -743,7 +744,7 @@ def test_signed_volume_and_closedness_match_closed_forms():
 def test_open_mesh_keeps_its_orientation_without_a_warning():
     import warnings
 
-    from warp_sg.geometry import orient_outward
+    from warp_sg.scene.geometry import orient_outward
 
     v = QUAD_V.astype(np.float32)
     t = QUAD_F[:, ::-1].copy()  # facing -z: an open mesh has no inside, nothing to decide
@@ -766,7 +767,7 @@ def test_view_nan_names_the_view_and_the_nan_not_the_other_angle(tmp_path, capsy
 
 
 def test_view_angles_that_are_not_finite_are_named_by_the_api():
-    from warp_sg.asset_scene import frame_camera
+    from warp_sg.scene.importers.asset import frame_camera
 
     with pytest.raises(InputError, match="azimuth must be a finite"):
         frame_camera([0, 0, 0], [1, 1, 1], view=(float("nan"), 20.0))
@@ -786,7 +787,7 @@ def test_draco_asset_is_decoded_or_refused_naming_the_extension():
     path = Path(__file__).resolve().parents[2] / "shared" / "assets" / "ferrari.glb"
     if not path.exists():
         pytest.skip("../shared/assets is not here")
-    from warp_sg.gltf import load_gltf
+    from warp_sg.scene.importers.gltf import load_gltf
 
     try:
         asset = load_gltf(path, images=False)
@@ -798,8 +799,9 @@ def test_draco_asset_is_decoded_or_refused_naming_the_extension():
 
 
 def test_zero_scale_names_the_file_and_the_object(tmp_path):
-    from warp_sg.lights import DirectionalLight
-    from warp_sg.scene import Camera, Scene, SceneObject, Transform
+    from warp_sg.scene.lights import DirectionalLight
+    from warp_sg.scene.camera import Camera
+    from warp_sg.scene.model import Scene, SceneObject, Transform
 
     ob = SceneObject(material="a", vertices=QUAD_V, triangles=QUAD_F, name="blob", transform=Transform(scale=(1, 0, 1)))
     sc = Scene(camera=Camera(width=4, height=4), objects=[ob], materials={"a": ws.brdf.Lambert()},
@@ -851,7 +853,7 @@ def test_scene_file_with_a_utf8_byte_order_mark_loads_as_without_it(tmp_path):
 # warnings are ours (issue 31, defect 8): one line, never numpy's or trimesh's multi-line warnings
 # ------------------------------------------------------------------------------------------------
 def test_black_environment_fits_without_runtime_warnings(tmp_path, capsys, cache_dir):
-    from warp_sg.image_io import load_image
+    from warp_sg.core.image_io import load_image
 
     _write_exr(tmp_path / "black.exr", {c: np.zeros((16, 32)) for c in "RGB"})
     p = write_scene(tmp_path, BASE + '\n[[lights]]\ntype = "environment"\nfile = "black.exr"\n')
@@ -859,7 +861,7 @@ def test_black_environment_fits_without_runtime_warnings(tmp_path, capsys, cache
 
     with warnings.catch_warnings():
         warnings.simplefilter("error", RuntimeWarning)
-        from precompute.env_sg_fit import fit_environment_sgs
+        from precompute.environment.sg_fit import fit_environment_sgs
 
         fit = fit_environment_sgs(np.zeros((16, 32, 3), np.float32), 8, cache=False, cosine="exact")
     assert np.all(fit.amplitude == 0) and fit.info["radiance_rel_rms"] == 0.0
@@ -894,7 +896,7 @@ def test_cli_prints_a_library_warning_as_one_line(tmp_path, capsys, monkeypatch)
     # any warning that still reaches the CLI (here one raised by numpy's own machinery) is one line
     import warnings
 
-    import warp_sg.cli as cli
+    import warp_sg.tools.cli as cli
 
     def noisy(args):
         warnings.warn_explicit("overflow encountered in multiply", RuntimeWarning, "/x/numpy/_core/umath.py", 7)
@@ -919,7 +921,7 @@ def test_diffuse_albedo_above_one_is_an_error_naming_kd(tmp_path, capsys):
 
 
 def test_kd_texture_above_one_is_an_error(tmp_path):
-    from warp_sg.image_io import save_image
+    from warp_sg.core.image_io import save_image
 
     save_image(tmp_path / "albedo.exr", np.full((4, 4, 3), 0.8, np.float32))
     p = write_scene(tmp_path, replace("kd = [0.6, 0.6, 0.6]", 'kd = { texture = "albedo.exr", scale = 2.0 }'))
@@ -987,7 +989,7 @@ def test_texture_over_the_texel_bound_is_refused_from_its_header(tmp_path, capsy
 
 
 def test_environment_over_the_texel_bound_is_refused_unread_and_16k_by_8k_is_not(tmp_path):
-    from warp_sg.envmap import load_envmap
+    from warp_sg.scene.envmap import load_envmap
 
     for w, h, refused in ((65536, 32768, True), (16384, 8192, False)):
         f = tmp_path / f"sky{w}.hdr"
@@ -1003,8 +1005,8 @@ def test_environment_over_the_texel_bound_is_refused_unread_and_16k_by_8k_is_not
 
 
 def test_million_triangle_mesh_is_within_the_bound():
-    from warp_sg.geometry import object_mesh
-    from warp_sg.scene import SceneObject
+    from warp_sg.scene.geometry import object_mesh
+    from warp_sg.scene.model import SceneObject
 
     n = 708  # a 708 × 708 grid: 1,000,000 triangles
     x, y = np.meshgrid(np.arange(n + 1, dtype=np.float32), np.arange(n + 1, dtype=np.float32))
@@ -1017,8 +1019,8 @@ def test_million_triangle_mesh_is_within_the_bound():
 
 
 def test_scene_over_the_triangle_bound_is_refused_naming_the_count(monkeypatch):
-    import warp_sg.geometry as geo
-    from warp_sg.scene import SceneObject
+    import warp_sg.scene.geometry as geo
+    from warp_sg.scene.model import SceneObject
 
     monkeypatch.setattr(geo, "MAX_TRIANGLES", 1)  # the bound's check, on a mesh of 2 triangles
     with pytest.raises(MeshError, match="the mesh is too large: 2 triangles; at most 1 triangles"):
@@ -1032,7 +1034,7 @@ def test_scene_over_the_triangle_bound_is_refused_naming_the_count(monkeypatch):
     ("shadows = false\ngamma_levels = 64\ngamma_resolution = 1024", "", ["ΓL prefilter", "64 levels", "1024"]),
 ])
 def test_precompute_over_its_bound_is_refused_before_any_work(tmp_path, render, camera, words):
-    from warp_sg.render import Renderer
+    from warp_sg.renderer.renderer import Renderer
 
     text = replace("shadows = false", render)
     if camera:
@@ -1085,7 +1087,7 @@ def time_limit(seconds):
 
 def assert_answer(argv, folder, out, needles, capsys, limit):
     """Run ``warp-sg argv`` under ``limit`` seconds and judge the answer (section docstring)."""
-    from warp_sg.image_io import load_image
+    from warp_sg.core.image_io import load_image
 
     before = set(folder.iterdir())
     with time_limit(limit):
@@ -1328,9 +1330,10 @@ def test_closed_room_around_the_camera_keeps_its_inward_faces(tmp_path):
     import trimesh
     import warnings
 
-    from warp_sg.lights import PointLight
-    from warp_sg.meshcheck import winding_number
-    from warp_sg.scene import Camera, Scene, SceneObject
+    from warp_sg.scene.lights import PointLight
+    from warp_sg.core.meshcheck import winding_number
+    from warp_sg.scene.camera import Camera
+    from warp_sg.scene.model import Scene, SceneObject
 
     room = trimesh.creation.box(extents=(4.0, 4.0, 4.0))
     room.invert()

@@ -5,7 +5,8 @@ import math
 
 import pytest
 
-from warp_sg.bench import SECTIONS, run_bench, spp_for_error
+from warp_sg.tools.bench import SECTIONS, run_bench
+from warp_sg.tools.spp_curve import spp_for_error
 
 
 def test_spp_for_error_interpolates_log_log_and_extrapolates_like_one_over_spp():
@@ -80,11 +81,11 @@ def test_shading_rows_are_ratios_to_the_full_scene_and_each_frame_contains_its_s
 
 
 def test_precompute_rows_count_the_bench_meshes_vertices(quick):
-    """Each row names the vertex count of the ``precompute.bench`` mesh it timed, and its ratio and
+    """Each row names the vertex count of the ``warp_sg.tools.bench_precompute`` mesh it timed, and its ratio and
     per-vertex cost are its total over the first row's and over that count."""
     import re
 
-    from precompute import bench as pb
+    from warp_sg.tools import bench_precompute as pb
 
     pre = quick[0].sections["precompute cost"]
     assert len(pre) == 2  # the quick targets: 150 and 600 floor vertices
@@ -119,7 +120,7 @@ def test_equal_error_rows_share_the_renderers_error_and_are_net_of_the_truths_no
 
 
 def test_mitsuba_rows_or_one_line_saying_why_not(quick):
-    from warp_sg.peer_mitsuba import mitsuba_status
+    from warp_sg.tools.peer_mitsuba import mitsuba_status
 
     res = quick[0]
     mit = res.sections["equal error: SG renderer vs Mitsuba 3"]

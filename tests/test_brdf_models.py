@@ -8,7 +8,7 @@ import pytest
 
 import warp_sg.brdf as B
 from warp_sg.brdf.fresnel import Conductor, Dielectric, Schlick, parse_fresnel
-from warp_sg.errors import InputError
+from warp_sg.core.errors import InputError
 
 
 def models():

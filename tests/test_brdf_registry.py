@@ -19,7 +19,7 @@ from warp_sg.brdf import registry
 from warp_sg.brdf.base import SpecularBRDF, as_rgb, as_scalar, dirs, half_vector
 from warp_sg.brdf.material_eval_wp import cos_pow, log_cos_theta
 from warp_sg.brdf.material_sample_wp import reflect_about
-from warp_sg.errors import InputError
+from warp_sg.core.errors import InputError
 
 TWO_PI = 2.0 * np.pi
 EIGHT_PI = 8.0 * np.pi

@@ -1,4 +1,4 @@
-"""warp_sg.cache (re-exported as precompute.cache): keys, hits/misses, corruption detection, atomic writes."""
+"""warp_sg.core.cache (re-exported as warp_sg.core.cache): keys, hits/misses, corruption detection, atomic writes."""
 from __future__ import annotations
 
 import os
@@ -6,7 +6,7 @@ import os
 import numpy as np
 import pytest
 
-from warp_sg import cache
+from warp_sg.core import cache
 
 
 def _builder(counter, value=1.0):
@@ -168,11 +168,11 @@ def test_code_key_refuses_code_without_source():
 def test_cached_producers_key_on_a_code_hash_not_a_version_number():
     """Every producer of a cache kind keys on :func:`cache.code_key` of its own module (a hand-kept
     version would be a small int or a literal string)."""
-    import precompute.env_irradiance as ei
-    import precompute.env_sg_fit as es
-    import precompute.prefilter as pf
-    import precompute.refine as rf
-    import precompute.ssdf as ss
+    import precompute.environment.irradiance as ei
+    import precompute.environment.sg_fit as es
+    import precompute.environment.prefilter as pf
+    import precompute.visibility.refine as rf
+    import precompute.visibility.ssdf as ss
     from warp_sg.brdf import measured_fit as mf
 
     keys = {pf: pf._VERSION, ei: ei._VERSION, es: es._VERSION, rf: rf._VERSION, ss: ss.SSDF_VERSION,

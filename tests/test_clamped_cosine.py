@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from warp_sg import clamped_cosine as C
-from warp_sg.errors import InputError
+from warp_sg.sg import clamped_cosine as C
+from warp_sg.core.errors import InputError
 
 
 def quad_rel_error(lam, mu):

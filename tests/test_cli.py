@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from warp_sg.cli import main
+from warp_sg.tools.cli import main
 
 SCENE = """
 [camera]
@@ -52,7 +52,7 @@ def scene_file(tmp_path):
 
 
 def test_render_writes_exr_and_png_with_the_scene_size(scene_file, tmp_path, capsys):
-    from warp_sg.image_io import load_image
+    from warp_sg.core.image_io import load_image
 
     rc, out, err = run(["render", scene_file, "-o", tmp_path / "a.exr", "--timings", "--no-progress"], capsys)
     assert rc == 0, err
@@ -134,20 +134,20 @@ def test_a_missing_external_module_makes_its_subcommand_exit_2(monkeypatch, caps
     real_import = builtins.__import__
 
     def fake_import(name, *args, **kwargs):
-        if name == "warp_sg.bench":
-            raise ImportError("no module named warp_sg.bench")
+        if name == "warp_sg.tools.bench":
+            raise ImportError("no module named warp_sg.tools.bench")
         return real_import(name, *args, **kwargs)
 
     import importlib
 
     monkeypatch.setattr(importlib, "import_module",
-                        lambda name, *a: fake_import(name) if name == "warp_sg.bench" else real_import(name, fromlist=["x"]))
+                        lambda name, *a: fake_import(name) if name == "warp_sg.tools.bench" else real_import(name, fromlist=["x"]))
     rc, _, err = run(["bench"], capsys)
     assert rc == 2 and "bench" in err and "not available" in err
 
 
 def test_reference_creates_missing_output_folders_and_leaves_nothing_when_it_fails(scene_file, tmp_path, capsys):
-    from warp_sg.image_io import load_image
+    from warp_sg.core.image_io import load_image
 
     out = tmp_path / "out" / "ref" / "x.exr"
     err_out = tmp_path / "out" / "se" / "x_se.exr"
@@ -163,9 +163,9 @@ def test_reference_creates_missing_output_folders_and_leaves_nothing_when_it_fai
 def test_device_default_is_the_scenes_render_device_in_every_subcommand(scene_file, tmp_path, capsys):
     import argparse
 
-    from warp_sg.cli import build_parser
-    from warp_sg.device import device_for
-    from warp_sg.scene import load_scene
+    from warp_sg.tools.cli import build_parser
+    from warp_sg.core.device import device_for
+    from warp_sg.scene.loader import load_scene
 
     for cmd in ("render", "preview", "reference", "report", "bench"):
         parser = build_parser(cmd)

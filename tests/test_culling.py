@@ -1,4 +1,4 @@
-"""Back-face culling of closed objects seen from outside (``warp_sg.culling``): the raster drops
+"""Back-face culling of closed objects seen from outside (``warp_sg.scene.culling``): the raster drops
 about half of a closed mesh's (triangle, tile) pairs and the image does not change; open,
 inward-wound, entered or near-clipped objects keep their back faces."""
 from __future__ import annotations
@@ -8,8 +8,9 @@ import trimesh
 
 import raster
 import warp_sg as ws
-from warp_sg.culling import BackfaceCulling
-from warp_sg.scene import Camera, RenderSettings, Scene, SceneObject
+from warp_sg.scene.culling import BackfaceCulling
+from warp_sg.scene.camera import Camera
+from warp_sg.scene.model import RenderSettings, Scene, SceneObject
 
 
 def _scene(flip: bool = False, camera: Camera | None = None):
@@ -55,13 +56,13 @@ def test_closed_objects_seen_from_outside_drop_their_back_faces_and_the_raster_i
 def test_open_inward_wound_entered_and_near_clipped_objects_keep_their_back_faces(cache_dir):
     """An inward-wound closed ball is not a volume (culling it would drop every face the camera
     sees: it must still be drawn); a camera inside the ball, or a near plane that cuts it, sees
-    its inside. (The scene turns an inside-out ball outwards with a warning, warp_sg.geometry.
+    its inside. (The scene turns an inside-out ball outwards with a warning, warp_sg.scene.geometry.
     orient_outward: the culling's own rule is checked on the ball wound back inwards.)"""
     from dataclasses import replace
 
     import pytest
 
-    from warp_sg.errors import InputWarning
+    from warp_sg.core.errors import InputWarning
 
     with pytest.warns(InputWarning, match="inside out"):
         r = ws.Renderer(_scene(flip=True))

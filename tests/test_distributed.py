@@ -102,7 +102,7 @@ def client(cluster):
 
 @pytest.fixture(scope="module")
 def mesh():
-    from precompute import bench as pb
+    from warp_sg.tools import bench_precompute as pb
 
     return pb.bench_mesh(300)
 
@@ -114,9 +114,9 @@ def _fresh_cache(workdir, name):
 
 
 def test_distributed_ssdfs_equal_local_ones_bitwise_and_are_the_same_cache_entry(client, mesh, workdir):
-    from precompute.ssdf import compute_ssdf, ssdf_for_mesh
-    from warp_sg.cache import entry_path, load
-    from warp_sg.distributed_precompute import DaskSSDF
+    from precompute.visibility.ssdf import compute_ssdf, ssdf_for_mesh
+    from warp_sg.core.cache import entry_path, load
+    from warp_sg.distributed.precompute import DaskSSDF
 
     V, F, N = mesh
     local_raw = compute_ssdf(V, F, N, resolution=8, ray_resolution=16, progress=False)
@@ -143,16 +143,16 @@ def test_distributed_ssdfs_equal_local_ones_bitwise_and_are_the_same_cache_entry
 def test_a_worker_killed_mid_chunk_leaves_the_result_identical(client, mesh, workdir):
     """One worker process dies (os._exit) in the middle of its first SSDF chunk, once (a marker
     file); the scheduler re-runs the chunk elsewhere and the cache entry is the uninterrupted one."""
-    from precompute.ssdf import ssdf_for_mesh
-    from warp_sg.cache import load
-    from warp_sg.distributed_precompute import DaskSSDF
+    from precompute.visibility.ssdf import ssdf_for_mesh
+    from warp_sg.core.cache import load
+    from warp_sg.distributed.precompute import DaskSSDF
 
     marker = str(workdir / "killed-once")
 
     def install(marker=marker):
         import os as _os
 
-        import warp_sg.distributed_precompute as dp
+        import warp_sg.distributed.precompute as dp
 
         real = dp._ssdf_rows
 
@@ -204,7 +204,7 @@ def _edited_scene(scene, variant):
     for name, params in variant.get("materials", {}).items():
         sc.materials[name].params.update(params)
         sc.materials[name].invalidate()
-    from warp_sg.lights import EnvironmentLight
+    from warp_sg.scene.lights import EnvironmentLight
 
     local = [li for li in sc.lights if not isinstance(li, EnvironmentLight)]
     for i, fields in variant.get("lights", {}).items():
@@ -219,10 +219,10 @@ def _edited_scene(scene, variant):
 def test_a_batch_of_8_frames_equals_8_local_renders(cluster, workdir):
     import tomllib  # noqa: F401  (the job file below is TOML)
 
-    from warp_sg.cli import main
-    from warp_sg.image_io import load_image
-    from warp_sg.render import Renderer
-    from warp_sg.scene import load_scene
+    from warp_sg.tools.cli import main
+    from warp_sg.core.image_io import load_image
+    from warp_sg.renderer.renderer import Renderer
+    from warp_sg.scene.loader import load_scene
 
     _fresh_cache(workdir, "cache-batch")
     scene = load_scene(workdir / "scene.toml")
@@ -250,9 +250,9 @@ def test_a_batch_of_8_frames_equals_8_local_renders(cluster, workdir):
 
 
 def test_split_reference_equals_the_local_run_with_the_pooled_variance(client, workdir):
-    from warp_sg.distributed import render_reference_distributed, sample_chunks
-    from warp_sg.reference import render_reference
-    from warp_sg.scene import load_scene
+    from warp_sg.distributed.rendering import render_reference_distributed, sample_chunks
+    from warp_sg.groundtruth.reference import render_reference
+    from warp_sg.scene.loader import load_scene
 
     scene = load_scene(workdir / "scene.toml")
     scene.camera = dataclasses.replace(scene.camera, width=8, height=6)
@@ -267,7 +267,7 @@ def test_split_reference_equals_the_local_run_with_the_pooled_variance(client, w
 
 def test_a_worker_of_another_version_is_refused_naming_both_versions(client, cluster, workdir, capsys):
     import warp_sg
-    from warp_sg.cli import main
+    from warp_sg.tools.cli import main
 
     def set_version(v):
         import warp_sg as w
@@ -291,7 +291,7 @@ def _run_python(code, **env):
 
 
 def test_an_unreachable_scheduler_exits_2_with_one_line(workdir):
-    r = _run_python("import sys; from warp_sg.cli import main; "
+    r = _run_python("import sys; from warp_sg.tools.cli import main; "
                     f"sys.exit(main(['precompute', {str(workdir / 'scene.toml')!r}, '--cluster', "
                     "'tcp://127.0.0.1:1']))", WARP_SG_DASK_TIMEOUT="1")
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
@@ -302,10 +302,10 @@ def test_an_unreachable_scheduler_exits_2_with_one_line(workdir):
 def test_without_cluster_nothing_imports_dask(workdir):
     code = f"""
 import sys
-from warp_sg.cli import build_parser, main
+from warp_sg.tools.cli import build_parser, main
 for cmd in ("render", "precompute", "batch", "report", "bench", "reference"):
     build_parser(cmd)
-import warp_sg.distributed, warp_sg.distributed_precompute, warp_sg.batch, warp_sg.report, warp_sg.bench
+import warp_sg.distributed.rendering, warp_sg.distributed.precompute, warp_sg.distributed.batch, warp_sg.tools.report, warp_sg.tools.bench
 rc = main(["render", {str(workdir / 'scene.toml')!r}, "-o", {str(workdir / 'nodask.png')!r}, "--no-progress"])
 rc |= main(["precompute", {str(workdir / 'scene.toml')!r}, "--no-progress"])
 bad = sorted(m for m in sys.modules if m.split(".")[0] in ("dask", "distributed"))
@@ -324,8 +324,8 @@ print("RC", rc, "DASK", bad)
     ('scene = "s.toml"\noutput = "f{index}.png"\n[animate]\nframes = 0\n', "frames"),
 ])
 def test_bad_job_files_name_the_key(tmp_path, text, needle):
-    from warp_sg.batch import load_job
-    from warp_sg.errors import InputError
+    from warp_sg.distributed.batch import load_job
+    from warp_sg.core.errors import InputError
 
     p = tmp_path / "job.toml"
     p.write_text(text)
@@ -335,7 +335,7 @@ def test_bad_job_files_name_the_key(tmp_path, text, needle):
 
 
 def test_grid_and_animation_expand_to_the_expected_variants(tmp_path):
-    from warp_sg.batch import load_job
+    from warp_sg.distributed.batch import load_job
 
     p = tmp_path / "job.toml"
     p.write_text('scene = "s.toml"\noutput = "out/f{index:03d}.png"\n'

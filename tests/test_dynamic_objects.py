@@ -1,5 +1,5 @@
 """Objects that move after the precompute (``[[objects]] dynamic = true``,
-``Renderer.set_object_transform``; :mod:`warp_sg.dynamic_objects`): the interface, the analytic
+``Renderer.set_object_transform``; :mod:`warp_sg.scene.dynamic_objects`): the interface, the analytic
 proxies against brute force, self-shadows that turn with the object against a ray cast, nothing
 stale after a move and back, and a moved frame against the Monte-Carlo reference at that pose."""
 from __future__ import annotations
@@ -9,9 +9,9 @@ import pytest
 import warp as wp
 
 import warp_sg as ws
-from warp_sg.errors import SceneError
-from warp_sg.plain_scenes import write_plain_scene
-from warp_sg.rigid_motion import check_motion, motion_matrix, rotation_about
+from warp_sg.core.errors import SceneError
+from warp_sg.scene.plain_scenes import write_plain_scene
+from warp_sg.numeric.rigid_motion import check_motion, motion_matrix, rotation_about
 
 
 def _scene(tmp_path, obj="sphere", light="sky", size=32, **render):
@@ -86,7 +86,7 @@ def test_the_renderer_geometry_is_the_scene_at_the_transform(ball):
 def test_sphere_proxy_ssdf_is_the_angular_distance_to_the_cap():
     """The analytic SSDF of a sphere against brute force: the angle from each direction to the
     nearest direction whose ray hits the sphere (dense direction sample), negative inside."""
-    from precompute.proxies import sphere_ssdf
+    from precompute.visibility.proxies import sphere_ssdf
 
     rng = np.random.default_rng(1)
     D = rng.normal(size=(20000, 3))
@@ -107,7 +107,7 @@ def test_sphere_proxy_ssdf_is_the_angular_distance_to_the_cap():
 def test_cap_cosine_solid_angle_matches_quadrature():
     """Ω⊥ of a cap (Snyder's closed form) against a quadrature of max(n·d, 0) over the cap, above,
     straddling and below the horizon."""
-    from warp_sg.motion_wp import cap_cosine_solid_angle
+    from warp_sg.shading.motion_wp import cap_cosine_solid_angle
 
     @wp.kernel
     def k(c: wp.array(dtype=float), s2: wp.array(dtype=float), out: wp.array(dtype=float)):
@@ -138,9 +138,11 @@ def test_self_shadows_turn_with_the_object_against_a_ray_cast():
     the per-vertex SSDF towards the light, its frame turned with the object, says which vertices
     the torus shadows itself as a ray cast against the tilted torus does; the maps left unturned
     (the rest pose's shadows) would not."""
-    from precompute.occluder_cone import texel_half_diagonal
-    from precompute.visibility import ray_visibility
-    from warp_sg.scene import Camera, DirectionalLight, Material, RenderSettings, Scene, SceneObject
+    from precompute.visibility.occluder_cone import texel_half_diagonal
+    from precompute.visibility.rays import ray_visibility
+    from warp_sg.scene.camera import Camera
+    from warp_sg.scene.lights import DirectionalLight
+    from warp_sg.scene.model import Material, RenderSettings, Scene, SceneObject
 
     la = np.array([0.5, 0.6, 0.62]) / np.linalg.norm([0.5, 0.6, 0.62])
     ring = SceneObject(material="m", primitive="torus", name="ring", dynamic=True,
@@ -169,7 +171,7 @@ def test_self_shadows_turn_with_the_object_against_a_ray_cast():
 def test_moved_ball_matches_the_reference_per_region(tmp_path):
     """At a pose the precompute never saw, against the Monte-Carlo reference of the scene with the
     ball there (``r.scene``): object, lit floor and the ball's shadow."""
-    from warp_sg.regions import box_reference, region_errors, scene_regions
+    from warp_sg.groundtruth.region_error import box_reference, region_errors, scene_regions
 
     r = ws.Renderer(_scene(tmp_path, size=48))
     r.set_object_transform("object", _roll(0.9, 0.3))
@@ -185,7 +187,7 @@ def test_moved_ball_matches_the_reference_per_region(tmp_path):
 def test_outline_cosine_solid_angle_matches_quadrature():
     """Lambert's formula on a floor quad clipped to a tilted receiver's horizon, against a
     Monte-Carlo estimate of ∫ max(n·d, 0) over the directions that hit the quad."""
-    from warp_sg.motion_wp import polygon_cosine_solid_angle
+    from warp_sg.shading.motion_wp import polygon_cosine_solid_angle
 
     @wp.kernel
     def k(verts: wp.array(dtype=wp.vec3), P: wp.array(dtype=wp.vec3), n: wp.array(dtype=wp.vec3),
@@ -215,9 +217,9 @@ def test_outline_cosine_solid_angle_matches_quadrature():
 def test_batch_variants_move_objects_like_the_setter(ball):
     """A job's ``objects.NAME`` fields (translate/rotate/pivot) are the motion of
     ``set_object_transform``: the same frame; a static object or an unknown field is refused."""
-    from warp_sg.distributed import apply_variant, normalize_variants
-    from warp_sg.errors import InputError
-    from warp_sg.rigid_motion import motion_from_fields
+    from warp_sg.distributed.rendering import apply_variant, normalize_variants
+    from warp_sg.core.errors import InputError
+    from warp_sg.numeric.rigid_motion import motion_from_fields
 
     fields = {"translate": [0.4, 0.0, 0.2], "rotate": [0.0, 30.0, 0.0], "pivot": [0.0, 0.5, 0.0]}
     v = normalize_variants(ball.scene, [{"objects": {"object": fields}}, {"camera": {"fov": 40.0}}])
@@ -238,7 +240,7 @@ def test_batch_variants_move_objects_like_the_setter(ball):
 def test_reference_cli_takes_a_transform(tmp_path, capsys):
     """``warp-sg reference --transform OBJECT=16 numbers`` renders the moved scene; a malformed
     one is one line and exit status 2, before any work."""
-    from warp_sg.cli import main
+    from warp_sg.tools.cli import main
 
     path = write_plain_scene(tmp_path, size=8, dynamic=True)
     M = ",".join(str(x) for x in _roll(0.5).ravel())

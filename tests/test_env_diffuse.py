@@ -1,24 +1,26 @@
-"""The diffuse environment term: the exact irradiance of the map (``precompute.env_irradiance``)
+"""The diffuse environment term: the exact irradiance of the map (``precompute.environment.irradiance``)
 times its visible fraction, per vertex by quadrature of the vertex's SSDF weighted by the map
-(``warp_sg.vertex_visibility.env_vertex_visible``).
+(``warp_sg.shading.vertex_visibility.env_vertex_visible``).
 
 * Without shadows the rendered diffuse image is the exact irradiance of the environment map by
   quadrature (``env_sg_fit.irradiance_reference``) at each pixel's interpolated normal, on a fine
   and on a coarse sphere.
 * With shadows (a torus, which shadows itself) each vertex's visible fraction is checked against
-  ray-cast visibility weighted by the map (``precompute.visibility.ray_visibility``, 4096
+  ray-cast visibility weighted by the map (``precompute.visibility.rays.ray_visibility``, 4096
   directions), and the render against the Monte-Carlo reference."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from precompute.env_sg_fit import _fibonacci_normals, irradiance_reference
-from precompute.visibility import ray_visibility
-from warp_sg.envmap import env_lookup_numpy
-from warp_sg.render import Renderer
-from warp_sg.scene import Camera, EnvironmentLight, Material, RenderSettings, Scene
-from warp_sg.scene import SceneObject
+from precompute.environment.sg_fit import _fibonacci_normals, irradiance_reference
+from precompute.visibility.rays import ray_visibility
+from warp_sg.scene.envmap import env_lookup_numpy
+from warp_sg.renderer.renderer import Renderer
+from warp_sg.scene.camera import Camera
+from warp_sg.scene.lights import EnvironmentLight
+from warp_sg.scene.model import Material, RenderSettings, Scene
+from warp_sg.scene.model import SceneObject
 
 KD = np.array([0.6, 0.5, 0.4])
 
@@ -152,7 +154,7 @@ def test_smooth_triangles_interpolate_the_vertices_visible_irradiance_within_hal
     interpolates the vertices' E ∘ F; the same frame with every triangle reading E at its pixels'
     normals instead differs by at most 0.5 % of the brightest pixel (0.4 % measured with the sun left
     in the map, the sharpest irradiance there is)."""
-    from warp_sg import vertex_visibility as VV
+    from warp_sg.shading import vertex_visibility as VV
 
     r = Renderer(_scene((192, 96), shadows=True), device="cpu")
     a = r.render()

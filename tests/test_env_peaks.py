@@ -1,4 +1,4 @@
-"""Sharp peaks of real skies become lights (``precompute.env_peaks``), and the diffuse irradiance
+"""Sharp peaks of real skies become lights (``precompute.environment.peaks``), and the diffuse irradiance
 the renderer then uses is the map's own.
 
 Synthetic extremes built here (a sun inside a halo, a sun on the horizon, several lamps at night, a
@@ -16,8 +16,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from precompute.env_peaks import LUMINANCE, extract_peaks
-from warp_sg.envmap import dir_to_uv, row_solid_angles, texel_directions
+from warp_sg.core.image_io import LUMINANCE
+from precompute.environment.peaks import extract_peaks
+from warp_sg.scene.envmap import dir_to_uv, row_solid_angles, texel_directions
 
 ASSETS = Path(__file__).resolve().parents[2] / "shared" / "assets"
 HDRIS = ["pedestrian_overpass_1k", "venice_sunset_1k", "moonless_golf_1k", "blouberg_sunrise_2_1k", "spot1Lux"]
@@ -117,7 +118,7 @@ def test_a_one_texel_sun_in_an_8k_map_and_a_peak_of_a_million_times_the_median()
 @pytest.mark.skipif(not ASSETS.is_dir(), reason="../shared/assets (the real HDRIs) is not present")
 @pytest.mark.parametrize("name", HDRIS)
 def test_real_hdri_split_conserves_power_and_finds_its_sources(name):
-    from warp_sg.envmap import load_envmap
+    from warp_sg.scene.envmap import load_envmap
 
     env = load_envmap(ASSETS / f"{name}.hdr")
     res, peaks = extract_peaks(env)
@@ -140,9 +141,10 @@ def _white_sphere_error(env_light):
     """Largest per-pixel relative error of an unshadowed white Lambert sphere (radiance E(n)/π)
     against the quadrature of the original map at each pixel's normal (default render settings:
     the peaks are lights, the residual's irradiance comes from its table)."""
-    from precompute.env_sg_fit import irradiance_reference
-    from warp_sg.render import Renderer
-    from warp_sg.scene import Camera, Material, RenderSettings, Scene, SceneObject
+    from precompute.environment.sg_fit import irradiance_reference
+    from warp_sg.renderer.renderer import Renderer
+    from warp_sg.scene.camera import Camera
+    from warp_sg.scene.model import Material, RenderSettings, Scene, SceneObject
 
     cam = Camera(origin=(0.0, 0.0, 3.0), target=(0.0, 0.0, 0.0), fov=35.0, width=40, height=40)
     ball = SceneObject(material="w", primitive="sphere", params={"radius": 0.8, "resolution": (64, 128)})
@@ -173,15 +175,15 @@ def _white_sphere_error(env_light):
 @pytest.mark.skipif(not ASSETS.is_dir(), reason="../shared/assets (the real HDRIs) is not present")
 @pytest.mark.parametrize("name", HDRIS)
 def test_diffuse_irradiance_of_a_real_hdri_is_the_maps_own_within_one_percent(name):
-    from warp_sg.lights import EnvironmentLight
+    from warp_sg.scene.lights import EnvironmentLight
 
     err, r = _white_sphere_error(EnvironmentLight(file=ASSETS / f"{name}.hdr", rotation=70.0))
     assert err < 0.01, (name, err, len(r.env_peaks))
 
 
 def test_diffuse_irradiance_under_a_sun_with_a_halo_is_the_maps_own_within_one_percent(tmp_path):
-    from warp_sg.image_io import save_image
-    from warp_sg.lights import EnvironmentLight
+    from warp_sg.core.image_io import save_image
+    from warp_sg.scene.lights import EnvironmentLight
 
     h, w = 256, 512
     env = _sky(h, w)

@@ -1,4 +1,4 @@
-"""precompute.env_sg_fit: SG mixture of an environment for diffuse lighting (paper §6, eq. 34).
+"""precompute.environment.sg_fit: SG mixture of an environment for diffuse lighting (paper §6, eq. 34).
 
 The measure that matters is the irradiance E(n) = ∫ max(n·i, 0) L(i) di that the renderer
 computes from the fit through the eq. 40 clamped-cosine SG."""
@@ -7,9 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from precompute import envmap as em
-from precompute.env_sg_fit import fit_environment_sgs, irradiance_reference, sg_irradiance
-from warp_sg.errors import ImageError
+from warp_sg.scene import envmap as em
+from precompute.environment.sg_fit import fit_environment_sgs, irradiance_reference, sg_irradiance
+from warp_sg.core.errors import ImageError
 
 SUN = np.array([0.45, 0.55, -0.70]) / np.linalg.norm([0.45, 0.55, -0.70])
 
@@ -89,7 +89,7 @@ def test_fit_is_cached_and_validated(cache_dir):
 
 
 def test_fitting_through_a_multi_lobe_clamped_cosine_lowers_the_irradiance_error(sky, fit8):
-    from warp_sg import clamped_cosine as CC
+    from warp_sg.sg import clamped_cosine as CC
 
     cos2 = CC.LOBES[2]  # signed amplitudes
     f2 = fit_environment_sgs(sky, 8, cosine=cos2, cache=False)

@@ -1,4 +1,4 @@
-"""precompute.envmap: the Mitsuba equirectangular convention, solid angles, loading/validation,
+"""warp_sg.scene.envmap: the Mitsuba equirectangular convention, solid angles, loading/validation,
 the procedural sky and lookup-time rotation."""
 from __future__ import annotations
 
@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import warp as wp
 
-from precompute import envmap as em
-from warp_sg.errors import ImageError
-from warp_sg.image_io import save_image
+from warp_sg.scene import envmap as em
+from warp_sg.core.errors import ImageError
+from warp_sg.core.image_io import save_image
 
 
 def test_convention_matches_mitsuba_axes():

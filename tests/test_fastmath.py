@@ -1,10 +1,10 @@
-"""The polynomial atan2 / asin of ``warp_sg.fastmath`` against numpy's libm on dense grids,
+"""The polynomial atan2 / asin of ``warp_sg.numeric.fastmath`` against numpy's libm on dense grids,
 including the axes, the quadrant boundaries and the ends of asin's domain."""
 import numpy as np
 import pytest
 import warp as wp
 
-from warp_sg.fastmath import fast_asin, fast_atan2
+from warp_sg.numeric.fastmath import fast_asin, fast_atan2
 
 
 @wp.kernel

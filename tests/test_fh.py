@@ -1,11 +1,11 @@
-"""warp_sg.fh: exact quadrature vs brute force; table and sigmoid vs exact (numpy and Warp)."""
+"""warp_sg.sg.fh: exact quadrature vs brute force; table and sigmoid vs exact (numpy and Warp)."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 import warp as wp
 
-from warp_sg import fh
+from warp_sg.sg import fh
 
 
 @wp.kernel
@@ -75,7 +75,7 @@ def test_table_and_sigmoid_errors_against_quadrature(device):
     np.testing.assert_allclose(s_wp, s_np, atol=2e-5)
     np.testing.assert_allclose(f_wp, t_np * fh.fh_hemisphere(L), rtol=1e-4, atol=1e-9)
     # the default (table) is accurate everywhere; the paper's sigmoid is not (it was fitted for
-    # modest lambda and to the lobe-hemisphere-restricted integral: see warp_sg/fh.py)
+    # modest lambda and to the lobe-hemisphere-restricted integral: see warp_sg/sg/fh.py)
     assert err_t.max() < 1e-3
     assert err_s.max() > 0.3
     assert err_t.max() < 0.01 * err_s.max()

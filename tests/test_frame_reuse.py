@@ -9,9 +9,11 @@ import numpy as np
 import pytest
 
 import raster
-from warp_sg.lights import DirectionalLight
-from warp_sg.render import Renderer
-from warp_sg.scene import Camera, EnvironmentLight, Material, RenderSettings, Scene, SceneObject
+from warp_sg.scene.lights import DirectionalLight
+from warp_sg.renderer.renderer import Renderer
+from warp_sg.scene.camera import Camera
+from warp_sg.scene.lights import EnvironmentLight
+from warp_sg.scene.model import Material, RenderSettings, Scene, SceneObject
 
 
 def _scene(kd=(0.6, 0.5, 0.4), origin=(0.0, 1.2, 3.0)):
@@ -76,8 +78,8 @@ def test_environment_lobes_without_energy_are_left_out_and_change_nothing(render
 
 
 def test_background_kernel_matches_the_camera_rays_and_the_numpy_environment_lookup():
-    from warp_sg.background import background_image, background_params
-    from warp_sg.envmap import env_lookup_numpy, rotation_y
+    from warp_sg.shading.background import background_image, background_params
+    from warp_sg.scene.envmap import env_lookup_numpy, rotation_y
 
     rng = np.random.default_rng(5)
     env = rng.uniform(0.0, 2.0, (16, 32, 3)).astype(np.float32)
@@ -97,7 +99,7 @@ def test_background_kernel_matches_the_camera_rays_and_the_numpy_environment_loo
 
 
 def test_a_bad_material_edit_raises_and_leaves_the_material_and_the_image_as_they_were(renderer):
-    from warp_sg.errors import SceneError
+    from warp_sg.core.errors import SceneError
 
     before = renderer.render()
     params = dict(renderer.scene.materials["ball"].params)

@@ -1,14 +1,14 @@
-"""The ΓL ladder ends where the scene's sharpest lobe needs it (warp_sg.lobe_extent)."""
+"""The ΓL ladder ends where the scene's sharpest lobe needs it (warp_sg.scene.lobe_extent)."""
 from __future__ import annotations
 
 import numpy as np
 
-from warp_sg.bench import bench_scene
-from warp_sg.lobe_extent import MIN_REACH, gamma_reach, sharpest_ndf_lobe
-from warp_sg.regions import image_errors
-from warp_sg.render import Renderer
-from warp_sg.scene import Material
-from warp_sg.textures import Texture
+from warp_sg.tools.bench import bench_scene
+from warp_sg.scene.lobe_extent import MIN_REACH, gamma_reach, sharpest_ndf_lobe
+from warp_sg.groundtruth.region_error import image_errors
+from warp_sg.renderer.renderer import Renderer
+from warp_sg.scene.model import Material
+from warp_sg.scene.textures import Texture
 
 
 def _scene():
@@ -20,7 +20,7 @@ def _scene():
 def test_capped_ladder_renders_the_image_of_the_full_ladder(cache_dir):
     sc = _scene()
     r = Renderer(sc)
-    from precompute.prefilter import default_ladder
+    from precompute.environment.prefilter import default_ladder
 
     full = default_ladder(r.env_residual.shape[0], base_face=64)[0]
     assert r._gamma_capped and len(r.gamma.lambdas) < len(full)

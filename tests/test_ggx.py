@@ -11,7 +11,7 @@ import warp_sg.brdf as B
 from warp_sg.brdf import GGX, make_model
 from warp_sg.brdf import material_wp as M
 from warp_sg.brdf.fit import fit_error
-from warp_sg.errors import InputError
+from warp_sg.core.errors import InputError
 
 
 def h_grid(n=300, theta_max=np.pi / 2, n_phi=None):
@@ -296,7 +296,7 @@ def test_reference_white_furnace_matches_the_cycles_albedo(device):
     # converges to the tabulated albedo E(μ = 16/31, α = (16/31)²) = 0.847421 (CYCLES_GGX_E)
     from test_reference import mean_and_se, plane_inputs
 
-    from warp_sg.reference import render_reference_inputs
+    from warp_sg.groundtruth.reference import render_reference_inputs
 
     mu = 16 / 31
     view_dir = np.array([np.sqrt(1 - mu * mu), -mu, 0.0])  # towards the plane (normal +y)

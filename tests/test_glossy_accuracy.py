@@ -1,6 +1,6 @@
 """Glossy models under skies with a sun, against the Monte-Carlo reference (issue 26): every glossy
 model, GGX from α = 0.02 to 1 and anisotropic, on an icosphere on a 2-triangle floor, under the
-plain-input sky EXR (``warp_sg.plain_scenes``) and under a sky built like a photographed clear day
+plain-input sky EXR (``warp_sg.scene.plain_scenes``) and under a sky built like a photographed clear day
 (a 6e4 sun inside a halo, a bright band of sky at the horizon over a dark ground: the maps of Poly
 Haven, whose ground the floor hides). Object |bias| ≤ 3 % (the issue's target)."""
 from __future__ import annotations
@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 import warp_sg as ws
-from warp_sg.envmap import texel_directions
-from warp_sg.plain_scenes import write_plain_scene
-from warp_sg.regions import box_reference, region_errors, scene_regions
+from warp_sg.scene.envmap import texel_directions
+from warp_sg.scene.plain_scenes import write_plain_scene
+from warp_sg.groundtruth.region_error import box_reference, region_errors, scene_regions
 
 SIZE = 40
 #: a near-mirror's sun glint is a pixel wide at 40² (its energy then rides on one pixel's sampling):

@@ -1,4 +1,4 @@
-"""glTF 2.0 import (issue 15, warp_sg.gltf): files written here with trimesh (and their JSON edited
+"""glTF 2.0 import (issue 15, warp_sg.scene.importers.gltf): files written here with trimesh (and their JSON edited
 where trimesh cannot write a feature), loaded as scene objects; the expectations are the glTF 2.0
 specification's (node matrices, metallic-roughness → GGX, texture orientation), not the code's.
 """
@@ -14,13 +14,15 @@ from PIL import Image
 from trimesh.visual import TextureVisuals
 from trimesh.visual.material import PBRMaterial
 
-from warp_sg.camera import Camera
-from warp_sg.cli import main
-from warp_sg.errors import MeshError
-from warp_sg.gltf import ALPHA_MIN, AssetWarning, load_gltf
-from warp_sg.lights import EnvironmentLight
-from warp_sg.scene import Scene, SceneObject, Transform, load_scene
-from warp_sg.textures import sample_bilinear_np
+from warp_sg.scene.camera import Camera
+from warp_sg.tools.cli import main
+from warp_sg.core.errors import MeshError
+from warp_sg.scene.importers.gltf_material import ALPHA_MIN
+from warp_sg.scene.importers.gltf import AssetWarning, load_gltf
+from warp_sg.scene.lights import EnvironmentLight
+from warp_sg.scene.model import Scene, SceneObject, Transform
+from warp_sg.scene.loader import load_scene
+from warp_sg.scene.textures import sample_bilinear_np
 
 SKY = [EnvironmentLight(procedural="constant")]
 QUAD_V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)

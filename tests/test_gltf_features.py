@@ -3,7 +3,7 @@ COLOR_0, KHR_materials_ior / specular / clearcoat, KHR_mesh_quantization and Dra
 small file written here (tests/gltf_files.py). Each feature is checked against what the
 specification says it means (closed forms, numpy) and, rendered, against the Monte-Carlo
 reference, which implements the same features with its own code (exact BRDFs, ray-traced
-visibility through the holes): the object's bias per region (warp_sg.regions) is at most 3 %.
+visibility through the holes): the object's bias per region (warp_sg.groundtruth.region_error) is at most 3 %.
 
 The scenes are flat quads seen from 45°: there the renderer's base material is within 2 % of the
 reference (a sphere's grazing rim is not, which is no feature of these files)."""
@@ -13,13 +13,13 @@ import numpy as np
 import pytest
 
 from gltf_files import GltfWriter, quad
-from warp_sg.camera import Camera
-from warp_sg.gltf import AssetWarning, load_gltf
-from warp_sg.lights import DirectionalLight, EnvironmentLight
-from warp_sg.reference import reference
-from warp_sg.regions import region_errors, scene_regions
-from warp_sg.render import Renderer
-from warp_sg.scene import Material, RenderSettings, Scene, SceneObject
+from warp_sg.scene.camera import Camera
+from warp_sg.scene.importers.gltf import AssetWarning, load_gltf
+from warp_sg.scene.lights import DirectionalLight, EnvironmentLight
+from warp_sg.groundtruth.reference import reference
+from warp_sg.groundtruth.region_error import region_errors, scene_regions
+from warp_sg.renderer.renderer import Renderer
+from warp_sg.scene.model import Material, RenderSettings, Scene, SceneObject
 
 CONST = [EnvironmentLight(procedural="constant", options={"radiance": [0.4, 0.45, 0.5]})]
 SUN = [DirectionalLight(direction=(0.3, 1.0, 0.4), radius=0.1, intensity=(2.0, 2.0, 2.0))] + CONST
@@ -127,8 +127,8 @@ def test_mask_cut_out_lets_the_light_through_its_hole(tmp_path):
     assert abs(err["lit_floor"]["bias"]) <= BIAS, err
     assert abs(err["shadow"]["leak"]) <= 0.05, err
     # the ray from the floor point under the hole's centre towards the sun passes the hole
-    from precompute.visibility import ray_visibility
-    from warp_sg.cutout import cutout_data
+    from precompute.visibility.rays import ray_visibility
+    from warp_sg.shading.cutout import cutout_data
 
     g = scene.geometry()
     d = np.asarray(sun.direction) / np.linalg.norm(sun.direction)
@@ -199,7 +199,7 @@ def test_texture_transform_moves_texels_as_the_extension_defines(tmp_path):
     np.testing.assert_allclose(np.c_[g.uvs[:, 0], 1.0 - g.uvs[:, 1]], want[order], atol=1e-6)
     # the base colour at each vertex: the image's, bilinear at the transformed glTF uv (x = u W - ½,
     # y = v H - ½ with row 0 at the top, wrapping), sRGB decoded
-    from warp_sg.textures import sample_bilinear_np, srgb_to_linear
+    from warp_sg.scene.textures import sample_bilinear_np, srgb_to_linear
 
     lin = srgb_to_linear(img / 255.0)
     x, y = want[order, 0] * 8 - 0.5, want[order, 1] * 8 - 0.5
@@ -233,7 +233,7 @@ def test_vertex_colours_multiply_the_base_colour(tmp_path):
 
 
 def test_vertex_colour_of_a_metal_scales_its_specular_colour():
-    from warp_sg.gltf_material import pbr_to_ggx, vertex_colour_factors
+    from warp_sg.scene.importers.gltf_material import pbr_to_ggx, vertex_colour_factors
 
     entry = {"pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.6, 0.2, 1], "metallicFactor": 0.7}}
     c = np.array([[0.5, 1.0, 0.25, 1.0]])
@@ -336,7 +336,7 @@ class _no_asset_warning:
 
 
 def test_unsupported_extension_is_one_warning_line_from_the_cli(tmp_path, capsys):
-    from warp_sg.cli import main
+    from warp_sg.tools.cli import main
 
     entry = {"name": "m", "pbrMetallicRoughness": GREY, "extensions": {"KHR_materials_sheen": {"sheenColorFactor": [1, 0, 0]}},
              "emissiveFactor": [0.1, 0.1, 0.1]}
@@ -356,7 +356,7 @@ TILT = np.array([[1, 0, 0], [0, np.cos(0.35), -np.sin(0.35)], [0, np.sin(0.35), 
 def test_an_asset_renders_the_same_in_any_unit(tmp_path):
     # the same holed quad over a tile at 1e-3, 1 and 1e4 units: the framing, ray offsets, SSDF
     # precompute and the reference all scale with the asset
-    from warp_sg.asset_scene import asset_scene
+    from warp_sg.scene.importers.asset import asset_scene
 
     imgs, refs = [], []
     for scale in (1e-3, 1.0, 1e4):
@@ -377,7 +377,7 @@ def test_an_asset_renders_the_same_in_any_unit(tmp_path):
 
 
 def test_a_draco_blob_that_does_not_decode_is_an_error_not_an_empty_mesh(tmp_path):
-    from warp_sg.errors import MeshError
+    from warp_sg.core.errors import MeshError
 
     P, idx, N, uv = quad(1.0, 0.3, n=2)
     w = GltfWriter()

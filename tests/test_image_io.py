@@ -1,4 +1,4 @@
-"""warp_sg.image_io: EXR/PNG round trips, sRGB values, atomic writes, clear errors."""
+"""warp_sg.core.image_io: EXR/PNG round trips, sRGB values, atomic writes, clear errors."""
 from __future__ import annotations
 
 import os
@@ -6,8 +6,8 @@ import os
 import numpy as np
 import pytest
 
-from warp_sg.errors import ImageError, InputError
-from warp_sg.image_io import linear_to_srgb, load_image, save_image, srgb_to_linear, tonemap_srgb
+from warp_sg.core.errors import ImageError, InputError
+from warp_sg.core.image_io import linear_to_srgb, load_image, save_image, srgb_to_linear, tonemap_srgb
 
 
 def _img(h=7, w=5, c=3, seed=0):
@@ -79,7 +79,7 @@ def test_png_16bit_grey_is_scaled(tmp_path):
 
 
 def test_write_is_atomic_and_leaves_nothing_on_error(tmp_path, monkeypatch):
-    import warp_sg.image_io as io_mod
+    import warp_sg.core.image_io as io_mod
 
     target = tmp_path / "keep.exr"
     save_image(target, np.ones((2, 2, 3), np.float32))
@@ -113,8 +113,8 @@ def test_non_writable_folder_is_an_image_error(unprivileged):
         import logging
         import numpy as np
         from PIL import Image, PngImagePlugin
-        from warp_sg.errors import ImageError
-        from warp_sg.image_io import save_image
+        from warp_sg.core.errors import ImageError
+        from warp_sg.core.image_io import save_image
         """
     r = unprivileged.run(setup, body)
     assert r.returncode == 3, (r.stdout, r.stderr)
@@ -159,7 +159,7 @@ def test_unreadable_and_wrong_channel_files_name_the_file(tmp_path):
 
 
 def test_permission_denied_on_temp_file_is_an_image_error(tmp_path, monkeypatch):
-    import warp_sg.atomic as atomic_mod
+    import warp_sg.core.files as atomic_mod
 
     def denied(*a, **k):
         raise PermissionError(13, "Permission denied")

@@ -6,8 +6,8 @@ import pytest
 import warp as wp
 from scipy import integrate, optimize
 
-from warp_sg.errors import InputError
-from warp_sg.lights import (DirectionalLight, EnvironmentLight, LightArrays, PointLight, directional_light_sg,
+from warp_sg.core.errors import InputError
+from warp_sg.scene.lights import (DirectionalLight, EnvironmentLight, LightArrays, PointLight, directional_light_sg,
                             light_arrays, light_sg, point_light_sg, rotate_equirect)
 
 

@@ -17,12 +17,14 @@ import pytest
 import warp as wp
 
 import warp_sg.brdf as B
-from warp_sg import shading as S
+from warp_sg.shading import kernel as S
 from warp_sg.brdf import material_wp as M
 from warp_sg.brdf.material_variants import ALL_MODELS, material_funcs
-from warp_sg.errors import InputError
-from warp_sg.render import Renderer
-from warp_sg.scene import Camera, DirectionalLight, EnvironmentLight, RenderSettings, Scene, SceneObject
+from warp_sg.core.errors import InputError
+from warp_sg.renderer.renderer import Renderer
+from warp_sg.scene.camera import Camera
+from warp_sg.scene.lights import DirectionalLight, EnvironmentLight
+from warp_sg.scene.model import RenderSettings, Scene, SceneObject
 
 #: one material per model family: (model name, parameters, model code)
 FAMILIES = [

@@ -11,7 +11,7 @@ from warp_sg.brdf import material_wp as M
 from warp_sg.brdf import merl
 from warp_sg.brdf.models.measured import (D_THETA, S_THETA, Measured, compress_shadowing, fit_ndf_sg,
                                    fit_ndf_sg_anisotropic, fresnel_eq14, fresnel_normalised)
-from warp_sg.errors import InputError
+from warp_sg.core.errors import InputError
 
 ETA = 1.33
 M_TRUE = 0.18

@@ -7,7 +7,7 @@ import warp as wp
 
 from warp_sg.brdf import CookTorrance, merl
 from warp_sg.brdf.measured_wp import merl_eval, merl_index
-from warp_sg.errors import InputError
+from warp_sg.core.errors import InputError
 
 
 @pytest.fixture(scope="module")

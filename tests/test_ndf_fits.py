@@ -11,7 +11,7 @@ from scipy import integrate, optimize
 
 import warp_sg.brdf as B
 from warp_sg.brdf.fit import EPSILON, fit_error
-from warp_sg.errors import InputError
+from warp_sg.core.errors import InputError
 
 
 # exact NDFs written out here from the supplement / lecture (ln D(θh), peak-normalised, isotropic)

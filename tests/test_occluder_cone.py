@@ -1,4 +1,4 @@
-"""Per-vertex occluder cones (``precompute.occluder_cone``): they contain every ray-cast occluded
+"""Per-vertex occluder cones (``precompute.visibility.occluder_cone``): they contain every ray-cast occluded
 direction, a lobe they declare clear is fully visible by ray-cast quadrature, an open plane has
 none, and skipping the lookups leaves the image as it was."""
 from __future__ import annotations
@@ -7,15 +7,17 @@ import numpy as np
 import pytest
 import warp as wp
 
-from precompute.occluder_cone import no_cones, occluder_cones, texel_half_diagonal
-from precompute.ssdf import compute_ssdf
-from precompute.ssdf_wp import texel_directions
-from precompute.visibility import hemisphere_visibility
-from warp_sg.fh import fh_theta_max
-from warp_sg.frames import frame_from_normal
-from warp_sg.primitives import plane, sphere
-from warp_sg.render import Renderer
-from warp_sg.scene import Camera, DirectionalLight, EnvironmentLight, Material, RenderSettings, Scene, SceneObject
+from precompute.visibility.occluder_cone import no_cones, occluder_cones, texel_half_diagonal
+from precompute.visibility.ssdf import compute_ssdf
+from precompute.visibility.ssdf_wp import texel_directions
+from precompute.visibility.rays import hemisphere_visibility
+from warp_sg.sg.fh import fh_theta_max
+from warp_sg.numeric.onb import frame_from_normal
+from warp_sg.scene.primitives import plane, sphere
+from warp_sg.renderer.renderer import Renderer
+from warp_sg.scene.camera import Camera
+from warp_sg.scene.lights import DirectionalLight, EnvironmentLight
+from warp_sg.scene.model import Material, RenderSettings, Scene, SceneObject
 
 R, RR = 16, 32
 
@@ -56,7 +58,7 @@ def test_a_lobe_declared_clear_is_visible_by_ray_cast_and_by_the_uncompressed_ss
     (ray cast + distance transform, no PCA) is ≥ min(θh, θmax) up to its own error (0.3 h), so the lookup
     would have returned a ratio of 1; and where the cone is θmax(λ) + h away (the lobe's support),
     the ray-cast visible fraction ∫G V / ∫G H is ≥ 0.998."""
-    from precompute.ssdf_wp import lookup_np
+    from precompute.visibility.ssdf_wp import lookup_np
 
     V, F, N, cones = ball_on_floor
     rng = np.random.default_rng(4)

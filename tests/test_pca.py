@@ -1,10 +1,10 @@
-"""warp_sg.pca (re-exported as precompute.pca): exact recovery of low-rank data, reported errors, randomized path."""
+"""warp_sg.numeric.pca (re-exported as warp_sg.numeric.pca): exact recovery of low-rank data, reported errors, randomized path."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from warp_sg.pca import pca
+from warp_sg.numeric.pca import pca
 
 
 def _low_rank(V, D, rank, seed=0, noise=0.0):

@@ -1,8 +1,8 @@
-"""warp_sg.peer_mitsuba: Mitsuba 3 renders of our scenes agree with our Monte-Carlo reference.
+"""warp_sg.tools.peer_mitsuba: Mitsuba 3 renders of our scenes agree with our Monte-Carlo reference.
 
 Two independent renderers of the same light transport (direct lighting, exact visibility, Lambert
 BRDF): Mitsuba 3's path tracer (``max_depth=2``) on the converted scene, and our reference
-(``warp_sg.regions.box_reference``). Agreement within their combined noise checks our reference
+(``warp_sg.groundtruth.region_error.box_reference``). Agreement within their combined noise checks our reference
 *and* the converter (camera convention, image orientation, envmap axes and rotation, light
 units). Pixels whose footprint straddles a silhouette are left out of the noise test: Mitsuba
 box-filters the pixel area, our reference averages a k×k grid of points, and the two differ there
@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from warp_sg import peer_mitsuba as P
+from warp_sg.tools import peer_mitsuba as P
 
 try:
     import mitsuba as mi
@@ -37,15 +37,15 @@ def plain_folder(tmp_path_factory):
 
 
 def _scene(folder, light):
-    from warp_sg.plain_scenes import write_plain_scene
-    from warp_sg.scene import load_scene
+    from warp_sg.scene.plain_scenes import write_plain_scene
+    from warp_sg.scene.loader import load_scene
 
     return load_scene(write_plain_scene(folder / light, obj="sphere", light=light, material="lambert", size=SIZE))
 
 
 def _compare(scene):
     """(chi² per degree of freedom off the silhouettes, {region: relative bias, its 1σ})."""
-    from warp_sg.regions import box_reference, scene_regions
+    from warp_sg.groundtruth.region_error import box_reference, scene_regions
 
     ref, ref_se = box_reference(scene, spp=REF_SPP, supersample=4, seed=5, return_stderr=True)
     mi_img, mi_se = P.mitsuba_mean(P.mitsuba_scene(scene), MI_SPP, MI_BATCHES, seed=17)
@@ -82,9 +82,9 @@ def test_point_light_lambert_sphere_and_floor_agree_with_reference_within_noise(
 
 
 def test_mitsuba_envmap_lookup_equals_our_bilinear_lookup_with_rotation():
-    # Mitsuba's own emitter evaluated at random directions vs warp_sg.envmap.env_lookup_numpy
-    from warp_sg.envmap import env_lookup_numpy
-    from warp_sg.lights import EnvironmentLight
+    # Mitsuba's own emitter evaluated at random directions vs warp_sg.scene.envmap.env_lookup_numpy
+    from warp_sg.scene.envmap import env_lookup_numpy
+    from warp_sg.scene.lights import EnvironmentLight
 
     rng = np.random.default_rng(0)
     env = rng.random((12, 24, 3)).astype(np.float32) + 0.1
@@ -100,8 +100,8 @@ def test_mitsuba_envmap_lookup_equals_our_bilinear_lookup_with_rotation():
 
 
 def test_glossy_and_textured_materials_are_refused_with_the_material_named(plain_folder):
-    from warp_sg.plain_scenes import write_plain_scene
-    from warp_sg.scene import load_scene
+    from warp_sg.scene.plain_scenes import write_plain_scene
+    from warp_sg.scene.loader import load_scene
 
     scene = load_scene(write_plain_scene(plain_folder / "ct", obj="sphere", light="sky", material="cook_torrance",
                                          size=8))

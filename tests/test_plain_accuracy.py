@@ -1,7 +1,7 @@
 """Accuracy on the inputs people bring (issue 11): the SG renderer against the Monte-Carlo
 reference, per region (object, lit floor, shadow, silhouette band) and as bias.
 
-The scenes are written as a user would export them (``warp_sg.plain_scenes``): a floor that is
+The scenes are written as a user would export them (``warp_sg.scene.plain_scenes``): a floor that is
 ONE quad (two triangles), an icosphere PLY or a lumpy non-convex OBJ, a sky EXR with a small
 bright sun, or a spherical point light. The reference is box-filtered over each pixel (8×8
 sub-pixels), so antialiasing is measured too. Targets (issue 11): |bias| ≤ 2 % on objects and lit
@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 import warp_sg as ws
-from warp_sg.plain_scenes import write_plain_scene
-from warp_sg.regions import box_reference, region_errors, scene_regions
+from warp_sg.scene.plain_scenes import write_plain_scene
+from warp_sg.groundtruth.region_error import box_reference, region_errors, scene_regions
 
 SIZE = 48
 SPP = 2048
@@ -116,7 +116,7 @@ def test_shadows_on_a_two_triangle_floor_match_a_hand_subdivided_floor(tmp_path)
                              render={"visibility_budget": 0})
     import trimesh
 
-    from warp_sg.primitives import plane
+    from warp_sg.scene.primitives import plane
 
     fine = plane(size=(6.0, 6.0), resolution=(64, 64))  # the same 6×6 quad as 64×64 cells, exported
     trimesh.Trimesh(fine.vertices, fine.triangles, process=False).export(hand.parent / "floor.obj")

@@ -1,4 +1,4 @@
-"""precompute.prefilter: ΓL(p, λ) = ∫ G(i; p, λ, 1) L(i) di (paper eq. 35) against direct quadrature."""
+"""precompute.environment.prefilter: ΓL(p, λ) = ∫ G(i; p, λ, 1) L(i) di (paper eq. 35) against direct quadrature."""
 from __future__ import annotations
 
 import math
@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 import warp as wp
 
-from precompute import envmap as em
-from precompute import prefilter as pf
-from precompute.prefilter import GammaTable, gamma_lookup, gamma_mean
+from warp_sg.scene import envmap as em
+from precompute.environment import prefilter as pf
+from precompute.environment.prefilter_wp import GammaTable, gamma_lookup, gamma_mean
 from warp_sg import sg
 
 SUN = np.array([0.45, 0.55, -0.70]) / np.linalg.norm([0.45, 0.55, -0.70])

@@ -6,7 +6,7 @@ import os
 import numpy as np
 from PIL import Image
 
-from warp_sg.cli import main
+from warp_sg.tools.cli import main
 
 SCENE = """
 [camera]
@@ -73,7 +73,7 @@ def test_preview_screenshot_shows_the_objects_in_their_rendered_colours(tmp_path
     assert corner.max() < 10  # no environment: black background
     # the window shows the renderer's image per pixel (the same frame `warp-sg render` makes)
     import warp_sg as ws
-    from warp_sg.image_io import tonemap_srgb
+    from warp_sg.core.image_io import tonemap_srgb
 
     frame = (tonemap_srgb(ws.render(ws.load_scene(p))) * 255 + 0.5).astype(float)
     assert np.abs(img - frame).max() <= 1
@@ -85,7 +85,7 @@ def test_preview_screenshot_shows_the_objects_in_their_rendered_colours(tmp_path
 
 def test_vertex_colours_are_the_renderers_shading_at_the_vertices():
     import warp_sg as ws
-    from warp_sg.render import Renderer
+    from warp_sg.renderer.renderer import Renderer
 
     sc = ws.scene.Scene(camera=ws.scene.Camera(origin=(0, 0, 3), target=(0, 0, 0), width=8, height=8),
                         objects=[ws.scene.SceneObject(material="m", primitive="sphere", params={"resolution": (6, 12)})],
@@ -108,7 +108,7 @@ def test_preview_of_an_asset_is_the_frame_render_makes_of_it(tmp_path, capsys):
     # (the same asset path: framing camera, ground, environment), here an emissive glTF ball
     from gltf_files import GltfWriter, uv_sphere
 
-    from warp_sg.image_io import save_image
+    from warp_sg.core.image_io import save_image
 
     w = GltfWriter()
     P, idx, N, uv = uv_sphere(0.5, (0.0, 0.5, 0.0), 12, 24)

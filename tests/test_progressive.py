@@ -1,15 +1,15 @@
 """``Renderer(..., progressive=True)``: unshadowed frames at once, the shadows from a background
-thread, then the frames of a non-progressive renderer bit for bit (warp_sg.progressive)."""
+thread, then the frames of a non-progressive renderer bit for bit (warp_sg.renderer.progressive)."""
 from __future__ import annotations
 
 import threading
 import numpy as np
 import pytest
 
-from precompute.ssdf import compute_ssdf
-from warp_sg.bench import bench_scene
-from warp_sg.errors import InputError
-from warp_sg.render import Renderer
+from precompute.visibility.ssdf import compute_ssdf
+from warp_sg.tools.bench import bench_scene
+from warp_sg.core.errors import InputError
+from warp_sg.renderer.renderer import Renderer
 
 
 def _scene(shadows=True):
@@ -74,8 +74,8 @@ def test_a_scene_without_shadows_has_nothing_pending(cache_dir):
 
 
 def test_cli_first_frame_writes_the_unshadowed_frame_then_the_final_one(cache_dir, tmp_path):
-    from warp_sg.cli import main
-    from warp_sg.image_io import load_image
+    from warp_sg.tools.cli import main
+    from warp_sg.core.image_io import load_image
 
     scene_file = tmp_path / "s.toml"
     scene_file.write_text('''

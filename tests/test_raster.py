@@ -161,7 +161,7 @@ def test_per_triangle_culling_drops_only_the_flagged_back_faces(device):
     """``cull_backfaces`` as one flag per triangle: seen from inside the sphere every face is a back
     face and each ray meets one; the pixels of flagged triangles see nothing, the others are as
     drawn without culling. A wrong count is an input error."""
-    from warp_sg.errors import InputError
+    from warp_sg.core.errors import InputError
 
     V, F = uv_sphere(48, 24)
     inside = _cam(w=32, h=32, origin=(0.0, 0.1, 0.0), target=(0.0, 0.0, -1.0))
@@ -269,7 +269,7 @@ def test_subsamples_where_nothing_is_drawn_are_empty(device):
     assert tri.shape == (46, 16) and (tri.numpy() == -1).all() and (invw.numpy() == 0).all()
     with pytest.raises(ValueError, match="subsamples"):
         subsample(raster.rasterize(V, F, cam, device=device), wp.zeros(1, dtype=int, device=device))
-    from warp_sg.errors import InputError
+    from warp_sg.core.errors import InputError
 
     for bad in (0, 17, 2.5):
         with pytest.raises(InputError, match="subsamples"):
@@ -304,7 +304,7 @@ def test_camera_fov_and_aspect_follow_mitsuba_vertical_fov():
 
 def test_quick_benchmark_runs_and_its_buffers_agree_with_ray_casting():
     # correctness only: speed claims are measured by `warp-sg bench`, not asserted in unit tests
-    from raster.bench import format_rows, run_bench
+    from warp_sg.tools.bench_raster import format_rows, run_bench
 
     rows = run_bench(device="cpu", quick=True)
     assert len(rows) == 1

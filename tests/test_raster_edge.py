@@ -6,7 +6,7 @@ import pytest
 
 import raster
 from raster.reference_checks import raycast_visibility
-from warp_sg.errors import InputError, MeshError
+from warp_sg.core.errors import InputError, MeshError
 
 CAM = dict(origin=(0.0, 0.0, 0.0), target=(0.0, 0.0, -1.0), up=(0.0, 1.0, 0.0), fov=60.0, width=48, height=40)
 

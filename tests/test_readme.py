@@ -98,7 +98,7 @@ def _cli() -> list[str]:
     if exe.exists():
         return [str(exe)]  # the installed entry point, as the README uses it
     found = shutil.which("warp-sg")
-    return [found] if found else [sys.executable, "-m", "warp_sg.cli"]
+    return [found] if found else [sys.executable, "-m", "warp_sg.tools.cli"]
 
 
 def _run(argv: list[str], timeout: float = 300) -> subprocess.CompletedProcess:
@@ -130,7 +130,7 @@ def test_using_it_covers_every_command():
 def test_every_readme_command_parses():
     """Each ``warp-sg`` command of the README is accepted by the CLI's own parser and names files
     that exist (also the ones too slow to run here: report, the full bench, the preview window)."""
-    from warp_sg.cli import build_parser
+    from warp_sg.tools.cli import build_parser
 
     cmds = _warp_sg_commands()
     assert len(cmds) >= 6
@@ -457,8 +457,8 @@ def test_render_your_own_asset_renders_and_prints_a_scene_that_loads(tmp_path):
     """The one-command glTF render under the ``.hdr`` sky, at 64×48 without shadows (the SSDF of the
     asset's ground takes minutes on a fresh cache; tests/test_asset_scene.py covers the scene), and
     ``--print-scene``, whose TOML loads back as a scene."""
-    from warp_sg.cli import build_parser
-    from warp_sg.scene import load_scene
+    from warp_sg.tools.cli import build_parser
+    from warp_sg.scene.loader import load_scene
 
     render, printed, first, preview = _asset_commands()
     assert preview[0] == "preview" and preview[1:] == render[1:render.index("-o")]  # the same asset, the same sky

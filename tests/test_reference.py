@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from warp_sg.brdf import BlinnPhong, CookTorrance, Lambert, TorranceSparrow, Ward
-from warp_sg.reference import Light, ReferenceInputs, render_reference_inputs
+from warp_sg.groundtruth.reference import Light, ReferenceInputs, render_reference_inputs
 
 PLANE_V = np.array([[-50, 0, -50], [50, 0, -50], [50, 0, 50], [-50, 0, 50]], float)
 PLANE_T = np.array([[0, 2, 1], [0, 3, 2]])
@@ -110,7 +110,7 @@ def test_lambert_sphere_in_constant_environment_is_kd_times_L_with_shading_norma
 def test_white_furnace_gives_quadrature_albedo_times_L(device, model):
     view = np.array([0.5, -0.8, 0.2])
     view /= np.linalg.norm(view)
-    from warp_sg.frames import to_local  # the plane's local frame (normal +y)
+    from warp_sg.numeric.onb import to_local  # the plane's local frame (normal +y)
 
     o_local = to_local(-view, np.array([0.0, 1.0, 0.0]))
     albedo = albedo_quadrature(model, o_local)
@@ -126,7 +126,7 @@ def test_independent_seeds_average_to_the_analytic_value_and_stderr_matches_spre
     model = TorranceSparrow(kd=0.3, ks=0.6, m=0.35)
     view = np.array([0.0, -1.0, 0.6])
     view /= np.linalg.norm(view)
-    from warp_sg.frames import to_local
+    from warp_sg.numeric.onb import to_local
 
     albedo = albedo_quadrature(model, to_local(-view, np.array([0.0, 1.0, 0.0])))
     env = np.ones((8, 16, 3)) * np.linspace(0.2, 2.0, 16)[None, :, None]  # not constant: exercises the CDF
@@ -284,14 +284,14 @@ def test_progress_callback_sees_growing_spp_and_time():
 
 
 def test_bad_spp_is_an_input_error():
-    from warp_sg.errors import InputError
+    from warp_sg.core.errors import InputError
 
     with pytest.raises(InputError, match="spp"):
         render_reference_inputs(plane_inputs(Lambert()), spp=0, progress=False)
 
 
 def test_textured_kd_matches_the_bilinear_texture_times_L(device):
-    from warp_sg.textures import sample_bilinear_np
+    from warp_sg.scene.textures import sample_bilinear_np
 
     rng = np.random.default_rng(3)
     tex = np.concatenate([rng.uniform(0.1, 0.9, (4, 4, 3)), np.ones((4, 4, 1))], -1).astype(np.float32)
@@ -313,10 +313,11 @@ def test_reference_and_sg_renderer_agree_on_a_convex_object(case, cache_dir):
     """Same camera, lights, environment orientation and units: the SG renderer is within its
     approximation error of the reference (a convention mismatch would be off by far more)."""
     import warp_sg as ws
-    from warp_sg.lights import EnvironmentLight, PointLight
-    from warp_sg.reference import render_reference
-    from warp_sg.report import image_errors
-    from warp_sg.scene import Camera, RenderSettings, Scene, SceneObject
+    from warp_sg.scene.lights import EnvironmentLight, PointLight
+    from warp_sg.groundtruth.reference import render_reference
+    from warp_sg.groundtruth.region_error import image_errors
+    from warp_sg.scene.camera import Camera
+    from warp_sg.scene.model import RenderSettings, Scene, SceneObject
 
     cam = Camera(origin=(0, 0.5, 3), target=(0, 0.5, 0), up=(0, 1, 0), fov=30, width=16, height=16)
     if case == "point-light-specular":
@@ -328,7 +329,7 @@ def test_reference_and_sg_renderer_agree_on_a_convex_object(case, cache_dir):
                                                 params={"center": (0, 0.5, 0), "radius": 0.6})],
                materials={"m": mat}, lights=lights, render=RenderSettings(shadows=False, background=False))
     img = ws.render(sc)  # antialiased by default: compare with the box-filtered reference
-    from warp_sg.regions import box_reference
+    from warp_sg.groundtruth.region_error import box_reference
 
     ref = box_reference(sc, spp=2048, supersample=8)
     assert render_reference(sc, spp=8, progress=False).image.shape == ref.shape

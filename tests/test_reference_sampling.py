@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 import warp as wp
 
-from precompute import envmap as em
-from warp_sg import sampling as S
+from warp_sg.scene import envmap as em
+from warp_sg.groundtruth import sampling as S
 
 
 @wp.kernel

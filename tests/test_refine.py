@@ -1,4 +1,4 @@
-"""precompute.refine: conforming visibility-driven refinement (docs/rendering.md "Shading")."""
+"""precompute.visibility.refine: conforming visibility-driven refinement (docs/rendering.md "Shading")."""
 from __future__ import annotations
 
 import numpy as np
@@ -6,8 +6,8 @@ import pytest
 import trimesh
 
 import raster
-from precompute.refine import refine_for_visibility
-from precompute.visibility import ray_visibility
+from precompute.visibility.refine import refine_for_visibility
+from precompute.visibility.rays import ray_visibility
 
 UP = np.array([0.0, 1.0, 0.0])
 

@@ -5,10 +5,12 @@ import numpy as np
 import pytest
 
 import warp_sg as ws
-from warp_sg.device import cuda_available
-from warp_sg.render import Renderer
-from warp_sg.scene import (Camera, DirectionalLight, EnvironmentLight, Material, RenderSettings, Scene, SceneObject,
-                           Texture)
+from warp_sg.core.device import cuda_available
+from warp_sg.renderer.renderer import Renderer
+from warp_sg.scene.camera import Camera
+from warp_sg.scene.lights import DirectionalLight, EnvironmentLight
+from warp_sg.scene.model import Material, RenderSettings, Scene, SceneObject
+from warp_sg.scene.textures import Texture
 
 
 def ray_sphere(cam, center, radius, k=1):
@@ -66,7 +68,7 @@ def test_blinn_phong_sphere_under_directional_light_matches_the_exact_brdf(devic
     nn, oo = n[inside], o[inside]
     cos_l = nn @ ldir
     # exact radiance of a (nearly) point-like distant light: ρ(o, l) E max(n·l, 0), in the local frame
-    from warp_sg.frames import to_local
+    from warp_sg.numeric.onb import to_local
 
     rho = mat.eval(to_local(oo, nn), to_local(np.broadcast_to(ldir, nn.shape), nn))
     exact = rho * E * np.maximum(cos_l, 0)[:, None]

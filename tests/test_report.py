@@ -8,7 +8,8 @@ import os
 import numpy as np
 import pytest
 
-from warp_sg.report import KNOBS, available_knobs, image_errors, markdown_table, run_report, with_setting
+from warp_sg.tools.report import KNOBS, available_knobs, markdown_table, run_report, with_setting
+from warp_sg.groundtruth.region_error import image_errors
 
 
 def test_image_errors_are_zero_for_identical_images_and_exact_for_a_known_offset():
@@ -24,14 +25,14 @@ def test_image_errors_are_zero_for_identical_images_and_exact_for_a_known_offset
 
 
 def test_image_errors_reject_mismatched_shapes():
-    from warp_sg.errors import InputError
+    from warp_sg.core.errors import InputError
 
     with pytest.raises(InputError, match="shape"):
         image_errors(np.zeros((2, 2, 3)), np.zeros((3, 2, 3)))
 
 
 def test_knobs_come_from_the_scene_render_settings_and_copies_leave_the_scene_alone():
-    from warp_sg.bench import bench_scene
+    from warp_sg.tools.bench import bench_scene
 
     sc = bench_scene(8, 6)
     knobs = available_knobs(sc)
@@ -49,7 +50,7 @@ def test_markdown_table_has_one_row_per_measurement():
 
 
 def test_tiny_report_writes_csv_markdown_plots_with_decreasing_mc_error(tmp_path, cache_dir):
-    from warp_sg.bench import bench_scene
+    from warp_sg.tools.bench import bench_scene
 
     sc = bench_scene(12, 9, quick=True)
     rep = run_report(sc, tmp_path / "rep", quick=True, truth_spp=1024, mc_max_spp=128,
@@ -83,7 +84,7 @@ def test_tiny_report_writes_csv_markdown_plots_with_decreasing_mc_error(tmp_path
 
 
 def test_region_errors_give_bias_per_channel_and_count_pixels_off_by_three_times():
-    from warp_sg.regions import region_errors
+    from warp_sg.groundtruth.region_error import region_errors
 
     ref = np.ones((4, 5, 3))
     img = ref * np.array([1.1, 1.0, 0.7])  # +10 %, 0, −30 %
@@ -102,8 +103,8 @@ def test_reused_precompute_gives_the_rows_of_a_fresh_cache_per_setting(tmp_path,
     """The sweep's settings share one cache (each stage built once per distinct input): the
     images, hence the error columns, are those of the slow path that rebuilds everything per
     setting, and every row still counts a whole precompute (what it reused at its build time)."""
-    from warp_sg.bench import bench_scene
-    from warp_sg.cache import record_builds
+    from warp_sg.tools.bench import bench_scene
+    from warp_sg.core.cache import record_builds
 
     sc = bench_scene(12, 9, quick=True)
     knobs = ["ssdf_resolution", "pca_terms", "env_lobes", "lobes"]

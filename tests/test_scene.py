@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 
 import warp_sg as ws
-from warp_sg.errors import MeshError, SceneError
-from warp_sg.primitives import plane, sphere, torus
-from warp_sg.scene import Material, RenderSettings, Scene, SceneObject, Transform, load_scene
+from warp_sg.core.errors import MeshError, SceneError
+from warp_sg.scene.primitives import plane, sphere, torus
+from warp_sg.scene.model import Material, RenderSettings, Scene, SceneObject, Transform
+from warp_sg.scene.loader import load_scene
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 

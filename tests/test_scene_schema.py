@@ -17,8 +17,8 @@ import jsonschema
 import pytest
 
 from warp_sg.brdf import MODELS, make_model
-from warp_sg.errors import InputError, SceneError
-from warp_sg.scene import load_scene
+from warp_sg.core.errors import InputError, SceneError
+from warp_sg.scene.loader import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 COMMITTED = ROOT / "docs" / "scene.schema.json"
@@ -99,7 +99,7 @@ def _write(tmp_path, text):
 # the committed schema
 # ---------------------------------------------------------------------------------------------
 def test_committed_schema_equals_the_generated_one():
-    from warp_sg.scene_schema import schema_text
+    from warp_sg.scene.schema import schema_text
 
     assert COMMITTED.read_text(encoding="utf-8") == schema_text(), \
         "docs/scene.schema.json is stale: run `warp-sg schema -o docs/scene.schema.json`"
@@ -122,7 +122,7 @@ def test_every_example_scene_validates_against_the_json_schema(validator):
 
 @pytest.mark.parametrize("material", ["lambert", "blinn_phong", "cook_torrance", "ward"])
 def test_plain_input_scenes_validate_against_the_json_schema(tmp_path, validator, material):
-    from warp_sg.plain_scenes import write_plain_scene
+    from warp_sg.scene.plain_scenes import write_plain_scene
 
     p = write_plain_scene(tmp_path, light="sky+point", material=material, render={"shadows": False})
     assert not list(validator.iter_errors(tomllib.loads(p.read_text())))
@@ -145,7 +145,7 @@ def test_schema_lists_every_model_with_exactly_its_parameters(schema):
 def test_every_key_has_a_description_and_every_render_setting_is_in_the_schema(schema):
     from dataclasses import fields
 
-    from warp_sg.scene import RenderSettings
+    from warp_sg.scene.model import RenderSettings
 
     render = schema["definitions"]["RenderTable"]["properties"]
     assert set(render) == {f.name for f in fields(RenderSettings)}
@@ -156,8 +156,8 @@ def test_every_key_has_a_description_and_every_render_setting_is_in_the_schema(s
 
 
 def test_texture_parameters_are_the_kernel_texture_slots(schema):
-    from warp_sg.scene_schema import TEXTURE_PARAMS
-    from warp_sg.surface import _PARAM_SLOTS
+    from warp_sg.scene.schema import TEXTURE_PARAMS
+    from warp_sg.shading.surface import _PARAM_SLOTS
 
     assert set(TEXTURE_PARAMS) == set(_PARAM_SLOTS)
     ct = schema["definitions"]["Material_cook_torrance"]["properties"]
@@ -306,7 +306,7 @@ def test_loaded_values_keep_the_written_material_parameters_and_the_defaults(tmp
 # warp-sg schema
 # ---------------------------------------------------------------------------------------------
 def test_cli_schema_prints_the_schema_and_writes_it_atomically(tmp_path, capsys):
-    from warp_sg.cli import main
+    from warp_sg.tools.cli import main
 
     assert main(["schema"]) == 0
     out = capsys.readouterr().out

@@ -1,4 +1,4 @@
-"""warp_sg.sg_irradiance: the irradiance of an SG light, E = μ ∫G(λ) e(n·p, λ), for any sharpness.
+"""warp_sg.sg.irradiance: the irradiance of an SG light, E = μ ∫G(λ) e(n·p, λ), for any sharpness.
 
 References are independent of the module: brute-force product quadrature over the sphere in world
 coordinates (pointwise ``max(n·i, 0)``, nodes placed around the lobe axis so sharp lobes are
@@ -11,7 +11,7 @@ import pytest
 import warp as wp
 
 from warp_sg import sg
-from warp_sg import sg_irradiance as si
+from warp_sg.sg import irradiance as si
 
 LAMS = [1e-2, 0.1, 0.5, 2.133, 10.0, 100.0, 1e3, 1e4]
 COS54 = float(np.cos(np.radians(54.0)))

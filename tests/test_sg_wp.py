@@ -1,4 +1,4 @@
-"""warp_sg.sg_wp (@wp.func twins, float32) against float64 quadrature and the numpy module:
+"""warp_sg.sg.algebra_wp (@wp.func twins, float32) against float64 quadrature and the numpy module:
 finite everywhere, rel. error ≤ 1e-3 where representable in float32, λ in 1e-4..1e6."""
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import warp as wp
 
 from warp_sg import sg
-from warp_sg import sg_wp as S
+from warp_sg.sg import algebra_wp as S
 from sg_reference import ANGLES, LAMBDAS, axes_at_angle, random_rotation, ref_inner, ref_integral
 
 ROT = random_rotation(11)

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from warp_sg.gltf import AssetWarning, load_gltf
+from warp_sg.scene.importers.gltf import AssetWarning, load_gltf
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -92,7 +92,7 @@ def local_boxes(path: Path):
 def notes_of(path: Path) -> list[str]:
     with warnings.catch_warnings(record=True) as rec:
         warnings.simplefilter("always")
-        from warp_sg.gltf import gltf_object_parts
+        from warp_sg.scene.importers.gltf import gltf_object_parts
 
         gltf_object_parts(path, "asset")
     return [str(w.message) for w in rec if issubclass(w.category, AssetWarning)]
@@ -117,8 +117,8 @@ def decoded_boxes_match_the_file(path: Path, atol: float):
 
 
 def render_small(path: Path, width=64, height=48):
-    from warp_sg.asset_scene import asset_scene
-    from warp_sg.render import Renderer
+    from warp_sg.scene.importers.asset import asset_scene
+    from warp_sg.renderer.renderer import Renderer
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", AssetWarning)
@@ -166,7 +166,7 @@ def test_clearcoat_test_has_coats_labels_and_one_blend_warning():
     path = asset("ClearcoatTest.glb")
     notes = notes_of(path)
     assert len(notes) == 1 and "BLEND" in notes[0] and "Partial_Coating" in notes[0], notes
-    from warp_sg.asset_scene import asset_scene
+    from warp_sg.scene.importers.asset import asset_scene
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", AssetWarning)
@@ -183,9 +183,9 @@ def test_clearcoat_test_has_coats_labels_and_one_blend_warning():
 def test_clearcoat_test_labels_glow_as_in_the_reference():
     # the labels are emissive (emissiveFactor 1 × an emissive texture) on a black base: their
     # pixels are the emission, in the renderer as in the Monte-Carlo reference
-    from warp_sg.reference import reference
+    from warp_sg.groundtruth.reference import reference
 
-    from warp_sg.render import Renderer
+    from warp_sg.renderer.renderer import Renderer
 
     path = asset("ClearcoatTest.glb")
     scene, _ = render_small(path, 96, 72)

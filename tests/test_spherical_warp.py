@@ -32,7 +32,7 @@ def _sphere_grid(center, width, n=400):
     T, P = np.meshgrid(th, ph, indexing="ij")
     local = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], -1)
     w = np.sin(T) * tmax * 2 * t[:, None] / n * 2 * np.pi / n
-    from warp_sg.frames import to_world
+    from warp_sg.numeric.onb import to_world
 
     return to_world(local, np.broadcast_to(center, local.shape)), w
 

@@ -1,4 +1,4 @@
-"""precompute.ssdf (eq. 23-24): jump flooding vs brute force, conventions, caching, kernel lookups."""
+"""precompute.visibility.ssdf (eq. 23-24): jump flooding vs brute force, conventions, caching, kernel lookups."""
 from __future__ import annotations
 
 import numpy as np
@@ -6,9 +6,9 @@ import pytest
 import warp as wp
 
 import precompute
-from precompute import ssdf as S
-from precompute import ssdf_wp
-from precompute.reference_checks import brute_force_ssdf, plane_box_scene
+from precompute.visibility import ssdf as S
+from precompute.visibility import ssdf_wp
+from precompute.visibility.reference_checks import brute_force_ssdf, plane_box_scene
 
 SCENE = plane_box_scene(n=12, size=4.0, box=1.0)
 FLOOR_IDS = np.array([0, 13, 27, 40, 50, 53, 70, 90, 100, 118])
@@ -112,7 +112,7 @@ def test_kernel_lookup_matches_numpy_reconstruction(device):
 
 def test_bad_parameters_are_input_errors():
     V, F, N = SCENE
-    with pytest.raises(precompute.ssdf.InputError, match="multiple"):
+    with pytest.raises(precompute.visibility.ssdf.InputError, match="multiple"):
         precompute.ssdf_for_mesh(V, F, N, resolution=16, ray_resolution=24, progress=False, use_cache=False)
-    with pytest.raises(precompute.ssdf.InputError, match="pca_terms"):
+    with pytest.raises(precompute.visibility.ssdf.InputError, match="pca_terms"):
         precompute.ssdf_for_mesh(V, F, N, resolution=16, pca_terms=0, progress=False, use_cache=False)

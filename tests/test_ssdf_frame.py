@@ -1,6 +1,6 @@
 """SSDF lookup across the frame seam (issue 11, item 5).
 
-Each vertex's SSDF lives in that vertex's Duff frame (``warp_sg.frames``), which turns by up to 180°
+Each vertex's SSDF lives in that vertex's Duff frame (``warp_sg.numeric.onb``), which turns by up to 180°
 about the normal where ``n.z`` changes sign. ``ssdf_eval_bary`` blends the PCA weights of a
 triangle's vertices and reads them in the frame of the interpolated normal: on triangles across
 ``n.z = 0`` it reads some vertices' maps at rotated directions (a seam in the shadows).
@@ -22,12 +22,12 @@ import warp as wp
 
 import precompute
 import raster
-from precompute import ssdf_wp
-from precompute.visibility import ray_visibility
-from warp_sg import primitives
-from warp_sg.fh import fh_table_array
-from warp_sg.frames import frame_basis, frame_bitangent, frame_from_normal, frame_tangent, to_local, world_to_local
-from warp_sg.ssdf_product import sg_visibility_scale
+from precompute.visibility import ssdf_wp
+from precompute.visibility.rays import ray_visibility
+from warp_sg.scene import primitives
+from warp_sg.sg.fh import fh_table_array
+from warp_sg.numeric.onb import frame_basis, frame_bitangent, frame_from_normal, frame_tangent, to_local, world_to_local
+from warp_sg.sg.ssdf_product import sg_visibility_scale
 
 
 def _merge(parts):
@@ -292,7 +292,9 @@ def test_sun_visibility_image_has_no_seam(device):
 
 def test_renderer_sun_on_sphere_has_no_seam():
     import warp_sg as ws
-    from warp_sg.scene import Camera, DirectionalLight, RenderSettings, Scene, SceneObject
+    from warp_sg.scene.camera import Camera
+    from warp_sg.scene.lights import DirectionalLight
+    from warp_sg.scene.model import RenderSettings, Scene, SceneObject
 
     S = 128
     cam = Camera(origin=(-3.0, 0.5, 0.0), target=(0.0, 0.5, 0.0), fov=22.0, width=S, height=S)

@@ -1,14 +1,14 @@
-"""warp_sg.ssdf_product (eq. 30-31) against brute-force ray-cast integration of SG × visibility."""
+"""warp_sg.sg.ssdf_product (eq. 30-31) against brute-force ray-cast integration of SG × visibility."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 import warp as wp
 
-from precompute import ssdf as S
-from precompute.reference_checks import bowl_scene, plane_box_scene, product_error, sg_visibility_reference
-from warp_sg import fh
-from warp_sg import ssdf_product as P
+from precompute.visibility import ssdf as S
+from precompute.visibility.reference_checks import bowl_scene, plane_box_scene, product_error, sg_visibility_reference
+from warp_sg.sg import fh
+from warp_sg.sg import ssdf_product as P
 
 LAMS = np.array([0.5, 2.0, 10.0, 100.0, 1000.0])
 

@@ -20,7 +20,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import warp_sg as ws
-from warp_sg import sg_wp
+from warp_sg.sg import algebra_wp as sg_wp
 
 EXAMPLES = 12  # hypothesis examples per property test
 SETTINGS = settings(deadline=None, max_examples=EXAMPLES, suppress_health_check=list(HealthCheck), derandomize=True)
@@ -428,7 +428,7 @@ def _ortho(n=6, extent=1.0):
 @draws(36 * 16)
 @pytest.mark.parametrize("case", ["inside", "delta-on-surface", "far", "very-far-tiny"])
 def test_point_lights_at_the_surface_or_very_far_are_finite_and_exact(device, case, drawn):
-    from warp_sg.reference import Light, ReferenceInputs, render_reference_inputs
+    from warp_sg.groundtruth.reference import Light, ReferenceInputs, render_reference_inputs
 
     kd = 0.7
     o, d = _ortho()
@@ -458,8 +458,9 @@ def test_point_lights_at_the_surface_or_very_far_are_finite_and_exact(device, ca
 
 
 def _small_scene(scale):
-    from warp_sg.lights import DirectionalLight, EnvironmentLight, PointLight
-    from warp_sg.scene import Camera, RenderSettings, Scene, SceneObject, Transform
+    from warp_sg.scene.lights import DirectionalLight, EnvironmentLight, PointLight
+    from warp_sg.scene.camera import Camera
+    from warp_sg.scene.model import RenderSettings, Scene, SceneObject, Transform
 
     k = float(scale)
     cam = Camera(origin=(0.0, 1.2 * k, 3.0 * k), target=(0.0, 0.3 * k, 0.0), up=(0.0, 1.0, 0.0), fov=40.0,
@@ -480,7 +481,7 @@ def _small_scene(scale):
 
 @draws(3)
 def test_reference_is_the_same_image_for_a_scene_scaled_by_1e_minus4_and_1e4(device, drawn):
-    from warp_sg.reference import render_reference
+    from warp_sg.groundtruth.reference import render_reference
 
     imgs = {}
     for k in (1e-4, 1.0, 1e4):
@@ -507,8 +508,8 @@ def test_renderer_is_the_same_image_for_a_scene_scaled_by_1e_minus4_and_1e4(devi
 @draws(2 * 12 * 9)
 @pytest.mark.parametrize("material", ["cook_torrance_m1e-3", "blinn_phong_n1e5", "ashikhmin_shirley_1e5", "ward_1e-3"])
 def test_renderer_and_reference_stay_finite_with_extreme_materials_and_lights(device, cache_dir, material, drawn):
-    from warp_sg.lights import PointLight
-    from warp_sg.reference import render_reference
+    from warp_sg.scene.lights import PointLight
+    from warp_sg.groundtruth.reference import render_reference
 
     sc = _small_scene(1.0)
     B = ws.brdf

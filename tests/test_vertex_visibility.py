@@ -1,4 +1,4 @@
-"""The per-vertex visibility caches (``warp_sg.vertex_visibility``): each environment lobe's
+"""The per-vertex visibility caches (``warp_sg.shading.vertex_visibility``): each environment lobe's
 visible fraction (the lobe path, Oren–Nayar) and the diffuse term's visible fraction (Lambert)
 against ray-cast quadratures, each light's SSDF deficit against a ray cast to the light, the cached
 frame against the per-pixel path and the Monte-Carlo reference, and which edits rebuild the
@@ -8,11 +8,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from precompute.ssdf import texel_directions
-from precompute.visibility import hemisphere_visibility
-from warp_sg.frames import frame_from_normal
-from warp_sg.render import Renderer
-from warp_sg.scene import Camera, EnvironmentLight, Material, PointLight, RenderSettings, Scene, SceneObject
+from precompute.visibility.ssdf_wp import texel_directions
+from precompute.visibility.rays import hemisphere_visibility
+from warp_sg.numeric.onb import frame_from_normal
+from warp_sg.renderer.renderer import Renderer
+from warp_sg.scene.camera import Camera
+from warp_sg.scene.lights import EnvironmentLight, PointLight
+from warp_sg.scene.model import Material, RenderSettings, Scene, SceneObject
 
 
 def _scene(mode="vertex", rotation=0.0, width=48, height=40, light=None, model="lambert"):
@@ -104,7 +106,7 @@ def test_each_vertex_lobe_value_is_the_visible_fraction_of_its_cosine_weighted_l
 def test_each_vertex_visible_fraction_of_the_diffuse_irradiance_matches_a_ray_cast(renderer):
     """F[v] (Lambert: the diffuse term's visible fraction, weighted by the map) against
     ∫ L cos V dω / ∫ L cos dω with ray-cast V, per colour channel."""
-    from warp_sg.envmap import env_lookup_numpy
+    from warp_sg.scene.envmap import env_lookup_numpy
 
     r = renderer
     assert r.features().env_visible_vertex
@@ -122,7 +124,7 @@ def test_each_vertex_visible_fraction_of_the_diffuse_irradiance_matches_a_ray_ca
 
 
 def test_cached_frame_matches_the_per_pixel_frame_and_the_reference(renderer):
-    from warp_sg.reference import reference
+    from warp_sg.groundtruth.reference import reference
 
     img_v = renderer.render()
     img_p = Renderer(_scene(mode="pixel"), device="cpu").render()
@@ -215,7 +217,7 @@ def test_light_edits_rebuild_the_light_cache_and_camera_edits_do_not():
 def test_decompressed_ssdf_maps_render_the_same_frame_as_the_pca_form(monkeypatch):
     """``WARP_SG_SSDF_DECOMPRESS_MB``: under the budget the renderer keeps each vertex's
     reconstructed map (``SSDFData.device_arrays``), 0 keeps the PCA form; same frame either way."""
-    from warp_sg.errors import InputError
+    from warp_sg.core.errors import InputError
 
     monkeypatch.setenv("WARP_SG_SSDF_DECOMPRESS_MB", "0")
     pca = Renderer(_scene(light=(1.0, 2.0, 1.0)), device="cpu")

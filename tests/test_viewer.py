@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import warp_sg as ws
-from warp_sg.image_io import read_exr, tonemap_srgb
+from warp_sg.core.image_io import read_exr, tonemap_srgb
 
 SIZE = 96
 SCENE = f"""
@@ -61,8 +61,8 @@ visibility_budget = 3000
 _COUNTS = [{}]  # the fixture's precompute call counter
 SPHERE_C, SPHERE_R = np.array([0.0, 0.5, 0.0]), 0.4
 PRECOMPUTE = [("precompute", "ssdf_for_mesh"), ("precompute", "prefilter_environment"),
-              ("precompute.refine", "refine_cached"), ("precompute.env_sg_fit", "fit_environment_sgs"),
-              ("precompute.env_peaks", "extract_peaks")]
+              ("precompute.visibility.refine", "refine_cached"), ("precompute.environment.sg_fit", "fit_environment_sgs"),
+              ("precompute.environment.peaks", "extract_peaks")]
 
 
 @pytest.fixture(scope="module")
@@ -71,7 +71,7 @@ def setup(tmp_path_factory):
     point from the moment the viewer is built."""
     import importlib
 
-    from warp_sg.preview import open_viewer
+    from warp_sg.tools.preview import open_viewer
 
     folder = tmp_path_factory.mktemp("viewer")
     path = folder / "scene.toml"
@@ -105,7 +105,7 @@ def _no_precompute(v, calls):
 def _reference(path, pose=None, shadows=True, **materials):
     """A fresh renderer of the scene file (pose: origin, target, up, fov). Its own precompute is
     not counted as the viewer's."""
-    from warp_sg.render import Renderer
+    from warp_sg.renderer.renderer import Renderer
 
     calls = _COUNTS[0]
     before = dict(calls)
@@ -289,7 +289,7 @@ def test_moving_the_light_handle_moves_the_shadow_and_the_shadows_toggle_removes
         unshadowed = noshadow.render()
         # = the file with shadows off, which skips the visibility refinement of the mesh: the
         # normals interpolated over other triangles differ by ~1e-4; at the silhouettes the
-        # antialiasing shades once per triangle a pixel's sub-pixels see (warp_sg.antialias), so
+        # antialiasing shades once per triangle a pixel's sub-pixels see (warp_sg.renderer.antialias), so
         # there the two tessellations differ by up to a few percent
         sil = _silhouette_pixels(r)
         np.testing.assert_allclose(v.image[~sil], unshadowed[~sil], rtol=2e-3, atol=1e-4)
@@ -338,8 +338,8 @@ def test_dragging_a_dynamic_objects_handle_moves_it_and_the_o_key_turns_it(tmp_p
     """A dynamic sphere's handle dragged 0.6 along +x: the frame is that of a fresh renderer with
     the object moved by set_object_transform; 'o' turns it 15° about the vertical (its texture-free
     sphere looks the same: its transform is checked), all without precompute."""
-    from warp_sg.preview import open_viewer
-    from warp_sg.render import Renderer
+    from warp_sg.tools.preview import open_viewer
+    from warp_sg.renderer.renderer import Renderer
 
     path = tmp_path / "scene.toml"
     path.write_text(SCENE.replace('material = "shiny"', 'material = "shiny"\ndynamic = true', 1))

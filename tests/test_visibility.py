@@ -1,15 +1,15 @@
-"""precompute.visibility + the concentric map of precompute.ssdf_wp."""
+"""precompute.visibility.rays + the concentric map of precompute.visibility.ssdf_wp."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 import warp as wp
 
-from precompute import ssdf_wp
-from precompute.reference_checks import plane_box_scene
-from precompute.visibility import hemisphere_visibility, needs_visibility, ray_visibility
-from warp_sg.errors import InputError, MeshError
-from warp_sg.frames import to_world
+from precompute.visibility import ssdf_wp
+from precompute.visibility.reference_checks import plane_box_scene
+from precompute.visibility.rays import hemisphere_visibility, needs_visibility, ray_visibility
+from warp_sg.core.errors import InputError, MeshError
+from warp_sg.numeric.onb import to_world
 
 
 @wp.kernel

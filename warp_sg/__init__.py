@@ -11,12 +11,13 @@ Public interface (docs/architecture.md "Public interface")::
 
 The light modules (``errors``, ``sg``, ``brdf``) load eagerly; the renderer, reference and scene
 loading load on first use (PEP 562), so ``raster`` and ``precompute`` can import
-``warp_sg.errors`` and ``warp_sg.sg`` without an import cycle.
+``warp_sg.core.errors`` and ``warp_sg.sg`` without an import cycle.
 """
 from __future__ import annotations
 
-from . import errors, sg
-from .errors import InputError
+from warp_sg.core import errors
+from warp_sg import sg
+from .core.errors import InputError
 from .lazy import lazy_getattr
 
 __version__ = "0.1.0"
@@ -25,11 +26,11 @@ _LAZY = {
     "brdf": ("warp_sg.brdf", None),
     "Scene": ("warp_sg.scene", "Scene"),
     "load_scene": ("warp_sg.scene", "load_scene"),
-    "render": ("warp_sg.render", "render"),
-    "Renderer": ("warp_sg.render", "Renderer"),
-    "reference": ("warp_sg.reference", "reference"),
-    "save_image": ("warp_sg.image_io", "save_image"),
-    "load_image": ("warp_sg.image_io", "load_image"),
+    "render": ("warp_sg.renderer.renderer", "render"),
+    "Renderer": ("warp_sg.renderer.renderer", "Renderer"),
+    "reference": ("warp_sg.groundtruth.reference", "reference"),
+    "save_image": ("warp_sg.core.image_io", "save_image"),
+    "load_image": ("warp_sg.core.image_io", "load_image"),
 }
 
 

@@ -4,13 +4,13 @@ r"""BRDF models (local frame, z+ = normal), their NDF SG fits and the kernel-sid
 Models are keyed in :data:`MODELS` by their scene-file names, in one registry
 (:mod:`warp_sg.brdf.registry`: each model is one class in :mod:`warp_sg.brdf.models` that declares
 its name, kernel code, parameters, fit hooks and kernel ``@wp.func`` functions); :func:`make_model`
-validates the parameter names (an unknown one raises :class:`~warp_sg.errors.InputError` naming
+validates the parameter names (an unknown one raises :class:`~warp_sg.core.errors.InputError` naming
 the closest). The kernel side (``Material`` struct, ``brdf_eval``, ``slice_lobe`` ..., generated
 from the registry) is in :mod:`warp_sg.brdf.material_wp`.
 """
 from __future__ import annotations
 
-from ..errors import InputError
+from ..core.errors import InputError
 from . import models  # noqa: F401  (imports and registers every model)
 from .base import BRDF, SpecularBRDF, suggest
 from .energy import check_diffuse_albedo

@@ -1,7 +1,7 @@
 r"""Energy of the SG specular slice against the exact BRDF: a per-material correction of the
 environment's specular term.
 
-The environment's specular term (eq. 41, ``warp_sg.shading``) is a sum over the SG lobes of the
+The environment's specular term (eq. 41, ``warp_sg.shading.kernel``) is a sum over the SG lobes of the
 warped BRDF slice (eq. 17–22). The warp takes ``Mo`` (Fresnel, shadowing, the 1/(n·i)(n·o)
 factors) at each lobe's axis and warps every lobe isotropically, so the slice's total energy is off
 by a view-dependent factor that more NDF lobes cannot remove: in a white furnace (constant
@@ -43,8 +43,8 @@ import math
 import numpy as np
 import warp as wp
 
-from ..sg_irradiance import sg_irradiance_norm
-from ..sg_wp import sg_integral
+from ..sg.irradiance import sg_irradiance_norm
+from ..sg.algebra_wp import sg_integral
 from .material_struct import Material
 from .material_variants import brdf_pdf, brdf_sample, material_funcs
 from .models.ggx import GGX

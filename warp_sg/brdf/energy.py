@@ -2,7 +2,7 @@ r"""Energy conservation: how much of the light it receives a material may reflec
 
 * **Every model, an error.** The Lambert term alone reflects ``kd`` of the incident light
   (``∫ kd/π cos θ dω = kd``), so ``kd > 1`` in any channel is refused (:func:`check_diffuse_albedo`,
-  an :class:`~warp_sg.errors.InputError` naming ``kd``). Such a value is a mistake of units
+  an :class:`~warp_sg.core.errors.InputError` naming ``kd``). Such a value is a mistake of units
   (0–255, per cent): ``kd = 5`` makes a surface brighter than the light falling on it.
 * **Normalised models, a warning.** For the models whose specular lobe is normalised
   (:data:`NORMALISED`: with ``ks = 1`` and ``F = 1`` the lobe reflects at most all the light —
@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import InputError
+from ..core.errors import InputError
 
 #: models whose specular lobe reflects at most all the light for ks = 1, F = 1
 NORMALISED = ("phong", "torrance_sparrow", "ward", "ggx")

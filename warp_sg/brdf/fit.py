@@ -26,7 +26,7 @@ import functools
 
 import numpy as np
 
-from ..errors import InputError
+from ..core.errors import InputError
 from ..sg import EPSILON  # noqa: F401  (ε of supplement eq. 14, for the models' layouts)
 from .helpers import half_vector, suggest
 from .spherical_warp import WARP_COS_EPS

@@ -10,13 +10,13 @@ import difflib
 
 import numpy as np
 
-from ..errors import InputError
+from ..core.errors import InputError
 
 INV_PI = 1.0 / np.pi
 #: Smallest cosine used where a model divides by a cosine (grazing guard).
 COS_EPS = 1e-6
 #: Largest magnitude of a parameter: beyond it the float32 shading overflows (3.4e38) once the value
-#: meets the lobes' amplitudes and the lights (the same bound as radiance, ``warp_sg.envmap.MAX_RADIANCE``)
+#: meets the lobes' amplitudes and the lights (the same bound as radiance, ``warp_sg.scene.envmap.MAX_RADIANCE``)
 MAX_PARAM = 1e20
 
 

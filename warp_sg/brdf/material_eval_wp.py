@@ -9,8 +9,8 @@ models. Local frame, z+ = normal, x = tangent.
 # NOTE: no ``from __future__ import annotations`` — Warp reads the @wp.func / struct annotations.
 import warp as wp
 
-from ..frames import frame_bitangent, frame_tangent
-from ..image_io import LUMINANCE
+from ..numeric.onb import frame_bitangent, frame_tangent
+from ..core.image_io import LUMINANCE
 from .material_struct import LN_EPS, WARP_COS_EPS, Material
 from .measured_wp import fresnel_dielectric
 
@@ -75,7 +75,7 @@ def from_axis(a: wp.vec3, x: float, y: float, z: float) -> wp.vec3:
     return x * frame_tangent(a) + y * frame_bitangent(a) + z * a
 
 
-#: the luminance weights (:data:`warp_sg.image_io.LUMINANCE`) as kernel constants
+#: the luminance weights (:data:`warp_sg.core.image_io.LUMINANCE`) as kernel constants
 LUM_R, LUM_G, LUM_B = (wp.constant(float(w)) for w in LUMINANCE)
 
 

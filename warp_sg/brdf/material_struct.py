@@ -9,7 +9,7 @@ import math
 import numpy as np
 import warp as wp
 
-from ..errors import InputError
+from ..core.errors import InputError
 from ..sg import EPSILON
 from .fit import is_anisotropic as _is_anisotropic
 from .registry import analytic_codes
@@ -106,7 +106,7 @@ def pack_materials(models, n_lobes=1, device="cpu", method="analytic"):
     count (Ashikhmin–Shirley ``lobes``, measured ``lobes``, Lafortune) keep theirs. ``method``:
     "analytic" (in-kernel lobes from the parameters, textured parameters allowed) or "fit"
     (nonlinear fits stored in the table)."""
-    from ..device import resolve_device
+    from ..core.device import resolve_device
 
     device = resolve_device(device)
     models = list(models)

@@ -41,7 +41,7 @@ from typing import Any, NamedTuple
 
 import warp as wp
 
-from ..errors import InputError
+from ..core.errors import InputError
 from . import models as _models  # noqa: F401  (registers every model)
 from .material_eval_wp import above, aniso_axis, half_vec, warp_axis
 from .material_sample_wp import cosine_pdf, cosine_sample, reflect_about

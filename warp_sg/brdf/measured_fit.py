@@ -10,9 +10,9 @@ import functools
 
 import numpy as np
 
-from ..cache import code_key
-from ..errors import InputError
-from ..pca import pca
+from ..core.cache import code_key
+from ..core.errors import InputError
+from ..numeric.pca import pca
 from . import merl
 from .fresnel import fresnel_normalised
 
@@ -25,7 +25,7 @@ _D_EDGES = (np.arange(merl.N_THETA_H + 1) / merl.N_THETA_H) ** 2 * (np.pi / 2)
 #: solid angle of each θh bin (2π (cos θ0 − cos θ1))
 D_SOLID_ANGLE = 2 * np.pi * (np.cos(_D_EDGES[:-1]) - np.cos(_D_EDGES[1:]))
 COS_MIN = 0.05
-#: the hash of the code that computes the fit (part of its cache key; ``warp_sg.cache.code_key``)
+#: the hash of the code that computes the fit (part of its cache key; ``warp_sg.core.cache.code_key``)
 FIT_VERSION = code_key(__name__, merl, fresnel_normalised, pca)
 
 
@@ -47,7 +47,7 @@ def _smith_family():
 def shadowing_basis(terms=8):
     """PCA basis of 1-D shadowing curves on the nodes :data:`S_THETA`: ``(mean (90,), basis (terms, 90))``
     learnt from Smith G1 (Beckmann, rational fit of Walter et al. 2007; GGX) for roughness
-    0.005..3 and the constant 1 (:func:`warp_sg.pca.pca`)."""
+    0.005..3 and the constant 1 (:func:`warp_sg.numeric.pca.pca`)."""
     res = pca(_smith_family(), int(terms))
     return res.mean.astype(np.float64), res.basis.astype(np.float64)
 

@@ -16,7 +16,7 @@ The square root in θh puts more cells near the specular peak. The cell centres 
 :func:`cell_angles` are ``θh = ((ih + ½)/90)² π/2``, ``θd = (id + ½)/90 · π/2``,
 ``φd = (ip + ½)/180 · π``.
 
-Validation (all raise :class:`~warp_sg.errors.InputError` naming the file): missing/unreadable
+Validation (all raise :class:`~warp_sg.core.errors.InputError` naming the file): missing/unreadable
 file, short header, dimensions other than 90·90·180, a data size that does not match the
 dimensions, NaN or infinite values, negative values. Real MERL files mark configurations below
 the horizon with negative values; those are accepted (and replaced by 0) only in cells whose centre
@@ -32,8 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_output
-from ..errors import InputError
+from ..core.files import atomic_output
+from ..core.errors import InputError
 
 N_THETA_H = 90
 N_THETA_D = 90

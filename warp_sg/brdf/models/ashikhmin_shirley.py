@@ -23,7 +23,7 @@ Kernel side (float32, same forms): the analytic lobes, and their quadrant sampli
 import numpy as np
 import warp as wp
 
-from ...errors import InputError
+from ...core.errors import InputError
 from ...sg import EPSILON
 from ..base import SpecularBRDF, as_rgb, as_scalar, dirs, half_vector
 from ..fresnel import parse_fresnel

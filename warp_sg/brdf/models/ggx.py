@@ -46,7 +46,7 @@ and visible-normal sampling (cosine samples for ``n·o ≤ 0``).
 import numpy as np
 import warp as wp
 
-from ...errors import InputError
+from ...core.errors import InputError
 from ..base import SpecularBRDF, as_rgb, as_roughness, dirs, half_vector
 from ..fresnel import parse_fresnel
 from ..material_eval_wp import (_aniso_overlap, aniso_axis, fresnel_eval, ggx_extent, ggx_g2_over_cos, ggx_ndf_peak1,

@@ -16,7 +16,7 @@ the lobes above; sampling picks one lobe uniformly and draws a cosine power abou
 import numpy as np
 import warp as wp
 
-from ...errors import InputError
+from ...core.errors import InputError
 from ..base import SpecularBRDF, as_rgb, as_scalar, dirs, suggest, upper
 from ..material_eval_wp import lafortune_lobe
 from ..material_sample_wp import cos_power_dir, cos_power_pdf, cosine_dir

@@ -41,7 +41,7 @@ Errors (:meth:`Measured.errors`) use supplement eq. 11 over the MERL cells (meas
 for the full BRDF (``ρ`` the data) and the approximations ``microfacet`` (tabulated D and S),
 ``sg`` (SG NDF) and ``sg_pca`` (SG NDF and PCA-compressed S: what the renderer uses).
 
-The microfacet fit and the PCA are cached with :func:`warp_sg.cache.load_or_build` (kind
+The microfacet fit and the PCA are cached with :func:`warp_sg.core.cache.load_or_build` (kind
 ``measured_fit``, keyed by the table's content hash, ``eta`` and ``pca_terms``); the SG fit of the
 NDF (milliseconds) is redone for each lobe count.
 
@@ -59,8 +59,8 @@ from pathlib import Path
 import numpy as np
 import warp as wp
 
-from ...cache import content_key, load_or_build
-from ...errors import InputError
+from ...core.cache import content_key, load_or_build
+from ...core.errors import InputError
 from .. import merl
 from ..base import SpecularBRDF, as_scalar, dirs, half_vector, upper
 from ..fresnel import fresnel_eq14, fresnel_normalised  # noqa: F401  (eq. 14, normalised at normal incidence)

@@ -23,7 +23,7 @@ distribution (Walter et al. 2007) with ``p(h) = exp(−tan²θh/m²)/(π m² cos
 import numpy as np
 import warp as wp
 
-from ...fastmath import fast_atan2
+from ...numeric.fastmath import fast_atan2
 from ..base import SpecularBRDF, as_rgb, as_scalar, dirs, half_vector, sin2_theta, theta_of
 from ..fresnel import parse_fresnel
 from ..material_eval_wp import fresnel_eval, half_vec

@@ -1,0 +1,259 @@
+r"""Binary hemisphere visibility with fewer rays: coarse first, refined where the visibility changes.
+
+The SSDF (eq. 23) needs each vertex's binary visibility ``V(j, i)`` on the ``Rr × Rr`` concentric
+map (:mod:`precompute.visibility.rays`). Cast at every texel, that is ``Rr²`` rays per vertex (4096 at
+the default 64²), most of them inside large regions of uniform visibility. Here the map is built
+level by level, on grids of ``s × s`` cells of ``f = Rr / s`` texels each (``s = Rr/4, Rr/2, Rr``):
+
+1. **coarse level** (``s₀ = Rr / 4`` by default): one ray per cell, at texel
+   ``(j f + f/2, i f + f/2)``, with its **hit distance** (:func:`precompute.visibility.rays.ray_hit_distance`);
+2. **the horizon ring**: every texel of the map's outermost row and column (the directions just
+   above the horizon, ``4 (Rr − 1)`` rays, any-hit). A vertex on a curved surface sees a strip one
+   texel wide there that no coarse sample meets; it is a visibility boundary the SSDF needs;
+3. **marking**: a cell is refined when, over its 3×3 neighbourhood of cells, the known samples
+   (cell samples and ring texels) disagree in visibility, or the hit distances of the blocked
+   ones differ by more than a factor ``depth_ratio`` (default 3): a depth discontinuity is where a
+   gap between two surfaces can hide between samples (a slit behind an ear, a handle);
+4. **refinement**: each child cell of a marked cell casts its own ray (a texel already cast at a
+   coarser level or on the ring is reused); children of unmarked cells inherit the parent's sample.
+   Steps 3–4 repeat until ``s = Rr``, where a child is one texel.
+
+Texels left unrefined take the visibility of the coarse sample whose uniform 3×3 neighbourhood
+they lie in. What this can miss is a feature that lies entirely between samples of one uniform
+neighbourhood *and* shows no depth discontinuity: in practice a ray that leaks through a crack
+between two triangles of one surface (measured on a scanned head, docs/benchmarks.md "Cold path").
+The error this adds against the full ``Rr²`` map is measured by ``warp-sg bench``
+("SSDF error vs ray budget") and tested in ``tests/test_adaptive_rays.py``.
+
+Rays of one vertex are consecutive threads of every launch (vertex-major layout), so they run
+together and traverse the same part of the BVH; batches of vertices run on the CPU thread pool
+(:func:`precompute.visibility.rays.run_batches`).
+
+Every kernel takes the vertex batch ``(first, B)`` and works on ``(B, ·)`` arrays; the result is
+the ``(B, Rr²)`` uint8 map (1 = visible) that :func:`precompute.visibility.ssdf._ssdf_batch` turns into SSDFs,
+and the number of rays cast.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import warp as wp
+
+from precompute.visibility.rays import NO_HIT, ray_blocked, ray_hit_distance, vertex_ray_direction, vertex_ray_origin
+
+#: coarse grid = ray resolution / COARSE_FACTOR
+COARSE_FACTOR = 4
+#: hit-distance ratio across a 3×3 neighbourhood that marks it for refinement
+DEPTH_RATIO = 3.0
+
+
+@wp.func
+def _sample_texel(j: int, i: int, f: int, Rr: int) -> int:
+    """Texel index of cell (j, i)'s sample on a grid of f×f-texel cells."""
+    return (j * f + f / 2) * Rr + i * f + f / 2
+
+
+@wp.kernel
+def _coarse_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp.array(dtype=wp.vec3), first: int,
+                   dirs: wp.array(dtype=wp.vec3), offset: float, max_t: float, Rr: int, s: int,
+                   vis: wp.array2d(dtype=wp.uint8), depth: wp.array2d(dtype=float), known: wp.array2d(dtype=wp.uint8),
+                   cell_vis: wp.array2d(dtype=wp.uint8), cell_depth: wp.array2d(dtype=float)):
+    """One ray per coarse cell (closest hit): the cell's sample, also written to its texel."""
+    k, c = wp.tid()
+    vi = first + k
+    j = c / s
+    i = c - j * s
+    tex = _sample_texel(j, i, Rr / s, Rr)
+    t = ray_hit_distance(mesh, vertex_ray_origin(points, normals, vi, offset),
+                         vertex_ray_direction(normals, vi, dirs[tex]), max_t)
+    v = wp.where(t < NO_HIT, wp.uint8(0), wp.uint8(1))
+    cell_vis[k, c] = v
+    cell_depth[k, c] = t
+    vis[k, tex] = v
+    depth[k, tex] = t
+    known[k, tex] = wp.uint8(1)
+
+
+@wp.kernel
+def _ring_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp.array(dtype=wp.vec3), first: int,
+                 dirs: wp.array(dtype=wp.vec3), offset: float, max_t: float, Rr: int,
+                 vis: wp.array2d(dtype=wp.uint8), depth: wp.array2d(dtype=float), known: wp.array2d(dtype=wp.uint8)):
+    """Every texel of the outermost row and column (any hit, so no hit distance: a refined cell
+    whose sample is a ring texel takes part in the visibility test only); ``m`` walks the ring
+    clockwise."""
+    k, m = wp.tid()
+    vi = first + k
+    side = m / (Rr - 1)
+    o = m - side * (Rr - 1)
+    j = int(0)
+    i = int(0)
+    if side == 0:
+        i = o
+    elif side == 1:
+        j = o
+        i = Rr - 1
+    elif side == 2:
+        j = Rr - 1
+        i = Rr - 1 - o
+    else:
+        j = Rr - 1 - o
+    tex = j * Rr + i
+    if known[k, tex] == wp.uint8(0):
+        hit = ray_blocked(mesh, vertex_ray_origin(points, normals, vi, offset),
+                          vertex_ray_direction(normals, vi, dirs[tex]), max_t)
+        vis[k, tex] = wp.where(hit, wp.uint8(0), wp.uint8(1))
+        depth[k, tex] = NO_HIT
+        known[k, tex] = wp.uint8(1)
+
+
+@wp.kernel
+def _mark_kernel(cell_vis: wp.array2d(dtype=wp.uint8), cell_depth: wp.array2d(dtype=float),
+                 vis: wp.array2d(dtype=wp.uint8), Rr: int, s: int, log_ratio: float,
+                 marked: wp.array2d(dtype=wp.uint8)):
+    """Mark cell (j, i) of the s×s grid when its 3×3 neighbourhood's samples (and the ring texels in
+    those cells) disagree in visibility, or its blocked samples' hit distances differ by more than
+    ``exp(log_ratio)``."""
+    k, c = wp.tid()
+    j = c / s
+    i = c - j * s
+    f = Rr / s
+    lo = int(1)
+    hi = int(0)
+    dmin = float(NO_HIT)
+    dmax = float(0.0)
+    for dj in range(-1, 2):
+        jj = j + dj
+        if jj >= 0 and jj < s:
+            for di in range(-1, 2):
+                ii = i + di
+                if ii >= 0 and ii < s:
+                    cc = jj * s + ii
+                    v = int(cell_vis[k, cc])
+                    lo = wp.min(lo, v)
+                    hi = wp.max(hi, v)
+                    t = cell_depth[k, cc]
+                    if t < NO_HIT:
+                        dmin = wp.min(dmin, t)
+                        dmax = wp.max(dmax, t)
+                    if jj == 0 or jj == s - 1 or ii == 0 or ii == s - 1:  # a border cell: its ring texels
+                        for q in range(f):
+                            if jj == 0:
+                                v = int(vis[k, ii * f + q])
+                                lo = wp.min(lo, v)
+                                hi = wp.max(hi, v)
+                            if jj == s - 1:
+                                v = int(vis[k, (Rr - 1) * Rr + ii * f + q])
+                                lo = wp.min(lo, v)
+                                hi = wp.max(hi, v)
+                            if ii == 0:
+                                v = int(vis[k, (jj * f + q) * Rr])
+                                lo = wp.min(lo, v)
+                                hi = wp.max(hi, v)
+                            if ii == s - 1:
+                                v = int(vis[k, (jj * f + q) * Rr + Rr - 1])
+                                lo = wp.min(lo, v)
+                                hi = wp.max(hi, v)
+    m = wp.uint8(0)
+    if lo != hi:
+        m = wp.uint8(1)
+    elif dmax > 0.0 and dmin < NO_HIT:
+        if wp.log(dmax) - wp.log(dmin) > log_ratio:
+            m = wp.uint8(1)
+    marked[k, c] = m
+
+
+@wp.kernel
+def _refine_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp.array(dtype=wp.vec3), first: int,
+                   dirs: wp.array(dtype=wp.vec3), offset: float, max_t: float, Rr: int, s: int,
+                   parent_vis: wp.array2d(dtype=wp.uint8), parent_depth: wp.array2d(dtype=float),
+                   marked: wp.array2d(dtype=wp.uint8), vis: wp.array2d(dtype=wp.uint8),
+                   depth: wp.array2d(dtype=float), known: wp.array2d(dtype=wp.uint8),
+                   cell_vis: wp.array2d(dtype=wp.uint8), cell_depth: wp.array2d(dtype=float)):
+    """Cells of the (2s)×(2s) grid: a child of a marked parent gets its own sample (a ray unless its
+    texel is known; closest hit while the grid is coarser than the texels, any hit on the last
+    level), a child of an unmarked parent the parent's."""
+    k, c = wp.tid()
+    vi = first + k
+    s2 = 2 * s
+    j = c / s2
+    i = c - j * s2
+    pc = (j / 2) * s + i / 2
+    v = parent_vis[k, pc]
+    t = parent_depth[k, pc]
+    if marked[k, pc] != wp.uint8(0):
+        f = Rr / s2
+        tex = _sample_texel(j, i, f, Rr)
+        if known[k, tex] != wp.uint8(0):
+            v = vis[k, tex]
+            t = depth[k, tex]
+        else:
+            o = vertex_ray_origin(points, normals, vi, offset)
+            d = vertex_ray_direction(normals, vi, dirs[tex])
+            if f > 1:
+                t = ray_hit_distance(mesh, o, d, max_t)
+                v = wp.where(t < NO_HIT, wp.uint8(0), wp.uint8(1))
+            else:  # the last level: no more marking, so any hit will do
+                v = wp.where(ray_blocked(mesh, o, d, max_t), wp.uint8(0), wp.uint8(1))
+            vis[k, tex] = v
+            depth[k, tex] = t
+            known[k, tex] = wp.uint8(1)
+    cell_vis[k, c] = v
+    cell_depth[k, c] = t
+
+
+@wp.kernel
+def _fill_kernel(cell_vis: wp.array2d(dtype=wp.uint8), vis: wp.array2d(dtype=wp.uint8),
+                 known: wp.array2d(dtype=wp.uint8)):
+    """The last level's cells are texels: a texel no ray was cast at takes its cell's value."""
+    k, tex = wp.tid()
+    if known[k, tex] == wp.uint8(0):
+        vis[k, tex] = cell_vis[k, tex]
+
+
+def levels(ray_resolution: int, coarse_factor: int = COARSE_FACTOR) -> list[int]:
+    """Grid sizes ``s₀, 2s₀, …, Rr`` of the levels (one level, plain ray casting, when the ray
+    resolution is not a power-of-two multiple of the coarse grid)."""
+    Rr = int(ray_resolution)
+    f = int(coarse_factor)
+    if f < 2 or Rr % f or f & (f - 1) or Rr // f < 2:
+        return [Rr]
+    out = [Rr // f]
+    while out[-1] < Rr:
+        out.append(out[-1] * 2)
+    return out
+
+
+def adaptive_visibility(ctx, dirs, Rr: int, points, normals, first: int, count: int, device, *,
+                        coarse_factor: int = COARSE_FACTOR, depth_ratio: float = DEPTH_RATIO):
+    """``(vis (count, Rr²) wp.uint8 array, rays cast)`` of vertices ``first .. first+count−1`` of
+    ``points``/``normals`` (module docstring). ``ctx``: :class:`precompute.visibility.rays._MeshContext`;
+    ``dirs``: the ``Rr²`` local texel directions."""
+    B, N = int(count), int(Rr) * int(Rr)
+    lv = levels(Rr, coarse_factor)
+    if len(lv) == 1:
+        raise ValueError(f"ray resolution {Rr} has no coarse level at factor {coarse_factor}")
+    vis = wp.zeros((B, N), dtype=wp.uint8, device=device)
+    depth = wp.empty((B, N), dtype=float, device=device)
+    known = wp.zeros((B, N), dtype=wp.uint8, device=device)
+    s = lv[0]
+    cv = wp.empty((B, s * s), dtype=wp.uint8, device=device)
+    cd = wp.empty((B, s * s), dtype=float, device=device)
+    geo = [ctx.mesh.id, points, normals, int(first), dirs, ctx.offset, ctx.max_t, int(Rr)]
+    wp.launch(_coarse_kernel, dim=(B, s * s), inputs=geo + [s, vis, depth, known, cv, cd], device=device)
+    wp.launch(_ring_kernel, dim=(B, 4 * (Rr - 1)), inputs=geo + [vis, depth, known], device=device)
+    log_ratio = math.log(float(depth_ratio)) if depth_ratio and depth_ratio > 1 else 1.0e30
+    for s in lv[:-1]:
+        marked = wp.empty((B, s * s), dtype=wp.uint8, device=device)
+        wp.launch(_mark_kernel, dim=(B, s * s), inputs=[cv, cd, vis, int(Rr), s, float(log_ratio), marked],
+                  device=device)
+        nv = wp.empty((B, 4 * s * s), dtype=wp.uint8, device=device)
+        nd = wp.empty((B, 4 * s * s), dtype=float, device=device)
+        wp.launch(_refine_kernel, dim=(B, 4 * s * s),
+                  inputs=geo + [s, cv, cd, marked, vis, depth, known, nv, nd], device=device)
+        cv, cd = nv, nd
+    wp.launch(_fill_kernel, dim=(B, N), inputs=[cv, vis, known], device=device)
+    return vis, int(np.count_nonzero(known.numpy()))  # every texel a ray was cast at is known
+
+
+__all__ = ["adaptive_visibility", "levels", "COARSE_FACTOR", "DEPTH_RATIO"]

@@ -1,0 +1,163 @@
+r"""Occluder proxies of objects: sphere sets and planes, whose SSDF is analytic.
+
+Objects that move (:mod:`warp_sg.scene.dynamic_objects`) shadow the rest of the scene, and are shadowed
+by it, through proxies rather than through precomputed maps (Ren et al. 2006, "Real-time soft
+shadows in dynamic scenes using spherical harmonic exponentiation", use sphere sets the same
+way). Seen from a point ``P``:
+
+* a **sphere** (centre ``c``, radius ``r``) occludes the cap of half-angle ``α = asin(r/|c − P|)``
+  around ``a = (c − P)/|c − P|``; its SSDF (the signed angular distance of a direction ``d`` to
+  the occluded set, eq. 23) is exactly ``∠(d, a) − α``;
+* a **plane** (unit normal ``m``, offset ``h``: ``m·x + h = 0``, the side of ``P`` visible)
+  occludes the half-sphere behind it: SSDF ``asin(σ d·m)``, ``σ = sign(m·P + h)`` — exact for an
+  infinite plane, used for flat static objects (a floor) while ``P`` projects inside their
+  bounding disk; the diffuse term sees the flat object's own outline (a convex polygon,
+  :func:`plane_outline`, its cosine-weighted solid angle by Lambert's formula).
+
+The SSDF of a union of occluders is the minimum of theirs, so a proxy set combines with a
+precomputed SSDF by ``min`` before the SSDF × SG product (eq. 30).
+
+The diffuse environment term integrates what a proxy hides, and the caps of a sphere set overlap
+(counted once each, a compact object would hide several times its solid angle): it sees one
+sphere per object instead, of the object's mean projected area (:func:`diffuse_sphere`).
+
+Fitting (:func:`object_proxies`): a flat object (every vertex within 10⁻⁴ of the bounding diagonal
+from its least-squares plane) gets a plane; an object whose vertices lie within 2 % of one sphere
+(least squares, algebraic fit) gets that sphere; any other object a **sphere set**: the voxels
+inside it (``trimesh`` voxelisation, filled) clustered by k-means into ``max_spheres`` groups,
+each group a sphere at its centroid with the group's volume (``r = (3 N p³ / 4π)^{1/3}``, pitch
+``p``), so the set holds the object's volume and mass distribution.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: a sphere fit is taken when the RMS radial residual is below this fraction of the radius
+SPHERE_TOL = 0.02
+#: an object is flat when its vertices are within this fraction of its diagonal from one plane
+PLANE_TOL = 1e-4
+#: default size of a sphere set
+MAX_SPHERES = 16
+
+
+@dataclass
+class ObjectProxies:
+    """An object's proxies in its rest pose (world space): ``spheres`` (K, 4) ``(c, r)``; or a
+    ``plane`` (4,) ``(m, h)`` with its bounding ``disk`` (4,) ``(centre, radius)``."""
+
+    spheres: np.ndarray = field(default_factory=lambda: np.zeros((0, 4), np.float32))
+    #: (4,) the one sphere the diffuse term sees (:func:`diffuse_sphere`); None for a plane
+    diffuse: np.ndarray | None = None
+    plane: np.ndarray | None = None
+    disk: np.ndarray | None = None
+    #: (P, 3) the flat object's outline: its vertices' convex hull in the plane, in order
+    polygon: np.ndarray | None = None
+
+
+def fit_sphere(points) -> tuple[np.ndarray, float, float]:
+    """Least-squares sphere through ``points`` (algebraic fit ``|x|² = 2c·x + k``): ``(c, r, rms)``
+    with ``rms`` the RMS of ``|x − c| − r``."""
+    X = np.asarray(points, np.float64)
+    A = np.hstack([2.0 * X, np.ones((len(X), 1))])
+    sol, *_ = np.linalg.lstsq(A, np.sum(X * X, 1), rcond=None)
+    c = sol[:3]
+    d = np.linalg.norm(X - c, axis=1)
+    r = float(np.mean(d))
+    return c, r, float(np.sqrt(np.mean((d - r) ** 2)))
+
+
+def fit_plane(points, normals=None):
+    """``(m, h, max distance)`` of the least-squares plane of ``points`` (m oriented along the mean
+    of ``normals`` when given)."""
+    X = np.asarray(points, np.float64)
+    c = X.mean(0)
+    _, _, Vt = np.linalg.svd(X - c, full_matrices=False)
+    m = Vt[-1]
+    if normals is not None and float(np.mean(np.asarray(normals, np.float64), 0) @ m) < 0.0:
+        m = -m
+    return m, float(-m @ c), float(np.max(np.abs((X - c) @ m)))
+
+
+def sphere_set(vertices, triangles, max_spheres: int = MAX_SPHERES, resolution: int = 24) -> np.ndarray:
+    """(K, 4) float32 spheres ``(c, r)`` holding the volume of a closed-ish mesh (module docstring)."""
+    import trimesh
+    from scipy.cluster.vq import kmeans2
+
+    V = np.asarray(vertices, np.float64)
+    mesh = trimesh.Trimesh(V, np.asarray(triangles), process=True)
+    pitch = float(np.max(np.ptp(V, axis=0))) / float(resolution)
+    pts = np.asarray(mesh.voxelized(pitch).fill().points, np.float64)
+    if len(pts) < 2:  # a sliver: one sphere around its vertices
+        c = V.mean(0)
+        return np.array([[*c, max(float(np.max(np.linalg.norm(V - c, axis=1))), 1e-6)]], np.float32)
+    k = int(min(max_spheres, len(pts)))
+    cent, lab = kmeans2(pts, k, minit="++", seed=np.random.default_rng(0), missing="raise")
+    cnt = np.bincount(lab, minlength=k)
+    keep = cnt > 0
+    r = (3.0 * cnt[keep] * pitch ** 3 / (4.0 * np.pi)) ** (1.0 / 3.0)
+    return np.hstack([cent[keep], r[:, None]]).astype(np.float32)
+
+
+def diffuse_sphere(vertices, triangles) -> np.ndarray:
+    """(4,) float32: the sphere of the same mean projected area as the object (Cauchy: a convex
+    body's mean shadow area is a quarter of its surface area, so ``r = √(A/4π)``) at its area
+    centroid. The diffuse environment term integrates the occluder's solid angle, which a union of
+    overlapping spheres would count once per sphere; this one sphere holds it (exact for a sphere)."""
+    V = np.asarray(vertices, np.float64)
+    F = np.asarray(triangles, np.int64)
+    a = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
+    c = (a[:, None] * V[F].mean(1)).sum(0) / max(a.sum(), 1e-30)
+    return np.array([*c, np.sqrt(a.sum() / (4.0 * np.pi))], np.float32)
+
+
+def plane_outline(points, m) -> np.ndarray:
+    """(P, 3) the convex hull of coplanar ``points`` (plane normal ``m``), counter-clockwise about m."""
+    from scipy.spatial import ConvexHull
+
+    X = np.asarray(points, np.float64)
+    m = np.asarray(m, np.float64)
+    e1 = np.cross(m, [1.0, 0.0, 0.0] if abs(m[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(m, e1)
+    uv = np.stack([(X - X.mean(0)) @ e1, (X - X.mean(0)) @ e2], 1)
+    return X[ConvexHull(uv).vertices]  # (2-D hulls are counter-clockwise in (e1, e2), i.e. about m)
+
+
+def object_proxies(vertices, triangles, normals=None, max_spheres: int = MAX_SPHERES,
+                   allow_plane: bool = True) -> ObjectProxies:
+    """The proxies of one object (module docstring); ``allow_plane`` False: a flat object gets
+    spheres too (a moving card is not an infinite plane)."""
+    V = np.asarray(vertices, np.float64)
+    diag = float(np.linalg.norm(np.ptp(V, axis=0)))
+    m, h, dev = fit_plane(V, normals)
+    if allow_plane and dev <= PLANE_TOL * max(diag, 1e-30):
+        c = V.mean(0)
+        rad = float(np.max(np.linalg.norm(V - c, axis=1)))
+        return ObjectProxies(plane=np.array([*m, h], np.float32), disk=np.array([*c, rad], np.float32),
+                             polygon=plane_outline(V, m).astype(np.float32))
+    c, r, rms = fit_sphere(V)
+    if rms <= SPHERE_TOL * r and np.all(np.linalg.norm(V - c, axis=1) <= 1.5 * r):
+        one = np.array([*c, r], np.float32)
+        return ObjectProxies(spheres=one[None], diffuse=one)
+    return ObjectProxies(spheres=sphere_set(V, triangles, max_spheres), diffuse=diffuse_sphere(V, triangles))
+
+
+def sphere_ssdf(P, d, spheres) -> np.ndarray:
+    """numpy: the SSDF of a sphere set seen from points ``P`` (..., 3) at unit directions ``d``
+    (..., 3): ``min_i ∠(d, a_i) − α_i`` (−π/2 where ``P`` is inside a sphere); +π with no sphere."""
+    P = np.asarray(P, np.float64)[..., None, :]
+    S = np.asarray(spheres, np.float64).reshape(-1, 4)
+    if not len(S):
+        return np.full(np.broadcast_shapes(P.shape[:-2], np.shape(d)[:-1]), np.pi)
+    v = S[:, :3] - P
+    dist = np.linalg.norm(v, axis=-1)
+    a = v / np.maximum(dist, 1e-30)[..., None]
+    ang = np.arccos(np.clip(np.sum(np.asarray(d, np.float64)[..., None, :] * a, -1), -1.0, 1.0))
+    alpha = np.arcsin(np.clip(S[:, 3] / np.maximum(dist, 1e-30), 0.0, 1.0))
+    return np.where(dist <= S[:, 3], -0.5 * np.pi, ang - alpha).min(-1)
+
+
+__all__ = ["ObjectProxies", "object_proxies", "fit_sphere", "fit_plane", "sphere_set", "sphere_ssdf", "diffuse_sphere",
+           "SPHERE_TOL", "PLANE_TOL", "MAX_SPHERES"]

@@ -1,0 +1,501 @@
+r"""Spherical signed distance functions (SSDF, paper §5.1–5.2, eq. 23–24).
+
+Per vertex, on the concentric map of the upper hemisphere (:mod:`precompute.visibility.ssdf_wp`)::
+
+    V^d(i) = + min_{t: V(t)=0} arccos(t·i)   if V(i) = 1      (eq. 23)
+             − min_{t: V(t)=1} arccos(t·i)   if V(i) = 0
+
+with directions below the horizon invisible. Pipeline per batch of vertices, all in Warp kernels
+on the device (:func:`compute_ssdf`):
+
+1. binary visibility at ``ray_resolution²`` texels by BVH ray casts (:mod:`precompute.visibility.rays`):
+   coarse first and refined where the visibility changes (:mod:`precompute.visibility.adaptive_rays`, the
+   default ``rays = "adaptive"``: about a third of the rays), or one ray per texel (``"full"``);
+   a vertex whose map is uniform (all visible or all blocked) skips steps 2–4 (its SSDF is one of
+   two fixed maps);
+2. **boundary seeds**: every pair of 4-neighbour texels with different visibility contributes the
+   boundary point ``normalize(d_a + d_b)`` (midpoint on the sphere); each texel keeps its nearest;
+3. **jump flooding** (Rong & Tan 2006) on the concentric grid with the angular metric: passes with
+   steps R/2, R/4, …, 1, then 2, 1 again ("JFA+2"); each texel keeps, among the seeds held by its
+   8 neighbours at the current step and itself, the one with the largest dot product. Cost
+   O(R² log R) per vertex, not O(R⁴);
+4. signed distance ``±arccos(d·seed)`` with true angles; visible texels also take ``min`` with their
+   elevation ``asin(z)`` (the horizon is a boundary); values are clamped to [−π/2, π/2] (a texel
+   with nothing visible anywhere gets −π/2; ``fh`` ratios below −π/2 are ≤ e^{−λ} anyway);
+5. box downsampling ``ray_resolution → resolution`` (paper: 512² → 128²; defaults here 64² → 32²,
+   see docs/precompute.md for the measured error of each setting).
+
+Then all vertices are compressed with PCA (:mod:`warp_sg.numeric.pca`, eq. 24) and cached on disk
+(:func:`warp_sg.core.cache.load_or_build`) under a content hash of mesh + parameters.
+"""
+from __future__ import annotations
+
+import contextlib
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import warp as wp
+
+from warp_sg.core import cache as _cache
+from warp_sg.core.device import resolve_device
+from warp_sg.core.errors import InputError
+from warp_sg.numeric.pca import pca
+from warp_sg.core.stage_clock import StageClock, thread_cpu
+
+from precompute.visibility.adaptive_rays import adaptive_visibility, levels
+from precompute.visibility.occluder_cone import occluder_cones
+from precompute.visibility.ssdf_wp import texel_directions
+from precompute.visibility.rays import OFFSET_SCALE, _MeshContext, _tqdm, launch_visibility, run_batches, validate_mesh
+
+#: Defaults (see docs/precompute.md for the error/time trade-off).
+DEFAULT_RESOLUTION = 32
+DEFAULT_RAY_RESOLUTION = 64
+DEFAULT_PCA_TERMS = 24
+#: how the binary visibility maps are cast: coarse first and refined where the visibility changes
+#: (:mod:`precompute.visibility.adaptive_rays`), or one ray per texel
+RAYS = ("adaptive", "full")
+DEFAULT_RAYS = "adaptive"
+
+_HALF_PI = wp.constant(0.5 * math.pi)
+#: "no boundary point yet": its dot product with any texel direction (z ≥ 1/(2Rr) > 1e-4) is
+#: below −1, so every real boundary point wins over it, and the signed distance it gives is the
+#: clamp π/2 (acos(−1) = π, then min with π/2): the same as no seed at all
+NO_SEED = wp.constant(wp.vec3(0.0, 0.0, -1.0e4))
+#: Part of the "ssdf" cache key: the hash of the code that computes the maps (``warp_sg.core.cache.code_key``).
+SSDF_VERSION = _cache.code_key(__name__, occluder_cones, texel_directions, launch_visibility, pca)  # the producing code
+#: the hash of the adaptive ray schedule's code (precompute.visibility.adaptive_rays), part of the cache key
+ADAPTIVE_VERSION = _cache.code_key(adaptive_visibility)  # the adaptive ray cast's code
+
+
+# ---------------------------------------------------------------------------------------------
+# kernels
+# ---------------------------------------------------------------------------------------------
+
+@wp.func
+def _consider(d: wp.vec3, da: wp.vec3, best: wp.vec3, best_dot: float):
+    m = wp.normalize(d + da)
+    c = wp.dot(d, m)
+    if c > best_dot:
+        return m, c
+    return best, best_dot
+
+
+@wp.kernel
+def _seed_kernel(vis: wp.array2d(dtype=wp.uint8), dirs: wp.array(dtype=wp.vec3), R: int,
+                 seeds: wp.array2d(dtype=wp.vec3)):
+    """Nearest boundary midpoint among the 4-neighbour pairs of differing visibility (else
+    :data:`NO_SEED`)."""
+    k, tex = wp.tid()
+    j = tex // R
+    i = tex - j * R
+    me = vis[k, tex]
+    d = dirs[tex]
+    best = NO_SEED
+    best_dot = float(-2.0)
+    if i > 0:
+        if vis[k, tex - 1] != me:
+            best, best_dot = _consider(d, dirs[tex - 1], best, best_dot)
+    if i < R - 1:
+        if vis[k, tex + 1] != me:
+            best, best_dot = _consider(d, dirs[tex + 1], best, best_dot)
+    if j > 0:
+        if vis[k, tex - R] != me:
+            best, best_dot = _consider(d, dirs[tex - R], best, best_dot)
+    if j < R - 1:
+        if vis[k, tex + R] != me:
+            best, best_dot = _consider(d, dirs[tex + R], best, best_dot)
+    seeds[k, tex] = best
+
+
+@wp.kernel
+def _jfa_kernel(src: wp.array2d(dtype=wp.vec3), dirs: wp.array(dtype=wp.vec3), R: int, step: int,
+                dst: wp.array2d(dtype=wp.vec3)):
+    """One jump-flooding pass with the angular metric (largest dot product wins)."""
+    k, tex = wp.tid()
+    j = tex // R
+    i = tex - j * R
+    d = dirs[tex]
+    best = src[k, tex]
+    best_dot = wp.dot(d, best)  # NO_SEED's dot loses to every boundary point's (≥ −1)
+    for dj in range(-1, 2):
+        jj = j + dj * step
+        if jj >= 0 and jj < R:
+            for di in range(-1, 2):
+                ii = i + di * step
+                if ii >= 0 and ii < R and (di != 0 or dj != 0):
+                    s = src[k, jj * R + ii]
+                    c = wp.dot(d, s)
+                    if c > best_dot:
+                        best_dot = c
+                        best = s
+    dst[k, tex] = best
+
+
+@wp.kernel
+def _signed_kernel(vis: wp.array2d(dtype=wp.uint8), seeds: wp.array2d(dtype=wp.vec3),
+                   dirs: wp.array(dtype=wp.vec3), out: wp.array2d(dtype=float)):
+    """Signed angular distance (eq. 23), horizon included, clamped to [−π/2, π/2]."""
+    k, tex = wp.tid()
+    d = dirs[tex]
+    s = seeds[k, tex]
+    dist = _HALF_PI
+    if wp.length_sq(s) > 0.25:
+        dist = wp.acos(wp.clamp(wp.dot(d, s), -1.0, 1.0))
+    if vis[k, tex] != wp.uint8(0):
+        out[k, tex] = wp.min(wp.min(dist, wp.asin(wp.clamp(d[2], 0.0, 1.0))), _HALF_PI)
+    else:
+        out[k, tex] = -wp.min(dist, _HALF_PI)
+
+
+@wp.kernel
+def _downsample_kernel(src: wp.array2d(dtype=float), Rs: int, f: int, dst: wp.array2d(dtype=float)):
+    """Box filter f×f: (B, (Rs·f)²) → (B, Rs²)."""
+    k, tex = wp.tid()
+    j = tex // Rs
+    i = tex - j * Rs
+    Rh = Rs * f
+    acc = float(0.0)
+    for dj in range(f):
+        for di in range(f):
+            acc += src[k, (j * f + dj) * Rh + i * f + di]
+    dst[k, tex] = acc / float(f * f)
+
+
+def _jfa_steps(R: int) -> list[int]:
+    steps = []
+    s = 1
+    while s * 2 < R:
+        s *= 2
+    while s >= 1:
+        steps.append(s)
+        s //= 2
+    return steps + [2, 1] if R > 2 else steps
+
+
+# ---------------------------------------------------------------------------------------------
+# per-vertex SSDFs
+# ---------------------------------------------------------------------------------------------
+
+def _check_rays(rays):
+    rays = DEFAULT_RAYS if rays is None else rays
+    if rays not in RAYS:
+        raise InputError(f"rays must be one of {', '.join(RAYS)}, got {rays!r}", where="rays")
+    return rays
+
+
+def _check_resolutions(resolution, ray_resolution):
+    if int(resolution) != resolution or resolution < 2:
+        raise InputError(f"SSDF resolution must be an integer >= 2, got {resolution}", where="ssdf_resolution")
+    if int(ray_resolution) != ray_resolution or ray_resolution < resolution or ray_resolution % resolution:
+        raise InputError(f"ray_resolution ({ray_resolution}) must be a multiple of the SSDF resolution "
+                         f"({resolution})", where="ray_resolution")
+
+
+def _fit_maps(vis, dirs, Rr, R, device):
+    """(B, R²) SSDFs of the (B, Rr²) visibility maps ``vis`` (steps 2–5 of the module docstring)."""
+    B, N = int(vis.shape[0]), Rr * Rr
+    a = wp.empty((B, N), dtype=wp.vec3, device=device)
+    b = wp.empty((B, N), dtype=wp.vec3, device=device)
+    wp.launch(_seed_kernel, dim=(B, N), device=device, inputs=[vis, dirs, Rr, a])
+    for step in _jfa_steps(Rr):
+        wp.launch(_jfa_kernel, dim=(B, N), device=device, inputs=[a, dirs, Rr, step, b])
+        a, b = b, a
+    sd = wp.empty((B, N), dtype=float, device=device)
+    wp.launch(_signed_kernel, dim=(B, N), device=device, inputs=[vis, a, dirs, sd])
+    if Rr != R:
+        ds = wp.empty((B, R * R), dtype=float, device=device)
+        wp.launch(_downsample_kernel, dim=(B, R * R), device=device, inputs=[sd, R, Rr // R, ds])
+        sd = ds
+    return sd.numpy()
+
+
+_UNIFORM: dict = {}
+
+
+def _uniform_maps(dirs, Rr, R, device):
+    """The SSDFs of an all-occluded and an all-visible map (rows 0 and 1), through the same kernels:
+    a vertex with uniform visibility has no boundary to search for (−π/2, resp. its horizon bound)."""
+    key = (Rr, R, str(device))
+    if key not in _UNIFORM:
+        vis = wp.array(np.stack([np.zeros(Rr * Rr, np.uint8), np.ones(Rr * Rr, np.uint8)]), dtype=wp.uint8,
+                       device=device)
+        _UNIFORM[key] = _fit_maps(vis, dirs, Rr, R, device)
+    return _UNIFORM[key]
+
+
+def _ssdf_batch(ctx, dirs, Rr, R, points, normals, s, e, device, out_vis=None, clock=None, rays=None, adaptive=None):
+    """SSDFs ``(e − s, R²)`` of vertices ``s..e−1`` of ``points``/``normals``: binary visibility
+    (``rays = "adaptive"``: :mod:`precompute.visibility.adaptive_rays`; ``"full"``: a ray per texel), then the
+    distance search (skipped for vertices whose map is uniform: their SSDF is one of two fixed maps)."""
+    rays = DEFAULT_RAYS if rays is None else rays
+    B = e - s
+    N = Rr * Rr
+    w0, c0 = time.perf_counter(), thread_cpu()
+    if rays == "adaptive" and len(levels(Rr)) > 1 and ctx.cutouts is None:
+        vis, n_rays = adaptive_visibility(ctx, dirs, Rr, points, normals, s, B, device, **(adaptive or {}))
+    else:  # a ray per texel (and, through cut-outs' holes, the cut-out kernel: launch_visibility)
+        vis = wp.empty((B, N), dtype=wp.uint8, device=device)
+        launch_visibility(ctx, points, normals, s, dirs, vis)
+        n_rays = B * N
+    vn = vis.numpy()
+    w1, c1 = time.perf_counter(), thread_cpu()
+    if out_vis is not None:
+        out_vis[s:e] = vn
+    lo, hi = vn.min(axis=1), vn.max(axis=1)
+    mixed = np.flatnonzero(lo != hi)
+    if len(mixed) == B or not wp.get_device(device).is_cpu:
+        out = _fit_maps(vis, dirs, Rr, R, device)
+    else:
+        out = np.empty((B, R * R), np.float32)
+        out[:] = _uniform_maps(dirs, Rr, R, device)[np.minimum(lo, 1).astype(np.int64)]
+        if len(mixed):
+            out[mixed] = _fit_maps(wp.array(vn[mixed], dtype=wp.uint8, device=device), dirs, Rr, R, device)
+    if clock is not None:
+        clock.add("rays", w1 - w0, c1 - c0)
+        clock.add("ssdf_fit", time.perf_counter() - w1, thread_cpu() - c1)
+        clock.count("rays_cast", n_rays)
+        clock.count("uniform_vertices", B - len(mixed))
+    return out
+
+
+def compute_ssdf(vertices, triangles, normals, *, resolution: int = DEFAULT_RESOLUTION,
+                 ray_resolution: int = DEFAULT_RAY_RESOLUTION, device="cpu", vertex_ids=None,
+                 progress: bool = True, batch: int = 256, return_visibility: bool = False, clock=None,
+                 rays: str = None, adaptive: dict | None = None, out=None, cutouts=None):
+    """Uncompressed SSDFs ``(n, R, R)`` float32 (radians) of the selected vertices (default all).
+
+    With ``return_visibility`` also returns the binary maps ``(n, Rr, Rr)`` uint8 at ray resolution.
+    ``rays``: ``"adaptive"`` (default, :data:`DEFAULT_RAYS`; :mod:`precompute.visibility.adaptive_rays`) or
+    ``"full"`` (a ray per texel, the reference the adaptive maps are measured against);
+    ``adaptive``: keyword arguments of :func:`precompute.visibility.adaptive_rays.adaptive_visibility`
+    (``coarse_factor``, ``depth_ratio``: the ray budget; ``ssdf_for_mesh`` uses the defaults).
+    ``out``: a float32 ``(n, R²)`` array (e.g. a ``numpy.memmap``) the rows are written into
+    batch by batch (and which is returned, reshaped); default a new array.
+    ``clock`` (:class:`warp_sg.core.stage_clock.StageClock`): adds the stages ``bvh``, ``rays`` and
+    ``ssdf_fit`` (CPU: the sum over the worker threads; wall: summed per batch too, so over the
+    threads) and the counts ``rays_cast`` and ``uniform_vertices``.
+    ``cutouts``: the mesh's alpha cut-outs (:class:`warp_sg.shading.cutout.CutoutData`; rays pass through
+    holes). A mesh with cut-outs casts a ray per texel (the adaptive levels test hits without them).
+    """
+    device = resolve_device(device)
+    _check_resolutions(resolution, ray_resolution)
+    rays = _check_rays(rays)
+    v, f, n = validate_mesh(vertices, triangles, normals)
+    if n is None:
+        raise InputError("compute_ssdf needs per-vertex normals")
+    ids = np.arange(len(v)) if vertex_ids is None else np.asarray(vertex_ids, np.int64)
+    w0, c0 = time.perf_counter(), time.process_time()
+    ctx = _MeshContext(v, f, n, device, cutouts)
+    if clock is not None:
+        clock.add("bvh", time.perf_counter() - w0, time.process_time() - c0)
+    R, Rr = int(resolution), int(ray_resolution)
+    dirs = wp.array(texel_directions(Rr).reshape(-1, 3).astype(np.float32), dtype=wp.vec3, device=device)
+    pts = wp.array(v[ids].astype(np.float32), dtype=wp.vec3, device=device)
+    nrm = wp.array(n[ids].astype(np.float32), dtype=wp.vec3, device=device)
+    vis_out = np.empty((len(ids), Rr * Rr), np.uint8) if return_visibility else None
+    if device != "cpu":
+        batch = max(batch, int(2 ** 24 // (Rr * Rr)))  # bigger batches on GPUs
+    bar = _tqdm(len(ids), "SSDF", progress and len(ids) * Rr * Rr > 1_000_000)
+    if out is None:
+        out = np.empty((len(ids), R * R), np.float32)
+    elif out.shape != (len(ids), R * R) or out.dtype != np.float32:
+        raise InputError(f"out must be float32 of shape {(len(ids), R * R)}, got {out.dtype} {out.shape}", where="out")
+
+    def work(s, e):  # each batch writes its own rows: nothing is held twice
+        out[s:e] = _ssdf_batch(ctx, dirs, Rr, R, pts, nrm, s, e, device, vis_out, clock, rays, adaptive)
+
+    run_batches(len(ids), batch, work, device, bar)
+    if bar is not None:
+        bar.close()
+    out = out.reshape(len(ids), R, R)
+    if return_visibility:
+        return out, vis_out.reshape(len(ids), Rr, Rr)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# compressed, cached per mesh
+# ---------------------------------------------------------------------------------------------
+
+@dataclass
+class SSDFData:
+    """PCA-compressed SSDFs of a mesh (eq. 24): ``SSDF_x ≈ mean + Σ_j weights[x, j] basis[j]``.
+
+    ``mean`` (R, R), ``basis`` (NV, R, R), ``weights`` (V, NV), all float32, radians, on the
+    concentric map of :mod:`precompute.visibility.ssdf_wp`. ``pca_rms_error[k]`` is the RMS reconstruction
+    error (radians, over all vertices and texels) with ``k`` terms, k = 0..NV.
+    """
+
+    resolution: int
+    mean: np.ndarray
+    basis: np.ndarray
+    weights: np.ndarray
+    ray_resolution: int = DEFAULT_RAY_RESOLUTION
+    pca_rms_error: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    key: str = ""
+    #: (V, 4) per-vertex occluder cones (:func:`precompute.visibility.occluder_cone.occluder_cones`); empty:
+    #: unknown (no lookup is skipped)
+    cones: np.ndarray = field(default_factory=lambda: np.zeros((0, 4), np.float32))
+    #: ``{stage: (wall s, CPU s)}`` of the build (``bvh``, ``rays``, ``ssdf_fit``, ``pca``, ``cones``;
+    #: :class:`warp_sg.core.stage_clock.StageClock`) and counts (``rays_cast``, ``uniform_vertices``: ints);
+    #: empty when the data came from the cache
+    stats: dict = field(default_factory=dict)
+
+    @property
+    def pca_terms(self) -> int:
+        return int(self.basis.shape[0])
+
+    def reconstruct(self, vertex_ids=None) -> np.ndarray:
+        """Reconstructed SSDFs ``(n, R, R)`` of ``vertex_ids`` (default: all vertices)."""
+        w = self.weights if vertex_ids is None else self.weights[np.asarray(vertex_ids)]
+        R = self.resolution
+        return (self.mean.reshape(1, -1) + w @ self.basis.reshape(self.pca_terms, -1)).reshape(-1, R, R)
+
+    def device_arrays(self, device="cpu", decompress_bytes: int = 0):
+        """``(mean wp.array2d (R, R), basis wp.array3d (R, R, NV), weights wp.array2d (V, NV))`` for
+        :mod:`precompute.visibility.ssdf_wp`; the basis is texel-major on the device (a bilinear tap reads NV
+        contiguous floats).
+
+        Decompressed form, when the reconstructed maps take at most ``decompress_bytes``
+        (``V·R²`` float32): ``mean`` zeros, ``basis`` of shape (R, R, 0) and ``weights`` (V, R²),
+        each vertex's reconstructed map ``mean + Σ_j w_j basis_j`` row-major (``reconstruct``). A
+        lookup then reads 4 texels per vertex instead of 4·(NV + 1) values and NV weights: the same
+        SSDF (``ssdf_wp._ssdf_combo`` takes either form)."""
+        device = resolve_device(device)
+        R, V = self.resolution, self.weights.shape[0]
+        if V * R * R * 4 <= int(decompress_bytes):
+            maps = self.reconstruct().reshape(V, R * R).astype(np.float32)
+            return (wp.zeros((R, R), dtype=float, device=device), wp.zeros((R, R, 0), dtype=float, device=device),
+                    wp.array(maps, dtype=float, device=device))
+        return (wp.array(self.mean, dtype=float, device=device),
+                wp.array(np.ascontiguousarray(np.moveaxis(self.basis, 0, -1)), dtype=float, device=device),
+                wp.array(self.weights, dtype=float, device=device))
+
+
+def decompress_budget() -> int:
+    """Bytes the renderer may spend on decompressed SSDF maps (``SSDFData.device_arrays``):
+    ``WARP_SG_SSDF_DECOMPRESS_MB`` (default 256 MiB; 0 keeps the PCA form). 50 k vertices at the
+    default 32² maps take 205 MB."""
+    import os
+
+    raw = os.environ.get("WARP_SG_SSDF_DECOMPRESS_MB", "256")
+    try:
+        mb = float(raw)
+    except ValueError:
+        raise InputError(f"WARP_SG_SSDF_DECOMPRESS_MB must be a number of MiB, got {raw!r}",
+                         where="WARP_SG_SSDF_DECOMPRESS_MB") from None
+    return max(int(mb * (1 << 20)), 0)
+
+
+def memory_budget() -> int:
+    """Bytes of uncompressed SSDFs ``ssdf_for_mesh`` keeps in memory (``WARP_SG_SSDF_MEMORY_MB``,
+    default 1024 MiB); beyond, the rows go to a temporary file in the cache folder and PCA and the
+    occluder cones read them back in chunks (out of core: 1 M vertices at 32² are 4 GiB on disk)."""
+    import os
+
+    raw = os.environ.get("WARP_SG_SSDF_MEMORY_MB", "1024")
+    try:
+        mb = float(raw)
+    except ValueError:
+        raise InputError(f"WARP_SG_SSDF_MEMORY_MB must be a number of MiB, got {raw!r}",
+                         where="WARP_SG_SSDF_MEMORY_MB") from None
+    return max(int(mb * (1 << 20)), 0)
+
+
+@contextlib.contextmanager
+def _disk_rows(n: int, d: int):
+    """A float32 ``(n, d)`` ``numpy.memmap`` in a temporary file of the cache folder, deleted after."""
+    import tempfile
+
+    folder = _cache.cache_dir()
+    folder.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="ssdf-rows-", dir=folder) as tmp:
+        mm = np.memmap(f"{tmp}/rows.f32", dtype=np.float32, mode="w+", shape=(int(n), int(d)))
+        try:
+            yield mm
+        finally:
+            del mm
+
+
+def _ssdf_params(resolution, ray_resolution, pca_terms, rays=None, cutouts=None):
+    if ray_resolution is None:
+        ray_resolution = 2 * int(resolution)
+    _check_resolutions(resolution, ray_resolution)
+    if int(pca_terms) != pca_terms or pca_terms < 1:
+        raise InputError(f"pca_terms must be a positive integer, got {pca_terms}", where="pca_terms")
+    rays = _check_rays(rays)
+    if rays == "adaptive" and (len(levels(int(ray_resolution))) == 1 or cutouts is not None):
+        rays = "full"  # no coarse level at this ray resolution (or cut-outs: compute_ssdf): the same maps
+    params = {"kind": "ssdf", "version": SSDF_VERSION, "resolution": int(resolution),
+              "ray_resolution": int(ray_resolution), "pca_terms": int(pca_terms), "offset": OFFSET_SCALE,
+              "rays": rays if rays == "full" else f"adaptive-{ADAPTIVE_VERSION}"}
+    if cutouts is not None:  # (the key of a mesh without cut-outs is unchanged)
+        params.update(cutouts.key())
+    return params
+
+
+def ssdf_key(vertices, triangles, normals, *, resolution: int = DEFAULT_RESOLUTION, ray_resolution: int | None = None,
+             pca_terms: int = DEFAULT_PCA_TERMS, rays: str | None = None, cutouts=None) -> str:
+    """The cache key of :func:`ssdf_for_mesh` for these arguments (a content hash; no SSDF is computed)."""
+    params = _ssdf_params(resolution, ray_resolution, pca_terms, rays, cutouts)
+    v, f, n = validate_mesh(vertices, triangles, normals)
+    if n is None:
+        raise InputError("ssdf_for_mesh needs per-vertex normals")
+    return _cache.content_key(v.astype(np.float32), f.astype(np.int32), n.astype(np.float32), params)
+
+
+def ssdf_for_mesh(vertices, triangles, normals, *, resolution: int = DEFAULT_RESOLUTION,
+                  ray_resolution: int | None = None, pca_terms: int = DEFAULT_PCA_TERMS,
+                  device="cpu", progress: bool = True, use_cache: bool = True, compute=None,
+                  rays: str | None = None, cutouts=None) -> SSDFData:
+    """Per-vertex SSDFs of a (merged) mesh, PCA-compressed (eq. 23–24), cached on disk.
+
+    ``ray_resolution`` defaults to ``2 × resolution`` (paper: 4×, 512 → 128). The cache key is a
+    content hash of vertices, triangles, normals and all parameters (not the device, not
+    ``compute``). ``compute`` replaces :func:`compute_ssdf` (same keyword arguments: ``resolution``,
+    ``ray_resolution``, ``device``, ``progress``), e.g. the Dask version of
+    :mod:`warp_sg.distributed.precompute`; it must return the same per-vertex SSDFs, so a
+    distributed result and a local one are the same cache entry; it casts the default ``rays``
+    (:data:`DEFAULT_RAYS`). PCA and the cache write run here. ``stats`` of the result: the build's
+    stages and counts (:meth:`compute_ssdf`'s ``clock``; empty on a cache hit). ``cutouts``: the
+    mesh's alpha cut-outs (:class:`warp_sg.shading.cutout.CutoutData`; the SSDF's rays pass through holes;
+    passed on to ``compute`` as ``cutouts=`` when given).
+    """
+    params = _ssdf_params(resolution, ray_resolution, pca_terms, rays, cutouts)
+    ray_resolution = params["ray_resolution"]
+    v, f, n = validate_mesh(vertices, triangles, normals)
+    if n is None:
+        raise InputError("ssdf_for_mesh needs per-vertex normals")
+    key = _cache.content_key(v.astype(np.float32), f.astype(np.int32), n.astype(np.float32), params)
+    compute = compute_ssdf if compute is None else compute
+
+    clock = StageClock()
+
+    def build():
+        R = int(resolution)
+        kw = {"clock": clock, "rays": rays} if compute is compute_ssdf else {}
+        if cutouts is not None:
+            kw["cutouts"] = cutouts
+        if compute is not compute_ssdf and _check_rays(rays) != DEFAULT_RAYS:
+            raise InputError(f"rays={rays!r} needs the local compute_ssdf", where="rays")
+        with contextlib.ExitStack() as stack:
+            if compute is compute_ssdf and len(v) * R * R * 4 > memory_budget():
+                kw["out"] = stack.enter_context(_disk_rows(len(v), R * R))
+            with clock.stage("ssdf_total"):
+                X = compute(v, f, n, resolution=resolution, ray_resolution=ray_resolution, device=device,
+                            progress=progress, **kw).reshape(len(v), -1)
+            with clock.stage("pca"):
+                p = pca(X, int(pca_terms))
+            with clock.stage("cones"):
+                cones = occluder_cones(X, n, R)
+            del X
+        return {"mean": p.mean.reshape(R, R), "basis": p.basis.reshape(-1, R, R), "weights": p.weights,
+                "pca_rms_error": p.rms_error, "cones": cones}
+
+    data = _cache.load_or_build("ssdf", key, build) if use_cache else build()
+    return SSDFData(resolution=int(resolution), mean=data["mean"].astype(np.float32),
+                    basis=data["basis"].astype(np.float32), weights=data["weights"].astype(np.float32),
+                    ray_resolution=int(ray_resolution), pca_rms_error=np.asarray(data["pca_rms_error"]), key=key,
+                    cones=np.asarray(data["cones"], np.float32), stats={**clock.as_dict(), **clock.counts})

@@ -1,0 +1,320 @@
+"""On-disk precompute cache (docs/precompute.md "Cache", docs/architecture.md "Precompute contract").
+
+Base layer: generic (arrays in, arrays out), used by the precompute engines and by the measured-BRDF
+fit; ``warp_sg.core.cache`` re-exports it.
+
+
+* :func:`cache_dir` — ``$WARP_SG_CACHE_DIR`` or ``~/.cache/warp-sg``; deleting it is always safe.
+* :func:`fresh_cache` — a private empty cache folder for a ``with`` block (timings of precompute).
+* :func:`content_key` — a stable SHA-256 over numpy arrays (dtype, shape and bytes) and JSON-able
+  parameters, plus :data:`FORMAT_VERSION` (bump it whenever the file format itself changes).
+* :func:`code_key` — a hash of the source of the modules that produce an entry; every producer
+  puts it in its ``content_key`` parts, so an algorithm change misses the old entries by itself
+  (no hand-kept version numbers).
+* :func:`load_or_build` — ``kind/key.npz`` files holding ``dict[str, np.ndarray]``. Files are
+  written atomically (a temporary file in the same folder, flushed and fsync-ed, then
+  ``os.replace``) and carry a SHA-256 checksum of their own contents (``__checksum__``); a file
+  that is truncated, corrupt, or whose checksum does not match is never trusted: it is deleted,
+  a warning is issued, and the entry is rebuilt.
+* :func:`record_builds` — a :class:`BuildLedger` of the builds and hits of a ``with`` block, with
+  the wall and CPU seconds of every build: what an entry found in the cache would have cost
+  (``warp-sg report`` reuses entries across its settings and still reports fresh-cache times).
+"""
+from __future__ import annotations
+
+import ast
+import contextlib
+import functools
+import hashlib
+import importlib.util
+import sys
+import io
+import json
+import os
+import tempfile
+import threading
+import time
+import warnings
+import zipfile
+from pathlib import Path
+from typing import Callable, Mapping
+
+import numpy as np
+
+from warp_sg.core.files import atomic_output
+from warp_sg.core.errors import CacheError
+
+#: Bump whenever the layout or meaning of any cached entry changes (old entries then miss).
+FORMAT_VERSION = 1
+
+_CHECKSUM = "__checksum__"
+
+
+def cache_dir() -> Path:
+    """The cache folder: ``$WARP_SG_CACHE_DIR`` if set (and non-empty), else ``~/.cache/warp-sg``."""
+    env = os.environ.get("WARP_SG_CACHE_DIR")
+    return Path(env).expanduser() if env else Path.home() / ".cache" / "warp-sg"
+
+
+@contextlib.contextmanager
+def fresh_cache():
+    """A private, empty cache folder for the duration (so precompute is really measured): sets
+    ``$WARP_SG_CACHE_DIR`` to a temporary folder, restores it and deletes the folder afterwards."""
+    old = os.environ.get("WARP_SG_CACHE_DIR")
+    with tempfile.TemporaryDirectory(prefix="warp-sg-report-") as d:
+        os.environ["WARP_SG_CACHE_DIR"] = d
+        try:
+            yield Path(d)
+        finally:
+            if old is None:
+                os.environ.pop("WARP_SG_CACHE_DIR", None)
+            else:
+                os.environ["WARP_SG_CACHE_DIR"] = old
+
+
+def _update(h, part) -> None:
+    if isinstance(part, np.ndarray) or (hasattr(part, "__array__") and not isinstance(part, (str, bytes))):
+        a = np.ascontiguousarray(np.asarray(part))
+        h.update(b"A")
+        h.update(str(a.dtype.str).encode())
+        h.update(json.dumps(list(a.shape)).encode())
+        h.update(a.tobytes())
+    elif isinstance(part, bytes):
+        h.update(b"B")
+        h.update(len(part).to_bytes(8, "little"))
+        h.update(part)
+    else:
+        try:
+            s = json.dumps(part, sort_keys=True, separators=(",", ":"), default=_json_default)
+        except TypeError as e:  # pragma: no cover - message clarity only
+            raise TypeError(f"content_key: cannot hash {type(part).__name__}: {e}") from None
+        h.update(b"J")
+        h.update(len(s).to_bytes(8, "little"))
+        h.update(s.encode())
+
+
+def _json_default(o):
+    if isinstance(o, (np.integer,)):
+        return int(o)
+    if isinstance(o, (np.floating,)):
+        return float(o)
+    if isinstance(o, Path):
+        return str(o)
+    raise TypeError(f"not JSON-able: {type(o).__name__}")
+
+
+def content_key(*parts) -> str:
+    """Stable hex key of ``parts`` (numpy arrays: dtype + shape + bytes; others: canonical JSON).
+
+    The same inputs give the same key across processes and machines; any change of array
+    contents, dtype, shape, parameter value or :data:`FORMAT_VERSION` changes the key.
+    """
+    h = hashlib.sha256()
+    h.update(f"warp-sg-cache-v{FORMAT_VERSION}".encode())
+    for p in parts:
+        _update(h, p)
+    return h.hexdigest()[:40]
+
+
+@functools.lru_cache(maxsize=256)
+def _source_digest(path: str, mtime_ns: int, size: int) -> str:
+    """SHA-256 of a Python file's syntax tree (``ast.dump``: comments and formatting don't count)."""
+    source = Path(path).read_text(encoding="utf-8")
+    return hashlib.sha256(ast.dump(ast.parse(source, filename=path)).encode()).hexdigest()
+
+
+def _source_file(producer) -> Path:
+    """The source file of a module, a dotted module name, or a function, class or Warp kernel/func
+    (the module it is defined in)."""
+    if isinstance(producer, str):
+        mod = sys.modules.get(producer)
+        origin = getattr(mod, "__file__", None) if mod is not None else None
+        if origin is None:
+            spec = importlib.util.find_spec(producer)
+            origin = spec.origin if spec is not None else None
+    elif hasattr(producer, "__file__") and not callable(producer):  # a module
+        origin = producer.__file__
+    else:
+        fn = getattr(producer, "func", producer)  # wp.Kernel / wp.Function wrap a Python function
+        origin = getattr(sys.modules.get(getattr(fn, "__module__", None) or ""), "__file__", None)
+    if not origin or not str(origin).endswith(".py"):
+        raise ValueError(f"code_key: no Python source for {producer!r}")
+    return Path(origin)
+
+
+def code_key(*producers) -> str:
+    """Hex hash of the code that produces a cache entry: the syntax trees of the source files of
+    ``producers`` (modules, dotted module names, or functions / classes / Warp kernels, which stand
+    for the module that defines them), in order.
+
+    A producer passes ``code_key(__name__, helper, ...)`` as one of its :func:`content_key` parts:
+    any change of that code (not of its comments or layout) changes the key, so the old entries
+    miss and are rebuilt. The trees are hashed once per file version (path, mtime, size)."""
+    h = hashlib.sha256(b"warp-sg-code")
+    for p in producers:
+        path = _source_file(p)
+        st = path.stat()
+        h.update(_source_digest(str(path), st.st_mtime_ns, st.st_size).encode())
+    return h.hexdigest()[:16]
+
+
+def _checksum(arrays: Mapping[str, np.ndarray]) -> str:
+    h = hashlib.sha256()
+    for name in sorted(arrays):
+        a = np.ascontiguousarray(arrays[name])
+        h.update(name.encode() + b"\0")
+        h.update(a.dtype.str.encode() + b"\0")
+        h.update(json.dumps(list(a.shape)).encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def entry_path(kind: str, key: str) -> Path:
+    """Where ``load_or_build(kind, key, ...)`` stores its file."""
+    if not kind or any(c in kind for c in "/\\") or kind.startswith("."):
+        raise ValueError(f"cache kind must be a plain folder name, got {kind!r}")
+    return cache_dir() / kind / f"{key}.npz"
+
+
+def _read(path: Path) -> dict[str, np.ndarray]:
+    """Read and verify an entry; :class:`CacheError` if it cannot be trusted."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as e:
+        raise CacheError(f"{path}: unreadable cache entry ({type(e).__name__}: {e})") from None
+    except Exception as e:  # zlib.error, struct errors ... anything means corrupt
+        raise CacheError(f"{path}: unreadable cache entry ({type(e).__name__}: {e})") from None
+    stored = data.pop(_CHECKSUM, None)
+    if stored is None:
+        raise CacheError(f"{path}: cache entry has no checksum")
+    if str(stored) != _checksum(data):
+        raise CacheError(f"{path}: cache entry checksum mismatch")
+    return data
+
+
+def _write_atomic(path: Path, arrays: Mapping[str, np.ndarray]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    payload = {k: np.asarray(v) for k, v in arrays.items()}
+    payload[_CHECKSUM] = np.asarray(_checksum(payload))
+    buf = io.BytesIO()
+    np.savez(buf, **payload)
+    with atomic_output(path) as tmp, open(tmp, "wb") as f:
+        f.write(buf.getbuffer())
+        f.flush()
+        os.fsync(f.fileno())
+
+def load(kind: str, key: str) -> dict[str, np.ndarray] | None:
+    """The verified entry, or ``None`` when missing or corrupt (a corrupt file is deleted with a warning)."""
+    path = entry_path(kind, key)
+    if not path.exists():
+        return None
+    try:
+        return _read(path)
+    except CacheError as e:
+        warnings.warn(f"warp-sg cache: {e}; rebuilding", RuntimeWarning, stacklevel=3)
+        try:
+            path.unlink()
+        except FileNotFoundError:
+            pass
+        return None
+
+
+def load_or_build(
+    kind: str,
+    key: str,
+    builder: Callable[[], Mapping[str, np.ndarray]],
+    progress: bool = False,
+) -> dict[str, np.ndarray]:
+    """Return the cached ``dict[str, np.ndarray]`` for ``(kind, key)``, building it on a miss.
+
+    ``builder()`` must return a mapping of names (not starting with ``__``) to arrays. The entry
+    is stored atomically; if ``builder`` raises (or the process is interrupted) nothing is left
+    in the cache. A corrupt/truncated entry is detected by its checksum, reported with a
+    ``RuntimeWarning`` and rebuilt. ``progress`` prints a one-line note on a miss.
+    """
+    data = load(kind, key)
+    if data is not None:
+        note_hit(kind, key)
+        return data
+    if progress:
+        print(f"warp-sg: building {kind} (cache miss {key[:12]})", flush=True)
+    w0, c0 = time.perf_counter(), time.process_time()
+    built = builder()
+    note_build(kind, key, time.perf_counter() - w0, time.process_time() - c0)
+    arrays = {}
+    for k, v in dict(built).items():
+        if k.startswith("__"):
+            raise ValueError(f"cache entry names must not start with '__': {k!r}")
+        arrays[k] = np.asarray(v)
+    try:
+        _write_atomic(entry_path(kind, key), arrays)
+    except OSError as e:  # read-only cache folder etc.: still return the result
+        warnings.warn(f"warp-sg cache: cannot write {entry_path(kind, key)} ({e})", RuntimeWarning, stacklevel=2)
+    return arrays
+
+
+# --------------------------------------------------------------------------------------------
+# build ledger
+# --------------------------------------------------------------------------------------------
+_LEDGERS: list = []
+
+
+class BuildLedger:
+    """Builds and hits of :func:`load_or_build` (and of callers that report their own, e.g. an
+    in-memory memo: :meth:`built` / :meth:`hit` with their own ``kind``) while it is recording.
+
+    ``fresh[(kind, key)] = (wall s, CPU s)`` of the entry's build (nested builds included);
+    ``events``: ``(kind, key, built)`` in order. :meth:`mark` / :meth:`hit_cost` give what the
+    hits since a mark would have cost to build (the entries must have been built while recording)."""
+
+    def __init__(self):
+        self.fresh: dict = {}
+        self.events: list = []
+        self._lock = threading.Lock()
+
+    def built(self, kind: str, key: str, wall: float, cpu: float) -> None:
+        with self._lock:
+            self.fresh[(kind, key)] = (float(wall), float(cpu))
+            self.events.append((kind, key, True))
+
+    def hit(self, kind: str, key: str) -> None:
+        with self._lock:
+            self.events.append((kind, key, False))
+
+    def mark(self) -> int:
+        return len(self.events)
+
+    def hit_cost(self, since: int = 0) -> tuple[float, float]:
+        """(wall, CPU) seconds the entries hit since ``since`` (a :meth:`mark`) took to build."""
+        w = c = 0.0
+        with self._lock:
+            for kind, key, built in self.events[since:]:
+                if not built:
+                    fw, fc = self.fresh.get((kind, key), (0.0, 0.0))
+                    w += fw
+                    c += fc
+        return w, c
+
+
+def note_build(kind: str, key: str, wall: float, cpu: float) -> None:
+    """Enter a build (of the cache or of a caller's own memo) in every recording ledger."""
+    for ledger in list(_LEDGERS):
+        ledger.built(kind, key, wall, cpu)
+
+
+def note_hit(kind: str, key: str) -> None:
+    """Enter a reuse in every recording ledger."""
+    for ledger in list(_LEDGERS):
+        ledger.hit(kind, key)
+
+
+@contextlib.contextmanager
+def record_builds():
+    """Record :func:`load_or_build`'s builds and hits in a :class:`BuildLedger` for the duration."""
+    ledger = BuildLedger()
+    _LEDGERS.append(ledger)
+    try:
+        yield ledger
+    finally:
+        _LEDGERS.remove(ledger)

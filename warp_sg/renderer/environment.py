@@ -1,0 +1,180 @@
+r"""The environment side of the :class:`~warp_sg.renderer.renderer.Renderer` (a mixin): sharp peaks
+separated as lights (``precompute.environment.peaks``), the exact irradiance table of the residual
+(``precompute.environment.irradiance``), its SG mixture (eq. 34, ``precompute.environment.sg_fit``; the lobes give
+the visible fraction where the per-vertex quadrature does not), the ΓL pyramid for the specular
+term (eq. 35, lazily, only when a material is specular), and the kernel-side ``EnvSG`` arrays,
+rebuilt only when the environment's rotation or scale changes.
+"""
+from __future__ import annotations
+
+
+import numpy as np
+import warp as wp
+
+from precompute.environment.irradiance import placeholder_table
+
+from warp_sg.shading import kernel as S
+from warp_sg.scene.lights import DirectionalLight, PointLight
+
+
+class EnvironmentSetup:
+    """Environment setup and arrays of a ``Renderer`` (which calls ``_setup_env_peaks`` before the
+    geometry, whose refinement follows the peaks' shadows, and ``_setup_environment`` after the
+    materials)."""
+
+    def _smooth_tris(self):
+        """(T,) uint8 triangles whose vertex normals agree within 5° (built once per geometry)."""
+        g = self.geometry
+        if getattr(self, "_smooth", None) is None or self._smooth[0] is not g:
+            from warp_sg.shading.vertex_visibility import smooth_triangles
+
+            self._smooth = (g, wp.array(smooth_triangles(g.normals, g.triangles), dtype=wp.uint8, device=self.device))
+        return self._smooth[1]
+
+    def _setup_env_peaks(self):
+        """Sharp peaks of the environment (a sun, lamps) become directional lights
+        (``precompute.environment.peaks``, ``[render] env_peaks``): first, because the mesh is refined along
+        their shadows (``_refine_lights``)."""
+        env = self.scene.environment
+        self.env_light = env
+        self.env_peaks = []
+        if env is None:
+            return
+        from precompute.environment.peaks import extract_peaks
+
+        self.env_base = env.base_radiance()  # what the background shows
+        t = self._tick()
+        self.env_residual, self.env_peaks = extract_peaks(self.env_base, max_peaks=self.scene.render.env_peaks)
+        self._tock("env_peaks", t)
+
+    def _refine_lights(self) -> list:
+        """The key lights the mesh refinement places shadow edges for: the scene's point and
+        directional lights and the environment's peaks (world space)."""
+        out = []
+        for li in list(self.scene.local_lights) + self.peak_lights():
+            if isinstance(li, DirectionalLight):
+                out.append(("directional", np.asarray(li.direction, np.float64)))
+            elif isinstance(li, PointLight):
+                out.append(("point", np.asarray(li.position, np.float64)))
+        return out
+
+    def _setup_environment(self):
+        """Environment: sharp peaks (a sun) become directional lights (``precompute.environment.peaks``,
+        ``[render] env_peaks``); the broad remainder is fitted by an SG mixture for the diffuse
+        term (eq. 34, fitted through the exact SG irradiance) and prefiltered (ΓL) for the
+        specular term (lazily, only when a material is specular)."""
+        env = self.scene.environment
+        rs = self.scene.render
+        self.env_light = env
+        self.env_diffuse_mode = S.ENV_NONE
+        self.env_specular_mode = S.ENV_NONE
+        self._env_sg_base = None  # (axes in the map frame, λ, μ unscaled)
+        self.env_irradiance = None
+        self.gamma = None
+        if env is None:
+            return
+        base = self.env_base
+        t = self._tick()
+        from precompute.environment.irradiance import cell_radiance, irradiance_cubemap
+
+        self.env_irradiance = irradiance_cubemap(self.env_residual, device=self.device)
+        self.env_texel_radiance = wp.array(cell_radiance(self.env_residual).astype(np.float32), dtype=wp.vec3,
+                                           device=self.device)
+        self._tock("env_irradiance", t)
+        t = self._tick()
+        if env.procedural == "constant":
+            # a constant map is exactly one SG of vanishing sharpness: no fit needed
+            rad = np.asarray(base.reshape(-1, 3)[0], np.float64)
+            lam0 = 1.0e-4
+            self._env_sg_base = (np.array([[0.0, 1.0, 0.0]]), np.array([lam0]), (rad * np.exp(lam0))[None, :])
+        else:
+            self._env_sg_base = self._fit_env(self.env_residual, rs.env_lobes)
+        self.env_diffuse_mode = S.ENV_SG
+        self._tock("env_fit", t)
+
+    def _ensure_gamma(self):
+        """Prefilter the environment (ΓL pyramid, eq. 35) when the scene needs it: a specular
+        material. Done lazily so diffuse-only scenes skip it. The default λ ladder ends at the
+        first level at or above the scene's sharpest NDF lobe (:mod:`warp_sg.scene.lobe_extent`); a
+        material edit that needs a sharper level rebuilds it."""
+        env = self.env_light
+        if env is None or not self.has_specular:
+            return
+        if self.gamma is not None and (not self._gamma_capped or self._gamma_need <= self._gamma_reach):
+            return
+        import precompute
+        from precompute.environment.prefilter import default_ladder
+
+        rs = self.scene.render
+        base = self.env_residual
+        t = self._tick()
+        lams, _, _ = default_ladder(base.shape[0], base_face=rs.gamma_resolution)
+        kw = {}
+        if rs.gamma_levels > 0:
+            kw["lambdas"] = np.geomspace(lams[0], lams[-1], rs.gamma_levels)
+        elif 0.0 < self._gamma_need < lams[-2]:
+            kw["lambdas"] = lams[:max(int(np.searchsorted(lams, self._gamma_need)) + 1, 2)]
+        self._gamma_capped = "lambdas" in kw and rs.gamma_levels == 0
+        self._gamma_reach = float(kw.get("lambdas", lams)[-1])
+        self.gamma = precompute.prefilter_environment(base, device=self.device, base_face=rs.gamma_resolution,
+                                                      progress=self.progress, **kw)
+        self.env_specular_mode = S.ENV_PREFILTERED
+        self._tock("env_prefilter", t)
+
+    @staticmethod
+    def _fit_env(base, n_lobes):
+        from precompute.environment.sg_fit import fit_environment_sgs
+
+        axes, lam, mu = fit_environment_sgs(base, n_lobes, cosine="exact")
+        return (np.asarray(axes, np.float64).reshape(-1, 3), np.asarray(lam, np.float64).reshape(-1),
+                np.asarray(mu, np.float64).reshape(-1, 3))
+
+    def _env_arrays(self):
+        """EnvSG (world axes: rotation applied; amplitudes scaled) on the device, rebuilt only when
+        the rotation, the scale or the geometry (a progressive renderer's refined mesh) changes. Lobes that carry no energy (``|μ| ∫G`` below 1e-6 of the
+        mixture's, e.g. amplitudes the non-negative fit set to 0) are left out."""
+        env = self.env_light
+        key = None if env is None or self._env_sg_base is None else (id(self._env_sg_base), float(env.rotation), float(env.scale),
+                                                                     id(self.geometry))  # (smooth: per triangle)
+        if self._env_arrays_key == key:
+            return self._env_sg_arrays
+        d = self.device
+        es = S.EnvSG()
+        if key is None:
+            es.count = 0
+            es.axis = wp.zeros(1, dtype=wp.vec3, device=d)
+            es.lam = wp.ones(1, dtype=float, device=d)
+            es.mu = wp.zeros(1, dtype=wp.vec3, device=d)
+            es.exact = placeholder_table(d)
+            es.radiance = wp.zeros((1, 1), dtype=wp.vec3, device=d)
+            es.smooth = wp.zeros(1, dtype=wp.uint8, device=d)
+        else:
+            R = env.rotation_matrix()
+            ax, lam, mu = self._env_sg_base
+            energy = np.abs(mu).max(axis=1) * 2.0 * np.pi * -np.expm1(-2.0 * lam) / np.maximum(lam, 1e-12)
+            keep = energy > 1e-6 * max(float(energy.sum()), 1e-300)
+            if not keep.any():
+                keep[:1] = True
+            ax, lam, mu = ax[keep], lam[keep], mu[keep]
+            es.count = len(lam)
+            es.axis = wp.array((ax @ R.T).astype(np.float32), dtype=wp.vec3, device=d)
+            es.lam = wp.array(lam.astype(np.float32), dtype=float, device=d)
+            es.mu = wp.array((mu * env.scale).astype(np.float32), dtype=wp.vec3, device=d)
+            es.exact = self.env_irradiance.table(rotation=R, scale=float(env.scale), device=d)
+            es.radiance = self.env_texel_radiance
+            es.smooth = self._smooth_tris()
+        self._env_arrays_key, self._env_sg_arrays = key, S.lobe_constants(es, self.irr_table, d)
+        return es
+
+    def peak_lights(self) -> list:
+        """The environment's sharp peaks as world-space directional lights (rotation and scale
+        of the environment applied)."""
+        env = self.env_light
+        if env is None or not self.env_peaks:
+            return []
+        R = env.rotation_matrix()
+        return [DirectionalLight(direction=R @ p.direction, radius=p.radius, intensity=p.irradiance * env.scale)
+                for p in self.env_peaks]
+
+
+__all__ = ["EnvironmentSetup"]

@@ -1,0 +1,75 @@
+"""Back faces a raster may drop: those of the closed objects the camera sees from outside.
+
+A closed, consistently wound, outward-facing mesh (``trimesh.Trimesh.is_volume``, on the vertices
+merged by position) seen from outside never shows a back face: along every ray the first surface
+it meets faces the eye. Its back faces only cost raster work — about half the (triangle, tile)
+pairs of a torus, and half the queue the antialiasing's sub-pixel coverage walks. Three cases
+where a back face can be seen keep every triangle of the object:
+
+* an open surface (a floor, a leaf, a mesh with holes or T-junctions, where one sees its other
+  side) or one wound inwards (negative volume): not a volume;
+* the eye inside the object, or the near plane cutting it (one looks into it through the cut):
+  the object's bounding box must lie entirely at view depth ≥ ``near`` — a conservative test per
+  frame (an object partly behind the camera keeps its back faces).
+
+The image is unchanged: the tests compare a culled and an unculled raster.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+class BackfaceCulling:
+    """Per-object culling decisions for a flattened scene mesh (``warp_sg.scene.geometry.Geometry``):
+    which objects are closed (once), and per camera which triangles may drop their back face
+    (:meth:`flags`)."""
+
+    def __init__(self, geometry, device: str = "cpu"):
+        import trimesh
+
+        n_objects = len(geometry.object_names)
+        self.device, self._cached = device, (None, False)
+        self.tri_object = np.asarray(geometry.tri_object, np.int64)
+        self.closed = np.zeros(n_objects, bool)
+        self.corners = np.zeros((n_objects, 8, 3))
+        V = np.asarray(geometry.vertices, np.float64)
+        for k in range(n_objects):
+            F = np.asarray(geometry.triangles)[self.tri_object == k]
+            if len(F) < 4:
+                continue
+            used = V[np.unique(F)]
+            lo, hi = used.min(0), used.max(0)
+            self.corners[k] = [[(lo, hi)[i >> 2 & 1][0], (lo, hi)[i >> 1 & 1][1], (lo, hi)[i & 1][2]] for i in range(8)]
+            self.closed[k] = bool(trimesh.Trimesh(V, F, process=True).is_volume)
+
+    def moved(self, geometry) -> None:
+        """Objects moved rigidly (``warp_sg.scene.dynamic_objects``): new bounding boxes; closedness stays."""
+        V, T = np.asarray(geometry.vertices, np.float64), np.asarray(geometry.triangles)
+        for k in np.flatnonzero(self.closed):
+            used = V[np.unique(T[self.tri_object == k])]
+            lo, hi = used.min(0), used.max(0)
+            self.corners[k] = [[(lo, hi)[i >> 2 & 1][0], (lo, hi)[i >> 1 & 1][1], (lo, hi)[i & 1][2]] for i in range(8)]
+        self._cached = (None, False)
+
+    def objects(self, camera) -> np.ndarray:
+        """(objects,) bool: closed and entirely at view depth ≥ the near plane of ``camera``."""
+        f = np.asarray(camera.basis()[2], np.float64)
+        depth = (self.corners - np.asarray(camera.origin, np.float64)) @ f  # (objects, 8)
+        return self.closed & (depth.min(1) >= float(camera.near))
+
+    def flags(self, camera):
+        """``cull_backfaces`` for ``raster.rasterize``: False when no object may cull, else one
+        uint8 flag per triangle, a ``wp.array`` on the device (rebuilt only when the set of culled
+        objects changes)."""
+        import warp as wp
+
+        obj = self.objects(camera)
+        key, flags = self._cached
+        if key is None or not np.array_equal(obj, key):
+            flags = wp.array(obj[self.tri_object].astype(np.uint8), dtype=wp.uint8, device=self.device) \
+                if obj.any() else False
+            self._cached = (obj, flags)
+        return flags
+
+
+__all__ = ["BackfaceCulling"]

@@ -1,0 +1,328 @@
+r"""Objects that move after the precompute: ``[[objects]] dynamic = true`` and
+``Renderer.set_object_transform(obj, matrix)``.
+
+The paper's visibility is static (its §9): every SSDF holds the occluders where they stood. A
+scene with dynamic objects is precomputed so that nothing in it depends on where they are:
+
+* **Self-visibility in the object's own frame.** The SSDFs are computed per group — the static
+  objects together, each dynamic object alone (:mod:`precompute.visibility.ssdf_groups`) — so a dynamic
+  object's maps hold only its own occluders. Under a rigid motion ``P' = sRP + t``
+  (:mod:`warp_sg.numeric.rigid_motion`) they are unchanged *in the object's frame*: each vertex keeps the
+  frame its map was computed in, turned by ``R`` (``Visibility.frame_t``/``frame_b``,
+  ``precompute.visibility.ssdf_wp.ssdf_point_framed``), and its occluder cone's axis turns with it. Its
+  self-shadows rotate with it; no SSDF is recomputed.
+* **Occlusion between groups through proxies** (:mod:`precompute.visibility.proxies`, fitted once in the
+  rest pose and moved with their object): spheres for curved objects, a plane for a flat static
+  one (a floor). Per pixel, every lobe's and light's visibility is capped by the proxies' — the
+  minimum of SSDFs, the SSDF of the union of occluders, before the SSDF × SG product — and the
+  diffuse environment term's visible fraction is multiplied by what the proxies leave
+  (:mod:`warp_sg.shading.motion_wp`). A dynamic object's shadow on the floor, the floor under it, and
+  two dynamic objects on each other come from there.
+* **Per frame** (:meth:`DynamicObjects.apply`, when a transform changed): the moved objects'
+  positions, normals, tangents, SSDF frames and cone axes are written into the renderer's device
+  arrays in place, the proxies are moved, the visibility buffer is invalidated, and the per-vertex
+  caches (:mod:`warp_sg.shading.vertex_visibility`) are recomputed for the moved vertices only. The
+  static vertices' caches stay. The result is a pure function of the transforms: an object moved
+  away and back renders bit for bit the first frame.
+
+``Renderer.scene`` follows the motion (``SceneObject.motion``), so ``ws.reference(r.scene)`` is the
+Monte-Carlo reference at the current transforms.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import warp as wp
+
+from warp_sg.core.errors import SceneError
+from warp_sg.numeric.onb import frame_from_normal
+from warp_sg.numeric.rigid_motion import check_motion
+
+
+def object_index(scene, obj) -> int:
+    """The index of object ``obj`` (an index or a label, ``SceneObject.label``) of ``scene``."""
+    n = len(scene.objects)
+    if isinstance(obj, (int, np.integer)) and not isinstance(obj, bool):
+        if not 0 <= int(obj) < n:
+            raise SceneError(f"no object #{int(obj)} (the scene has {n})", where="set_object_transform")
+        return int(obj)
+    labels = [ob.label(i) for i, ob in enumerate(scene.objects)]
+    if obj in labels:
+        return labels.index(obj)
+    from warp_sg.scene.model import _suggest
+
+    raise SceneError(f"no object '{obj}'{_suggest(obj, labels)}", where="set_object_transform")
+
+
+def scene_with_transforms(scene, transforms: dict):
+    """A copy of ``scene`` with dynamic objects moved (``{object (index or label): 4×4 matrix}``,
+    as :meth:`Renderer.set_object_transform`): what ``ws.reference`` renders at those transforms."""
+    import copy
+
+    out = copy.deepcopy(scene)
+    for obj, matrix in transforms.items():
+        k = object_index(out, obj)
+        if not out.objects[k].dynamic:
+            raise SceneError(f"object '{out.objects[k].label(k)}' is not dynamic (give its [[objects]] table "
+                             f"dynamic = true)", where="transform")
+        R, s, t = check_motion(matrix, where=f"transform of '{out.objects[k].label(k)}'")
+        M = np.eye(4)
+        M[:3, :3], M[:3, 3] = s * R, t
+        out.objects[k].motion = M
+    out.invalidate_geometry()
+    return out
+
+
+def parse_transform_argument(text: str) -> tuple:
+    """``"OBJECT=m00,m01,...,m33"`` (16 numbers, row-major) → ``(object, (4, 4) matrix)``; an
+    object that is a number is an index."""
+    name, sep, nums = str(text).partition("=")
+    try:
+        vals = [float(x) for x in nums.split(",")]
+    except ValueError:
+        vals = []
+    if not sep or not name or len(vals) != 16:
+        raise SceneError(f"expected OBJECT=16 comma-separated numbers, got {text!r}", where="--transform")
+    return (int(name) if name.isdigit() else name), np.asarray(vals).reshape(4, 4)
+
+
+class DynamicObjects:
+    """The moving objects of one renderer (module docstring): built with each geometry the renderer
+    installs (the input mesh, then the refined one), it owns the rest pose, the proxies and the
+    transforms. ``rest_motions``: ``{object: SceneObject.motion}`` when the renderer was built (the
+    pose its geometry is in); ``previous``: the last install's, whose transforms carry over."""
+
+    def __init__(self, r, rest_motions: dict, previous=None):
+        scene, g, d = r.scene, r.geometry, r.device
+        from precompute.visibility.proxies import object_proxies
+
+        if r.cutouts is not None:
+            raise SceneError("dynamic objects with alpha cut-outs are not supported", where="[[objects]] dynamic")
+        self.n_objects = len(scene.objects)
+        self.flags = np.array([bool(ob.dynamic) for ob in scene.objects])
+        T = np.asarray(g.triangles, np.int64)
+        to = np.asarray(g.tri_object, np.int64)
+        vo = np.full(len(g.vertices), -1, np.int64)
+        vo[T.ravel()] = np.repeat(to, 3)
+        self.vertex_object = vo
+        self.ids = {k: np.flatnonzero(vo == k) for k in np.flatnonzero(self.flags)}
+        self.all_ids = wp.array(np.concatenate(list(self.ids.values())).astype(np.int32), dtype=int, device=d)
+        #: SSDF groups: 0 the static objects, 1 + k dynamic object k
+        self.tri_group = np.where(self.flags[to], 1 + to, 0)
+        self.rest_v = np.asarray(g.vertices, np.float64)
+        self.rest_n = np.asarray(g.normals, np.float64)
+        self.rest_n /= np.maximum(np.linalg.norm(self.rest_n, axis=1, keepdims=True), 1e-30)
+        self.rest_t = np.asarray(g.tangents, np.float64)
+        self.rest_ft, self.rest_fb = frame_from_normal(self.rest_n)
+        # the pose the geometry was built in (a scene may come with motions set)
+        self.rest_motion = {k: np.eye(4) if rest_motions.get(k) is None else np.asarray(rest_motions[k], np.float64)
+                            for k in self.ids}
+        self.motion = {k: (previous.motion[k] if previous is not None else m).copy()
+                       for k, m in self.rest_motion.items()}
+        spheres, sowner, planes, disks, powner, outlines = [], [], [], [], [], []
+        self.rest_blobs = np.zeros((max(self.n_objects, 1), 4))
+        self.blob_owner = np.full(max(self.n_objects, 1), -1, np.int64)
+        for k in range(self.n_objects):
+            sel = to == k
+            if not sel.any():
+                continue
+            ids = np.unique(T[sel])
+            p = object_proxies(self.rest_v[ids], np.searchsorted(ids, T[sel]), self.rest_n[ids],
+                               allow_plane=not self.flags[k])
+            spheres.append(p.spheres)
+            sowner += [k] * len(p.spheres)
+            if p.diffuse is not None:
+                self.rest_blobs[k], self.blob_owner[k] = p.diffuse, k
+            if p.plane is not None:
+                planes.append(p.plane)
+                disks.append(p.disk)
+                powner.append(k)
+                outlines.append(p.polygon)
+        self.rest_spheres = np.concatenate(spheres).astype(np.float64) if spheres else np.zeros((0, 4))
+        self.sphere_owner = np.asarray(sowner, np.int64)
+        n = max(self.n_objects, 1)
+        self.sphere_count = np.bincount(self.sphere_owner, minlength=n)[:n] if len(sowner) else np.zeros(n, np.int64)
+        self.sphere_start = np.concatenate([[0], np.cumsum(self.sphere_count)[:-1]])
+        self.rest_bounds = np.zeros((n, 4))
+        self.rest_bounds[:, 3] = -1.0
+        for k in np.flatnonzero(self.sphere_count):  # a sphere around the object's spheres
+            S = self.rest_spheres[self.sphere_start[k]:self.sphere_start[k] + self.sphere_count[k]]
+            c = S[:, :3].mean(0)
+            self.rest_bounds[k] = [*c, float(np.max(np.linalg.norm(S[:, :3] - c, axis=1) + S[:, 3]))]
+        self.planes = np.asarray(planes, np.float32).reshape(-1, 4)
+        self.disks = np.asarray(disks, np.float32).reshape(-1, 4)
+        self.plane_owner = np.asarray(powner, np.int64)
+        self.outlines = outlines
+        self.version = 0 if previous is None else previous.version  # bumped by set_transform
+        self._applied = self.version if previous is None else -1  # the version in the device arrays
+        self._patched = {}  # cache name -> (array identity, version) of the last row patch
+        self._behind_key = None
+        self.px = self._proxies_struct(r)
+        self.rest_cones = None
+
+    # ------------------------------------------------------------------ precompute
+    def ssdf(self, r):
+        """The per-group SSDFs of the renderer's (refined) geometry (:mod:`precompute.visibility.ssdf_groups`)."""
+        from precompute.visibility.ssdf_groups import ssdf_for_groups
+
+        g, rs = r.geometry, r.scene.render
+        return ssdf_for_groups(g.vertices, g.triangles, g.normals, self.tri_group, resolution=rs.ssdf_resolution,
+                               pca_terms=rs.pca_terms, device=r.device, progress=r.progress,
+                               compute=r._ssdf_compute)
+
+    def attach(self, r) -> None:
+        """Give the renderer's ``Visibility`` the per-vertex SSDF frames (rest pose)."""
+        d = r.device
+        r.vis.frame_t = wp.array(self.rest_ft.astype(np.float32), dtype=wp.vec3, device=d)
+        r.vis.frame_b = wp.array(self.rest_fb.astype(np.float32), dtype=wp.vec3, device=d)
+        self.rest_cones = r.vis.cones.numpy().astype(np.float64)
+
+    def _proxies_struct(self, r):
+        from warp_sg.shading.motion_wp import Proxies
+        from precompute.environment.irradiance import placeholder_table
+
+        d = r.device
+        px = Proxies()
+        px.active = 1
+        px.tri_object = wp.array(np.asarray(r.geometry.tri_object, np.int32), dtype=int, device=d)
+        px.dynamic = wp.array(self.flags.astype(np.int32), dtype=int, device=d)
+        S = self.rest_spheres if len(self.rest_spheres) else np.zeros((1, 4))
+        px.spheres = wp.array(S.astype(np.float32), dtype=wp.vec4, device=d)
+        px.sphere_owner = wp.array(self.sphere_owner.astype(np.int32) if len(self.sphere_owner)
+                                   else np.array([-1], np.int32), dtype=int, device=d)
+        px.blobs = wp.array(self.rest_blobs.astype(np.float32), dtype=wp.vec4, device=d)
+        px.bounds = wp.array(self.rest_bounds.astype(np.float32), dtype=wp.vec4, device=d)
+        px.sphere_start = wp.array(self.sphere_start.astype(np.int32), dtype=int, device=d)
+        px.sphere_count = wp.array(self.sphere_count.astype(np.int32), dtype=int, device=d)
+        px.blob_owner = wp.array(self.blob_owner.astype(np.int32), dtype=int, device=d)
+        n_pl = len(self.planes)
+        px.planes = wp.array(self.planes if n_pl else np.zeros((1, 4), np.float32), dtype=wp.vec4, device=d)
+        px.disks = wp.array(self.disks if n_pl else np.zeros((1, 4), np.float32), dtype=wp.vec4, device=d)
+        px.plane_owner = wp.array(self.plane_owner.astype(np.int32) if n_pl else np.array([-1], np.int32),
+                                  dtype=int, device=d)
+        cnt = np.array([len(o) for o in self.outlines] or [0], np.int32)
+        px.outline = wp.array(np.concatenate(self.outlines).astype(np.float32) if self.outlines
+                              else np.zeros((1, 3), np.float32), dtype=wp.vec3, device=d)
+        px.outline_start = wp.array(np.concatenate([[0], np.cumsum(cnt)[:-1]]).astype(np.int32), dtype=int, device=d)
+        px.outline_count = wp.array(cnt, dtype=int, device=d)
+        px.behind = placeholder_table(d)
+        px.behind_axis = wp.vec3(0.0, 0.0, 0.0)
+        return px
+
+    def _update_behind(self, r) -> None:
+        """The irradiance table of the residual map behind the first plane proxy (its far side,
+        ``d·m < 0`` in world space), rebuilt when the environment turns."""
+        env = getattr(r, "env_light", None)
+        if not len(self.planes) or env is None or getattr(r, "env_residual", None) is None:
+            return
+        key = float(env.rotation)
+        if key == self._behind_key:
+            return
+        from precompute.environment.irradiance import irradiance_cubemap
+
+        from warp_sg.scene.envmap import texel_directions
+
+        m = self.planes[0, :3].astype(np.float64)
+        Rm = env.rotation_matrix()
+        base = np.asarray(r.env_residual, np.float32)
+        dirs = texel_directions(*base.shape[:2])  # environment frame
+        masked = base * ((dirs @ (Rm.T @ m)) < 0.0)[..., None].astype(np.float32)
+        tab = irradiance_cubemap(masked, device=r.device).table(rotation=Rm, scale=1.0, device=r.device)
+        self.px.behind = tab
+        self.px.behind_axis = wp.vec3(*m.astype(np.float32))
+        self._behind_key = key
+
+    # ------------------------------------------------------------------ motion
+    def set_transform(self, scene, obj, matrix) -> int:
+        """Record the transform of object ``obj`` (applied on the next frame); returns its index."""
+        k = object_index(scene, obj)
+        label = scene.objects[k].label(k)
+        if not self.flags[k]:
+            raise SceneError(f"object '{label}' is not dynamic (give its [[objects]] table dynamic = true)",
+                             where="set_object_transform")
+        R, s, t = check_motion(matrix, where=f"set_object_transform('{label}')")
+        M = np.eye(4)
+        M[:3, :3], M[:3, 3] = s * R, t
+        if not np.array_equal(M, self.motion[k]):
+            self.motion[k] = M
+            self.version += 1
+            scene.objects[k].motion = M
+            scene.invalidate_geometry()
+        return k
+
+    def apply(self, r) -> bool:
+        """Write the current transforms into the renderer's arrays (module docstring); False when
+        nothing changed since the last call."""
+        self._update_behind(r)
+        if self._applied == self.version:
+            return False
+        V = self.rest_v.copy()
+        N, Tg = self.rest_n.copy(), self.rest_t.copy()
+        FT, FB = self.rest_ft.copy(), self.rest_fb.copy()
+        vis_frames = self.rest_cones is not None  # (with shadows)
+        C = self.rest_cones.copy() if vis_frames else np.zeros((len(V), 4))
+        S = self.rest_spheres.copy()
+        B = self.rest_blobs.copy()
+        Bd = self.rest_bounds.copy()
+        for k, ids in self.ids.items():
+            delta = self.motion[k] @ np.linalg.inv(self.rest_motion[k])  # from the pose the geometry was built in
+            R, s, t = check_motion(delta)
+            V[ids] = self.rest_v[ids] @ (s * R).T + t
+            for A, rest in ((N, self.rest_n), (Tg, self.rest_t), (FT, self.rest_ft), (FB, self.rest_fb)):
+                A[ids] = rest[ids] @ R.T
+            C[ids, :3] = C[ids, :3] @ R.T
+            own = self.sphere_owner == k
+            S[own, :3] = self.rest_spheres[own, :3] @ (s * R).T + t
+            S[own, 3] = self.rest_spheres[own, 3] * s
+            B[k, :3] = self.rest_blobs[k, :3] @ (s * R).T + t
+            B[k, 3] = self.rest_blobs[k, 3] * s
+            Bd[k, :3] = self.rest_bounds[k, :3] @ (s * R).T + t
+            Bd[k, 3] = self.rest_bounds[k, 3] * s if self.rest_bounds[k, 3] > 0 else -1.0
+        f32 = lambda a: np.ascontiguousarray(a, np.float32)  # noqa: E731
+        ga = r.geo_arrays
+        ga.positions.assign(f32(V))
+        ga.normals.assign(f32(N))
+        ga.tangents.assign(f32(Tg))
+        if vis_frames:
+            r.vis.frame_t.assign(f32(FT))
+            r.vis.frame_b.assign(f32(FB))
+            r.vis.cones.assign(f32(C))
+        if len(S):
+            self.px.spheres.assign(f32(S))
+        self.px.blobs.assign(f32(B))
+        self.px.bounds.assign(f32(Bd))
+        r.geometry = replace(r.geometry, vertices=f32(V), normals=f32(N), tangents=f32(Tg))
+        r._vb_key = None  # the visibility buffer
+        if r._culling is not None:
+            r._culling.moved(r.geometry)
+        if r._aa is not None:
+            r._aa.forget_frame()
+        self._applied = self.version
+        return True
+
+    def patch_caches(self, r, es) -> None:
+        """Recompute the per-vertex caches' rows of the moved vertices (a cache rebuilt this frame
+        already holds them): the lights' deficits, the environment's visible fraction, its lobes'."""
+        from warp_sg.shading.vertex_visibility import env_vertex_visibility, env_vertex_visible, light_vertex_deficit
+
+        d, nv, ids = r.device, len(r.geometry.vertices), self.all_ids
+        jobs = (("light", r.light_vis_cache,
+                 lambda v: light_vertex_deficit(r.vis, r.geo_arrays.positions, r.light_arrays, nv,
+                                                r.scene.render.fh == "sigmoid", d, ids=ids, into=v)),
+                ("visible", r.env_visible_cache, lambda v: env_vertex_visible(r.vis, es, nv, d, ids=ids, into=v)),
+                ("lobes", r.env_vis_cache, lambda v: env_vertex_visibility(r.irr_table, r.vis, es, nv, d, ids=ids,
+                                                                          into=v)))
+        for name, cache, run in jobs:
+            if cache.key is None:
+                continue
+            ident = id(cache.value[0] if isinstance(cache.value, tuple) else cache.value)
+            last = self._patched.get(name)
+            if last is None or last[0] != ident:  # (re)built with the current pose
+                self._patched[name] = (ident, self.version)
+            elif last[1] != self.version:
+                run(cache.value)
+                self._patched[name] = (ident, self.version)
+
+
+__all__ = ["DynamicObjects", "object_index", "scene_with_transforms", "parse_transform_argument"]

@@ -1,0 +1,599 @@
+r"""Typed models of the TOML scene format (pydantic v2) and its JSON Schema.
+
+:class:`SceneFile` is the whole file: ``[camera]``, ``[[objects]]``, ``[materials.NAME]``,
+``[[lights]]`` and ``[render]`` (field meanings in :mod:`warp_sg.scene`). ``warp_sg.scene.loader``
+validates the parsed TOML with it and turns the validated tables into :class:`~warp_sg.scene.Scene`
+records; :func:`json_schema` is what ``warp-sg schema`` prints (``docs/scene.schema.json``), so
+editors with a TOML language server (Taplo / "Even Better TOML") complete keys and flag mistakes
+while a scene is typed.
+
+The schema follows the code, not a copy of it: material tables have one branch per entry of
+``warp_sg.brdf.MODELS`` with that model's ``PARAMS`` (a discriminated union on ``model``), objects
+one branch per primitive of ``warp_sg.scene.primitives.PRIMITIVE_PARAMS`` (plus ``mesh``), lights one
+per ``type``; defaults come from the records' own dataclass defaults, ``[render]``'s ranges from
+``warp_sg.scene.model.RENDER_INT_RANGES``.
+
+Leaf values are the types of :mod:`warp_sg.scene.values` (each a check in the project's wording
+and the same rule as JSON Schema); :func:`error_message` turns pydantic's first error into the
+one-line ``[materials.gold] key 'rougness' unknown — did you mean ...`` form (never a pydantic
+dump).
+
+The JSON Schema is Draft 4 (the newest draft Taplo documents): ``const`` is written as a one-value
+``enum``, exclusive bounds as ``"exclusiveMinimum": true``, ``$defs`` as ``definitions``, and a
+``$ref`` with a description is wrapped in ``allOf`` (Draft 4 ignores a ``$ref``'s siblings).
+"""
+from __future__ import annotations
+
+import inspect
+import json
+import math
+from dataclasses import MISSING, fields
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import ConfigDict, Field, create_model, model_validator
+
+from warp_sg.core.files import atomic_output, make_parents
+from warp_sg.brdf import MODELS
+from warp_sg.brdf.fresnel import PRESETS
+from warp_sg.scene.camera import Camera
+from warp_sg.scene.envmap import procedural_sky
+from warp_sg.core.errors import InputError
+from warp_sg.scene.importers.gltf import GLTF_SUFFIXES, is_gltf
+from warp_sg.scene.lights import ENV_PROCEDURAL, DirectionalLight, EnvironmentLight, PointLight
+from warp_sg.scene.primitives import PRIMITIVE_PARAMS, PRIMITIVES
+from warp_sg.scene.model import RENDER_CHOICES, RENDER_INT_RANGES, RenderSettings, _suggest
+from warp_sg.scene.values import (Table, anything, boolean, choice, fail, int_or_ints, integer, number, number_or_vector,
+                           path, require_tag, rgb, string, tagged, vector)
+
+DRAFT = "http://json-schema.org/draft-04/schema#"
+
+
+def _defaults(cls) -> dict:
+    """The defaults of a record dataclass (arrays as lists), so the schema shows what the code uses."""
+    out = {}
+    for f in fields(cls):
+        v = f.default if f.default is not MISSING else (
+            f.default_factory() if f.default_factory is not MISSING else MISSING)
+        if v is not MISSING:
+            out[f.name] = v.tolist() if hasattr(v, "tolist") else v
+    return out
+
+
+def _texture_or(value_type, description):
+    """A material parameter that may be a texture: the value (unless ``value_type`` is None), a
+    texture path or a texture table."""
+    def tag(v):
+        return "<texture path>" if isinstance(v, str) else "<texture table>" if isinstance(v, dict) else "<value>"
+
+    branches = {"<texture path>": path("texture file (PNG: sRGB for colours; EXR: linear)"),
+                "<texture table>": TextureTable}
+    if value_type is not None:
+        branches = {"<value>": value_type, **branches}
+    return Annotated[tagged(branches, tag), Field(description=description)]
+
+
+class TextureTable(Table):
+    """A texture with a value mapping: value = offset + scale · texel."""
+
+    texture: path("texture file (PNG or EXR), relative to the scene file")
+    scale: number(description="value = offset + scale · texel") = 1.0
+    offset: number(description="value = offset + scale · texel") = 0.0
+    srgb: boolean("decode as sRGB (default: PNG colour parameters yes, everything else no)") = None
+
+
+class FresnelTable(Table):
+    """``{schlick = F0}``, ``{eta = η}`` (dielectric) or ``{eta = η, k = k}`` (conductor)."""
+
+    model_config = ConfigDict(json_schema_extra={"anyOf": [{"required": ["schlick"], "maxProperties": 1},
+                                                           {"required": ["eta"], "not": {"required": ["schlick"]}}]})
+    schlick: rgb(raw=True, description="Schlick F0 (number or RGB)") = None
+    eta: rgb(raw=True, description="index of refraction η (number or RGB)") = None
+    k: rgb(raw=True, description="extinction coefficient k of a conductor (number or RGB)") = None
+
+    @model_validator(mode="after")
+    def _combination(self):
+        given = {k for k in ("schlick", "eta", "k") if getattr(self, k) is not None}
+        if given not in ({"schlick"}, {"eta"}, {"eta", "k"}):
+            fail("use {schlick = f0}, {eta = η} or {eta = η, k = k}", sep=": ")
+        return self
+
+
+FRESNEL = tagged({"<preset>": choice(PRESETS, fold_case=True), "<fresnel table>": FresnelTable},
+                  lambda v: "<fresnel table>" if isinstance(v, dict) else "<preset>")
+
+
+class LafortuneLobe(Table):
+    """One generalised cosine lobe ``(cx ux vx + cy uy vy + cz uz vz)^n``."""
+
+    cx: number(description="weight of ux vx (−1 with cy = −1, cz = 1: a mirror-like lobe)")
+    cy: number(description="weight of uy vy")
+    cz: number(description="weight of uz vz")
+    n: number(lo=0, description="exponent (sharpness)")
+
+
+# material parameters: (type, description, texturable); per-model entries override per-name ones
+_POS, _NONNEG = dict(lo=0, lo_open=True), dict(lo=0)
+PARAM_TYPES: dict = {
+    "kd": (rgb(raw=True), "diffuse albedo (number or RGB)", True),
+    "ks": (rgb(raw=True), "specular scale (number or RGB)", True),
+    "m": (number(**_POS), "roughness m (Beckmann slope RMS)", True),
+    "n": (number(**_NONNEG), "Phong exponent", True),
+    "sigma": (number(**_NONNEG), "Oren–Nayar roughness σ (radians)", True),
+    "alpha": (number(**_POS), "isotropic roughness α", True),
+    "alpha_x": (number(**_POS), "roughness along the tangent", True),
+    "alpha_y": (number(**_POS), "roughness along the bitangent", True),
+    "nu": (number(**_NONNEG), "exponent along the tangent", True),
+    "nv": (number(**_NONNEG), "exponent along the bitangent", True),
+    "fresnel": (FRESNEL, "Fresnel: a preset (" + ", ".join(PRESETS) + ") or {schlick}, {eta} or {eta, k}", False),
+    "lobes": (integer(lo=1), "number of SG lobes of the NDF fit", False),
+    "file": (path(), "MERL .binary file, relative to the scene file", False),
+    "eta": (number(**_POS), "index of refraction used for the microfacet fit", False),
+    "pca_terms": (integer(lo=0), "PCA terms of the shadowing fit", False),
+    ("ashikhmin_shirley", "lobes"): (integer(lo=1, odd=True), "number of SG lobes (odd) along the longer axis",
+                                     False),
+    ("ggx", "lobes"): (integer(lo=1), "number of NDF SG lobes (default 3 isotropic, 9 anisotropic; odd when "
+                       "anisotropic)", False),
+    ("ggx", "alpha"): (number(**_POS), "isotropic roughness α (glTF: roughness²; default 0.3)", True),
+    ("lafortune", "lobes"): (Annotated[list[LafortuneLobe], Field(min_length=1)],
+                             "lobes: a list of {cx, cy, cz, n} tables", False),
+}
+#: parameters that may be a texture (the kernel's texture slots, ``warp_sg.shading.surface``)
+TEXTURE_PARAMS = tuple(k for k, v in PARAM_TYPES.items() if isinstance(k, str) and v[2])
+
+
+def param_type(model: str, name: str):
+    """(type, description, texturable) of material parameter ``name`` of ``model``."""
+    spec = PARAM_TYPES.get((model, name)) or PARAM_TYPES.get(name)
+    if spec is None:  # a parameter the schema does not know yet: a number or a texture
+        spec = (number(), f"parameter {name} of {model}", True)
+    return spec
+
+
+def _jsonable(v):
+    if isinstance(v, (tuple, list)):
+        return [_jsonable(x) for x in v]
+    return v.tolist() if hasattr(v, "tolist") else v
+
+
+def _material_model(name: str, cls):
+    """The table of ``[materials.X] model = name``: the model's ``PARAMS`` (defaults shown from its
+    constructor) plus ``normal_map`` and ``tangent_map``."""
+    cls = cls._cls() if hasattr(type(cls), "_cls") else cls  # the lazy measured model
+    sig = inspect.signature(cls.__init__).parameters
+    fields_ = {"model": (Literal[name], Field(description=f"BRDF model {cls.__name__}"))}
+    for p in cls.PARAMS:
+        typ, desc, tex = param_type(name, p)
+        d = sig[p].default if p in sig else None
+        extra = {"default": _jsonable(d)} if d not in (None, inspect.Parameter.empty) else None
+        typ = _texture_or(typ, desc) if tex else Annotated[typ, Field(description=desc)]
+        fields_[p] = (typ, Field(None, json_schema_extra=extra))
+    for p, desc in (("normal_map", "tangent-space normal map (RGB)"),
+                    ("tangent_map", "tangent direction map (RG)")):
+        fields_[p] = (_texture_or(None, desc), None)
+    return create_model(f"Material_{name}", __base__=Table,
+                        __doc__=f"`model = \"{name}\"` ({cls.__name__}): {', '.join(cls.PARAMS)}", **fields_)
+
+
+def _material_tag(v):
+    require_tag(v, "model", tuple(MODELS), "model")
+    return v
+
+
+MATERIAL_MODELS = {name: _material_model(name, cls) for name, cls in MODELS.items()}
+MaterialTable = tagged({f"<model {k}>": m for k, m in MATERIAL_MODELS.items()},
+                   lambda v: f"<model {v.get('model')}>" if isinstance(v, dict) else None, _material_tag)
+
+
+class CameraTable(Table):
+    """Pinhole camera (Mitsuba ``look_at``): vertical field of view in degrees."""
+
+    origin: vector(description="eye position") = Camera.origin
+    target: vector(description="point looked at") = Camera.target
+    up: vector(description="up direction") = Camera.up
+    fov: number(lo=0, lo_open=True, hi=179.0, description="vertical field of view (degrees)") = Camera.fov
+    width: integer(lo=1, description="image width (pixels)") = Camera.width
+    height: integer(lo=1, description="image height (pixels)") = Camera.height
+    near: number(**_POS, description="near clipping distance") = Camera.near
+    far: number(**_POS, description="far clipping distance") = Camera.far
+
+    @model_validator(mode="after")
+    def _geometry(self):
+        o, t, u = self.origin, self.target, self.up
+        d = tuple(b - a for a, b in zip(o, t))
+        if all(abs(x) <= 1e-8 * (1 + abs(a)) for x, a in zip(d, o)):
+            fail("origin and target coincide")
+        c = (d[1] * u[2] - d[2] * u[1], d[2] * u[0] - d[0] * u[2], d[0] * u[1] - d[1] * u[0])
+        if math.hypot(*c) < 1e-9 * math.hypot(*d) * max(math.hypot(*u), 1e-30):
+            fail("up is parallel to the viewing direction (or zero)")
+        return self
+
+
+_OBJECT_FIELDS = {
+    "material": (string("name of a [materials.NAME] table"), ...),
+    "name": (string("label used in messages"), None),
+    "translate": (vector(description="translation (applied last)"), None),
+    "scale": (number_or_vector(3, description="scale: a number or 3 numbers, > 0"), None),
+    "rotate": (vector(description="Euler angles (degrees) about X, then Y, then Z"), None),
+    "dynamic": (boolean("the object may move after the precompute (Renderer.set_object_transform): its "
+                        "self-shadows are kept in its own frame, its shadows on others come from proxies"), None),
+}
+_PRIMITIVE_PARAM_TYPES = {
+    "center": vector(description="centre"),
+    "radius": number(**_POS, description="sphere radius"),
+    "major_radius": number(**_POS, description="radius of the ring (axis +Y)"),
+    "minor_radius": number(**_POS, description="radius of the tube"),
+    "size": number_or_vector(2, description="[sx, sz] (normal +Y) or one number"),
+    "resolution": int_or_ints(2, description="tessellation: 2 integers (or one for both)"),
+}
+
+
+def _suffix_pattern(suffixes) -> str:
+    """A case-insensitive ECMA-262 pattern for file names ending in one of ``suffixes``."""
+    alt = "|".join("".join(f"[{c.lower()}{c.upper()}]" if c.isalpha() else c for c in s.lstrip(".")) for s in suffixes)
+    return rf"\.({alt})$"
+
+
+class _MeshObjectBase(Table):
+    """A mesh file; a glTF (.glb/.gltf) brings its own materials (:mod:`warp_sg.scene.importers.gltf`), any other
+    mesh needs ``material``."""
+
+    model_config = ConfigDict(json_schema_extra={"anyOf": [
+        {"required": ["material"]}, {"properties": {"mesh": {"pattern": _suffix_pattern(GLTF_SUFFIXES)}}}]})
+
+    @model_validator(mode="after")
+    def _material_unless_gltf(self):
+        if self.material is None and not is_gltf(self.mesh):
+            fail("is missing (only a .glb/.gltf brings its own materials)", key="material")
+        return self
+
+
+def _object_model(prim: str | None):
+    f = dict(_OBJECT_FIELDS)
+    if prim is None:
+        f["mesh"] = (path("mesh file (any format trimesh reads; .glb/.gltf with their materials), relative to "
+                          "the scene file"), ...)
+        f["material"] = (string("name of a [materials.NAME] table (optional for .glb/.gltf: the file's)"), None)
+        return create_model("MeshObject", __base__=_MeshObjectBase, __doc__=_MeshObjectBase.__doc__, **f)
+    f["primitive"] = (Literal[prim], Field(description="built-in primitive"))
+    for k, default in PRIMITIVE_PARAMS[prim].items():
+        f[k] = (_PRIMITIVE_PARAM_TYPES[k], Field(default=list(default) if isinstance(default, tuple) else default))
+    return create_model(f"Primitive_{prim}", __base__=Table, __doc__=f"A {prim} primitive.", **f)
+
+
+def _object_tag(v):
+    if not isinstance(v, dict):
+        fail(f"must be a table, got {type(v).__name__}")
+    if "mesh" not in v and "primitive" not in v:
+        typo = next((k for k in v if _suggest(k, ("mesh", "primitive"))), None)
+        if typo is not None:
+            fail(f"unknown{_suggest(typo, ('mesh', 'primitive'))}", key=typo)
+    if ("mesh" in v) == ("primitive" in v):
+        fail("give exactly one of 'mesh' or 'primitive'")
+    if "primitive" in v:
+        require_tag(v, "primitive", PRIMITIVES, "primitive")
+    return v
+
+
+OBJECT_MODELS = {"<mesh>": _object_model(None), **{f"<primitive {p}>": _object_model(p) for p in PRIMITIVES}}
+SceneObjectTable = tagged(OBJECT_MODELS, lambda v: "<mesh>" if "mesh" in v else f"<primitive {v['primitive']}>",
+                           _object_tag)
+
+_PL, _DL, _EL = _defaults(PointLight), _defaults(DirectionalLight), _defaults(EnvironmentLight)
+
+
+class PointLightTable(Table):
+    """A spherical light: radiance s/(π r²), irradiance s/d² at distance d."""
+
+    type: Annotated[Literal["point"], Field(description="light type")]
+    position: vector(description="centre")
+    radius: number(lo=0, description="radius (0: a delta light)") = _PL["radius"]
+    intensity: rgb(description="intensity s (W/sr): number or RGB") = _PL["intensity"]
+
+
+class DirectionalLightTable(Table):
+    """A distant light (a sun)."""
+
+    type: Annotated[Literal["directional"], Field(description="light type")]
+    direction: vector(nonzero=True, description="direction towards the light")
+    radius: number(lo=0, hi=math.pi / 2, description="angular radius (radians)") = _DL["radius"]
+    intensity: rgb(description="irradiance E on a surface facing the light: number or RGB") = _DL["intensity"]
+
+
+_SKY_TYPES = {  # procedural_sky's keywords (envmap.procedural_sky needs width, height >= 2)
+    "width": integer(lo=2, description="map width (texels)"),
+    "height": integer(lo=2, description="map height (texels)"),
+    "sun_direction": vector(nonzero=True, description="direction towards the sun"),
+    "sun_angular_radius": number(lo=0, description="sun disk radius (radians)"),
+    "sun_intensity": number(lo=0, description="sun radiance"),
+    "sun_color": rgb(raw=True, description="sun colour (number or RGB)"),
+    "zenith_color": rgb(raw=True, description="sky colour at the zenith"),
+    "horizon_color": rgb(raw=True, description="sky colour at the horizon"),
+    "ground_color": rgb(raw=True, description="colour below the horizon"),
+    "sky_intensity": number(lo=0, description="sky radiance scale"),
+    "halo": number(lo=0, description="strength of the glow around the sun"),
+    "horizon_blur": number(lo=0, description="width of the horizon transition"),
+    "supersample": integer(lo=1, description="sub-cells per texel side (box filter)"),
+}
+SkyOptions = create_model(
+    "SkyOptions", __base__=Table, __doc__="Keywords of warp_sg.scene.envmap.procedural_sky.",
+    **{k: (_SKY_TYPES.get(k) or anything({}, f"procedural_sky keyword {k}"),
+           Field(None, json_schema_extra={"default": _jsonable(p.default)}))
+       for k, p in inspect.signature(procedural_sky).parameters.items()})
+
+
+class ConstantOptions(Table):
+    """A uniform environment."""
+
+    radiance: rgb(raw=True, description="radiance (number or RGB)") = None
+    width: integer(lo=1, description="map width (texels)") = None
+    height: integer(lo=1, description="map height (texels)") = None
+
+
+class _Environment(Table):
+    type: Annotated[Literal["environment"], Field(description="light type")]
+    scale: number(lo=0, description="radiance scale") = _EL["scale"]
+    rotation: number(description="rotation about +Y (degrees)") = _EL["rotation"]
+
+
+class EnvironmentFile(_Environment):
+    """An equirectangular environment map (Mitsuba convention) from a file."""
+
+    file: path("equirectangular map (EXR or Radiance .hdr), relative to the scene file")
+
+
+class EnvironmentSky(_Environment):
+    """The procedural all-frequency sky: gradient, ground, halo and a small bright sun."""
+
+    procedural: Annotated[Literal["sky"], Field(description="built-in map")]
+    options: Annotated[SkyOptions, Field(description="warp_sg.scene.envmap.procedural_sky keywords")] = None
+
+
+class EnvironmentConstant(_Environment):
+    """A uniform environment."""
+
+    procedural: Annotated[Literal["constant"], Field(description="built-in map")]
+    options: Annotated[ConstantOptions, Field(description="radiance, width, height")] = None
+
+
+LIGHT_MODELS = {"<point>": PointLightTable, "<directional>": DirectionalLightTable,
+                "<environment file>": EnvironmentFile, "<environment sky>": EnvironmentSky,
+                "<environment constant>": EnvironmentConstant}
+LIGHT_TYPES = ("point", "directional", "environment")
+
+
+def _light_tag(v):
+    require_tag(v, "type", LIGHT_TYPES, "light type")
+    if v["type"] == "environment":
+        if ("file" in v) == ("procedural" in v):
+            fail("give exactly one of 'file' or 'procedural'")
+        if "procedural" in v and v["procedural"] not in ENV_PROCEDURAL:
+            fail(f"must be {' or '.join(repr(p) for p in ENV_PROCEDURAL)}, got {v['procedural']!r}",
+                 key="procedural")
+    return v
+
+
+def _light_branch(v) -> str:
+    if v["type"] != "environment":
+        return f"<{v['type']}>"
+    return "<environment file>" if "file" in v else f"<environment {v['procedural']}>"
+
+
+LightTable = tagged(LIGHT_MODELS, _light_branch, _light_tag)
+
+_RS = _defaults(RenderSettings)
+#: the one documentation of the ``[render]`` keys (``RenderSettings`` points here)
+_RENDER_DOC = {
+    "shadows": "SSDF soft shadows, eq. 23–31 (off: visibility 1, no SSDF precompute)",
+    "supersampling": "k: raster and shade at k·H × k·W, box-resolved",
+    "antialias": "a: coverage at a×a sub-pixels, shading edge-adaptive: interior pixels once, edge pixels once "
+                 "per triangle they see, weighted by coverage, contrasting pixels at every sub-pixel "
+                 "(1 = off; used when supersampling = 1)",
+    "lobes": "SG lobes of the NDF of isotropic models (anisotropic Ashikhmin-Shirley uses its own 'lobes')",
+    "env_lobes": "SG lobes of the environment for the diffuse term (eq. 39; < 10 in the paper)",
+    "env_peaks": "at most this many sharp environment peaks (a sun) separated from the map and shaded as "
+                 "directional lights (precompute.environment.peaks; 0 = off)",
+    "visibility_budget": "with shadows: refine the mesh where visibility changes, up to this many vertices "
+                         "(precompute.refine_for_visibility; 0 = the mesh as given)",
+    "pca_terms": "SSDF PCA terms (NV)",
+    "ssdf_resolution": "SSDF map resolution",
+    "gamma_levels": "λ levels of the ΓL pyramid (0 = default ladder: λ0 = 0.5 growing by √2 up to the map's "
+                    "resolution)",
+    "gamma_resolution": "largest cube face of the ΓL pyramid",
+    "fh": "Fh: 'table' (exact, tabulated) or 'sigmoid' (paper appendix)",
+    "visibility_sampling": "SSDF of the directions that do not depend on the view (environment lobes, lights) "
+                           "and the diffuse environment sum: 'vertex' (once per vertex, cached, interpolated; "
+                           "warp_sg.shading.vertex_visibility) or 'pixel' (one SSDF lookup per lobe and light per pixel)",
+    "background": "pixels that see no object show the environment",
+    "device": "default device: 'cpu', 'cuda', 'cuda:N' or 'auto'",
+}
+
+
+def _render_type(k):
+    """The type of ``[render]`` key ``k``: its range, its choices, else the type of its default."""
+    doc, default = _RENDER_DOC.get(k, k), _RS[k]
+    if k in RENDER_INT_RANGES:
+        return integer(*RENDER_INT_RANGES[k], description=doc)
+    if k in RENDER_CHOICES:
+        return choice(RENDER_CHOICES[k], doc)
+    if isinstance(default, bool):
+        return boolean(doc)
+    if isinstance(default, int):
+        return integer(description=doc)
+    if isinstance(default, float):
+        return number(description=doc)
+    return string(doc)
+
+
+RenderTable = create_model("RenderTable", __base__=Table, __doc__="Quality settings of the SG renderer.",
+                           **{k: (_render_type(k), _RS[k]) for k in _RS})
+
+
+class SceneFile(Table):
+    """A warp-sg scene file (TOML): camera, objects, materials, lights and render settings."""
+
+    camera: Annotated[CameraTable, Field(description="the camera")]
+    objects: Annotated[list[SceneObjectTable], Field(description="[[objects]]: meshes and primitives")] = []
+    materials: Annotated[dict[str, MaterialTable],
+                         Field(description="[materials.NAME]: a BRDF model and its parameters")] = {}
+    lights: Annotated[list[LightTable], Field(description="[[lights]]: point, directional, environment")] = []
+    render: Annotated[RenderTable, Field(description="renderer settings")] = RenderTable()
+
+
+# --------------------------------------------------------------------------------------------
+# errors -> one line
+# --------------------------------------------------------------------------------------------
+_TAGS = {*OBJECT_MODELS, *LIGHT_MODELS, *(f"<model {k}>" for k in MODELS), "<value>", "<texture path>",
+         "<texture table>", "<preset>", "<fresnel table>"}
+
+
+def _table_label(data, loc) -> tuple[str, Any, tuple]:
+    """(``[table]`` label, the raw table, the rest of ``loc``) of an error location."""
+    if not loc:
+        return "", data, ()
+    head = loc[0]
+    if head in ("objects", "lights") and len(loc) > 1 and isinstance(loc[1], int):
+        return f"[[{head}]] #{loc[1] + 1}", data[head][loc[1]], loc[2:]
+    if head == "materials" and len(loc) > 1:
+        return f"[materials.{loc[1]}]", data["materials"][loc[1]], loc[2:]
+    if head in SceneFile.model_fields:
+        return f"[{head}]", data.get(head), loc[1:]
+    return "", data, loc
+
+
+def _key_path(raw, rest) -> str:
+    """The TOML key path of ``rest`` (union tags dropped): ``kd``, ``lobes[0].cx``."""
+    out = ""
+    for el in rest:
+        if isinstance(el, str) and el in _TAGS and not (isinstance(raw, dict) and el in raw):
+            continue
+        out += f"[{el}]" if isinstance(el, int) else (f".{el}" if out else el)
+        raw = raw[el] if isinstance(raw, (dict, list)) and (el in raw if isinstance(raw, dict) else
+                                                            isinstance(el, int) and el < len(raw)) else None
+    return out
+
+
+def error_message(err: dict, data: dict) -> str:
+    """One line for one pydantic error dict (``ValidationError.errors()[i]``) on TOML ``data``."""
+    loc, typ = tuple(err["loc"]), err["type"]
+    label, raw, rest = _table_label(data, loc)
+    key = _key_path(raw, rest)
+    if typ == "scene":
+        ctx = err["ctx"]
+        key = ".".join(x for x in (key, ctx["key"]) if x)
+        text = f"key '{key}'{ctx['sep']}{ctx['msg']}" if key else ctx["msg"]
+    elif typ == "missing":
+        if label and not key:
+            return f"table {label} is missing"
+        text = f"key '{key}' is missing"
+    elif typ in ("model_type", "dict_type", "model_attributes_type"):
+        got = type(raw if not key else None).__name__
+        text = (f"key '{key}' must be a table" if key else f"must be a table, got {got}")
+    elif typ == "list_type":
+        text = f"key '{key}' must be a list" if key else f"must be an array of tables ([{label}])"
+    elif typ == "too_short":
+        text = f"key '{key}' must not be empty"
+    elif typ == "literal_error":
+        text = f"key '{key}' must be {err['ctx']['expected']}"
+    else:
+        text = f"key '{key}': {err['msg']}" if key else err["msg"]
+    return f"{label} {text}" if label else text
+
+
+# --------------------------------------------------------------------------------------------
+# JSON Schema
+# --------------------------------------------------------------------------------------------
+def _draft4(node):
+    """Pydantic's schema (2020-12 flavoured) rewritten in Draft 4 terms (see the module docstring)."""
+    if isinstance(node, list):
+        return [_draft4(x) for x in node]
+    if not isinstance(node, dict):
+        return node
+    out = {}
+    for k, v in node.items():
+        if k == "$defs":
+            out["definitions"] = {n: _draft4(s) for n, s in v.items()}
+        elif k == "$ref":
+            out[k] = v.replace("#/$defs/", "#/definitions/")
+        elif k == "const":
+            out["enum"] = [v]
+        elif k == "properties":  # property names are data, not keywords
+            out[k] = {n: _draft4(s) for n, s in v.items()}
+        else:
+            out[k] = _draft4(v)
+    if "$ref" in out and len(out) > 1:
+        ref = out.pop("$ref")
+        out = {"allOf": [{"$ref": ref}], **out}
+    if out.get("default", 0) is None:  # "unset" in the models: no default to show
+        out.pop("default")
+    if out.get("type") == "string" and "enum" in out and len(out["enum"]) == 1:
+        out.pop("type")
+    return out
+
+
+def _merged(branches: list, defs: dict) -> dict | None:
+    """For a ``oneOf`` of table definitions: every key any branch allows (its schema where the
+    branches agree, else only its description; a tag key's enums joined) and
+    ``additionalProperties: false``. Validators then name a misspelt key itself ("'rougness' was
+    unexpected") instead of only "not valid under any of the schemas listed in 'oneOf'", and
+    editors complete keys and tag values before the branch is known."""
+    tables = [defs[b["$ref"].split("/")[-1]] for b in branches if set(b) == {"$ref"}]
+    if len(tables) != len(branches) or not all(t.get("additionalProperties") is False for t in tables):
+        return None
+    props: dict = {}
+    for t in tables:
+        for k, v in t["properties"].items():
+            props.setdefault(k, []).append(v)
+    out = {}
+    for k, vs in props.items():
+        desc = " | ".join(dict.fromkeys(v.get("description", k) for v in vs))
+        bare = [{a: b for a, b in v.items() if a not in ("description", "title")} for v in vs]
+        if all(set(v) <= {"enum"} for v in bare):
+            out[k] = {"enum": list(dict.fromkeys(e for v in bare for e in v["enum"])), "description": desc}
+        elif all(v == bare[0] for v in bare):
+            out[k] = {**bare[0], "description": desc}
+        else:
+            out[k] = {"description": desc}
+    required = set.intersection(*(set(t.get("required", ())) for t in tables))
+    return {"type": "object", "properties": out, "additionalProperties": False,
+            **({"required": sorted(required)} if required else {})}
+
+
+def _merge_unions(node, defs):
+    if isinstance(node, list):
+        return [_merge_unions(x, defs) for x in node]
+    if not isinstance(node, dict):
+        return node
+    node = {k: _merge_unions(v, defs) for k, v in node.items()}
+    if "oneOf" in node and (m := _merged(node["oneOf"], defs)) is not None:
+        node = {**m, **node}
+    return node
+
+
+def json_schema() -> dict:
+    """The JSON Schema (Draft 4) of scene files, from :class:`SceneFile`."""
+    s = _draft4(SceneFile.model_json_schema())
+    s = _merge_unions(s, s["definitions"])
+    s.pop("title", None)
+    return {"$schema": DRAFT, "title": "warp-sg scene file", **s}
+
+
+def schema_text() -> str:
+    """:func:`json_schema` as the text of ``docs/scene.schema.json`` (2-space indent, UTF-8)."""
+    return json.dumps(json_schema(), indent=2, ensure_ascii=False) + "\n"
+
+
+def write_schema(path) -> Path:
+    """Write :func:`schema_text` to ``path`` atomically (missing folders are created)."""
+    p = Path(path)
+    if p.is_dir():
+        raise InputError("is a folder, not a file", where=str(p))
+    make_parents(p)
+    with atomic_output(p) as tmp:
+        Path(tmp).write_text(schema_text(), encoding="utf-8")
+    return p
+
+
+__all__ = ["SceneFile", "CameraTable", "RenderTable", "TextureTable", "FresnelTable", "MATERIAL_MODELS",
+           "OBJECT_MODELS", "LIGHT_MODELS", "PARAM_TYPES", "TEXTURE_PARAMS", "param_type", "error_message",
+           "json_schema", "schema_text", "write_schema", "DRAFT"]

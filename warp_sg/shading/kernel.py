@@ -1,0 +1,650 @@
+r"""Per-pixel deferred shading over the visibility buffer (paper §7, eq. 36–43).
+
+One kernel launch shades every sample of a visibility buffer once (deferred shading: the cost
+never depends on overdraw). Per sample, with ``x`` the surface point, ``o`` the view direction,
+``Ng`` the interpolated vertex normal (the frame of the precomputed visibility), ``(Ts, Bs, Ns)``
+the shading frame (tangent frame rotated by the normal/tangent maps), ``e(c, λ)`` the exact
+normalised irradiance of an SG (``warp_sg.sg.irradiance``) and ``vis_ratio(p, λ) =
+fh(θd(p), λ)/fh(θh(p), λ)`` the SSDF's visible fraction of a lobe over an unoccluded point's::
+
+    R(o) = Rlights + Rd + Rs                                                        (eq. 36)
+
+Local lights (point, spherical, directional; environment peaks such as a sun), eq. 42–43 made
+exact where it is cheap — one BRDF evaluation at the light's direction l::
+
+    Rlights += ρ(o, l) E e(n·l, λ_l) vis_ratio(l, λ_l)
+
+(with ``Features.light_vis_vertex`` the SSDF towards the light is ``θd = θh + Σ_k b_k D[i_k, j]``,
+the per-vertex deficit cache of ``warp_sg.shading.vertex_visibility``, and no lookup is made.)
+
+Environment, diffuse — eq. 39, with the magnitude exact: ``E(n)`` is the irradiance of the map
+(``precompute.environment.irradiance``, a cube-map table of its cosine-weighted integral) and only the
+visible fraction is approximated::
+
+    Rd += ρd E(Ns) Σ_k b_k F[i_k]                                 (Features.env_visible_vertex)
+
+(on triangles whose vertex normals agree within 5°, and without normal maps, the vertices' own
+``E ∘ F`` interpolated: no table lookup, within ≈ 0.1 %.)
+
+``F`` the per-vertex visible fraction by quadrature of the vertex's SSDF weighted by the map
+(``warp_sg.shading.vertex_visibility``; the default with ``visibility_sampling = "vertex"`` and ρd = kd/π).
+Otherwise (per-pixel visibility, or Oren–Nayar's directional ρd) the mixture's lobes give it::
+
+    Rd += ρd(o, p_G) μ_j ∫G_j e(Ns·p_j, λ_j) vis_ratio(p_G, λ_G) + ρd (E − Σ_j a_j) v̄,   G = C* ⊗ L*_j
+
+(``a_j`` the lobes' unshadowed irradiance, ``v̄`` their mean visible fraction; with
+``Features.env_vis_vertex`` the lobes' visibility is the per-vertex cache ``Σ_k b_k V[i_k, j]``.)
+Without shadows it is ``ρd E(Ns)``, one table lookup.
+
+Environment, specular — eq. 41, for each slice lobe G_k of ks ρs(o, ·) (spherical warp of the
+NDF lobes, eq. 17–22, ``shading_slice_lobe``)::
+
+    Rs += c(o) Σ_k μ_k ∫G_k e(Ns·p_k, λ_k) · ΓL(p, λ)/∫G(λ) (eq. 35) · vis_ratio(p, λ),   (p, λ) = C* ⊗ G_k
+
+``c(o) = A(o)/A*(o)`` is the material's tabulated ratio of the exact BRDF's directional albedo to
+the slice lobes' (``warp_sg.brdf.albedo``): the warp's energy error, up to ±20 %, removed.
+
+The clamped-cosine SG ``C*`` (eq. 40) only places and sizes the product lobe whose visibility
+and mean radiance stand for the cosine-weighted lobe; the cosine itself is exact. The diffuse BRDF
+``ρd(o, i)`` (kd/π, or Oren-Nayar) is evaluated at the product lobe's axis. ``θd(p)`` is the SSDF
+of the surface point (eq. 24, per-vertex PCA weights, ``precompute.visibility.ssdf_wp.ssdf_eval_world``);
+with shadows off (or a scene that cannot shadow itself) ``vis_ratio`` is 1.
+
+Normal and tangent maps (§7): a per-pixel rotation of the tangent frame, the minimal rotation
+taking ``Ng`` to the mapped normal (Rodrigues; equivalent to the paper's quaternion map), then a
+rotation about it to the mapped tangent. The BRDF and its slice are built in the rotated frame
+(with ``o' = ℜ o``); visibility stays in the vertex frame.
+
+Layers (:mod:`warp_sg.shading.surface_layers`): ``a(o)·(R + Le) + Rcoat``, the coat's GGX lobe shaded like the
+specular terms in its frame; occlusion on the environment's diffuse term; cut-outs' holes seen through.
+Moving objects (``Features.moving``, :mod:`warp_sg.shading.motion_wp`): each visibility is capped by the proxies' own.
+
+Kernel variants: the kernel is specialised by scene content (``Features``): environment diffuse
+(SG mixture | none), environment specular (ΓL | none), lights, specular materials, shadows
+(SSDF), textures, normal/tangent maps, the material layers (emission, occlusion, coat, vertex
+colours, cut-outs), the fh method and the set of material models (the BRDF
+functions, ``shading_slice_lobe`` and ``diffuse_at`` come from ``material_funcs`` of
+``brdf.material_variants``, built for just those models). Variants are created once per feature
+tuple and cached (``shade_kernel``); code a scene does not need is removed at compile time with
+``wp.static``. The kernel is 1-D over row-major samples with an index offset ``base`` and ``per``
+samples per thread (:data:`PIXELS_PER_THREAD` on the CPU, 1 on CUDA), so on the CPU disjoint
+ranges run on a small thread pool (``raster.parallel.launch``; Warp runs one CPU launch on one
+core).
+"""
+# NOTE: no ``from __future__ import annotations`` — Warp reads the kernel annotations at definition
+# time and the kernel variants are closures.
+from dataclasses import dataclass
+
+import warp as wp
+
+from warp_sg.shading.background import Background, background_along, background_at
+from warp_sg.shading.cutout import Cutouts, see_behind
+from warp_sg.brdf.albedo import albedo_correction
+from warp_sg.brdf.material_wp import ALL_MODELS, Material, above, constant_diffuse, lum, material_funcs
+from warp_sg.numeric.fastmath import fast_asin
+from warp_sg.sg.fh import fh_ratio_table_pair, fh_theta_max_wp
+from warp_sg.numeric.onb import local_to_world, world_to_local
+from warp_sg.scene.lights import LightArrays, light_irradiance
+from warp_sg.sg import CLAMPED_COSINE_SHARPNESS
+from warp_sg.sg.irradiance import sg_irradiance_norm, sg_irradiance_norm_at, sg_irradiance_row, sg_power
+from warp_sg.sg.algebra_wp import sg_integral, sg_product_lobe
+from warp_sg.shading.surface import (  # noqa: F401  (re-exported: slot constants, MaterialTextures)
+    N_SLOTS, SLOT_COAT, SLOT_COAT_NORMAL, SLOT_EMISSION, SLOT_KD, SLOT_KS, SLOT_NORMAL, SLOT_OCCLUSION, SLOT_P0,
+    SLOT_P1, SLOT_TANGENT, MaterialTextures, apply_shading_maps, tangent_in_plane, textured_material,
+)
+from warp_sg.sg.ssdf_product import sg_visibility_scale_sigmoid
+from warp_sg.shading.surface_layers import Layers, coat_setup, emission_at, occlusion_at, vertex_coloured
+
+
+from precompute.environment.irradiance import IrradianceTable, env_irradiance  # noqa: E402
+from precompute.visibility.occluder_cone import occluder_clearance  # noqa: E402
+from precompute.visibility.ssdf_wp import SSDFPoint, ssdf_at, ssdf_point_framed  # noqa: E402
+from warp_sg.shading.motion_wp import Proxies, proxy_diffuse, proxy_ratio  # noqa: E402  (moving objects' occluder proxies)
+
+ENV_NONE, ENV_SG, ENV_PREFILTERED = 0, 1, 2
+_HALF_PI_F = wp.constant(1.5707963267948966)
+_INV_SQRT2 = wp.constant(0.7071067811865476)
+_INV_SQRT_2PI = wp.constant(0.3989422804014327)
+_CONE_UNKNOWN = wp.constant(3.9)  # occluder_cone.no_cones' α (4): the axis says nothing
+#: sharpness of the eq. 40 clamped-cosine lobe: only used to place and size the product lobe
+#: C* ⊗ G whose visibility / ΓL lookup stands for the cosine-weighted lobe
+CC_LAM = wp.constant(CLAMPED_COSINE_SHARPNESS)
+
+
+@wp.struct
+class GeometryArrays:
+    """World-space mesh attributes on the device (see ``warp_sg.scene.Geometry``)."""
+
+    positions: wp.array(dtype=wp.vec3)
+    normals: wp.array(dtype=wp.vec3)
+    uvs: wp.array(dtype=wp.vec2)
+    tangents: wp.array(dtype=wp.vec3)
+    tris: wp.array(dtype=wp.vec3i)
+    tri_material: wp.array(dtype=int)
+
+
+@wp.struct
+class Visibility:
+    """PCA-compressed SSDFs (``precompute.SSDFData``) and the fh ratio table (``warp_sg.sg.fh``)."""
+
+    mean: wp.array2d(dtype=float)
+    basis: wp.array3d(dtype=float)
+    weights: wp.array2d(dtype=float)
+    normals: wp.array(dtype=wp.vec3)  # the per-vertex normals (frames) the SSDFs were computed in
+    frame_t: wp.array(dtype=wp.vec3)  # (V,) their frames' tangent and bitangent where objects move
+    frame_b: wp.array(dtype=wp.vec3)  # (warp_sg.scene.dynamic_objects); length 1: the frames of the normals
+    fh_table: wp.array2d(dtype=float)
+    cones: wp.array(dtype=wp.vec4)  # per-vertex occluder cones (precompute.visibility.occluder_cone)
+    cone_band: float  # their texel margin h: the width of the skip's blend
+    #: (V, lights) per-vertex SSDF deficit θd − θh towards each light (``warp_sg.shading.vertex_visibility``),
+    #: read by the variant with ``Features.light_vis_vertex``; a (1, 1) placeholder otherwise
+    light_deficit: wp.array2d(dtype=float)
+
+
+@wp.struct
+class EnvSG:
+    """Environment SG mixture (world-space axes, environment rotation applied), eq. 34 diffuse part."""
+
+    count: int
+    axis: wp.array(dtype=wp.vec3)
+    lam: wp.array(dtype=float)
+    mu: wp.array(dtype=wp.vec3)
+    #: per lobe, the constants of its exact irradiance (``lobe_constants``): μ ∫G(λ) and its row
+    #: in the irradiance table, so a pixel pays only the table lookup
+    power: wp.array(dtype=wp.vec3)
+    irr_row: wp.array(dtype=float)
+    #: (V, count) visible fraction of C*(n_v) ⊗ G_j per vertex (``warp_sg.shading.vertex_visibility``),
+    #: read by the variant with ``Features.env_vis_vertex``; a (1, 1) placeholder otherwise
+    vis: wp.array2d(dtype=float)
+    #: (V,) per vertex the visible fraction (RGB) of its diffuse environment irradiance
+    #: (``warp_sg.shading.vertex_visibility.env_vertex_visible``), read by the variant with
+    #: ``Features.env_visible_vertex``; a length-1 placeholder otherwise
+    visible: wp.array(dtype=wp.vec3)
+    #: (V,) the vertices' visible irradiance E ∘ F at unit scale, and (T,) 1 for triangles whose
+    #: vertex normals are within 5° (``vertex_visibility.smooth_triangles``): those interpolate it
+    irr_vertex: wp.array(dtype=wp.vec3)
+    smooth: wp.array(dtype=wp.uint8)
+    irr_scale: float  # the environment's scale (irr_vertex is at unit scale)
+    #: the residual map at texel scale (64 × 128, unit scale), which the per-vertex quadrature of
+    #: ``visible`` weighs the SSDF texels with; a 1×1 placeholder where unused
+    radiance: wp.array2d(dtype=wp.vec3)
+    #: the exact irradiance of the residual map (``precompute.environment.irradiance``): the magnitude of
+    #: the diffuse term, of which the vertices' quadrature or the lobes give the visible fraction
+    exact: IrradianceTable
+
+
+# --------------------------------------------------------------------------------------------
+# building blocks (@wp.func)
+# --------------------------------------------------------------------------------------------
+@wp.func
+def lookup_skip(fh_mode: int, vis: Visibility, q: SSDFPoint, p: wp.vec3, th_h: float, lam: float) -> float:
+    """How far the SSDF lookup of lobe (p, λ) at point ``q`` may be skipped, ``s ∈ [0, 1]``
+    (``precompute.visibility.occluder_cone.occluder_clearance``; 1: its visibility is exactly 1). Only with the
+    tabulated fh, whose flat tail beyond θmax(λ) makes the skip exact; 0 with the sigmoid."""
+    if fh_mode != 0:
+        return 0.0
+    return occluder_clearance(vis.cones, q, p, th_h, fh_theta_max_wp(lam), vis.cone_band)
+
+
+@wp.func
+def vis_ratio(shadows: int, fh_mode: int, vis: Visibility, q: SSDFPoint, p: wp.vec3, lam: float) -> float:
+    """The visible fraction of a lobe (p, λ) relative to the unoccluded point:
+    ``fh(θd(p), λ) / fh(θh(p), λ)`` with θd the SSDF of the shading point at world direction p
+    (eq. 24, 30; each vertex's SSDF read in that vertex's own frame where the frames disagree,
+    ``precompute.visibility.ssdf_wp.ssdf_eval_world``: no seam where the frame turns) and ``θh = asin(p·Ng)``
+    the SSDF of an unoccluded point (its horizon). The unshadowed response (exact BRDF and cosine,
+    or the exact SG irradiance) already accounts for the horizon, so the SSDF supplies only what
+    the occluders take away. ``q``: the shading point (``ssdf_point``, once per pixel). 1 without
+    shadows. With the table ``fh``, a lobe that clears the occluder cones of the point's vertices
+    by ``min(θh, θmax(λ))`` is fully visible (``precompute.visibility.occluder_cone``): no SSDF lookup."""
+    if shadows == 0:
+        return 1.0
+    th_h = fast_asin(wp.dot(p, q.ng))
+    s = lookup_skip(fh_mode, vis, q, p, th_h, lam)
+    if s >= 1.0:
+        return 1.0
+    th = ssdf_at(vis.mean, vis.basis, vis.weights, q, p)
+    r = fh_fraction(fh_mode, vis, th, th_h, lam)
+    return r + (1.0 - r) * s
+
+
+@wp.func
+def vis_ratio_depth(shadows: int, fh_mode: int, vis: Visibility, q: SSDFPoint, p: wp.vec3, lam: float) -> wp.vec2:
+    """:func:`vis_ratio` and the SSDF value θd(p) it read (``(ratio, θd)``; θd = π/2 where no
+    lookup was needed: the lobe clears the occluders)."""
+    if shadows == 0:
+        return wp.vec2(1.0, _HALF_PI_F)
+    th_h = fast_asin(wp.dot(p, q.ng))
+    s = lookup_skip(fh_mode, vis, q, p, th_h, lam)
+    if s >= 1.0:
+        return wp.vec2(1.0, _HALF_PI_F)
+    th = ssdf_at(vis.mean, vis.basis, vis.weights, q, p)
+    r = fh_fraction(fh_mode, vis, th, th_h, lam)
+    return wp.vec2(r + (1.0 - r) * s, th)
+
+
+@wp.func
+def _occluder_axis(vis: Visibility, q: SSDFPoint) -> wp.vec3:
+    """The occluder-cone axes of the point's vertices (``precompute.visibility.occluder_cone``) weighted by
+    the barycentrics, over the vertices that have occluders (zero vector: none; cones of unknown
+    axis, ``no_cones``' α = 4, do not count)."""
+    c = wp.vec3(0.0, 0.0, 0.0)
+    k0 = vis.cones[q.i0]
+    k1 = vis.cones[q.i1]
+    k2 = vis.cones[q.i2]
+    if k0[3] >= 0.0 and k0[3] < _CONE_UNKNOWN:
+        c += wp.vec3(k0[0], k0[1], k0[2]) * (q.c0 + q.e0)
+    if k1[3] >= 0.0 and k1[3] < _CONE_UNKNOWN:
+        c += wp.vec3(k1[0], k1[1], k1[2]) * (q.c1 + q.e1)
+    if k2[3] >= 0.0 and k2[3] < _CONE_UNKNOWN:
+        c += wp.vec3(k2[0], k2[1], k2[2]) * (q.c2 + q.e2)
+    return c
+
+
+@wp.func
+def visible_lobe(vis: Visibility, q: SSDFPoint, p: wp.vec3, lam: float, th: float):
+    """``(p', λ')``: where the visible part of the lobe (p, λ) lies when the half-space model of
+    eq. 25–31 cuts it θd = ``th`` from its axis, on the side away from the point's occluders (the
+    vertices' occluder-cone axes). Along that direction the lobe is a Gaussian of σ = 1/√λ cut at
+    −θd: its visible part has mean ``σ φ(t)/Φ(t)`` and variance ``σ² (1 − t m − m²)`` (t = θd/σ,
+    m = φ(t)/Φ(t), the truncated normal), so the axis moves by that mean and the sharpness grows
+    by the variance's inverse square root. The lobe's mean radiance is then read there
+    (``gamma_mean``): a lobe that straddles the horizon of a floor sees the sky above it, not the
+    average of the sky and the ground the floor hides. (p, λ) itself where nothing cuts it."""
+    sig = 1.0 / wp.sqrt(wp.max(lam, 1.0e-6))
+    t = th / sig
+    if t >= 3.0:  # the cut is 3σ away: the shift would be < 0.005 σ
+        return p, lam
+    c = _occluder_axis(vis, q)
+    away = p * wp.dot(p, c) - c  # tangent at p pointing away from the occluders
+    if wp.length_sq(away) < 1.0e-12:
+        return p, lam
+    g = wp.normalize(away)
+    tt = wp.max(t, -8.0)
+    cdf = 0.5 * (1.0 + wp.erf(tt * _INV_SQRT2))
+    pdf = _INV_SQRT_2PI * wp.exp(-0.5 * tt * tt)
+    m = pdf / wp.max(cdf, 1.0e-12)
+    if cdf < 1.0e-12:
+        m = -tt  # the far tail: the visible part starts at the cut
+    var = wp.clamp(1.0 - tt * m - m * m, 0.05, 1.0)
+    shift = wp.min(sig * m, _HALF_PI_F)
+    return wp.normalize(p * wp.cos(shift) + g * wp.sin(shift)), lam / wp.sqrt(var)
+
+
+@wp.func
+def fh_fraction(fh_mode: int, vis: Visibility, th: float, th_h: float, lam: float) -> float:
+    """``fh(θd, λ) / fh(θh, λ)`` clamped to [0, 1] (eq. 30 over the unoccluded point's value).
+    With the table, both angles at or beyond θmax(λ) read its flat tail: exactly 1, no lookup."""
+    a = float(0.0)
+    b = float(0.0)
+    if fh_mode == 0:
+        if wp.min(th, th_h) >= fh_theta_max_wp(lam):
+            return 1.0
+    if fh_mode == 1:
+        a = sg_visibility_scale_sigmoid(th, lam)
+        b = sg_visibility_scale_sigmoid(th_h, lam)
+    else:
+        a, b = fh_ratio_table_pair(vis.fh_table, th, th_h, lam)
+    return wp.clamp(a / wp.max(b, 1.0e-8), 0.0, 1.0)
+
+
+@wp.func
+def visible_irradiance(exact: wp.vec3, lobes: wp.vec3, lobes_visible: wp.vec3) -> wp.vec3:
+    """The diffuse environment term's irradiance with visibility: the lobes' visible irradiance
+    ``Σ_j a_j V_j`` plus the part of the exact irradiance ``E(n)`` the lobes miss, ``E − Σ_j a_j``
+    (either sign), seen with the lobes' mean visible fraction ``v̄ = lum(Σ a_j V_j)/lum(Σ a_j)``
+    (1 where the lobes carry nothing). Unshadowed (all ``V_j = 1``) it is ``E(n)`` exactly; where the
+    mixture is right (``Σ_j a_j = E``) it is eq. 39 unchanged (``precompute.environment.irradiance``)."""
+    den = lum(lobes)
+    vbar = float(1.0)
+    if den > 1.0e-30:
+        vbar = wp.clamp(lum(lobes_visible) / den, 0.0, 1.0)
+    return lobes_visible + (exact - lobes) * vbar
+
+
+@wp.kernel(enable_backward=False)
+def _lobe_constants_kernel(irr: wp.array2d(dtype=float), lam: wp.array(dtype=float), mu: wp.array(dtype=wp.vec3),
+                           power: wp.array(dtype=wp.vec3), row: wp.array(dtype=float)):
+    j = wp.tid()
+    power[j] = sg_power(lam[j], mu[j])
+    row[j] = sg_irradiance_row(irr, lam[j])
+
+
+def lobe_constants(es: EnvSG, irr, device) -> EnvSG:
+    """Fill ``es.power`` (μ ∫G(λ)) and ``es.irr_row`` (the lobe's irradiance-table row) once per
+    environment change: ``sg_irradiance(irr, n, p, λ, μ) = power · sg_irradiance_norm_at(irr, n·p,
+    λ, irr_row)`` for every pixel."""
+    n = int(es.lam.shape[0])
+    es.power = wp.zeros(n, dtype=wp.vec3, device=device)
+    es.irr_row = wp.zeros(n, dtype=float, device=device)
+    wp.launch(_lobe_constants_kernel, dim=n, inputs=[irr, es.lam, es.mu, es.power, es.irr_row], device=device)
+    return es
+
+
+# --------------------------------------------------------------------------------------------
+# kernel variants
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Features:
+    """What a scene needs; one compiled kernel per distinct value."""
+
+    env_diffuse: int = ENV_NONE   # ENV_NONE | ENV_SG (the environment's SG mixture)
+    env_specular: int = ENV_NONE  # ENV_NONE | ENV_PREFILTERED (the ΓL pyramid)
+    lights: bool = False
+    specular: bool = False
+    shadows: bool = False
+    textures: bool = False
+    normal_maps: bool = False
+    fh_sigmoid: bool = False
+    #: environment-diffuse visibility interpolated from the per-vertex cache ``EnvSG.vis``
+    #: (``warp_sg.shading.vertex_visibility``) instead of one SSDF lookup per lobe per pixel
+    env_vis_vertex: bool = False
+    #: lights' SSDF deficit interpolated from the per-vertex cache ``Visibility.light_deficit``
+    light_vis_vertex: bool = False
+    #: the diffuse environment term as the exact irradiance times the visible fraction interpolated
+    #: from ``EnvSG.visible`` (per-vertex quadrature of the SSDF; needs ρd = kd/π)
+    env_visible_vertex: bool = False
+    #: sorted material model codes of the scene (``MaterialTable.models``); the material
+    #: functions are specialised to them (``material_funcs``); default: every model
+    models: tuple = tuple(sorted(ALL_MODELS))
+    #: a material's layers (:mod:`warp_sg.shading.surface_layers`, :mod:`warp_sg.shading.cutout`), each compiled in
+    #: only where a scene has it
+    emission: bool = False
+    occlusion: bool = False
+    coat: bool = False
+    vertex_colors: bool = False
+    cutouts: bool = False
+    moving: bool = False  # dynamic objects: their occluder proxies per pixel (warp_sg.shading.motion_wp)
+
+    def __post_init__(self):
+        object.__setattr__(self, "models", tuple(sorted({int(m) for m in self.models})))
+        # the per-vertex visibility gating, decided once here (the renderer's caches and the kernel read it)
+        evis = bool(self.env_visible_vertex and self.shadows) and env_visible_vertex_ok(self.env_diffuse, self.models)
+        object.__setattr__(self, "env_visible_vertex", evis)
+        object.__setattr__(self, "env_vis_vertex", bool(self.env_vis_vertex and self.shadows) and not evis)
+        object.__setattr__(self, "light_vis_vertex", bool(self.light_vis_vertex and self.shadows))
+
+
+_KERNELS: dict = {}
+
+#: pixels one CPU thread shades (``raster.parallel.launch(per_thread=...)``): Warp copies the
+#: kernel's struct arguments (geometry, materials, lights, environment, ΓL, SSDF: ~4 KB) at every
+#: thread's entry, ~26 ns — more than a background pixel costs. 16 pixels share one entry
+#: (measured on the frame-scaling scene: shading CPU time −23 %). CUDA shades one per thread.
+PIXELS_PER_THREAD = 16
+
+
+def env_visible_vertex_ok(env_diffuse: int, models) -> bool:
+    """Whether the diffuse environment term can be the exact irradiance times the per-vertex visible
+    fraction (``EnvSG.visible``): an SG environment and ρd = kd/π (``brdf.registry.constant_diffuse``)."""
+    return int(env_diffuse) == ENV_SG and constant_diffuse(models)
+
+
+def _gamma_parts():
+    """(struct type, @wp.func gamma_mean(struct, p, lam) -> vec3: ΓL/∫G) of the prefiltered ΓL pyramid."""
+    from precompute.environment import prefilter as P
+
+    return P.GammaTable, P.gamma_mean
+
+
+def shade_kernel(f: Features):
+    """The shading kernel for feature set ``f`` (compiled once per process and cached)."""
+    if f in _KERNELS:
+        return _KERNELS[f]
+    ENV_D = int(f.env_diffuse)
+    ENV_S = int(f.env_specular)
+    LIGHTS = bool(f.lights)
+    SPEC = bool(f.specular)
+    SHADOWS = 1 if f.shadows else 0
+    TEX = bool(f.textures)
+    NMAP = bool(f.normal_maps)
+    FH = 1 if f.fh_sigmoid else 0
+    VVIS, LVIS, EVIS = bool(f.env_vis_vertex), bool(f.light_vis_vertex), bool(f.env_visible_vertex)  # Features gates
+    RHO_D_CONST = constant_diffuse(f.models)  # no Oren–Nayar: ρd = kd/π, whatever the directions
+    # per-pixel SSDF reads outside the specular loop (lights without the deficit cache, diffuse
+    # lobes without the visibility cache): the SSDF point is built for every pixel
+    Q_EARLY = SHADOWS == 1 and ((LIGHTS and not LVIS) or (ENV_D == 1 and not VVIS and not EVIS))
+    MF = material_funcs(f.models)  # the material switch reduced to the scene's models
+    brdf_eval, diffuse_at, slice_lobe_count = MF.brdf_eval, MF.diffuse_at, MF.slice_lobe_count
+    shading_slice_lobe = MF.shading_slice_lobe
+    USE_GAMMA = ENV_S == ENV_PREFILTERED
+    EMIT, OCC, COAT, VCOL, CUT, MOVING = (bool(f.emission), bool(f.occlusion), bool(f.coat),
+                                          bool(f.vertex_colors), bool(f.cutouts), bool(f.moving))
+    brdf_diffuse = MF.brdf_diffuse
+    if USE_GAMMA:
+        GammaT, gamma_mean = _gamma_parts()
+    else:
+        GammaT, gamma_mean = EnvSG, None  # placeholder type (unused argument)
+
+    def shade(base: int, per: int, tri_id: wp.array2d(dtype=int), bary: wp.array2d(dtype=wp.vec2), background: wp.array2d(dtype=wp.vec3),
+              rays: Background, use_rays: int, cam: wp.vec3, geo: GeometryArrays, mats: wp.array(dtype=Material), tex: MaterialTextures,
+              irr: wp.array2d(dtype=float), lights: LightArrays, env: EnvSG, gamma: GammaT, vis: Visibility, px: Proxies,
+              lay: Layers, cut: Cutouts, mesh: wp.uint64, env_bg: Background, out: wp.array2d(dtype=wp.vec3)):
+        W = tri_id.shape[1]
+        p0 = base + wp.tid() * per  # the thread's first row-major pixel index
+        ny = p0 // W  # (row, column) of the next pixel: one division per thread, then steps
+        nx = p0 - ny * W
+        for s in range(per):  # per pixels per thread on the CPU (raster.parallel.launch), 1 on CUDA
+            if ny >= tri_id.shape[0]:
+                break
+            y = ny
+            x = nx
+            nx += 1
+            if nx == W:
+                nx = 0
+                ny += 1
+            t = tri_id[y, x]
+            if t < 0:  # the environment along the (sub)pixel's ray, or what the caller gathered
+                if use_rays != 0:
+                    out[y, x] = background_at(rays, y, x)
+                else:
+                    out[y, x] = background[y, x]
+                continue
+            bc = bary[y, x]
+            b1 = bc[0]
+            b2 = bc[1]
+            b0 = 1.0 - b1 - b2
+            if wp.static(CUT):  # alpha cut-out: the camera ray goes on behind the hole
+                hit, t, b0, b1, b2, dv = see_behind(mesh, cut, geo.positions, cam, t, b0, b1, b2)
+                if not hit:
+                    out[y, x] = background_along(env_bg, dv)
+                    continue
+            tri = geo.tris[t]
+            i0 = tri[0]
+            i1 = tri[1]
+            i2 = tri[2]
+            P = geo.positions[i0] * b0 + geo.positions[i1] * b1 + geo.positions[i2] * b2
+            ng = wp.normalize(geo.normals[i0] * b0 + geo.normals[i1] * b1 + geo.normals[i2] * b2)
+            o = wp.normalize(cam - P)
+
+            mi = geo.tri_material[t]
+            mat = mats[mi]
+            uv = wp.vec2(0.0, 0.0)
+            if wp.static(TEX or NMAP or EMIT or OCC or COAT):
+                uv = geo.uvs[i0] * b0 + geo.uvs[i1] * b1 + geo.uvs[i2] * b2
+            if wp.static(TEX):
+                mat = textured_material(mat, tex, mi, uv)
+            if wp.static(VCOL):
+                mat = vertex_coloured(mat, lay, i0, i1, i2, b0, b1, b2)
+
+            # shading frame: mesh tangent made orthogonal to the normal, then normal/tangent maps
+            tg = tangent_in_plane(geo.tangents[i0] * b0 + geo.tangents[i1] * b1 + geo.tangents[i2] * b2, ng)
+            ts = tg
+            ns = ng
+            if wp.static(NMAP):
+                ns, ts = apply_shading_maps(tex, mi, uv, ng, ts)
+            bs = wp.cross(ns, ts)
+            o_l = above(world_to_local(o, ts, bs, ns))
+            # the clear coat: its lobe in its own frame, and what it lets through, a(o)
+            has_coat = False
+            cm = mat
+            atten = float(1.0)
+            ns_c, ts_c, bs_c, oc_l = ng, tg, bs, o_l
+            if wp.static(COAT):
+                has_coat, cm, ns_c, ts_c, bs_c, oc_l, atten = coat_setup(mats, lay, tex, mi, uv, o, ng, tg)
+            ccol = wp.vec3(0.0, 0.0, 0.0)
+            occ = float(1.0)
+            if wp.static(OCC):
+                occ = occlusion_at(tex, mi, uv)
+            # the point's SSDF frames, once for every light and lobe that reads the SSDF: at once when
+            # lights or diffuse lobes read it per pixel, else only where a specular lobe does
+            q = SSDFPoint()
+            q.ng = ng
+            if wp.static(Q_EARLY):
+                q = ssdf_point_framed(vis.normals, vis.frame_t, vis.frame_b, i0, i1, i2, b0, b1, b2, ng)
+
+            col = wp.vec3(0.0, 0.0, 0.0)
+            has_kd = wp.length_sq(mat.kd) > 0.0
+
+            # ---------------- local lights (eq. 42–43, exact where it is cheap) ----------------
+            # exact BRDF × irradiance × the light's SG cosine e(n·l, λ); the SSDF (and the moving
+            # objects' proxies) supply only the occluded fraction (vis_ratio, proxy_ratio)
+            if wp.static(LIGHTS):
+                for j in range(lights.count):
+                    la, ll, E = light_irradiance(lights, j, P)
+                    li = world_to_local(la, ts, bs, ns)
+                    e = sg_irradiance_norm(irr, li[2], ll)
+                    ec = float(0.0)
+                    lc = li
+                    if wp.static(COAT):
+                        if has_coat:
+                            lc = world_to_local(la, ts_c, bs_c, ns_c)
+                            ec = sg_irradiance_norm(irr, lc[2], ll)
+                    if e > 0.0 or ec > 0.0:
+                        vr = float(1.0)
+                        if wp.static(LVIS):  # θd = θh + the vertices' interpolated deficit (per-vertex cache)
+                            dd = (b0 * vis.light_deficit[i0, j] + b1 * vis.light_deficit[i1, j]
+                                  + b2 * vis.light_deficit[i2, j])
+                            if dd < 0.0:
+                                th_h = fast_asin(wp.dot(la, q.ng))
+                                vr = fh_fraction(FH, vis, th_h + dd, th_h, ll)
+                        else:
+                            vr = vis_ratio(SHADOWS, FH, vis, q, la, ll)
+                        if wp.static(MOVING): vr = wp.min(vr, proxy_ratio(FH, vis.fh_table, px, t, P, ng, la, ll))  # noqa: E701
+                        if e > 0.0:
+                            f = brdf_eval(mat, o_l, above(li))
+                            if wp.static(OCC):  # the environment's peaks: occlusion on their diffuse part
+                                if j >= lay.n_local:
+                                    f = f - brdf_diffuse(mat, o_l, above(li)) * (1.0 - occ)
+                            col += wp.cw_mul(f, E) * (e * vr)
+                        if wp.static(COAT):
+                            if ec > 0.0:
+                                ccol += wp.cw_mul(brdf_eval(cm, oc_l, above(lc)), E) * (ec * vr)
+
+            # ---------------- environment, diffuse (eq. 39) ----------------
+            # ρd E(n) times its visible fraction: per vertex by quadrature of the SSDF (EVIS, the
+            # default), else from the mixture's lobes and the part of E(n) they miss (module docstring)
+            cd = wp.vec3(0.0, 0.0, 0.0)  # the environment's diffuse term (times the occlusion)
+            if wp.static(ENV_D == 1 and SHADOWS == 0 and RHO_D_CONST):
+                if has_kd:  # nothing occludes: ρd E(n), no lobe
+                    cd += wp.cw_mul(env_irradiance(env.exact, ns), diffuse_at(mat, o_l, wp.vec3(0.0, 0.0, 1.0)))
+            if wp.static(ENV_D == 1 and EVIS):
+                if has_kd:  # ρd E(n) F, F the vertices' visible fractions interpolated
+                    rho_d = diffuse_at(mat, o_l, wp.vec3(0.0, 0.0, 1.0))
+                    if not wp.static(NMAP) and env.smooth[t] != wp.uint8(0):  # E ∘ F of the vertices
+                        dv = b0 * env.irr_vertex[i0] + b1 * env.irr_vertex[i1] + b2 * env.irr_vertex[i2]
+                        cd += wp.cw_mul(dv, rho_d) * env.irr_scale
+                    else:
+                        fv = b0 * env.visible[i0] + b1 * env.visible[i1] + b2 * env.visible[i2]
+                        cd += wp.cw_mul(wp.cw_mul(env_irradiance(env.exact, ns), fv), rho_d)
+                    if wp.static(MOVING): cd = wp.cw_mul(cd, proxy_diffuse(px, t, P, ns, env.radiance, env.exact))  # noqa: E701
+            if wp.static(ENV_D == 1 and not (SHADOWS == 0 and RHO_D_CONST) and not EVIS):
+                if has_kd:
+                    rho_d = diffuse_at(mat, o_l, wp.vec3(0.0, 0.0, 1.0))  # ρd at the normal
+                    nj = env.count
+                    # Σ_j a_j ρd(p_G) V_j, and the exact irradiance's part the lobes miss (E − Σ_j a_j)
+                    # with ρd at the normal and the lobes' mean visible fraction (visible_irradiance)
+                    unocc = wp.vec3(0.0, 0.0, 0.0)
+                    seen = wp.vec3(0.0, 0.0, 0.0)
+                    for j in range(nj):
+                        ax = env.axis[j]
+                        E = env.power[j] * sg_irradiance_norm_at(irr, wp.dot(ns, ax), env.lam[j], env.irr_row[j])
+                        if wp.length_sq(E) > 0.0:
+                            vr = float(1.0)
+                            pe, le = sg_product_lobe(ns, CC_LAM, ax, env.lam[j])
+                            if wp.static(VVIS):  # the per-vertex cache, interpolated
+                                vr = b0 * env.vis[i0, j] + b1 * env.vis[i1, j] + b2 * env.vis[i2, j]
+                            else:
+                                vr = vis_ratio(SHADOWS, FH, vis, q, pe, le)
+                            if wp.static(MOVING): vr = wp.min(vr, proxy_ratio(FH, vis.fh_table, px, t, P, ng, pe, le))  # noqa: E701,E501
+                            unocc += E
+                            seen += E * vr
+                            cd += wp.cw_mul(E, diffuse_at(mat, o_l, world_to_local(pe, ts, bs, ns))) * vr
+                    rest = visible_irradiance(env_irradiance(env.exact, ns), unocc, seen) - seen
+                    cd += wp.cw_mul(rest, rho_d)
+            col += cd * occ
+
+            # ---------------- environment, specular (eq. 41) ----------------
+            # per slice lobe G_k: [μ_k ∫G_k e(n·pW, λW)] · L̄, the lobe's exact cosine-weighted mass times
+            # the mean radiance L̄ = ΓL(p, λ)/∫G(λ) over (p, λ) = C* ⊗ G_k (eq. 35; module docstring)
+            if wp.static(SPEC and ENV_S == 2):
+                nspec = slice_lobe_count(mat)
+                ncoat = int(0)
+                if wp.static(COAT):
+                    if has_coat:
+                        ncoat = slice_lobe_count(cm)
+                if wp.static(SHADOWS == 1 and not Q_EARLY):
+                    if nspec > 0 or ncoat > 0:
+                        q = ssdf_point_framed(vis.normals, vis.frame_t, vis.frame_b, i0, i1, i2, b0, b1, b2, ng)
+                spec = wp.vec3(0.0, 0.0, 0.0)
+                for k in range(nspec):
+                    pw_l, lw, mw = shading_slice_lobe(mat, o_l, k)
+                    if wp.length_sq(mw) > 0.0:
+                        e = sg_irradiance_norm(irr, pw_l[2], lw) * sg_integral(lw)
+                        if e > 0.0:
+                            pw = local_to_world(pw_l, ts, bs, ns)
+                            pa, lam = sg_product_lobe(ns, CC_LAM, pw, lw)
+                            vd = vis_ratio_depth(SHADOWS, FH, vis, q, pa, lam)
+                            if wp.static(MOVING): vd[0] = wp.min(vd[0], proxy_ratio(FH, vis.fh_table, px, t, P, ng, pa, lam))  # noqa: E701,E501
+                            pv = pa
+                            lv = lam
+                            if vd[0] < 1.0:  # the mean radiance of the lobe's visible part
+                                pv, lv = visible_lobe(vis, q, pa, lam, vd[1])
+                            g = gamma_mean(gamma, pv, lv)  # L̄ = ΓL(p, λ)/∫G(λ)
+                            spec += wp.cw_mul(mw, g) * (e * vd[0])
+                if nspec > 0:  # the slice's energy made the BRDF's: A(o)/A*(o) (brdf.albedo)
+                    col += wp.cw_mul(spec, albedo_correction(mat, o_l))
+                if wp.static(COAT):
+                    cspec = wp.vec3(0.0, 0.0, 0.0)
+                    for k in range(ncoat):  # the coat's lobes, the same way in the coat's frame
+                        pw_l, lw, mw = shading_slice_lobe(cm, oc_l, k)
+                        e = sg_irradiance_norm(irr, pw_l[2], lw) * sg_integral(lw)
+                        if e > 0.0 and wp.length_sq(mw) > 0.0:
+                            pa, lam = sg_product_lobe(ns_c, CC_LAM, local_to_world(pw_l, ts_c, bs_c, ns_c), lw)
+                            vd = vis_ratio_depth(SHADOWS, FH, vis, q, pa, lam)
+                            if wp.static(MOVING): vd[0] = wp.min(vd[0], proxy_ratio(FH, vis.fh_table, px, t, P, ng, pa, lam))  # noqa: E701,E501
+                            pv, lv = pa, lam
+                            if vd[0] < 1.0:
+                                pv, lv = visible_lobe(vis, q, pa, lam, vd[1])
+                            cspec += wp.cw_mul(mw, gamma_mean(gamma, pv, lv)) * (e * vd[0])
+                    ccol += wp.cw_mul(cspec, albedo_correction(cm, oc_l))  # (zero without a coat)
+            if wp.static(EMIT):
+                col += emission_at(lay, tex, mi, uv)
+            if wp.static(COAT):
+                col = col * atten + ccol
+            out[y, x] = wp.vec3(wp.max(col[0], 0.0), wp.max(col[1], 0.0), wp.max(col[2], 0.0))
+
+    key = "shade_" + "_".join(str(int(v)) for v in (ENV_D, ENV_S, LIGHTS, SPEC, SHADOWS, TEX, NMAP, FH, VVIS, LVIS,
+                                                      EVIS, EMIT, OCC, COAT, VCOL, CUT, MOVING)) + MF.tag
+    shade.__name__ = key
+    shade.__qualname__ = key
+    k = wp.kernel(shade, enable_backward=False, module="unique")
+    _KERNELS[f] = k
+    return k
+
+
+@wp.kernel(enable_backward=False)
+def resolve_box(src: wp.array2d(dtype=wp.vec3), k: int, out: wp.array2d(dtype=wp.vec3)):
+    """Box-filter k×k blocks of the supersampled image (supersampling resolve)."""
+    y, x = wp.tid()
+    acc = wp.vec3(0.0, 0.0, 0.0)
+    for dy in range(k):
+        for dx in range(k):
+            acc += src[y * k + dy, x * k + dx]
+    out[y, x] = acc / float(k * k)
+
+
+__all__ = ["Features", "shade_kernel", "resolve_box", "GeometryArrays", "MaterialTextures", "Visibility", "EnvSG",
+           "SLOT_KD", "SLOT_KS", "SLOT_P0", "SLOT_P1", "SLOT_NORMAL", "SLOT_TANGENT", "SLOT_EMISSION", "SLOT_OCCLUSION",
+           "SLOT_COAT", "SLOT_COAT_NORMAL", "N_SLOTS",
+           "ENV_NONE", "ENV_SG", "ENV_PREFILTERED"]

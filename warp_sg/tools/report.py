@@ -1,0 +1,526 @@
+r"""Error against run time: ``warp-sg report SCENE -o DIR`` / :func:`run_report`.
+
+For one scene it measures how the knobs that trade accuracy for speed move the renderer along
+the error/time plane, next to the Monte-Carlo reference's own error-vs-samples curve:
+
+1. **Ground truth**: a high-sample :func:`warp_sg.groundtruth.reference` image (``truth_spp`` samples per
+   pixel, spread over the k×k sub-pixel grid the truth resolves; seed 1). Its own noise (mean
+   squared standard error) is reported as the noise floor.
+2. **MC curve**: an independent progressive reference run (seed 2); after every power-of-two
+   ``spp`` its error against the ground truth and its elapsed time are recorded.
+3. **Knob sweeps**: each render-setting knob the scene exposes (:data:`KNOBS`: SG lobes per NDF,
+   clamped-cosine lobes, environment SG lobes, ΓL resolution and λ ladder, SSDF resolution and PCA
+   terms, supersampling ...) is varied alone from the scene's settings; for every value the
+   precompute time and the per-frame time (median of warm frames) are measured separately, and
+   the image error against the ground truth. The settings share one fresh cache: a precompute
+   stage (refinement, SSDF rays, PCA, environment fit, ΓL) is built once for each distinct input
+   and reused by every setting that does not change it; a row's precompute time is what it costs
+   with an empty cache (its own builds as measured plus the measured build time of what it
+   reused). Rows are written to ``report.csv`` as they finish.
+
+Errors (:func:`warp_sg.groundtruth.region_error.image_errors`): relative MSE ``Σ(x − r)² / Σ r²`` on linear radiance, PSNR of the
+tone-mapped (``tonemap_srgb``) images, and the max absolute error (linear); for the scene's own
+settings also per region (object, lit floor, shadow, silhouette band) with relative MSE, bias and
+the fraction of pixels off by more than 3× (:mod:`warp_sg.groundtruth.region_error`). Outputs in ``DIR``:
+``report.csv``, ``report.md`` (summary + table + embedded plots), ``error_vs_time.png`` (log-log,
+one curve per knob, the MC curve on the same axes), ``psnr_vs_time.png``, ``images.png`` (truth,
+renderer, difference), ``report.json``.
+"""
+from __future__ import annotations
+
+import contextlib
+import copy
+import csv
+import dataclasses
+import json
+import math
+import os
+import statistics
+import time
+from pathlib import Path
+
+import numpy as np
+
+from warp_sg.core.cache import content_key, fresh_cache, note_build, note_hit, record_builds
+
+from warp_sg.core.files import atomic_output
+from warp_sg.core.device import add_device_argument, device_for
+from warp_sg.core.errors import InputError
+from warp_sg.groundtruth.region_error import image_errors
+
+# knob name -> (full sweep, quick sweep); only knobs present in the scene's render settings run.
+KNOBS: dict[str, tuple[list, list]] = {
+    "lobes": ([1, 2, 3, 4], [1, 3]),
+    "ndf_lobes": ([1, 2, 3, 4], [1, 3]),
+    "cosine_lobes": ([1, 2, 3, 4], [1, 3]),
+    "env_peaks": ([0, 1, 4], [0, 1]),
+    "env_lobes": ([2, 4, 6, 9, 12], [2, 6]),
+    "env_sg_lobes": ([2, 4, 6, 9, 12], [2, 6]),
+    "gamma_resolution": ([8, 16, 32, 64, 96], [8, 16]),
+    "gamma_levels": ([4, 6, 8, 12], [4, 8]),
+    "gamma_lambda_count": ([4, 6, 8, 12], [4, 8]),
+    "ssdf_resolution": ([12, 16, 24, 32, 48], [16, 32]),
+    "pca_terms": ([2, 4, 8, 16, 24], [4, 16]),
+    "supersampling": ([1, 2, 3], [1, 2]),
+    "antialias": ([1, 4, 6], [1, 4]),
+}
+
+#: samples per pixel of the ground truth (its noise floor is printed in the report; at the default
+#: sweep's 6×6 grid that is 113 samples per sub-pixel)
+DEFAULT_TRUTH_SPP = 4096
+
+CSV_FIELDS = ["knob", "value", "precompute_s", "frame_s", "total_s", "rel_mse", "psnr_db", "max_err", "spp"]
+
+
+# --------------------------------------------------------------------------------------------
+# errors
+# --------------------------------------------------------------------------------------------
+# --------------------------------------------------------------------------------------------
+# scene plumbing (Scene / Renderer come from warp_sg.scene and warp_sg.renderer.renderer)
+# --------------------------------------------------------------------------------------------
+def _load(scene):
+    if isinstance(scene, (str, os.PathLike)):
+        from warp_sg.scene.loader import load_scene
+
+        return load_scene(scene)
+    return scene
+
+
+def _settings(scene):
+    return getattr(scene, "render", None) or getattr(scene, "settings", None)
+
+
+def available_knobs(scene) -> dict[str, object]:
+    """Knobs of :data:`KNOBS` that the scene's render settings expose, with their current values."""
+    s = _settings(scene)
+    out = {}
+    if s is None:
+        return out
+    for k in KNOBS:
+        v = s.get(k) if isinstance(s, dict) else getattr(s, k, None)
+        if v is not None and not isinstance(v, bool):
+            out[k] = v
+    return out
+
+
+def with_setting(scene, knob, value):
+    """A copy of ``scene`` with render setting ``knob`` set to ``value``."""
+    sc = copy.copy(scene)
+    s = _settings(scene)
+    if isinstance(s, dict):
+        s2 = dict(s)
+        s2[knob] = value
+    elif dataclasses.is_dataclass(s):
+        s2 = dataclasses.replace(s, **{knob: value})
+    else:
+        s2 = copy.copy(s)
+        setattr(s2, knob, value)
+    if hasattr(scene, "render") and not callable(getattr(scene, "render")):
+        sc.render = s2
+    else:
+        sc.settings = s2
+    return sc
+
+
+def time_renderer(scene, device="cpu", frames=3, ledger=None, memo=None):
+    """(image, precompute seconds, per-frame seconds) for ``scene`` with an empty cache.
+
+    Uses ``warp_sg.renderer.renderer.Renderer`` (precompute once, then ``frames`` warm frames; median).
+    With a ``ledger`` (:func:`warp_sg.core.cache.record_builds`, recording into the report's one cache)
+    the precompute reuses what earlier settings built, and its time is the measured construction
+    plus the build time of every entry it found (what an empty cache would have cost); ``memo``:
+    the report's :class:`RawSSDFMemo`. The precompute stages run one after the other
+    (``Renderer.overlap_precompute`` off), so that a setting's time is the sum of its stages'."""
+    from warp_sg.renderer.renderer import Renderer
+
+    def run():
+        mark = ledger.mark() if ledger is not None else 0
+        t0 = time.perf_counter()
+        overlap, Renderer.overlap_precompute = Renderer.overlap_precompute, False  # stage times add up
+        try:
+            r = Renderer(scene, device=device, ssdf_compute=memo)
+        finally:
+            Renderer.overlap_precompute = overlap
+        t_pre = time.perf_counter() - t0
+        if ledger is not None:
+            t_pre += ledger.hit_cost(mark)[0]
+        img = np.asarray(r.render())  # first frame: compiles / uploads (not counted as a frame)
+        times = []
+        for _ in range(max(1, frames)):
+            t1 = time.perf_counter()
+            img = np.asarray(r.render())
+            times.append(time.perf_counter() - t1)
+        return img, t_pre, statistics.median(times)
+
+    if ledger is not None:
+        return run()
+    with fresh_cache():
+        return run()
+
+
+class RawSSDFMemo:
+    """The report's ``ssdf_compute``: the uncompressed SSDFs (rays and distance search,
+    ``precompute.compute_ssdf``) of a mesh at a resolution are computed once, so settings that
+    change only their compression (``pca_terms``) or nothing of them re-run PCA only. The same
+    function with the same arguments: the same SSDFs. Computations and reuses are entered in the
+    recording ledgers (:func:`warp_sg.core.cache.note_build`, kind ``ssdf_raw``) so the reused ones count
+    at their build time."""
+
+    def __init__(self):
+        self._memo: dict = {}
+
+    def __call__(self, vertices, triangles, normals, *, resolution, ray_resolution, device="cpu", progress=True):
+        from precompute.visibility.ssdf import compute_ssdf
+
+        key = content_key(np.asarray(vertices, np.float32), np.asarray(triangles, np.int32),
+                          np.asarray(normals, np.float32), {"resolution": int(resolution),
+                                                            "ray_resolution": int(ray_resolution)})
+        if key in self._memo:
+            note_hit("ssdf_raw", key)
+            return self._memo[key]
+        w0, c0 = time.perf_counter(), time.process_time()
+        X = compute_ssdf(vertices, triangles, normals, resolution=resolution, ray_resolution=ray_resolution,
+                         device=device, progress=progress)
+        note_build("ssdf_raw", key, time.perf_counter() - w0, time.process_time() - c0)
+        self._memo[key] = X
+        return X
+
+
+# --------------------------------------------------------------------------------------------
+# the report
+# --------------------------------------------------------------------------------------------
+@dataclasses.dataclass
+class Report:
+    out_dir: Path
+    rows: list  # dicts with CSV_FIELDS
+    truth_spp: int
+    noise_floor_rel_mse: float
+    files: dict
+
+
+def mc_curve(scene, truth, device="cpu", max_spp=64, seed=2, progress=True, per_sample: int = 1):
+    """Error-vs-time rows of a progressive reference run at every power of two up to ``max_spp``
+    samples per sub-pixel of ``scene``; ``per_sample``: sub-pixels per pixel (the rows' ``spp``
+    count samples per pixel)."""
+    from warp_sg.groundtruth.reference import render_reference
+
+    rows = []
+
+    def cb(spp, seconds, img, se):
+        if spp & (spp - 1) == 0 or spp == max_spp:
+            rows.append({"knob": "mc_reference", "value": spp * per_sample, "precompute_s": 0.0, "frame_s": seconds,
+                         "total_s": seconds, "spp": spp * per_sample, **image_errors(img, truth)})
+
+    render_reference(scene, spp=max_spp, device=device, progress=progress, seed=seed, callback=cb)
+    return rows
+
+
+def with_resolution(scene, width=None, height=None):
+    """A copy of ``scene`` whose camera renders ``width`` × ``height`` (one given: keep the aspect)."""
+    if not width and not height:
+        return scene
+    cam = scene.camera
+    if width and not height:
+        height = max(1, round(cam.height * width / cam.width))
+    if height and not width:
+        width = max(1, round(cam.width * height / cam.height))
+    sc = copy.copy(scene)
+    sc.camera = dataclasses.replace(cam, width=int(width), height=int(height))
+    return sc
+
+
+def run_report(scene, out_dir, device=None, quick=False, truth_spp=None, mc_max_spp=None, knobs=None,
+               progress=True, frames=None, width=None, height=None, cluster=None, reuse=True) -> Report:
+    """Run the sweep for ``scene`` (a Scene or a path) and write the report into ``out_dir``.
+
+    ``reuse`` (default): the settings share one fresh cache, so each precompute stage is built
+    once per distinct input and reused by the settings that do not change it (the uncompressed
+    SSDFs too, :class:`RawSSDFMemo`); a row's ``precompute_s`` is its measured construction plus
+    the build time of everything it reused, i.e. what it costs with an empty cache. ``reuse=False``:
+    a fresh cache for every setting (the same rows, each precompute measured whole). ``report.csv``
+    is rewritten after every row.
+
+    ``cluster`` (a Dask cluster spec / Client, :mod:`warp_sg.distributed.rendering`): the ground truth's
+    samples are split across its workers (same image bit for bit); ``None``: all local, no Dask.
+
+    ``width``/``height`` override the camera's resolution (the reference's cost grows with it);
+    ``device=None`` is the scene's ``[render] device``."""
+    from warp_sg.groundtruth.reference import render_reference
+
+    scene = with_resolution(_load(scene), width, height)
+    device = device_for(device, scene)
+    out = Path(out_dir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise InputError(f"cannot create the output folder ({e.strerror})", where=str(out)) from None
+    if not os.access(out, os.W_OK):
+        raise InputError("output folder is not writable", where=str(out))
+    truth_spp = int(truth_spp or (64 if quick else DEFAULT_TRUTH_SPP))
+    mc_max_spp = int(mc_max_spp or max(1, truth_spp // 8))
+    frames = frames or (1 if quick else 3)
+
+    avail = available_knobs(scene)
+    if knobs is not None:
+        avail = {k: v for k, v in avail.items() if k in knobs}
+    sweep = [(k, v) for k, cur in avail.items() for v in (KNOBS[k][1] if quick else KNOBS[k][0])]
+    # the ground truth resolves pixels at least as finely as any swept supersampling or
+    # antialiasing grid, so those knobs' errors include their aliasing
+    rs0 = _settings(scene)
+    aa = [int(getattr(rs0, "antialias", 1))] + [int(v) for k, v in sweep if k == "antialias"]
+    k_truth = max([int(rs0.supersampling)] + [int(v) for k, v in sweep if k == "supersampling"] + aa)
+    truth_scene = scene if k_truth == _settings(scene).supersampling else with_setting(scene, "supersampling", k_truth)
+
+    per = k_truth * k_truth  # the spp counts are per pixel, spread over the k×k sub-pixels
+    sub_spp = max(1, truth_spp // per)
+    t0 = time.perf_counter()
+    if cluster is not None:
+        from warp_sg.distributed.rendering import render_reference_distributed
+
+        truth = render_reference_distributed(truth_scene, spp=sub_spp, cluster=cluster, device=device,
+                                             progress=progress, seed=1)
+    else:
+        truth = render_reference(truth_scene, spp=sub_spp, device=device, progress=progress, seed=1)
+    truth_time = time.perf_counter() - t0
+    floor = float(np.sum(truth.stderr.astype(np.float64) ** 2) / max(np.sum(truth.image.astype(np.float64) ** 2),
+                                                                        1e-300))
+    rows = mc_curve(truth_scene, truth.image, device, max(1, mc_max_spp // per), progress=progress, per_sample=per)
+    write_rows_csv(out, rows)
+    base_img = None
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=len(sweep) + 1, desc="report sweep", unit="setting", leave=False)
+    with contextlib.ExitStack() as stack:
+        ledger = memo = None
+        if reuse:  # one cache for the sweep: a setting rebuilds only what it changes
+            stack.enter_context(fresh_cache())
+            ledger = stack.enter_context(record_builds())
+            memo = RawSSDFMemo()
+        if bar is not None:
+            stack.callback(bar.close)
+        for knob, value in [("default", "scene")] + sweep:
+            sc = scene if knob == "default" else with_setting(scene, knob, value)
+            img, tp, tf = time_renderer(sc, device, frames, ledger=ledger, memo=memo)
+            if knob == "default":
+                base_img = img
+            rows.append({"knob": knob, "value": value, "precompute_s": tp, "frame_s": tf, "total_s": tp + tf,
+                         "spp": "", **image_errors(img, truth.image)})
+            write_rows_csv(out, rows)  # each row as it finishes
+            if bar is not None:
+                bar.update(1)
+
+    from warp_sg.groundtruth.region_error import region_errors, scene_regions
+
+    regions = region_errors(base_img, truth.image, scene_regions(scene, device=device)) if base_img is not None else None
+    files = write_outputs(out, rows, truth.image, base_img, sub_spp * per, floor, truth_time, scene, k_truth,
+                          regions=regions)
+    return Report(out, rows, sub_spp * per, floor, files)
+
+
+# --------------------------------------------------------------------------------------------
+# outputs
+# --------------------------------------------------------------------------------------------
+def _fmt(v):
+    if isinstance(v, float):
+        if v == 0:
+            return "0"
+        if math.isinf(v):
+            return "inf"
+        return f"{v:.4g}"
+    return str(v)
+
+
+def markdown_table(rows) -> str:
+    head = "| knob | value | precompute (s) | frame (s) | rel. MSE | PSNR (dB) | max err |"
+    sep = "|---|---|---:|---:|---:|---:|---:|"
+    lines = [head, sep]
+    for r in rows:
+        lines.append(f"| {r['knob']} | {r['value']} | {_fmt(r['precompute_s'])} | {_fmt(r['frame_s'])} | "
+                     f"{_fmt(r['rel_mse'])} | {_fmt(r['psnr_db'])} | {_fmt(r['max_err'])} |")
+    return "\n".join(lines) + "\n"
+
+
+def _atomic_write_text(path: Path, text: str):
+    with atomic_output(path) as tmp:
+        Path(tmp).write_text(text)
+
+
+def _save_figure(fig, path) -> None:
+    """``fig.savefig`` atomically (the format follows ``path``'s suffix); closes the figure."""
+    import matplotlib.pyplot as plt
+
+    try:
+        with atomic_output(path, suffix=Path(path).suffix) as tmp:
+            fig.savefig(tmp)
+    finally:
+        plt.close(fig)
+
+
+def plot_error_vs_time(rows, path, floor=None, metric="rel_mse", time_key=None):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.4, 4.2), dpi=80)
+    groups: dict[str, list] = {}
+    for r in rows:
+        groups.setdefault(r["knob"], []).append(r)
+    for knob, rs in groups.items():
+        tk = time_key or "frame_s"
+        xs = np.array([max(float(r[tk]), 1e-6) for r in rs])
+        ys = np.array([max(float(r[metric]), 1e-12) if metric == "rel_mse" else float(r[metric]) for r in rs])
+        if knob == "mc_reference":
+            ax.plot(xs, ys, "k-o", lw=2, ms=4, label="MC reference (spp 1→)")
+            for x, y, r in zip(xs, ys, rs):
+                ax.annotate(str(r["value"]), (x, y), fontsize=6, xytext=(2, 2), textcoords="offset points")
+        elif knob == "default":
+            ax.plot(xs, ys, "r*", ms=12, label="renderer (scene settings)")
+        else:
+            ax.plot(xs, ys, "-s", ms=4, label=knob)
+            for x, y, r in zip(xs, ys, rs):
+                ax.annotate(str(r["value"]), (x, y), fontsize=6, xytext=(2, -7), textcoords="offset points")
+    if floor and metric == "rel_mse" and floor > 0:
+        ax.axhline(floor, color="gray", ls=":", lw=1, label="ground-truth noise floor")
+    ax.set_xscale("log")
+    if metric == "rel_mse":
+        ax.set_yscale("log")
+    ax.set_xlabel("time per frame (s)  [MC: total time]")
+    ax.set_ylabel({"rel_mse": "relative MSE", "psnr_db": "PSNR (dB, tone-mapped)", "max_err": "max error"}[metric])
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, loc="best")
+    fig.tight_layout()
+    _save_figure(fig, path)
+
+
+def plot_images(truth, img, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from warp_sg.core.image_io import tonemap_srgb
+
+    n = 3 if img is not None else 1
+    fig, axs = plt.subplots(1, n, figsize=(2.6 * n, 2.8), dpi=80)
+    axs = np.atleast_1d(axs)
+    axs[0].imshow(tonemap_srgb(truth))
+    axs[0].set_title("MC ground truth", fontsize=8)
+    if img is not None:
+        axs[1].imshow(tonemap_srgb(img))
+        axs[1].set_title("SG renderer", fontsize=8)
+        d = np.abs(np.asarray(img, np.float64) - truth).mean(-1)
+        im = axs[2].imshow(d, cmap="magma")
+        axs[2].set_title("|difference|", fontsize=8)
+        fig.colorbar(im, ax=axs[2], fraction=0.046)
+    for a in axs:
+        a.axis("off")
+    fig.tight_layout()
+    _save_figure(fig, path)
+
+
+def write_rows_csv(out: Path, rows) -> Path:
+    """``report.csv`` of the rows so far (rewritten atomically: readers see whole files)."""
+    p = Path(out) / "report.csv"
+    with atomic_output(p) as tmp, open(tmp, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=CSV_FIELDS, extrasaction="ignore")
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: r.get(k, "") for k in CSV_FIELDS})
+    return p
+
+
+def write_outputs(out: Path, rows, truth, base_img, truth_spp, floor, truth_time, scene=None, k_truth=1,
+                  regions=None) -> dict:
+    files = {"csv": write_rows_csv(out, rows)}
+    plot_error_vs_time(rows, out / "error_vs_time.png", floor)
+    files["plot"] = out / "error_vs_time.png"
+    plot_error_vs_time(rows, out / "psnr_vs_time.png", metric="psnr_db")
+    files["plot_psnr"] = out / "psnr_vs_time.png"
+    plot_images(truth, base_img, out / "images.png")
+    files["images"] = out / "images.png"
+    h, w = truth.shape[:2]
+    mc = [r for r in rows if r["knob"] == "mc_reference"]
+    base = [r for r in rows if r["knob"] == "default"]
+    lines = ["# Error against run time", ""]
+    name = getattr(scene, "path", None) or getattr(scene, "name", None)
+    if name:
+        lines += [f"Scene: `{name}`, {w}×{h} pixels.", ""]
+    else:
+        lines += [f"Image: {w}×{h} pixels.", ""]
+    lines += [
+        f"Ground truth: Monte-Carlo reference with {truth_spp} samples per pixel ({truth_spp // (k_truth * k_truth)} "
+        f"per sub-pixel of a {k_truth}×{k_truth} grid) "
+        f"({truth_time:.1f} s); its noise floor (Σ stderr² / Σ ref²) is {floor:.3g} in relative MSE. "
+        f"The MC curve is an independent progressive run at the same supersampling.",
+        "Precompute times are those of an empty cache with the stages one after the other (each stage built "
+        "once and reused by the settings that do not change it, counted at its build time); frame times "
+        "are the median of warm frames.",
+        "",
+    ]
+    if base and mc:
+        b = base[0]
+        better = [r for r in mc if r["rel_mse"] <= b["rel_mse"]]
+        if better:
+            r = better[0]
+            lines += [f"The renderer at the scene's settings (rel. MSE {b['rel_mse']:.3g}, {b['frame_s']:.3g} s/frame) "
+                      f"is matched by the MC reference at {r['value']} spp ({r['total_s']:.3g} s): "
+                      f"{r['total_s'] / max(b['frame_s'], 1e-9):.3g}× the renderer's frame time.", ""]
+        else:
+            r = mc[-1]
+            lines += [f"The renderer at the scene's settings (rel. MSE {b['rel_mse']:.3g}, {b['frame_s']:.3g} s/frame) "
+                      f"is more accurate than the MC reference at {r['value']} spp ({r['total_s']:.3g} s, "
+                      f"rel. MSE {r['rel_mse']:.3g}).", ""]
+    if regions:
+        from warp_sg.groundtruth.region_error import format_region_table
+
+        lines += ["## Error by region (scene's settings)", "",
+                  "Bias = mean(render)/mean(reference) − 1 (worst channel); off by >3× = fraction of the "
+                  "region's pixels whose luminance is off by more than 3× (`warp_sg.groundtruth.region_error`).", "",
+                  format_region_table(regions), ""]
+    lines += ["![error vs time](error_vs_time.png)", "", "![PSNR vs time](psnr_vs_time.png)", "",
+              "![images](images.png)", "", "## All measurements", "", markdown_table(rows)]
+    _atomic_write_text(out / "report.md", "\n".join(lines))
+    files["markdown"] = out / "report.md"
+    meta = {"truth_spp": truth_spp, "noise_floor_rel_mse": floor, "truth_seconds": truth_time,
+            "width": int(w), "height": int(h), "rows": rows, "regions": regions}
+    _atomic_write_text(out / "report.json", json.dumps(meta, indent=1, default=str))
+    files["json"] = out / "report.json"
+    return files
+
+
+# --------------------------------------------------------------------------------------------
+# CLI
+# --------------------------------------------------------------------------------------------
+def add_cli_arguments(p) -> None:
+    p.add_argument("scene", help="scene file (TOML)")
+    p.add_argument("-o", "--output", required=True, help="output folder")
+    add_device_argument(p)
+    p.add_argument("--quick", action="store_true", help="small sweep (smoke test)")
+    p.add_argument("--truth-spp", type=int, default=None,
+                   help=f"samples per pixel of the ground truth (default {DEFAULT_TRUTH_SPP}; --quick: 64)")
+    p.add_argument("--width", type=int, default=None, help="override the camera width (keeps the aspect)")
+    p.add_argument("--height", type=int, default=None, help="override the camera height")
+    p.add_argument("--no-progress", action="store_true")
+    p.add_argument("--cluster", default=None, metavar="local:N|tcp://HOST:PORT",
+                   help="split the ground truth's samples across a Dask cluster (docs/distributed.md)")
+
+
+def cli_main(args) -> int:
+    if args.truth_spp is not None and args.truth_spp < 1:
+        raise InputError(f"must be >= 1, got {args.truth_spp}", where="--truth-spp")
+    for k in ("width", "height"):
+        v = getattr(args, k)
+        if v is not None and v < 1:
+            raise InputError(f"must be >= 1, got {v}", where=f"--{k}")
+    rep = run_report(args.scene, args.output, device=args.device, quick=args.quick, truth_spp=args.truth_spp,
+                     progress=not args.no_progress, width=args.width, height=args.height,
+                     cluster=getattr(args, "cluster", None))
+    print(f"report written to {rep.files['markdown']}")
+    return 0
+
+
+__all__ = ["run_report", "image_errors", "KNOBS", "available_knobs", "with_setting", "mc_curve", "Report",
+           "markdown_table", "add_cli_arguments", "cli_main"]
