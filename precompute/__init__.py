@@ -1,13 +1,18 @@
 """precompute: everything cached on disk before rendering (docs/precompute.md): per-vertex visibility by
 BVH ray queries, SSDFs with PCA, environment prefiltering and SG mixture fits.
 
-Names load on first use (PEP 562) so importing one step does not compile the others' kernels.
+Sub-packages: ``visibility`` (ray queries, refinement, SSDFs) and ``environment`` (peaks,
+irradiance, ΓL prefiltering, SG fit). The names below load on first use (a module ``__getattr__``,
+PEP 562) so importing one step does not import the others; ``precompute.cache`` and
+``precompute.envmap`` are the base layer's cache (:mod:`warp_sg.core.cache`) and the scene layer's
+maps (:mod:`warp_sg.scene.envmap`).
 """
 from __future__ import annotations
 
-from warp_sg.lazy import lazy_getattr
+import importlib
 
-_LAZY = {
+#: public name -> (module, attribute; None for the module itself)
+_PUBLIC = {
     "cache": ("warp_sg.core.cache", None),
     "cache_dir": ("warp_sg.core.cache", "cache_dir"),
     "content_key": ("warp_sg.core.cache", "content_key"),
@@ -30,7 +35,15 @@ _LAZY = {
 }
 
 
-__getattr__ = lazy_getattr(globals(), _LAZY)
+def __getattr__(name):
+    if name not in _PUBLIC:
+        raise AttributeError(f"module 'precompute' has no attribute {name!r}")
+    module, attr = _PUBLIC[name]
+    value = importlib.import_module(module)
+    if attr is not None:
+        value = getattr(value, attr)
+    globals()[name] = value
+    return value
 
 
-__all__ = list(_LAZY)
+__all__ = list(_PUBLIC)

@@ -3,7 +3,8 @@
 ``rasterize(vertices, triangles, camera, device=..., supersample=1, cull_backfaces=False,
 coverage_count=False) -> VisibilityBuffer`` (tri_id / bary / depth as ``wp.array``);
 ``interpolate(vb, triangles, attr)``; ``Camera`` (Mitsuba look_at + vertical fov).
-Stages: camera.py → setup.py → bin.py → coarse.py → fine.py, orchestrated by rasterize.py.
+Stages: triangle_setup.py → bin.py → coarse.py → fine.py, orchestrated by rasterize.py; the camera is
+the scene's (:mod:`warp_sg.scene.camera`, a plain data class).
 """
 from warp_sg.scene.camera import Camera
 from .interpolate import interpolate

@@ -3,15 +3,18 @@
 Reads every module of ``warp_sg/``, ``raster/`` and ``precompute/`` with :mod:`ast` and builds the
 graph of their imports of each other: module-level and function-level ``import`` / ``from ...
 import`` statements (relative ones resolved) and ``importlib.import_module("literal")`` calls.
-An imported name that is itself a module (``from . import sampling``) points at that module,
-otherwise at the module it comes from. The tests then require
+An imported name that is itself a module (``from warp_sg.groundtruth import sampling``) points at
+that module, otherwise at the module it comes from. A module's layer is its folder: every package
+folder has a layer in :data:`FOLDER_LAYERS` (a sub-folder of a listed folder shares its layer, so
+``warp_sg/scene/importers/`` is scene and a new folder of ``warp_sg/brdf/`` is math; a new
+folder directly under ``warp_sg/`` must be listed). The tests then require
 
+* every package folder in a layer,
 * no import cycle between modules (strongly connected components of more than one module; the
   failure shows one cycle of each),
-* no library module importing the command line (``warp_sg.cli``): the CLI sits on top,
-* every module in a layer (:data:`LAYERS`, the table of docs/architecture.md "Layers": base → math → scene → engines →
-  render → tools) and every import going to the same or a lower layer (the failure names the
-  importing module, the line, and both layers), and
+* no library module importing the command line (``warp_sg.tools.cli``): the CLI sits on top,
+* every import going to the same or a lower layer (the failure names the importing module, the
+  line, and both layers), and
 * no library file longer than :data:`MAX_LINES` lines (one concept per file).
 
 Cycles between the three packages (``warp_sg`` ↔ ``raster`` ↔ ``precompute``) are allowed: the
@@ -31,54 +34,30 @@ PACKAGES = ("warp_sg", "raster", "precompute")
 #: docs/architecture.md "Layers", bottom to top: a module may import its own layer and the layers below.
 LAYER_ORDER = ("base", "math", "scene", "engines", "render", "tools")
 
-#: (layer, modules): exact dotted names, or ``"pkg.*"`` for every module below ``pkg``; the first
-#: match wins (so the bench modules of ``raster``/``precompute`` are tools, the rest engines).
-LAYERS = (
-    ("base", ("warp_sg.errors", "warp_sg.device", "warp_sg.atomic", "warp_sg.workers", "warp_sg.meshcheck",
-              "warp_sg.lazy", "warp_sg.image_io", "warp_sg.cache", "warp_sg.stage_clock", "warp_sg.watchdog")),
-    ("math", ("warp_sg.fastmath", "warp_sg.sg", "warp_sg.sg_wp", "warp_sg.frames", "warp_sg.clamped_cosine", "warp_sg.fh",
-              "warp_sg.sg_irradiance", "warp_sg.ssdf_product", "warp_sg.anisotropy", "warp_sg.pca",
-              "warp_sg.rigid_motion",
-              "warp_sg.brdf", "warp_sg.brdf.*")),
-    ("scene", ("warp_sg.scene", "warp_sg.scene_model", "warp_sg.scene_toml", "warp_sg.scene_schema",
-               "warp_sg.scene_values", "warp_sg.geometry", "warp_sg.camera", "warp_sg.culling",
-               "warp_sg.envmap", "warp_sg.primitives", "warp_sg.textures", "warp_sg.lights",
-               "warp_sg.plain_scenes", "warp_sg.gltf", "warp_sg.gltf_checks", "warp_sg.gltf_material",
-               "warp_sg.material_layers", "warp_sg.asset_scene", "warp_sg.lobe_extent")),
-    # the public facade ``warp_sg`` (``ws.render``, ``ws.reference``: lazy) sits on top with the tools
-    ("tools", ("warp_sg", "warp_sg.cli", "warp_sg.report",
-               "warp_sg.bench",
-               "warp_sg.peer_mitsuba",
-               "warp_sg.bench_scaling",
-               "warp_sg.bench_motion",
-               "warp_sg.bench_assets",
-               "warp_sg.bench_first_image",
-               "warp_sg.spp_curve",
-               "warp_sg.preview",
-               "warp_sg.viewer",
-               "warp_sg.viewer_widgets",
-               "warp_sg.viewer_objects",
-               "raster.bench",
-               "precompute.bench",
-               "warp_sg.cluster",
-               "warp_sg.distributed",
-               "warp_sg.distributed_precompute",
-               "warp_sg.batch",
-               )),
-    # surface: the shading point's textured material and frame, @wp.funcs shared by the shading
-    # kernels and the reference kernel (it reads the scene's textures, so it cannot sit lower)
-    # surface_layers and cutout: a material's layers and alpha cut-outs, likewise shared (and the
-    # cut-outs by the precompute's visibility rays)
-    ("engines", ("raster", "raster.*", "precompute", "precompute.*", "warp_sg.surface", "warp_sg.surface_layers",
-                 "warp_sg.cutout", "warp_sg.shading",
-                 "warp_sg.vertex_visibility", "warp_sg.silhouette", "warp_sg.background", "warp_sg.motion_wp")),
-    ("render", ("warp_sg.render", "warp_sg.render_environment", "warp_sg.costs", "warp_sg.progressive",
-                "warp_sg.dynamic_objects",
-                "warp_sg.visibility_setup", "warp_sg.antialias", "warp_sg.reference", "warp_sg.reference_wp",
-                "warp_sg.sampling", "warp_sg.regions")),
-)
+#: package folder (dotted) -> layer. A module's layer is its folder's (a package's own ``__init__``
+#: included); a folder not listed takes its nearest listed parent's, except that a folder directly
+#: under a package root must be listed itself. ``warp_sg`` itself (the public facade, ``ws.*``)
+#: sits on top with the tools.
+FOLDER_LAYERS = {
+    "warp_sg.core": "base",
+    "warp_sg.numeric": "math",
+    "warp_sg.sg": "math",
+    "warp_sg.brdf": "math",
+    "warp_sg.scene": "scene",
+    "warp_sg.scene.importers": "scene",
+    "raster": "engines",
+    "precompute": "engines",
+    "precompute.visibility": "engines",
+    "precompute.environment": "engines",
+    "warp_sg.shading": "engines",
+    "warp_sg.renderer": "render",
+    "warp_sg.groundtruth": "render",
+    "warp_sg.tools": "tools",
+    "warp_sg.distributed": "tools",
+    "warp_sg": "tools",
+}
 
-#: the longest a library file may be (one concept per file; the aim is about 600)
+#: the longest a library file may be (one concept per file)
 MAX_LINES = 650
 
 
@@ -222,12 +201,27 @@ def package_edges(graph=None) -> dict[tuple[str, str], list[tuple[str, str]]]:
     return out
 
 
-def layer_of(module: str, layers=LAYERS) -> str | None:
-    """The layer of ``module`` by :data:`LAYERS` (None when it has none)."""
-    for layer, patterns in layers:
-        for p in patterns:
-            if module == p or (p.endswith(".*") and module.startswith(p[:-1])):
-                return layer
+def folder_of(module: str) -> str:
+    """The package folder of ``module``: itself for a package's ``__init__``, else its parent."""
+    path = modules()[module]
+    return module if path.name == "__init__.py" else module.rpartition(".")[0]
+
+
+def folders() -> list[str]:
+    """Every package folder of the library (dotted)."""
+    return sorted({folder_of(m) for m in modules()})
+
+
+def layer_of(module: str, table=FOLDER_LAYERS) -> str | None:
+    """The layer of ``module``: its folder's in ``table`` (None when it has none)."""
+    folder = folder_of(module) if module in modules() else module
+    while folder:
+        if folder in table:
+            return table[folder]
+        parent = folder.rpartition(".")[0]
+        if parent in PACKAGES:  # a folder directly under a package root needs its own entry
+            return None
+        folder = parent
     return None
 
 
@@ -244,9 +238,11 @@ def upward_imports(graph, layer=layer_of, order=LAYER_ORDER) -> list[str]:
 
 def test_the_graph_sees_the_packages_and_function_level_imports():
     g = import_graph()
-    assert {"warp_sg", "warp_sg.cli", "warp_sg.brdf.base", "raster.rasterize", "precompute.envmap"} <= set(g)
-    assert "warp_sg.render" in g["warp_sg.cli"]  # imported inside render_main
-    assert "warp_sg.sampling" in g["warp_sg.reference"]  # ``from . import sampling as S``
+    assert {"warp_sg", "warp_sg.tools.cli", "warp_sg.brdf.base", "raster.rasterize",
+            "precompute.environment.prefilter"} <= set(g)
+    assert "warp_sg.renderer.renderer" in g["warp_sg.tools.cli"]  # imported inside render_main
+    assert "warp_sg.groundtruth.sampling" in g["warp_sg.groundtruth.reference"]  # ``from ... import sampling as S``
+    assert "warp_sg.brdf.material_wp" in g["warp_sg.brdf"]  # importlib.import_module("warp_sg.brdf.material_wp")
     assert "warp_sg.brdf.models.measured" in g["warp_sg.brdf"]  # from .models.measured import Measured
 
 
@@ -266,21 +262,35 @@ def test_no_import_cycle_between_modules():
 
 def test_no_library_module_imports_the_cli():
     g = import_graph()
-    bad = sorted(f"{m} (line {t['warp_sg.cli']})" for m, t in g.items() if "warp_sg.cli" in t)
-    assert not bad, f"library modules import warp_sg.cli: {', '.join(bad)}"
+    bad = sorted(f"{m} (line {t['warp_sg.tools.cli']})" for m, t in g.items() if "warp_sg.tools.cli" in t)
+    assert not bad, f"library modules import warp_sg.tools.cli: {', '.join(bad)}"
 
 
 def test_layer_checker_reports_an_upward_import():
     g = {"lo": {"hi": 7, "lo2": 3}, "hi": {"lo": 2}, "lo2": {}}
-    layers = (("base", ("lo", "lo2")), ("tools", ("hi",)))
-    assert upward_imports(g, lambda m: layer_of(m, layers)) == ["lo (base, line 7) imports hi (tools)"]
-    assert layer_of("raster.fine") == "engines" and layer_of("raster.bench") == "tools"
+    layers = {"lo": "base", "lo2": "base", "hi": "tools"}
+    assert upward_imports(g, layers.get) == ["lo (base, line 7) imports hi (tools)"]
+    assert layer_of("raster.fine") == "engines" and layer_of("warp_sg.tools.bench_raster") == "tools"
     assert layer_of("warp_sg.brdf.material_wp") == "math" and layer_of("warp_sg") == "tools"
+    assert layer_of("warp_sg.scene.importers.gltf") == "scene"  # a sub-folder shares its parent's layer
+    assert layer_of("warp_sg.newfolder", {"warp_sg": "tools"}) is None  # a new top folder must be listed
+
+
+def test_every_folder_has_a_layer():
+    missing = sorted(f for f in folders() if layer_of(f) is None)
+    assert not missing, f"package folders without a layer (add them to FOLDER_LAYERS): {', '.join(missing)}"
 
 
 def test_every_module_has_a_layer():
     missing = sorted(m for m in modules() if layer_of(m) is None)
-    assert not missing, f"modules without a layer (add them to LAYERS): {', '.join(missing)}"
+    assert not missing, f"modules without a layer (add their folder to FOLDER_LAYERS): {', '.join(missing)}"
+
+
+def test_the_package_roots_hold_only_the_facades():
+    """``warp_sg/`` directly holds its ``__init__`` (the public ``ws.*``) and nothing else: every
+    other module lives in the folder of its layer."""
+    loose = sorted(m for m in modules() if folder_of(m) == "warp_sg" and m != "warp_sg")
+    assert not loose, f"modules directly in warp_sg/ (move them into their layer's folder): {', '.join(loose)}"
 
 
 def test_imports_go_down_the_layers_only():

@@ -9,23 +9,29 @@ Public interface (docs/architecture.md "Public interface")::
     ref = ws.reference(scene, spp=256, device="cpu")
     ws.save_image("out.exr", img)
 
-The light modules (``errors``, ``sg``, ``brdf``) load eagerly; the renderer, reference and scene
-loading load on first use (PEP 562), so ``raster`` and ``precompute`` can import
-``warp_sg.core.errors`` and ``warp_sg.sg`` without an import cycle.
+The sub-packages are the layers, bottom to top: ``core`` (base), ``numeric``, ``sg``, ``brdf``
+(math), ``scene`` (with ``scene.importers``), ``shading`` (engines, with the top-level packages
+``raster`` and ``precompute``), ``renderer`` and ``groundtruth`` (render), ``tools`` and
+``distributed`` (tools). ``errors``, ``sg`` and ``InputError`` load with the package; the names of
+:data:`_PUBLIC` load on first use (a module ``__getattr__``, PEP 562): the renderer imports
+``raster`` and ``precompute``, which import ``warp_sg.core``, so importing them here eagerly
+would run inside their own import.
 """
 from __future__ import annotations
 
-from warp_sg.core import errors
+import importlib
+
 from warp_sg import sg
-from .core.errors import InputError
-from .lazy import lazy_getattr
+from warp_sg.core import errors
+from warp_sg.core.errors import InputError
 
 __version__ = "0.1.0"
 
-_LAZY = {
+#: public name -> (module, attribute; None for the module itself)
+_PUBLIC = {
     "brdf": ("warp_sg.brdf", None),
-    "Scene": ("warp_sg.scene", "Scene"),
-    "load_scene": ("warp_sg.scene", "load_scene"),
+    "Scene": ("warp_sg.scene.model", "Scene"),
+    "load_scene": ("warp_sg.scene.loader", "load_scene"),
     "render": ("warp_sg.renderer.renderer", "render"),
     "Renderer": ("warp_sg.renderer.renderer", "Renderer"),
     "reference": ("warp_sg.groundtruth.reference", "reference"),
@@ -34,7 +40,15 @@ _LAZY = {
 }
 
 
-__getattr__ = lazy_getattr(globals(), _LAZY)
+def __getattr__(name):
+    if name not in _PUBLIC:
+        raise AttributeError(f"module 'warp_sg' has no attribute {name!r}")
+    module, attr = _PUBLIC[name]
+    value = importlib.import_module(module)
+    if attr is not None:
+        value = getattr(value, attr)
+    globals()[name] = value
+    return value
 
 
-__all__ = ["errors", "sg", "InputError", *_LAZY]
+__all__ = ["errors", "sg", "InputError", *_PUBLIC]

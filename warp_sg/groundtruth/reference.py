@@ -436,14 +436,3 @@ __all__ = [
     "cli_main",
 ]
 
-
-# ``warp_sg.groundtruth.reference`` names both this module and the function (lazy export in ``__init__``);
-# whichever object an import binds, ``ws.reference(scene, ...)`` must render.
-class _CallableModule(type(math)):
-    def __call__(self, *args, **kwargs):
-        return reference(*args, **kwargs)
-
-
-import sys as _sys  # noqa: E402
-
-_sys.modules[__name__].__class__ = _CallableModule

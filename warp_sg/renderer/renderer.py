@@ -598,17 +598,3 @@ def render(scene: Scene, device: str | None = None, progress: bool = False) -> n
 
 __all__ = ["Renderer", "render"]
 
-
-# ``import warp_sg.renderer.renderer`` makes the package attribute ``warp_sg.renderer.renderer`` this module (the import
-# system sets it), shadowing the function of the same name that ``ws.render`` promises. Making the
-# module callable keeps ``ws.render(scene, device)`` working either way.
-import sys as _sys
-import types as _types
-
-
-class _CallableModule(_types.ModuleType):
-    def __call__(self, *args, **kwargs):
-        return render(*args, **kwargs)
-
-
-_sys.modules[__name__].__class__ = _CallableModule

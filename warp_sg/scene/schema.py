@@ -159,7 +159,6 @@ def _jsonable(v):
 def _material_model(name: str, cls):
     """The table of ``[materials.X] model = name``: the model's ``PARAMS`` (defaults shown from its
     constructor) plus ``normal_map`` and ``tangent_map``."""
-    cls = cls._cls() if hasattr(type(cls), "_cls") else cls  # the lazy measured model
     sig = inspect.signature(cls.__init__).parameters
     fields_ = {"model": (Literal[name], Field(description=f"BRDF model {cls.__name__}"))}
     for p in cls.PARAMS:
