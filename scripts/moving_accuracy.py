@@ -87,7 +87,7 @@ def run_case(case, size, spp, folder):
 def cold_construction(case, size, folder):
     """A new Renderer of the scene at a new pose, with an empty cache: construction + first frame."""
     sc = ws.load_scene(write_plain_scene(folder, obj="sphere" if case == "ball" else "blob", light="sky", size=size))
-    from warp_sg.scene.dynamic_objects import scene_with_transforms  # noqa: F401  (same pose semantics)
+    from warp_sg.renderer.dynamic_objects import scene_with_transforms  # noqa: F401  (same pose semantics)
 
     old = os.environ.get("WARP_SG_CACHE_DIR")
     with tempfile.TemporaryDirectory() as cache:

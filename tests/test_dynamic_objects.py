@@ -1,5 +1,5 @@
 """Objects that move after the precompute (``[[objects]] dynamic = true``,
-``Renderer.set_object_transform``; :mod:`warp_sg.scene.dynamic_objects`): the interface, the analytic
+``Renderer.set_object_transform``; :mod:`warp_sg.renderer.dynamic_objects`): the interface, the analytic
 proxies against brute force, self-shadows that turn with the object against a ray cast, nothing
 stale after a move and back, and a moved frame against the Monte-Carlo reference at that pose."""
 from __future__ import annotations

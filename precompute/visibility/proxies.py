@@ -1,6 +1,6 @@
 r"""Occluder proxies of objects: sphere sets and planes, whose SSDF is analytic.
 
-Objects that move (:mod:`warp_sg.scene.dynamic_objects`) shadow the rest of the scene, and are shadowed
+Objects that move (:mod:`warp_sg.renderer.dynamic_objects`) shadow the rest of the scene, and are shadowed
 by it, through proxies rather than through precomputed maps (Ren et al. 2006, "Real-time soft
 shadows in dynamic scenes using spherical harmonic exponentiation", use sphere sets the same
 way). Seen from a point ``P``:

@@ -1,6 +1,6 @@
 r"""Per-vertex SSDFs of a mesh split into groups that each shadow only themselves.
 
-A scene with moving objects (:mod:`warp_sg.scene.dynamic_objects`) cannot keep one SSDF of everything:
+A scene with moving objects (:mod:`warp_sg.renderer.dynamic_objects`) cannot keep one SSDF of everything:
 the SSDF of a floor vertex would hold the shadow of a ball that has since rolled away. Its
 visibility is therefore precomputed per **group** — the static objects together, and each
 dynamic object alone — and every vertex's map holds only the occluders of its own group::

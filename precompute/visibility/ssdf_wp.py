@@ -424,7 +424,7 @@ def ssdf_point_framed(normals: wp.array(dtype=wp.vec3), frame_t: wp.array(dtype=
                       ng: wp.vec3) -> SSDFPoint:
     """:func:`ssdf_point` with the vertex frames stored per vertex (``frame_t``, ``frame_b``: the
     tangent and bitangent of the frame each vertex's SSDF is stored in, which turn with a moving
-    object, :mod:`warp_sg.scene.dynamic_objects`); arrays of another length than ``normals`` (a
+    object, :mod:`warp_sg.renderer.dynamic_objects`); arrays of another length than ``normals`` (a
     placeholder): the frames of the normals, exactly :func:`ssdf_point`."""
     q = ssdf_point(normals, i0, i1, i2, b0, b1, b2, ng)
     if frame_t.shape[0] != normals.shape[0]:

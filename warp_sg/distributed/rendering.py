@@ -87,7 +87,7 @@ def _base_value(scene, section, name, key):
             raise InputError(f"unknown environment field (use {', '.join(_ENV_KEYS)})", where=where)
         return getattr(scene.environment, key)
     if section == "objects":  # a dynamic object's motion (warp_sg.numeric.rigid_motion.motion_from_fields)
-        from warp_sg.scene.dynamic_objects import object_index
+        from warp_sg.renderer.dynamic_objects import object_index
         from warp_sg.core.errors import SceneError
         from warp_sg.numeric.rigid_motion import MOTION_FIELDS
 

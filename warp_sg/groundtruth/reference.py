@@ -411,7 +411,7 @@ def cli_main(args) -> int:
     err_out = check_output_path(args.stderr, create_parents=True) if args.stderr else None
     scene = load_scene(args.scene)
     if args.transform:
-        from warp_sg.scene.dynamic_objects import parse_transform_argument, scene_with_transforms
+        from warp_sg.renderer.dynamic_objects import parse_transform_argument, scene_with_transforms
 
         scene = scene_with_transforms(scene, dict(parse_transform_argument(a) for a in args.transform))
     res = render_reference(scene, spp=args.spp, device=device_for(args.device, scene), progress=not args.no_progress,

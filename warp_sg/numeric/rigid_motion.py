@@ -6,7 +6,7 @@ uniform scale ``s > 0``, translation ``t``), applied after an object's own ``tra
 
 Only similarity transforms keep per-vertex visibility valid under the motion: an object's own
 SSDF (angles between directions) is invariant under ``s R`` and rotates with ``R``
-(:mod:`warp_sg.scene.dynamic_objects`). :func:`check_motion` refuses anything else (shear, mirror,
+(:mod:`warp_sg.renderer.dynamic_objects`). :func:`check_motion` refuses anything else (shear, mirror,
 non-uniform scale, a projective row) with a one-line :class:`~warp_sg.core.errors.SceneError`.
 """
 from __future__ import annotations

@@ -43,7 +43,7 @@ class BackfaceCulling:
             self.closed[k] = bool(trimesh.Trimesh(V, F, process=True).is_volume)
 
     def moved(self, geometry) -> None:
-        """Objects moved rigidly (``warp_sg.scene.dynamic_objects``): new bounding boxes; closedness stays."""
+        """Objects moved rigidly (``warp_sg.renderer.dynamic_objects``): new bounding boxes; closedness stays."""
         V, T = np.asarray(geometry.vertices, np.float64), np.asarray(geometry.triangles)
         for k in np.flatnonzero(self.closed):
             used = V[np.unique(T[self.tri_object == k])]

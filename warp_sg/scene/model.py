@@ -83,7 +83,7 @@ class SceneObject:
     #: (V, 3) factor it puts on ks (glTF COLOR_0, :func:`warp_sg.scene.importers.gltf_material.vertex_colour_factors`)
     colors: np.ndarray | None = None
     specular_colors: np.ndarray | None = None
-    #: may move after the precompute (``[[objects]] dynamic = true``; :mod:`warp_sg.scene.dynamic_objects`)
+    #: may move after the precompute (``[[objects]] dynamic = true``; :mod:`warp_sg.renderer.dynamic_objects`)
     dynamic: bool = False
     #: (4, 4) rigid motion (rotation, translation, uniform scale) applied after ``transform``
     #: (``Renderer.set_object_transform``; None: none)

@@ -132,7 +132,7 @@ class Visibility:
     weights: wp.array2d(dtype=float)
     normals: wp.array(dtype=wp.vec3)  # the per-vertex normals (frames) the SSDFs were computed in
     frame_t: wp.array(dtype=wp.vec3)  # (V,) their frames' tangent and bitangent where objects move
-    frame_b: wp.array(dtype=wp.vec3)  # (warp_sg.scene.dynamic_objects); length 1: the frames of the normals
+    frame_b: wp.array(dtype=wp.vec3)  # (warp_sg.renderer.dynamic_objects); length 1: the frames of the normals
     fh_table: wp.array2d(dtype=float)
     cones: wp.array(dtype=wp.vec4)  # per-vertex occluder cones (precompute.visibility.occluder_cone)
     cone_band: float  # their texel margin h: the width of the skip's blend

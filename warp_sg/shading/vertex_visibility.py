@@ -54,6 +54,7 @@ data; an environment scale edit changes nothing (``E`` carries the scale).
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
 import warp as wp
@@ -335,37 +336,59 @@ def caches() -> tuple:
                                                                 wp.zeros(1, dtype=wp.vec3, device=d)))
 
 
-def update_caches(r, es: EnvSG) -> EnvSG:
-    """Bring a ``Renderer``'s per-vertex caches up to date and attach them to the shading arguments:
+@dataclass(frozen=True)
+class CacheInputs:
+    """What the per-vertex caches read of a renderer's resources, passed explicitly
+    (:meth:`warp_sg.renderer.resources.ResourceSetup.cache_inputs` builds it for each frame).
 
-    * ``es.vis`` (``r.env_vis_cache``), each environment lobe's visible fraction (the lobe path:
-      Oren–Nayar materials): rebuilt when the lobe axes (rotation, fit) or the visibility data change;
-    * ``r.vis.light_deficit`` (``r.light_vis_cache``), each light's SSDF deficit: rebuilt when a
-      light moves or is resized (not on an intensity or environment-scale edit);
-    * ``es.visible``, ``es.irr_vertex`` (``r.env_visible_cache``), the visible fraction of each
-      vertex's diffuse environment irradiance and that visible irradiance at unit scale: rebuilt on
-      environment rotation or with the visibility data (``es.irr_scale`` is the scale).
+    ``env_key``: the key of the environment's kernel arrays, ``(lobes, rotation, scale, geometry)``
+    or None without an environment; its first two entries decide the lobe axes. ``vis``: the
+    shading visibility, whose ``light_deficit`` :func:`update_caches` sets."""
 
-    Camera and material edits reuse all three. ``r.timings["vertex_visibility"]``: this call's
-    rebuild time."""
-    d, nv, fh = r.device, len(r.geometry.vertices), r.scene.render.fh
-    f = r.features()  # the caches the kernel variant reads
-    key = (r._env_arrays_key[:2], r.ssdf, r.vis.cones) if f.env_vis_vertex else None
-    es.vis = r.env_vis_cache.array(key, lambda: env_vertex_visibility(r.irr_table, r.vis, es, nv, d), d)
+    device: str
+    n_vertices: int
+    fh: str
+    ssdf: object
+    vis: Visibility
+    irr_table: object
+    positions: object
+    shading_lights: tuple
+    light_arrays: LightArrays
+    env_key: tuple | None
+    env_scale: float
+
+
+def update_caches(caches: tuple, inputs: CacheInputs, f, es: EnvSG) -> tuple[EnvSG, float]:
+    """Bring the per-vertex caches ``caches = (lobes, lights, visible)`` (:func:`caches`) up to
+    date for the kernel variant ``f`` (its :class:`~warp_sg.shading.kernel.Features`) and attach
+    them to the shading arguments:
+
+    * ``es.vis`` (``lobes``), each environment lobe's visible fraction (the lobe path: Oren–Nayar
+      materials): rebuilt when the lobe axes (rotation, fit) or the visibility data change;
+    * ``inputs.vis.light_deficit`` (``lights``), each light's SSDF deficit: rebuilt when a light
+      moves or is resized (not on an intensity or environment-scale edit);
+    * ``es.visible``, ``es.irr_vertex`` (``visible``), the visible fraction of each vertex's diffuse
+      environment irradiance and that visible irradiance at unit scale: rebuilt on environment
+      rotation or with the visibility data (``es.irr_scale`` is the scale).
+
+    Camera and material edits reuse all three. Returns ``es`` and this call's rebuild seconds."""
+    env_vis, light_vis, env_visible = caches
+    r = inputs
+    d, nv, fh = r.device, r.n_vertices, r.fh
+    key = (r.env_key[:2], r.ssdf, r.vis.cones) if f.env_vis_vertex else None
+    es.vis = env_vis.array(key, lambda: env_vertex_visibility(r.irr_table, r.vis, es, nv, d), d)
     where = tuple((li.type, *np.ravel(getattr(li, "position", getattr(li, "direction", ()))).tolist(),
                    float(li.radius)) for li in r.shading_lights)
     key = (where, r.ssdf, r.vis.cones, fh) if f.light_vis_vertex else None
-    r.vis.light_deficit = r.light_vis_cache.array(
-        key, lambda: light_vertex_deficit(r.vis, r.geo_arrays.positions, r.light_arrays, nv, fh == "sigmoid", d), d)
-    key = (r._env_arrays_key[:2], r.ssdf, r.vis.cones) if f.env_visible_vertex else None
-    es.visible, es.irr_vertex = r.env_visible_cache.array(key, lambda: env_vertex_visible(r.vis, es, nv, d), d)
-    es.irr_scale = float(r.env_light.scale) if r.env_light is not None else 0.0
-    r.timings["vertex_visibility"] = sum(c.seconds for c in (r.env_vis_cache, r.light_vis_cache,
-                                                             r.env_visible_cache))
-    return es
+    r.vis.light_deficit = light_vis.array(
+        key, lambda: light_vertex_deficit(r.vis, r.positions, r.light_arrays, nv, fh == "sigmoid", d), d)
+    key = (r.env_key[:2], r.ssdf, r.vis.cones) if f.env_visible_vertex else None
+    es.visible, es.irr_vertex = env_visible.array(key, lambda: env_vertex_visible(r.vis, es, nv, d), d)
+    es.irr_scale = r.env_scale
+    return es, sum(c.seconds for c in caches)
 
 
-__all__ = ["VertexCache", "caches", "update_caches", "env_vertex_visible", "env_vertex_visible_kernel",
+__all__ = ["VertexCache", "CacheInputs", "caches", "update_caches", "env_vertex_visible", "env_vertex_visible_kernel",
            "smooth_triangles", "SMOOTH_TRIANGLE_DEG",
            "env_vertex_visibility", "env_vertex_visibility_kernel", "light_vertex_deficit",
            "light_vertex_deficit_kernel"]

@@ -1,4 +1,4 @@
-"""``warp-sg bench`` section "objects that move" (:mod:`warp_sg.scene.dynamic_objects`): what a frame
+"""``warp-sg bench`` section "objects that move" (:mod:`warp_sg.renderer.dynamic_objects`): what a frame
 costs after ``Renderer.set_object_transform``, as ratios.
 
 The scene is the plain-input ball of :mod:`warp_sg.scene.plain_scenes` (icosphere, ``dynamic = true``,
@@ -21,7 +21,7 @@ def motion_section(device="cpu", quick=False, frames=None):
     import warp_sg as ws
 
     from warp_sg.core.cache import fresh_cache
-    from warp_sg.scene.dynamic_objects import scene_with_transforms
+    from warp_sg.renderer.dynamic_objects import scene_with_transforms
     from warp_sg.scene.plain_scenes import write_plain_scene
     from warp_sg.numeric.rigid_motion import rolling
 

@@ -1,5 +1,5 @@
 """The viewer's handles on dynamic objects (``[[objects]] dynamic = true``,
-:mod:`warp_sg.scene.dynamic_objects`): drag an object in the view plane, turn it with a key.
+:mod:`warp_sg.renderer.dynamic_objects`): drag an object in the view plane, turn it with a key.
 
 Every dynamic object gets an orange sphere handle at its centre (a pyvista sphere widget, which
 moves in the view plane under the mouse). Dragging it moves the object by the handle's

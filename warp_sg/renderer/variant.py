@@ -1,0 +1,48 @@
+r"""Which shading-kernel variant a frame runs: the :class:`~warp_sg.shading.kernel.Features` of the
+scene's content and the renderer's switches (a mixin of :class:`~warp_sg.renderer.renderer.Renderer`).
+
+The kernel is specialised per feature set (:func:`warp_sg.shading.kernel.shade_kernel`): the
+environment's diffuse and specular modes, local lights, specular materials, SSDF shadows (shown:
+``Renderer.show_shadows``), textures and normal maps, the ``fh`` form, the per-vertex visibility
+paths (``[render] visibility_sampling = "vertex"``), the material models, and the material layers
+(emission, occlusion, clear coat, vertex colours, cut-outs).
+"""
+from __future__ import annotations
+
+from warp_sg.shading import kernel as S
+
+
+class VariantChoice:
+    """The kernel variant of a ``Renderer``'s current state (:meth:`features`)."""
+
+    def _vertex_sampled(self) -> bool:
+        """Visibility of fixed directions sampled per vertex (``[render] visibility_sampling =
+        "vertex"``) with shadows shown."""
+        return self.scene.render.visibility_sampling == "vertex" and self.shadows and self.show_shadows
+
+    def _env_visible_vertex(self) -> bool:
+        """The diffuse environment term as the exact irradiance times the per-vertex visible fraction
+        (``visibility_sampling = "vertex"`` with shadows shown; needs ρd = kd/π, no Oren–Nayar)."""
+        return self.features().env_visible_vertex  # (gated by shading.Features)
+
+    def features(self) -> S.Features:
+        return S.Features(
+            env_diffuse=self.env_diffuse_mode,
+            env_specular=self.env_specular_mode if self.has_specular else S.ENV_NONE,
+            lights=len(self.shading_lights) > 0,
+            specular=self.has_specular,
+            shadows=self.shadows and self.show_shadows,
+            textures=self.has_textures,
+            normal_maps=self.has_normal_maps,
+            fh_sigmoid=self.scene.render.fh == "sigmoid",
+            env_vis_vertex=self._vertex_sampled() and self.env_diffuse_mode == S.ENV_SG,
+            light_vis_vertex=self._vertex_sampled() and len(self.shading_lights) > 0,
+            env_visible_vertex=self._vertex_sampled(),
+            models=self.material_table.models,
+            emission=self.has_emission, occlusion=self.has_occlusion, coat=self.has_coat,
+            vertex_colors=self.geometry.colors is not None, cutouts=self.cutouts is not None,
+            moving=self.dynamic is not None and self.shadows and self.show_shadows,
+        )
+
+
+__all__ = ["VariantChoice"]
