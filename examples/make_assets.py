@@ -8,7 +8,7 @@
 * ``still_life.glb`` a glTF 2.0 asset (README "Render your own asset"): a tiled pedestal (base
   colour, metallic-roughness and normal textures; some tiles metal), a gold ball, a copper ring and a
   red plastic capsule, placed by a node hierarchy (root scale, a tilted group)
-* ``sky.hdr``       an equirectangular Radiance HDR sky with a low warm sun (``warp_sg.scene.envmap.procedural_sky``)
+* ``sky.hdr``       an equirectangular Radiance HDR sky with a low warm sun (``warp_sg.scene.sky.procedural_sky``)
 
 Usage: ``python examples/make_assets.py``. Pure numpy + Pillow + trimesh (+ OpenCV for ``.hdr``),
 deterministic.
@@ -151,7 +151,7 @@ def still_life():
 
 
 def sky():
-    from warp_sg.scene.envmap import procedural_sky
+    from warp_sg.scene.sky import procedural_sky
 
     return procedural_sky(256, 128, sun_direction=(-0.81, 0.5, 0.3), sun_angular_radius=0.04, sun_intensity=800.0,
                           sun_color=(1.0, 0.8, 0.6), sky_intensity=0.9)

@@ -28,7 +28,7 @@ _PUBLIC = {
     "refine_cached": ("precompute.visibility.refine", "refine_cached"),
     "envmap": ("warp_sg.scene.envmap", None),
     "load_envmap": ("warp_sg.scene.envmap", "load_envmap"),
-    "procedural_sky": ("warp_sg.scene.envmap", "procedural_sky"),
+    "procedural_sky": ("warp_sg.scene.sky", "procedural_sky"),
     "EnvPrefiltered": ("precompute.environment.prefilter", "EnvPrefiltered"),
     "prefilter_environment": ("precompute.environment.prefilter", "prefilter_environment"),
     "fit_environment_sgs": ("precompute.environment.sg_fit", "fit_environment_sgs"),

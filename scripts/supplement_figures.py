@@ -1,7 +1,7 @@
 #!/usr/bin/env python
 r"""Reproduce supplement figures of Wang et al. 2009 with warp-sg's fits (PNG + CSV).
 
-* Fig. 1 — clamped-cosine SG fit error vs number of lobes (``warp_sg.sg.clamped_cosine``);
+* Fig. 1 — clamped-cosine SG fit error vs number of lobes (``warp_sg.sg.cosine_lobes``);
 * Fig. 2 — fitted single-lobe sharpness λ vs Cook–Torrance m and Blinn–Phong n: analytic rule
   (λ = 2/m², λ = n; dashed) vs nonlinear least squares (solid);
 * Fig. 3 — supplement eq. 11 error of the single-lobe fit across roughness (analytic and fit);
@@ -37,7 +37,7 @@ def _plt():
 
 
 def fig1(out, quick):
-    from warp_sg.sg import clamped_cosine as C
+    from warp_sg.sg import cosine_lobes as C
 
     plt = _plt()
     rep = C.error_report()

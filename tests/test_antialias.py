@@ -112,12 +112,13 @@ def test_every_edge_of_a_full_subpixel_raster_is_a_candidate_pixel(cache_dir, ma
     import raster
     from raster import parallel
     from warp_sg.renderer import antialias as A
+    from warp_sg.renderer import antialias_candidates as C
 
     r = ws.Renderer(make())
     r.render()
     cam, a, H, W = r.scene.camera, 4, r.scene.camera.height, r.scene.camera.width
     full = raster.rasterize(r.geo_arrays.positions, r.geo_arrays.tris, cam, supersample=a)
-    every = wp.array(np.full(H * W, A.CAND_GEOMETRY, np.int32), dtype=int)
+    every = wp.array(np.full(H * W, C.CAND_GEOMETRY, np.int32), dtype=int)
     edge, count = wp.empty(H * W, dtype=int), wp.empty(H * W, dtype=int)
     parallel.launch(A.classify_kernel, H * W, [wp.array(np.arange(H * W, dtype=np.int32), dtype=int), every,
                                                _per_pixel(full.tri_id, a, int), _per_pixel(full.inv_depth, a, float),
@@ -125,7 +126,7 @@ def test_every_edge_of_a_full_subpixel_raster_is_a_candidate_pixel(cache_dir, ma
     edges = edge.numpy().astype(bool)
     vb1 = r.rasterize(1)
     img = wp.zeros((H, W), dtype=wp.vec3)  # no contrast: geometry flags only
-    c = A.Candidates(vb1.tri_id, r._tri_object, r._aa.contours(cam, vb1), img, "cpu")
+    c = C.Candidates(vb1.tri_id, r._tri_object, r._aa.contours(cam, vb1), img, "cpu")
     flagged = c.cand.numpy() != 0
     assert c.indices().numpy().tolist() == np.flatnonzero(flagged).tolist()
     assert edges.sum() > 20
@@ -150,6 +151,7 @@ def test_the_device_reduction_of_the_frame_counts_matches_numpy():
     import warp as wp
 
     from warp_sg.renderer import antialias as A
+    from warp_sg.renderer import antialias_candidates as C
 
     rng = np.random.default_rng(1)
     c = rng.integers(0, 4, 5000).astype(np.int32)
@@ -159,7 +161,7 @@ def test_the_device_reduction_of_the_frame_counts_matches_numpy():
     out = wp.zeros(3, dtype=int)
     wp.launch(A._counts_kernel, dim=len(listed), inputs=[idx, cand, edge, out])
     e = edge.numpy()
-    want = [np.count_nonzero(c), e.sum(), np.count_nonzero(c & A.CAND_CONTRAST)]
+    want = [np.count_nonzero(c), e.sum(), np.count_nonzero(c & C.CAND_CONTRAST)]
     assert out.numpy().tolist() == [int(x) for x in want]
     got = A._counts(idx, cand, edge, "cpu")
     assert [got["candidate_pixels"], got["edge_pixels"], got["contrast_pixels"]] == [int(x) for x in want]
@@ -250,6 +252,7 @@ def test_an_edge_pixel_is_shaded_once_per_triangle_at_its_sub_pixels_mean_with_t
     import warp as wp
 
     from warp_sg.renderer import antialias as A
+    from warp_sg.renderer import antialias_candidates as C
 
     a, W = 4, 1
     rng = np.random.default_rng(3)
@@ -262,7 +265,7 @@ def test_an_edge_pixel_is_shaded_once_per_triangle_at_its_sub_pixels_mean_with_t
     inv_depth = wp.array(np.where(tid >= 0, 1.0, 0.0).astype(np.float32).reshape(1, a * a), dtype=float)
     tri_object = wp.array(np.arange(12, dtype=np.int32), dtype=int)  # each triangle its own object
     one = wp.zeros(W, dtype=int)  # the list: pixel 0
-    wp.launch(A.classify_kernel, dim=W, inputs=[0, one, wp.array(np.array([A.CAND_GEOMETRY], np.int32), dtype=int),
+    wp.launch(A.classify_kernel, dim=W, inputs=[0, one, wp.array(np.array([C.CAND_GEOMETRY], np.int32), dtype=int),
                                                 wp.array(tid.reshape(1, a * a), dtype=int), inv_depth, tri_object, a,
                                                 A.EDGE_DEPTH_RESIDUAL, edge, count])
     assert edge.numpy()[0] == 1 and count.numpy()[0] == 2 + 4  # two triangles + four background sub-pixels
@@ -366,7 +369,7 @@ def test_candidate_flags_and_list_match_their_definition_in_numpy(W):
     ``CONTRAST`` of the larger; and the candidate list against ``numpy.flatnonzero``."""
     import warp as wp
 
-    from warp_sg.renderer import antialias as A
+    from warp_sg.renderer import antialias_candidates as C
 
     H = 9
     rng = np.random.default_rng(W)
@@ -376,7 +379,7 @@ def test_candidate_flags_and_list_match_their_definition_in_numpy(W):
     contours = (rng.random((H, W)) < 0.05).astype(np.uint8)
     img = rng.uniform(0.5, 1.0, (H, W, 3)).astype(np.float32)
     img[:, : W // 3] = 0.8  # no contrast there
-    c = A.Candidates(wp.array(tid, dtype=int), wp.array(obj, dtype=int), wp.array(contours, dtype=wp.uint8),
+    c = C.Candidates(wp.array(tid, dtype=int), wp.array(obj, dtype=int), wp.array(contours, dtype=wp.uint8),
                      wp.array(img, dtype=wp.vec3), "cpu")
     o = np.where(tid >= 0, obj[np.maximum(tid, 0)], -1)
     lum = img.astype(np.float64) @ np.array([0.2126, 0.7152, 0.0722])
@@ -388,8 +391,8 @@ def test_candidate_flags_and_list_match_their_definition_in_numpy(W):
         ok = (yy >= 0) & (yy < H) & (xx >= 0) & (xx < W)
         yy, xx = np.clip(yy, 0, H - 1), np.clip(xx, 0, W - 1)
         geo |= ok & (o[yy, xx] != o)
-        con |= ok & (np.abs(lum - lum[yy, xx]) > A.CONTRAST * np.maximum(lum, lum[yy, xx]))
-    want = np.where(geo, A.CAND_GEOMETRY, 0) | np.where(con, A.CAND_CONTRAST, 0)
+        con |= ok & (np.abs(lum - lum[yy, xx]) > C.CONTRAST * np.maximum(lum, lum[yy, xx]))
+    want = np.where(geo, C.CAND_GEOMETRY, 0) | np.where(con, C.CAND_CONTRAST, 0)
     assert c.cand.numpy().reshape(H, W).tolist() == want.tolist()
     # the list: a scan of the runs' counts, then each run writes its own
     assert c.indices().numpy().tolist() == np.flatnonzero(want.ravel()).tolist()

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from warp_sg.sg import clamped_cosine as C
+from warp_sg.sg import cosine_lobes as C
 from warp_sg.core.errors import InputError
 
 

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from warp_sg.scene import envmap as em
+from warp_sg.scene import sky as sk
 from precompute.environment.sg_fit import fit_environment_sgs, irradiance_reference, sg_irradiance
 from warp_sg.core.errors import ImageError
 
@@ -21,7 +22,7 @@ def _normals(n, seed=0):
 
 @pytest.fixture(scope="module")
 def sky():
-    return em.procedural_sky(128, 64)
+    return sk.procedural_sky(128, 64)
 
 
 @pytest.fixture(scope="module")
@@ -75,7 +76,7 @@ def test_constant_map_gives_uniform_irradiance_pi_L():
 
 
 def test_fit_is_cached_and_validated(cache_dir):
-    env = em.procedural_sky(32, 16)
+    env = sk.procedural_sky(32, 16)
     a = fit_environment_sgs(env, 4)
     assert len(list((cache_dir / "env_sg_fit").glob("*.npz"))) == 1
     b = fit_environment_sgs(env, 4)
@@ -89,7 +90,7 @@ def test_fit_is_cached_and_validated(cache_dir):
 
 
 def test_fitting_through_a_multi_lobe_clamped_cosine_lowers_the_irradiance_error(sky, fit8):
-    from warp_sg.sg import clamped_cosine as CC
+    from warp_sg.sg import cosine_lobes as CC
 
     cos2 = CC.LOBES[2]  # signed amplitudes
     f2 = fit_environment_sgs(sky, 8, cosine=cos2, cache=False)

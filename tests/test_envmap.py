@@ -7,6 +7,7 @@ import pytest
 import warp as wp
 
 from warp_sg.scene import envmap as em
+from warp_sg.scene import sky as sk
 from warp_sg.core.errors import ImageError
 from warp_sg.core.image_io import save_image
 
@@ -82,7 +83,7 @@ def test_texel_solid_angles_sum_to_4pi_and_match_sin_theta():
 
 
 def test_downsample_preserves_the_integral():
-    env = em.procedural_sky(64, 32)
+    env = sk.procedural_sky(64, 32)
     small = em.downsample_envmap(env, 4)
     i0 = np.einsum("hwc,hw->c", env.astype(np.float64), em.texel_solid_angles(32, 64))
     i1 = np.einsum("hwc,hw->c", small, em.texel_solid_angles(8, 16))
@@ -94,8 +95,8 @@ def test_procedural_sky_has_a_sun_with_the_requested_energy():
     sun /= np.linalg.norm(sun)
     r = 0.05
     kw = dict(sun_direction=sun, sun_angular_radius=r, sun_intensity=500.0, sun_color=(1, 1, 1), halo=0.0)
-    env = em.procedural_sky(256, 128, **kw).astype(np.float64)
-    no_sun = em.procedural_sky(256, 128, **{**kw, "sun_intensity": 0.0}).astype(np.float64)
+    env = sk.procedural_sky(256, 128, **kw).astype(np.float64)
+    no_sun = sk.procedural_sky(256, 128, **{**kw, "sun_intensity": 0.0}).astype(np.float64)
     assert env.shape == (128, 256, 3)
     om = em.texel_solid_angles(128, 256)
     sun_energy = np.einsum("hwc,hw->c", env - no_sun, om)
@@ -110,7 +111,7 @@ def test_procedural_sky_has_a_sun_with_the_requested_energy():
 
 
 def test_rotation_at_lookup_equals_baked_rotation():
-    env = em.procedural_sky(128, 64, halo=0.0, sun_intensity=0.0)  # smooth part only
+    env = sk.procedural_sky(128, 64, halo=0.0, sun_intensity=0.0)  # smooth part only
     R = em.rotation_matrix((0, 1, 0), 90.0)
     baked = em.rotate_envmap(env, R, supersample=1)
     d = em.texel_directions(64, 128)
@@ -129,7 +130,7 @@ def _write_exr(path, chans):
 
 
 def test_load_envmap_reads_rgb_and_scales(tmp_path):
-    env = em.procedural_sky(32, 16)
+    env = sk.procedural_sky(32, 16)
     p = save_image(tmp_path / "sky.exr", env)
     assert np.array_equal(em.load_envmap(p), env)
     assert np.allclose(em.load_envmap(p, scale=2.5), env * 2.5)

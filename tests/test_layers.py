@@ -302,3 +302,34 @@ def test_no_library_file_is_longer_than_the_limit():
     long = sorted(f"{path.relative_to(ROOT)} ({n} lines)" for path in modules().values()
                   if (n := len(path.read_text(encoding="utf-8").splitlines())) > MAX_LINES)
     assert not long, f"library files over {MAX_LINES} lines (split them by concept): {', '.join(long)}"
+
+
+def _bound_names(tree: ast.Module) -> set[str]:
+    """Names a module binds at its top level (definitions, assignments, imports)."""
+    out = set()
+    for node in tree.body:
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            out.add(node.name)
+        elif isinstance(node, (ast.Assign, ast.AnnAssign)):
+            for t in (node.targets if isinstance(node, ast.Assign) else [node.target]):
+                out |= {n.id for n in ast.walk(t) if isinstance(n, ast.Name)}
+        elif isinstance(node, (ast.Import, ast.ImportFrom)):
+            out |= {(a.asname or a.name).split(".")[0] for a in node.names}
+    return out
+
+
+def test_no_package_name_shadows_one_of_its_modules():
+    """``from pkg import name`` returns the package's attribute when it has one and imports the
+    submodule only otherwise: a function in ``pkg/__init__.py`` named like a module of ``pkg``
+    hides that module from every such import."""
+    mods = modules()
+    clashes = []
+    for pkg, path in mods.items():
+        if path.name != "__init__.py":
+            continue
+        subs = {m.rpartition(".")[2] for m in mods if m.rpartition(".")[0] == pkg}
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        own = {a.asname or a.name for n in tree.body if isinstance(n, ast.ImportFrom) for a in n.names
+               if f"{pkg}.{a.name}" in mods}  # ``from . import sub`` binds the module itself
+        clashes += [f"{pkg}.{name}" for name in sorted((_bound_names(tree) - own) & subs)]
+    assert not clashes, f"package names that hide a module of the package: {', '.join(clashes)}"

@@ -8,7 +8,9 @@ import pytest
 import warp as wp
 
 from warp_sg.scene import envmap as em
+from warp_sg.scene import sky as sk
 from precompute.environment import prefilter as pf
+from precompute.environment import prefilter_numpy as pfn
 from precompute.environment.prefilter_wp import GammaTable, gamma_lookup, gamma_mean
 from warp_sg import sg
 
@@ -49,7 +51,7 @@ def _unit(rng, n):
 
 @pytest.fixture(scope="module")
 def sky():
-    return em.procedural_sky(64, 32)
+    return sk.procedural_sky(64, 32)
 
 
 @pytest.fixture(scope="module")
@@ -79,8 +81,8 @@ def test_matches_direct_quadrature_for_random_p_and_lambda(sky, pre):
     near_sun = SUN + 0.1 * rng.normal(size=(50, 3))
     p = np.concatenate([_unit(rng, 150), near_sun / np.linalg.norm(near_sun, axis=1, keepdims=True)])
     lam = np.exp(rng.uniform(math.log(0.1), math.log(1e4), len(p)))
-    ref = np.array([pf.gamma_reference(sky, a, b) for a, b in zip(p, lam)])
-    got = pf.gamma_lookup_numpy(pre, p, lam)
+    ref = np.array([pfn.gamma_reference(sky, a, b) for a, b in zip(p, lam)])
+    got = pfn.gamma_lookup_numpy(pre, p, lam)
     rel = np.abs(got - ref).max(1) / np.abs(ref).max(1)
     print("\nλ range        n   median   p95     max   (relative error of ΓL vs quadrature, 64×32 sky)")
     for lo, hi in [(0.1, 1), (1, 10), (10, 100), (100, 1e3), (1e3, 1e4)]:
@@ -100,7 +102,7 @@ def test_constant_map_gives_exactly_L_times_sg_integral(device):
     p = np.concatenate([_unit(rng, 200), [[0, 1, 0], [0, -1, 0], [1, 0, 0]]])
     lam = np.exp(rng.uniform(math.log(1e-3), math.log(1e5), len(p)))
     expect = sg.integral(lam)[:, None] * L
-    assert np.allclose(pf.gamma_lookup_numpy(pre, p, lam), expect, rtol=2e-6)
+    assert np.allclose(pfn.gamma_lookup_numpy(pre, p, lam), expect, rtol=2e-6)
     assert np.allclose(_lookup_wp(pre, p, lam, device), expect, rtol=2e-5)
     # the mean radiance under any lobe of a constant map is the constant
     assert np.allclose(_lookup_wp(pre, p, lam, device, mean=True), np.broadcast_to(L, (len(p), 3)), rtol=2e-5)
@@ -109,11 +111,11 @@ def test_constant_map_gives_exactly_L_times_sg_integral(device):
 def test_broad_lobes_tend_to_the_sphere_integral(sky, pre):
     total = np.einsum("hwc,hw->c", sky.astype(np.float64), em.texel_solid_angles(32, 64))
     p = _unit(np.random.default_rng(3), 20)
-    g = pf.gamma_lookup_numpy(pre, p, np.full(20, 1e-5))
+    g = pfn.gamma_lookup_numpy(pre, p, np.full(20, 1e-5))
     assert np.allclose(g, total, rtol=1e-4)  # ΓL(p, λ→0) = ∫ L
     # λ = 0.1 (below the ladder's λ0 = 0.5): the quadratic extension still matches quadrature
-    ref = np.array([pf.gamma_reference(sky, a, 0.1) for a in p])
-    assert np.allclose(pf.gamma_lookup_numpy(pre, p, 0.1), ref, rtol=2e-3)
+    ref = np.array([pfn.gamma_reference(sky, a, 0.1) for a in p])
+    assert np.allclose(pfn.gamma_lookup_numpy(pre, p, 0.1), ref, rtol=2e-3)
 
 
 def test_warp_lookup_matches_numpy_twin_with_rotation_and_scale(pre, device):
@@ -122,27 +124,27 @@ def test_warp_lookup_matches_numpy_twin_with_rotation_and_scale(pre, device):
     lam = np.exp(rng.uniform(math.log(0.05), math.log(3e4), 300))
     R = em.rotation_matrix((0.3, 1.0, -0.2), 70.0)
     got = _lookup_wp(pre, p, lam, device, rotation=R, scale=2.5)
-    want = pf.gamma_lookup_numpy(pre, p, lam, rotation=R, scale=2.5)
+    want = pfn.gamma_lookup_numpy(pre, p, lam, rotation=R, scale=2.5)
     rel = np.abs(got - want).max(1) / np.abs(want).max(1)
     assert np.percentile(rel, 99) < 1e-4 and rel.max() < 2e-3  # float32, texel-boundary rounding
     mean = _lookup_wp(pre, p, lam, device, rotation=R, scale=2.5, mean=True)  # ΓL/∫G
     rel = np.abs(mean * sg.integral(lam)[:, None] - want).max(1) / np.abs(want).max(1)
     assert np.percentile(rel, 99) < 1e-4 and rel.max() < 2e-3
     # rotating the environment by R equals looking up Rᵀ p in the unrotated table
-    assert np.allclose(want, 2.5 * pf.gamma_lookup_numpy(pre, p @ R, lam), rtol=1e-9)
+    assert np.allclose(want, 2.5 * pfn.gamma_lookup_numpy(pre, p @ R, lam), rtol=1e-9)
 
 
 def test_build_on_each_device_matches_quadrature(device):
     """The table built on ``device`` (the CPU, and CUDA when present) against direct quadrature of
     eq. 35; on CUDA also texel for texel against the CPU build."""
-    env = em.procedural_sky(32, 16)
+    env = sk.procedural_sky(32, 16)
     b = pf.prefilter_environment(env, device=device, cache=False, progress=False)
     rng = np.random.default_rng(7)
     near = SUN + 0.1 * rng.normal(size=(8, 3))
     p = np.concatenate([_unit(rng, 12), near / np.linalg.norm(near, axis=1, keepdims=True), [SUN]])
     lam = np.exp(rng.uniform(math.log(0.3), math.log(3e3), len(p)))
-    ref = np.array([pf.gamma_reference(env, a, x) for a, x in zip(p, lam)])
-    rel = np.abs(pf.gamma_lookup_numpy(b, p, lam) - ref).max(1) / np.abs(ref).max(1)
+    ref = np.array([pfn.gamma_reference(env, a, x) for a, x in zip(p, lam)])
+    rel = np.abs(pfn.gamma_lookup_numpy(b, p, lam) - ref).max(1) / np.abs(ref).max(1)
     assert np.median(rel) < 0.005 and rel.max() < 0.05, rel
     if device != "cpu":
         a = pf.prefilter_environment(env, device="cpu", cache=False, progress=False)
@@ -150,7 +152,7 @@ def test_build_on_each_device_matches_quadrature(device):
 
 
 def test_table_is_cached_by_map_content(cache_dir):
-    env = em.procedural_sky(16, 8)
+    env = sk.procedural_sky(16, 8)
     a = pf.prefilter_environment(env, device="cpu", progress=False)
     files = list((cache_dir / "env_prefilter").glob("*.npz"))
     assert len(files) == 1
@@ -168,7 +170,7 @@ def test_poles_cube_edges_and_corners_match_quadrature(sky, pre):
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
     worst = 0.0
     for lam in [0.3, 3.0, 30.0, 300.0, 3000.0, 30000.0]:
-        ref = np.array([pf.gamma_reference(sky, d, lam) for d in dirs])
-        got = pf.gamma_lookup_numpy(pre, dirs, np.full(len(dirs), lam))
+        ref = np.array([pfn.gamma_reference(sky, d, lam) for d in dirs])
+        got = pfn.gamma_lookup_numpy(pre, dirs, np.full(len(dirs), lam))
         worst = max(worst, float((np.abs(got - ref).max(1) / np.abs(ref).max(1)).max()))
     assert worst < 0.015

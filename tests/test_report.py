@@ -8,7 +8,8 @@ import os
 import numpy as np
 import pytest
 
-from warp_sg.tools.report import KNOBS, available_knobs, markdown_table, run_report, with_setting
+from warp_sg.tools.report import KNOBS, available_knobs, run_report, with_setting
+from warp_sg.tools.report_outputs import markdown_table
 from warp_sg.groundtruth.region_error import image_errors
 
 

@@ -99,7 +99,7 @@ def _write(tmp_path, text):
 # the committed schema
 # ---------------------------------------------------------------------------------------------
 def test_committed_schema_equals_the_generated_one():
-    from warp_sg.scene.schema import schema_text
+    from warp_sg.scene.json_schema import schema_text
 
     assert COMMITTED.read_text(encoding="utf-8") == schema_text(), \
         "docs/scene.schema.json is stale: run `warp-sg schema -o docs/scene.schema.json`"

@@ -1,7 +1,7 @@
 """On-disk precompute cache (docs/precompute.md "Cache", docs/architecture.md "Precompute contract").
 
 Base layer: generic (arrays in, arrays out), used by the precompute engines and by the measured-BRDF
-fit; ``warp_sg.core.cache`` re-exports it.
+fit; the precompute facade names it ``precompute.cache``.
 
 
 * :func:`cache_dir` — ``$WARP_SG_CACHE_DIR`` or ``~/.cache/warp-sg``; deleting it is always safe.

@@ -1,7 +1,7 @@
 r"""PCA compression of per-vertex SSDFs (paper §5.2 eq. 24).
 
 Math layer: a generic PCA of the rows of a matrix, used by the SSDF precompute and by the
-measured-BRDF shadowing basis; ``warp_sg.numeric.pca`` re-exports it.
+measured-BRDF shadowing basis.
 
 ``V^d_x(i) ≈ mean(i) + Σ_{j=1..NV} w_{x,j} 𝕍_j(i)``: rows of ``X`` (V, D) are the SSDF images of the
 vertices (D = R²). ``mean`` is the row mean, ``𝕍_j`` the leading right singular vectors of the

@@ -14,6 +14,7 @@ import warp as wp
 from precompute.environment.irradiance import placeholder_table
 
 from warp_sg.shading import kernel as S
+from warp_sg.shading.visibility_terms import lobe_constants
 from warp_sg.scene.lights import DirectionalLight, PointLight
 
 
@@ -163,7 +164,7 @@ class EnvironmentSetup:
             es.exact = self.env_irradiance.table(rotation=R, scale=float(env.scale), device=d)
             es.radiance = self.env_texel_radiance
             es.smooth = self._smooth_tris()
-        self._env_arrays_key, self._env_sg_arrays = key, S.lobe_constants(es, self.irr_table, d)
+        self._env_arrays_key, self._env_sg_arrays = key, lobe_constants(es, self.irr_table, d)
         return es
 
     def peak_lights(self) -> list:

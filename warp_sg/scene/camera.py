@@ -1,7 +1,7 @@
 """Pinhole camera: Mitsuba 3 ``look_at`` + ``fov`` (``fov_axis = "y"``) convention.
 
 Scene layer: a plain data class (numpy only) that the scene holds and the engines read —
-``raster.Camera`` re-exports it.
+``raster.Camera`` is this class.
 
 World space is right-handed with +Y up. The camera looks from ``origin`` towards ``target``;
 ``up`` fixes the roll. The image has ``width`` × ``height`` pixels, row 0 at the top, pixel

@@ -8,7 +8,7 @@ Records (what a scene holds; the Monte-Carlo reference reads the same records):
   direction light comes *from*), angular radius ``radius`` (radians), ``intensity`` = irradiance E
   on a surface facing it.
 * :class:`EnvironmentLight` — equirectangular radiance (Mitsuba's convention) from ``file`` (EXR or Radiance .hdr)
-  or ``procedural`` ("sky" → :func:`warp_sg.scene.envmap.procedural_sky` with ``options``;
+  or ``procedural`` ("sky" → :func:`warp_sg.scene.sky.procedural_sky` with ``options``;
   "constant" → uniform radiance ``options.radiance``), times ``scale``, rotated by ``rotation``
   degrees about +Y: ``L_world(d) = L_map(R_y(rotation)ᵀ d)``.
 
@@ -30,7 +30,8 @@ from pathlib import Path
 import numpy as np
 import warp as wp
 
-from warp_sg.scene.envmap import (MAX_RADIANCE, check_envmap_shape, load_envmap, procedural_sky, rotate_envmap, rotation_y,
+from warp_sg.scene.sky import procedural_sky
+from warp_sg.scene.envmap import (MAX_RADIANCE, check_envmap_shape, load_envmap, rotate_envmap, rotation_y,
                      validate_envmap)
 from warp_sg.core.errors import InputError
 from warp_sg.sg import EPSILON

@@ -8,7 +8,7 @@ else. :func:`write_plain_scene` writes, into a folder, exactly what a modelling 
   floor) or a non-convex blob (``blob.obj``, the shipped example asset, lumpy and self-shadowing);
 * the light: an equirectangular sky EXR (``sky.exr``: blue gradient, a small sun of radiance
   ~1000 at 36° elevation holding about half of the irradiance, as outdoors;
-  :func:`warp_sg.scene.envmap.procedural_sky`), or one spherical point light, or a directional light;
+  :func:`warp_sg.scene.sky.procedural_sky`), or one spherical point light, or a directional light;
 * ``scene.toml`` referencing them, with the material asked for (Lambert, Blinn–Phong,
   Cook–Torrance or Ward).
 
@@ -80,7 +80,7 @@ def write_sphere_ply(path: Path, radius: float = 0.5, subdivisions: int = 3) -> 
 def write_sky_exr(path: Path, width: int = 256, height: int = 128, sun_radiance: float = 1000.0,
                   sun_radius: float = 0.03) -> Path:
     """Sky with a small bright sun (peak ~``sun_radiance``, angular radius ``sun_radius``)."""
-    from warp_sg.scene.envmap import procedural_sky
+    from warp_sg.scene.sky import procedural_sky
 
     from warp_sg.core.image_io import save_image
 

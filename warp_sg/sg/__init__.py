@@ -16,7 +16,7 @@ floating-point type of their inputs (float32 or float64) and use only stable for
 The ``@wp.func`` twins used inside kernels live in :mod:`warp_sg.sg.algebra_wp`. This package is
 the SG part of the math layer (public as ``ws.sg``): beside the algebra here it holds the
 hemisphere integral ``fh``, the SG × SSDF products (``ssdf_product``), the irradiance of an SG
-light (``irradiance``), the clamped-cosine fits and the anisotropic error study.
+light (``irradiance``), the multi-lobe clamped-cosine fits (``cosine_lobes``) and the anisotropic error study.
 """
 from __future__ import annotations
 

@@ -66,7 +66,7 @@ from warp_sg.numeric.fastmath import fast_asin
 from warp_sg.numeric.onb import frame_bitangent, frame_tangent, local_to_world
 from warp_sg.scene.lights import LightArrays, light_irradiance
 from warp_sg.scene.envmap import env_lookup
-from warp_sg.shading.kernel import EnvSG, Visibility, lookup_skip
+from warp_sg.shading.visibility_terms import EnvSG, Visibility, lookup_skip
 from warp_sg.sg.irradiance import sg_irradiance_norm_at
 from warp_sg.sg.algebra_wp import sg_integral
 

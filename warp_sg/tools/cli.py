@@ -37,7 +37,7 @@ import math
 import sys
 import warnings
 
-from warp_sg.core.files import IMAGE_SUFFIXES, check_output_path, make_parents  # noqa: F401  (IMAGE_SUFFIXES: old home)
+from warp_sg.core.files import check_output_path, make_parents
 from warp_sg.core.device import add_device_argument
 from warp_sg.core.errors import InputError
 
@@ -256,7 +256,7 @@ def add_schema_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def schema_main(args) -> int:
-    from warp_sg.scene.schema import schema_text, write_schema
+    from warp_sg.scene.json_schema import schema_text, write_schema
 
     if args.output:
         write_schema(args.output)
