@@ -58,7 +58,9 @@ FOLDER_LAYERS = {
 }
 
 #: the longest a library file may be (one concept per file)
-MAX_LINES = 650
+MAX_LINES = 500
+#: files still over :data:`MAX_LINES`, each to be split (the BRDF fits go with the BRDF registry)
+OVER_LIMIT = {"warp_sg/brdf/fit.py"}
 
 
 @lru_cache(maxsize=1)
@@ -300,8 +302,12 @@ def test_imports_go_down_the_layers_only():
 
 def test_no_library_file_is_longer_than_the_limit():
     long = sorted(f"{path.relative_to(ROOT)} ({n} lines)" for path in modules().values()
-                  if (n := len(path.read_text(encoding="utf-8").splitlines())) > MAX_LINES)
+                  if (n := len(path.read_text(encoding="utf-8").splitlines())) > MAX_LINES
+                  and path.relative_to(ROOT).as_posix() not in OVER_LIMIT)
     assert not long, f"library files over {MAX_LINES} lines (split them by concept): {', '.join(long)}"
+    stale = sorted(f for f in OVER_LIMIT if not (ROOT / f).exists()
+                   or len((ROOT / f).read_text(encoding="utf-8").splitlines()) <= MAX_LINES)
+    assert not stale, f"OVER_LIMIT names files that are not over {MAX_LINES} lines (drop them): {', '.join(stale)}"
 
 
 def _bound_names(tree: ast.Module) -> set[str]:

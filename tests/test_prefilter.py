@@ -10,6 +10,7 @@ import warp as wp
 from warp_sg.scene import envmap as em
 from warp_sg.scene import sky as sk
 from precompute.environment import prefilter as pf
+from precompute.environment import cubemap
 from precompute.environment import prefilter_numpy as pfn
 from precompute.environment.prefilter_wp import GammaTable, gamma_lookup, gamma_mean
 from warp_sg import sg
@@ -28,9 +29,9 @@ def _lookup_kernel(tab: GammaTable, p: wp.array(dtype=wp.vec3), lam: wp.array(dt
 @wp.kernel
 def _face_kernel(d: wp.array(dtype=wp.vec3), out: wp.array(dtype=wp.vec3), back: wp.array(dtype=wp.vec3)):
     i = wp.tid()
-    f = pf.cube_face_of(d[i])
+    f = cubemap.cube_face_of(d[i])
     out[i] = f
-    back[i] = wp.normalize(pf.cube_dir(int(f[0]), f[1], f[2]))
+    back[i] = wp.normalize(cubemap.cube_dir(int(f[0]), f[1], f[2]))
 
 
 def _lookup_wp(pre, p, lam, device, rotation=None, scale=1.0, mean=False):
@@ -62,9 +63,9 @@ def pre(sky):
 def test_cube_faces_round_trip_numpy_and_warp(device):
     rng = np.random.default_rng(0)
     d = _unit(rng, 400)
-    f, a, b = pf.cube_face_of_numpy(d)
+    f, a, b = cubemap.cube_face_of_numpy(d)
     assert np.all((np.abs(a) <= 1) & (np.abs(b) <= 1))
-    back = pf.cube_dir_numpy(f, a, b)
+    back = cubemap.cube_dir_numpy(f, a, b)
     assert np.allclose(back / np.linalg.norm(back, axis=1, keepdims=True), d, atol=1e-12)
     out = wp.zeros(400, dtype=wp.vec3, device=device)
     bk = wp.zeros(400, dtype=wp.vec3, device=device)

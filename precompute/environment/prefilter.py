@@ -81,8 +81,7 @@ from warp_sg.core.image_io import LUMINANCE
 from warp_sg.core.workers import cpu_workers
 
 # the cube-map geometry and the kernel side (build kernel, table struct, lookups), re-exported here
-from precompute.environment.cubemap import cube_dir, cube_dir_numpy, cube_face_of, cube_face_of_numpy
-from precompute.environment.prefilter_wp import GammaTable, _prefilter_level_kernel, erf_filtered, gamma_lookup, gamma_mean, gamma_normalized
+from precompute.environment.prefilter_wp import GammaTable, _prefilter_level_kernel, erf_filtered, gamma_lookup
 
 #: Cap of the quadrature window: texels with λ (1 − p·d) > CUTOFF are skipped (mass e^{−14}).
 CUTOFF = 14.0
@@ -403,11 +402,5 @@ __all__ = [
     "prefilter_environment",
     "default_ladder",
     "gamma_lookup",
-    "gamma_mean",
-    "gamma_normalized",
     "erf_filtered",
-    "cube_dir",
-    "cube_face_of",
-    "cube_dir_numpy",
-    "cube_face_of_numpy",
 ]

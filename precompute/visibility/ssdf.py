@@ -6,7 +6,7 @@ Per vertex, on the concentric map of the upper hemisphere (:mod:`precompute.visi
              − min_{t: V(t)=1} arccos(t·i)   if V(i) = 0
 
 with directions below the horizon invisible. Pipeline per batch of vertices, all in Warp kernels
-on the device (:func:`compute_ssdf`):
+on the device (:func:`compute_ssdf`; the kernels of steps 2–5 are :mod:`precompute.visibility.jump_flood`'s):
 
 1. binary visibility at ``ray_resolution²`` texels by BVH ray casts (:mod:`precompute.visibility.rays`):
    coarse first and refined where the visibility changes (:mod:`precompute.visibility.adaptive_rays`, the
@@ -31,7 +31,6 @@ Then all vertices are compressed with PCA (:mod:`warp_sg.numeric.pca`, eq. 24) a
 from __future__ import annotations
 
 import contextlib
-import math
 import time
 from dataclasses import dataclass, field
 
@@ -45,6 +44,7 @@ from warp_sg.numeric.pca import pca
 from warp_sg.core.stage_clock import StageClock, thread_cpu
 
 from precompute.visibility.adaptive_rays import adaptive_visibility, levels
+from precompute.visibility.jump_flood import downsample_kernel, jfa_kernel, jfa_steps, seed_kernel, signed_kernel
 from precompute.visibility.occluder_cone import occluder_cones
 from precompute.visibility.ssdf_wp import texel_directions
 from precompute.visibility.rays import OFFSET_SCALE, _MeshContext, _tqdm, launch_visibility, run_batches, validate_mesh
@@ -58,120 +58,10 @@ DEFAULT_PCA_TERMS = 24
 RAYS = ("adaptive", "full")
 DEFAULT_RAYS = "adaptive"
 
-_HALF_PI = wp.constant(0.5 * math.pi)
-#: "no boundary point yet": its dot product with any texel direction (z ≥ 1/(2Rr) > 1e-4) is
-#: below −1, so every real boundary point wins over it, and the signed distance it gives is the
-#: clamp π/2 (acos(−1) = π, then min with π/2): the same as no seed at all
-NO_SEED = wp.constant(wp.vec3(0.0, 0.0, -1.0e4))
 #: Part of the "ssdf" cache key: the hash of the code that computes the maps (``warp_sg.core.cache.code_key``).
-SSDF_VERSION = _cache.code_key(__name__, occluder_cones, texel_directions, launch_visibility, pca)  # the producing code
+SSDF_VERSION = _cache.code_key(__name__, "precompute.visibility.jump_flood", occluder_cones, texel_directions, launch_visibility, pca)  # the producing code
 #: the hash of the adaptive ray schedule's code (precompute.visibility.adaptive_rays), part of the cache key
 ADAPTIVE_VERSION = _cache.code_key(adaptive_visibility)  # the adaptive ray cast's code
-
-
-# ---------------------------------------------------------------------------------------------
-# kernels
-# ---------------------------------------------------------------------------------------------
-
-@wp.func
-def _consider(d: wp.vec3, da: wp.vec3, best: wp.vec3, best_dot: float):
-    m = wp.normalize(d + da)
-    c = wp.dot(d, m)
-    if c > best_dot:
-        return m, c
-    return best, best_dot
-
-
-@wp.kernel
-def _seed_kernel(vis: wp.array2d(dtype=wp.uint8), dirs: wp.array(dtype=wp.vec3), R: int,
-                 seeds: wp.array2d(dtype=wp.vec3)):
-    """Nearest boundary midpoint among the 4-neighbour pairs of differing visibility (else
-    :data:`NO_SEED`)."""
-    k, tex = wp.tid()
-    j = tex // R
-    i = tex - j * R
-    me = vis[k, tex]
-    d = dirs[tex]
-    best = NO_SEED
-    best_dot = float(-2.0)
-    if i > 0:
-        if vis[k, tex - 1] != me:
-            best, best_dot = _consider(d, dirs[tex - 1], best, best_dot)
-    if i < R - 1:
-        if vis[k, tex + 1] != me:
-            best, best_dot = _consider(d, dirs[tex + 1], best, best_dot)
-    if j > 0:
-        if vis[k, tex - R] != me:
-            best, best_dot = _consider(d, dirs[tex - R], best, best_dot)
-    if j < R - 1:
-        if vis[k, tex + R] != me:
-            best, best_dot = _consider(d, dirs[tex + R], best, best_dot)
-    seeds[k, tex] = best
-
-
-@wp.kernel
-def _jfa_kernel(src: wp.array2d(dtype=wp.vec3), dirs: wp.array(dtype=wp.vec3), R: int, step: int,
-                dst: wp.array2d(dtype=wp.vec3)):
-    """One jump-flooding pass with the angular metric (largest dot product wins)."""
-    k, tex = wp.tid()
-    j = tex // R
-    i = tex - j * R
-    d = dirs[tex]
-    best = src[k, tex]
-    best_dot = wp.dot(d, best)  # NO_SEED's dot loses to every boundary point's (≥ −1)
-    for dj in range(-1, 2):
-        jj = j + dj * step
-        if jj >= 0 and jj < R:
-            for di in range(-1, 2):
-                ii = i + di * step
-                if ii >= 0 and ii < R and (di != 0 or dj != 0):
-                    s = src[k, jj * R + ii]
-                    c = wp.dot(d, s)
-                    if c > best_dot:
-                        best_dot = c
-                        best = s
-    dst[k, tex] = best
-
-
-@wp.kernel
-def _signed_kernel(vis: wp.array2d(dtype=wp.uint8), seeds: wp.array2d(dtype=wp.vec3),
-                   dirs: wp.array(dtype=wp.vec3), out: wp.array2d(dtype=float)):
-    """Signed angular distance (eq. 23), horizon included, clamped to [−π/2, π/2]."""
-    k, tex = wp.tid()
-    d = dirs[tex]
-    s = seeds[k, tex]
-    dist = _HALF_PI
-    if wp.length_sq(s) > 0.25:
-        dist = wp.acos(wp.clamp(wp.dot(d, s), -1.0, 1.0))
-    if vis[k, tex] != wp.uint8(0):
-        out[k, tex] = wp.min(wp.min(dist, wp.asin(wp.clamp(d[2], 0.0, 1.0))), _HALF_PI)
-    else:
-        out[k, tex] = -wp.min(dist, _HALF_PI)
-
-
-@wp.kernel
-def _downsample_kernel(src: wp.array2d(dtype=float), Rs: int, f: int, dst: wp.array2d(dtype=float)):
-    """Box filter f×f: (B, (Rs·f)²) → (B, Rs²)."""
-    k, tex = wp.tid()
-    j = tex // Rs
-    i = tex - j * Rs
-    Rh = Rs * f
-    acc = float(0.0)
-    for dj in range(f):
-        for di in range(f):
-            acc += src[k, (j * f + dj) * Rh + i * f + di]
-    dst[k, tex] = acc / float(f * f)
-
-
-def _jfa_steps(R: int) -> list[int]:
-    steps = []
-    s = 1
-    while s * 2 < R:
-        s *= 2
-    while s >= 1:
-        steps.append(s)
-        s //= 2
-    return steps + [2, 1] if R > 2 else steps
 
 
 # ---------------------------------------------------------------------------------------------
@@ -198,15 +88,15 @@ def _fit_maps(vis, dirs, Rr, R, device):
     B, N = int(vis.shape[0]), Rr * Rr
     a = wp.empty((B, N), dtype=wp.vec3, device=device)
     b = wp.empty((B, N), dtype=wp.vec3, device=device)
-    wp.launch(_seed_kernel, dim=(B, N), device=device, inputs=[vis, dirs, Rr, a])
-    for step in _jfa_steps(Rr):
-        wp.launch(_jfa_kernel, dim=(B, N), device=device, inputs=[a, dirs, Rr, step, b])
+    wp.launch(seed_kernel, dim=(B, N), device=device, inputs=[vis, dirs, Rr, a])
+    for step in jfa_steps(Rr):
+        wp.launch(jfa_kernel, dim=(B, N), device=device, inputs=[a, dirs, Rr, step, b])
         a, b = b, a
     sd = wp.empty((B, N), dtype=float, device=device)
-    wp.launch(_signed_kernel, dim=(B, N), device=device, inputs=[vis, a, dirs, sd])
+    wp.launch(signed_kernel, dim=(B, N), device=device, inputs=[vis, a, dirs, sd])
     if Rr != R:
         ds = wp.empty((B, R * R), dtype=float, device=device)
-        wp.launch(_downsample_kernel, dim=(B, R * R), device=device, inputs=[sd, R, Rr // R, ds])
+        wp.launch(downsample_kernel, dim=(B, R * R), device=device, inputs=[sd, R, Rr // R, ds])
         sd = ds
     return sd.numpy()
 

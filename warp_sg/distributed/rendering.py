@@ -16,7 +16,7 @@ Faults (issue 16):
   same as an uninterrupted run (nothing is written by workers: the client writes the cache and
   the frames, atomically);
 * an unreachable scheduler, a scheduler without workers and a worker of another warp-sg version
-  are refused at connect with one line (:mod:`warp_sg.distributed.cluster`, whose names are re-exported here).
+  are refused at connect with one line (:mod:`warp_sg.distributed.cluster`).
 
 Batch renders (:func:`render_many`): the client builds the precompute once (refinement and
 SSDFs, the SSDFs themselves on the cluster), scatters it and the scene to every worker, and each
@@ -44,8 +44,8 @@ import numpy as np
 
 from warp_sg.core.errors import InputError
 
-from warp_sg.distributed.cluster import (CONNECT_TIMEOUT, RETRIES, ClusterError, add_cluster_argument, check_versions,  # noqa: F401
-                      connect, ensure_version, gather_in_order, parse_cluster, project_version, worker_object)
+from warp_sg.distributed.cluster import (RETRIES, connect, ensure_version, gather_in_order, project_version,
+                                         worker_object)
 
 
 # --------------------------------------------------------------------------------------------
@@ -352,7 +352,6 @@ def dotted_variant(values: dict) -> dict:
     return out
 
 
-__all__ = ["ClusterError", "CONNECT_TIMEOUT", "RETRIES", "add_cluster_argument", "parse_cluster", "connect",
-           "check_versions", "project_version", "render_many", "normalize_variants", "apply_variant",
-           "render_reference_distributed", "sample_chunks", "local_passes", "grid_variants", "dotted_variant",
-           "gather_in_order", "worker_object"]
+__all__ = ["RETRIES", "connect", "project_version", "render_many", "normalize_variants", "apply_variant",
+           "render_reference_distributed", "sample_chunks", "local_passes", "grid_variants",
+           "dotted_variant", "gather_in_order", "worker_object"]

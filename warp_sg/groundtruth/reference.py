@@ -50,9 +50,8 @@ from warp_sg.brdf import material_wp as M  # contract: Material, pack_materials,
 from warp_sg.core.device import add_device_argument, device_for, resolve_device
 from warp_sg.core.errors import InputError
 from warp_sg.scene.lights import DirectionalLight, PointLight
-# the kernel side (structs, MIS estimator, the pass kernel), re-exported here
 from warp_sg.scene.lights import LIGHT_DIRECTIONAL, LIGHT_POINT
-from warp_sg.groundtruth.reference_wp import Geometry, LightTable, _reference_pass, _shade_sample
+from warp_sg.groundtruth.reference_wp import Geometry, LightTable, _reference_pass
 from warp_sg.shading.cutout import no_cutouts
 from warp_sg.shading.surface import N_SLOTS, MaterialTextures
 from warp_sg.shading.surface_layers import coat_models, layer_arrays

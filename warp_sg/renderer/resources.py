@@ -29,7 +29,7 @@ from warp_sg.scene.model import COLOUR_PARAMS
 from warp_sg.scene.textures import build_atlas
 from warp_sg.shading import kernel as S
 from warp_sg.shading.cutout import CutoutScene, cutout_data
-from warp_sg.shading.surface import material_texture_slots
+from warp_sg.shading.surface import MaterialTextures, SLOT_KD, SLOT_KS, SLOT_NORMAL, SLOT_OCCLUSION, SLOT_P0, SLOT_TANGENT, material_texture_slots
 from warp_sg.shading.vertex_visibility import CacheInputs, caches
 
 
@@ -181,17 +181,17 @@ class ResourceSetup:
         self.has_specular = any(r["model"] >= 2 for r in self.material_table.records)
         # textures (atlas layout shared with the reference: warp_sg.shading.surface)
         slots, images = material_texture_slots(mats, COLOUR_PARAMS)
-        self.has_textures = bool(np.any(slots[:, :S.SLOT_NORMAL] >= 0))
-        self.has_normal_maps = bool(np.any(slots[:, [S.SLOT_NORMAL, S.SLOT_TANGENT]] >= 0))
+        self.has_textures = bool(np.any(slots[:, :SLOT_NORMAL] >= 0))
+        self.has_normal_maps = bool(np.any(slots[:, [SLOT_NORMAL, SLOT_TANGENT]] >= 0))
         self.has_emission = any(lay is not None and lay.emissive for lay in lays)
-        self.has_occlusion = bool(np.any(slots[:, S.SLOT_OCCLUSION] >= 0)) and self.scene.environment is not None
+        self.has_occlusion = bool(np.any(slots[:, SLOT_OCCLUSION] >= 0)) and self.scene.environment is not None
         self.has_coat = bool(coats)
         g = self.geometry
         self.layers = layer_arrays(lays, coat_index, len(mats), g.colors, g.specular_colors, 0, self.device)
         # hidden terms unbind their textures after the variant is chosen (set_terms: same kernel)
-        slots[:, S.SLOT_KD] = np.where(self.show_diffuse, slots[:, S.SLOT_KD], -1)
-        slots[:, S.SLOT_KS] = np.where(self.show_specular, slots[:, S.SLOT_KS], -1)
-        mt = S.MaterialTextures()
+        slots[:, SLOT_KD] = np.where(self.show_diffuse, slots[:, SLOT_KD], -1)
+        slots[:, SLOT_KS] = np.where(self.show_specular, slots[:, SLOT_KS], -1)
+        mt = MaterialTextures()
         mt.slots = wp.array(slots, dtype=int, device=self.device)
         mt.atlas = build_atlas(images, self.device)
         self.material_textures = mt
@@ -203,7 +203,7 @@ class ResourceSetup:
 
             ranges = [None if s < 0 else (max(float(np.min(images[s][..., 0])), 1e-4),
                                           max(float(np.max(images[s][..., 0])), 1e-4))
-                      for s in slots[:len(mats), S.SLOT_P0]]
+                      for s in slots[:len(mats), SLOT_P0]]
             albedo.attach(self.material_table, ranges, irradiance_table_array(self.device), self.device)
 
     def _setup_lights(self):

@@ -86,10 +86,7 @@ from warp_sg.numeric.onb import local_to_world, world_to_local
 from warp_sg.scene.lights import LightArrays, light_irradiance
 from warp_sg.sg.irradiance import sg_irradiance_norm, sg_irradiance_norm_at
 from warp_sg.sg.algebra_wp import sg_integral, sg_product_lobe
-from warp_sg.shading.surface import (  # noqa: F401  (re-exported: slot constants, MaterialTextures)
-    N_SLOTS, SLOT_COAT, SLOT_COAT_NORMAL, SLOT_EMISSION, SLOT_KD, SLOT_KS, SLOT_NORMAL, SLOT_OCCLUSION, SLOT_P0,
-    SLOT_P1, SLOT_TANGENT, MaterialTextures, apply_shading_maps, tangent_in_plane, textured_material,
-)
+from warp_sg.shading.surface import MaterialTextures, apply_shading_maps, tangent_in_plane, textured_material
 from warp_sg.shading.surface_layers import Layers, coat_setup, emission_at, occlusion_at, vertex_coloured
 
 
@@ -164,7 +161,7 @@ def env_visible_vertex_ok(env_diffuse: int, models) -> bool:
 
 def _gamma_parts():
     """(struct type, @wp.func gamma_mean(struct, p, lam) -> vec3: ΓL/∫G) of the prefiltered ΓL pyramid."""
-    from precompute.environment import prefilter as P
+    from precompute.environment import prefilter_wp as P
 
     return P.GammaTable, P.gamma_mean
 
@@ -426,7 +423,5 @@ def resolve_box(src: wp.array2d(dtype=wp.vec3), k: int, out: wp.array2d(dtype=wp
     out[y, x] = acc / float(k * k)
 
 
-__all__ = ["Features", "shade_kernel", "resolve_box", "GeometryArrays", "MaterialTextures", "Visibility", "EnvSG",
-           "SLOT_KD", "SLOT_KS", "SLOT_P0", "SLOT_P1", "SLOT_NORMAL", "SLOT_TANGENT", "SLOT_EMISSION", "SLOT_OCCLUSION",
-           "SLOT_COAT", "SLOT_COAT_NORMAL", "N_SLOTS",
-           "ENV_NONE", "ENV_SG", "ENV_PREFILTERED"]
+__all__ = ["Features", "shade_kernel", "resolve_box", "GeometryArrays", "MaterialTextures", "Visibility",
+           "EnvSG", "ENV_NONE", "ENV_SG", "ENV_PREFILTERED"]

@@ -27,7 +27,7 @@ from warp_sg.core.device import resolve_device
 from raster import parallel
 from warp_sg.scene.camera import Camera
 from raster.rasterize import rasterize
-from raster.reference_checks import RayCaster, raycast_kernel, raycast_visibility, torus_mesh, uv_sphere  # noqa: F401
+from raster.reference_checks import RayCaster, torus_mesh, uv_sphere
 
 
 def bench_scene(n_triangles: int):

@@ -45,8 +45,8 @@ import numpy as np
 from warp_sg.core.errors import MeshError
 from warp_sg.scene.geometry import validate_mesh
 from warp_sg.scene.importers.gltf_checks import check_compression, check_images, check_references
-from warp_sg.scene.importers.gltf_material import (ALPHA_MIN, DIELECTRIC_F0, TEXTURE_SLOTS, gltf_material, material_uv_transform,  # noqa: F401
-                            pbr_to_ggx, texture_infos, uv_transform, vertex_colour_factors)
+from warp_sg.scene.importers.gltf_material import (gltf_material, material_uv_transform, texture_infos, uv_transform,
+                                                   vertex_colour_factors)
 from warp_sg.core.meshcheck import check_mesh
 
 GLTF_SUFFIXES = (".glb", ".gltf")
@@ -444,5 +444,5 @@ def gltf_object_parts(path, label: str, *, materials: bool = True) -> tuple[list
     return parts, specs
 
 
-__all__ = ["AssetWarning", "GltfAsset", "GltfPart", "GLTF_SUFFIXES", "ALPHA_MIN", "DIELECTRIC_F0",
-           "SUPPORTED_EXTENSIONS", "is_gltf", "load_gltf", "pbr_to_ggx", "gltf_material", "gltf_object_parts"]
+__all__ = ["AssetWarning", "GltfAsset", "GltfPart", "GLTF_SUFFIXES", "SUPPORTED_EXTENSIONS", "is_gltf",
+           "load_gltf", "gltf_material", "gltf_object_parts"]
