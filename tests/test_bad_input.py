@@ -990,6 +990,7 @@ def test_texture_over_the_texel_bound_is_refused_from_its_header(tmp_path, capsy
 
 def test_environment_over_the_texel_bound_is_refused_unread_and_16k_by_8k_is_not(tmp_path):
     from warp_sg.scene.envmap import load_envmap
+    from warp_sg.scene.lights import EnvironmentLight
 
     for w, h, refused in ((65536, 32768, True), (16384, 8192, False)):
         f = tmp_path / f"sky{w}.hdr"
@@ -1001,7 +1002,7 @@ def test_environment_over_the_texel_bound_is_refused_unread_and_16k_by_8k_is_not
         else:  # past the watchdog: the stub pixels fail to decode
             assert "cannot read Radiance HDR" in str(ei.value)
     with pytest.raises(ImageError, match="32768×16384 texels"):
-        ws.lights.EnvironmentLight(procedural="sky", options={"width": 32768, "height": 16384}).base_radiance()
+        EnvironmentLight(procedural="sky", options={"width": 32768, "height": 16384}).base_radiance()
 
 
 def test_million_triangle_mesh_is_within_the_bound():

@@ -10,6 +10,7 @@ import raster
 import warp_sg as ws
 from warp_sg.scene.culling import BackfaceCulling
 from warp_sg.scene.camera import Camera
+from warp_sg.scene.lights import EnvironmentLight
 from warp_sg.scene.model import RenderSettings, Scene, SceneObject
 
 
@@ -26,7 +27,7 @@ def _scene(flip: bool = False, camera: Camera | None = None):
                           SceneObject(material="floor", primitive="plane", name="floor",
                                       params={"size": (4.0, 4.0), "resolution": (4, 4)})],
                  materials={"ring": ws.brdf.Lambert(kd=0.5), "floor": ws.brdf.Lambert(kd=0.7)},
-                 lights=[ws.lights.EnvironmentLight(procedural="constant", options={"radiance": [1.0, 1.0, 1.0]})],
+                 lights=[EnvironmentLight(procedural="constant", options={"radiance": [1.0, 1.0, 1.0]})],
                  render=RenderSettings(shadows=False, antialias=1))
 
 
