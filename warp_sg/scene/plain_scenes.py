@@ -108,7 +108,7 @@ def write_plain_scene(folder, obj: str = "sphere", light: str = "sky", material:
         mesh = write_sphere_ply(folder / "sphere.ply").name
         ob = {"mesh": mesh, "material": "object", "name": "object"}
     elif obj == "blob":
-        src = Path(__file__).resolve().parents[1] / "examples" / "assets" / "blob.obj"
+        src = Path(__file__).resolve().parents[2] / "examples" / "assets" / "blob.obj"
         (folder / "blob.obj").write_text(src.read_text())
         ob = {"mesh": "blob.obj", "material": "object", "name": "object", "scale": 0.45,
               "translate": [0.0, 0.5, 0.0]}

@@ -47,7 +47,7 @@ def _shared_assets() -> Path:
     env = os.environ.get("WARP_SG_SHARED_ASSETS")
     if env:
         return Path(env)
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     for up in (root.parent, root.parent.parent, root.parent.parent.parent):
         if (up / "shared" / "assets").is_dir():
             return up / "shared" / "assets"

@@ -21,7 +21,7 @@ from precompute.visibility.reference_checks import (bowl_scene, plane_box_scene,
                                sg_visibility_reference)
 from precompute.visibility.ssdf_wp import lookup_np
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 # ---------------------------------------------------------------------------------------------
