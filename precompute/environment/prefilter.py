@@ -81,6 +81,7 @@ from warp_sg.core.image_io import LUMINANCE
 from warp_sg.core.workers import cpu_workers
 
 # the cube-map geometry and the kernel side (build kernel, table struct, lookups), re-exported here
+from precompute.environment.cubemap import cube_dir
 from precompute.environment.prefilter_wp import GammaTable, _prefilter_level_kernel, erf_filtered, gamma_lookup
 
 #: Cap of the quadrature window: texels with λ (1 − p·d) > CUTOFF are skipped (mass e^{−14}).
