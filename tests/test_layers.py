@@ -60,7 +60,7 @@ FOLDER_LAYERS = {
 #: the longest a library file may be (one concept per file)
 MAX_LINES = 500
 #: files still over :data:`MAX_LINES`, each to be split (the BRDF fits go with the BRDF registry)
-OVER_LIMIT = {"warp_sg/brdf/fit.py"}
+OVER_LIMIT: set = set()
 
 
 @lru_cache(maxsize=1)

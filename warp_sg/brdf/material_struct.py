@@ -80,7 +80,7 @@ class MaterialTable:
 
     @property
     def models(self) -> tuple:
-        """The sorted model codes of the table (the kernel variant's ``shading.Features.models``)."""
+        """The sorted model codes of the table (the kernel variant's ``shading.kernel.Features.models``)."""
         return tuple(sorted({int(r["model"]) for r in self.records}))
 
     def __len__(self):

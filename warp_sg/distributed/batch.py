@@ -27,7 +27,7 @@ A job file (paths relative to the job file)::
 
 ``[[frames]]``, ``[grid]`` and ``[animate]`` may be combined (in that order); the frame index runs
 over all of them. Variant keys are those of :func:`warp_sg.distributed.rendering.normalize_variants`
-(``camera.FIELD``, ``materials.NAME.PARAM``, ``lights.INDEX.FIELD``, ``environment.rotation|scale``);
+(``camera.FIELD``, ``materials.NAME.PARAM``, ``lights.INDEX.FIELD``, ``environment.KEY`` with KEY rotation or scale);
 geometry and ``[render]`` settings are shared by the batch (one precompute). Frames are written
 atomically (``save_image``) as they finish, with a progress bar over frames; ``--skip-existing``
 resumes an interrupted job. Bad job files raise :class:`~warp_sg.core.errors.InputError` naming the key.

@@ -20,7 +20,7 @@ k×k blocks.
 
 The class is put together from one module per concept: what the precompute produces and the
 frames read (:mod:`warp_sg.renderer.resources`; the environment's part:
-:mod:`warp_sg.renderer.environment`), the kernel-variant choice (:mod:`warp_sg.renderer.variant`)
+:mod:`warp_sg.renderer.environment_setup`), the kernel-variant choice (:mod:`warp_sg.renderer.variant`)
 and the frame paths (:mod:`warp_sg.renderer.frame`); this module holds the construction (the
 precompute's order) and the edit API. Changing materials, textures, lights, the environment rotation/scale or the camera
 (the setters below) re-renders without re-running precompute. Per-frame timings (seconds) are in
@@ -40,7 +40,7 @@ import warp as wp
 from warp_sg.core.device import resolve_device
 from warp_sg.core.errors import InputError, SceneError
 from warp_sg.renderer.costs import check_frame_costs
-from warp_sg.renderer.environment import EnvironmentSetup
+from warp_sg.renderer.environment_setup import EnvironmentSetup
 from warp_sg.renderer.frame import FramePaths
 from warp_sg.renderer.resources import ResourceSetup
 from warp_sg.renderer.variant import VariantChoice

@@ -12,7 +12,7 @@ resources (a mixin of it).
 * :meth:`ResourceSetup.cache_inputs`: the explicit record the per-vertex caches read
   (:class:`~warp_sg.shading.vertex_visibility.CacheInputs`).
 
-The environment's own resources (peaks, irradiance, SG fit, ΓL) are :mod:`warp_sg.renderer.environment`'s.
+The environment's own resources (peaks, irradiance, SG fit, ΓL) are :mod:`warp_sg.renderer.environment_setup`'s.
 """
 from __future__ import annotations
 
