@@ -34,13 +34,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-#: materials of the object (TOML tables), by name
+from warp_sg.scene.plain_scenes import MATERIALS as PLAIN_MATERIALS  # noqa: E402
+
+#: materials of the object (TOML tables), by name: the plain scenes' glossy models and GGX
 MATERIALS = {
-    "lambert": {"model": "lambert", "kd": [0.7, 0.55, 0.4]},
-    "blinn_phong": {"model": "blinn_phong", "kd": [0.35, 0.25, 0.2], "ks": [0.4, 0.4, 0.4], "n": 50.0},
-    "cook_torrance": {"model": "cook_torrance", "kd": [0.2, 0.2, 0.25], "ks": [0.8, 0.8, 0.8], "m": 0.25,
-                      "fresnel": {"schlick": 0.9}},
-    "ward": {"model": "ward", "kd": [0.3, 0.3, 0.3], "ks": [0.5, 0.5, 0.5], "alpha": 0.2},
+    **PLAIN_MATERIALS,
     "ggx0.05": {"model": "ggx", "alpha": 0.05, "fresnel": "gold"},
     "ggx0.2": {"model": "ggx", "alpha": 0.2, "fresnel": "gold"},
     "ggx0.5": {"model": "ggx", "alpha": 0.5, "fresnel": "gold"},
