@@ -189,7 +189,8 @@ def render_main(args) -> int:
                      progressive=first is not None)
     import numpy as np
 
-    gain = np.float32(2.0 ** args.exposure) if args.exposure else None
+    with np.errstate(over="ignore"):  # a gain beyond float32 is reported below
+        gain = np.float32(2.0 ** args.exposure) if args.exposure else None
 
     def frame():
         img = _finite_image(r.render(), "the rendered radiance overflows (an environment or light too bright?)")
