@@ -70,4 +70,22 @@ def cube_face_of_numpy(d):
     return face, a, b
 
 
-__all__ = ["cube_dir", "cube_face_of", "cube_dir_numpy", "cube_face_of_numpy"]
+@wp.func
+def bordered_bilinear(texels: wp.array(dtype=wp.vec3), base: int, n: int, a: float, b: float) -> wp.vec3:
+    """Bilinear read at face coordinates ``(a, b)`` of an ``n×n`` face stored from ``base`` with a
+    one-texel border (row stride ``n + 2``): texel centre ``x_t = (a+1)/2·n − 0.5`` (+1 border), so
+    ``x ∈ [0.5, n + 0.5]`` and the border makes every read in range."""
+    stride = n + 2
+    x = (a + 1.0) * 0.5 * float(n) + 0.5
+    y = (b + 1.0) * 0.5 * float(n) + 0.5
+    x0 = wp.clamp(int(wp.floor(x)), 0, n)
+    y0 = wp.clamp(int(wp.floor(y)), 0, n)
+    fx = wp.clamp(x - float(x0), 0.0, 1.0)
+    fy = wp.clamp(y - float(y0), 0.0, 1.0)
+    i00 = base + y0 * stride + x0
+    t0 = texels[i00] * (1.0 - fx) + texels[i00 + 1] * fx
+    t1 = texels[i00 + stride] * (1.0 - fx) + texels[i00 + stride + 1] * fx
+    return t0 * (1.0 - fy) + t1 * fy
+
+
+__all__ = ["bordered_bilinear", "cube_dir", "cube_face_of", "cube_dir_numpy", "cube_face_of_numpy"]

@@ -35,7 +35,7 @@ from warp_sg.core.cache import code_key
 from warp_sg.scene.envmap import row_solid_angles, uv_to_dir
 
 from warp_sg.core.image_io import LUMINANCE
-from precompute.environment.cubemap import cube_dir_numpy, cube_face_of, cube_face_of_numpy
+from precompute.environment.cubemap import bordered_bilinear, cube_dir_numpy, cube_face_of, cube_face_of_numpy
 
 _VERSION = code_key(__name__, cube_dir_numpy, row_solid_angles)  # the producing code
 
@@ -212,18 +212,7 @@ def irradiance_unscaled(tab: IrradianceTable, n: wp.vec3) -> wp.vec3:
     fab = cube_face_of(tab.to_env * n)
     face = int(fab[0])
     sz = tab.size
-    stride = sz + 2
-    base = face * stride * stride
-    x = (fab[1] + 1.0) * 0.5 * float(sz) + 0.5
-    y = (fab[2] + 1.0) * 0.5 * float(sz) + 0.5
-    x0 = wp.clamp(int(wp.floor(x)), 0, sz)
-    y0 = wp.clamp(int(wp.floor(y)), 0, sz)
-    fx = wp.clamp(x - float(x0), 0.0, 1.0)
-    fy = wp.clamp(y - float(y0), 0.0, 1.0)
-    i00 = base + y0 * stride + x0
-    t0 = tab.texels[i00] * (1.0 - fx) + tab.texels[i00 + 1] * fx
-    t1 = tab.texels[i00 + stride] * (1.0 - fx) + tab.texels[i00 + stride + 1] * fx
-    return t0 * (1.0 - fy) + t1 * fy
+    return bordered_bilinear(tab.texels, face * (sz + 2) * (sz + 2), sz, fab[1], fab[2])
 
 
 __all__ = ["EnvIrradiance", "IrradianceTable", "cell_radiance", "env_irradiance", "irradiance_cubemap",

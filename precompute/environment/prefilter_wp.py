@@ -10,7 +10,7 @@ import warp as wp
 from warp_sg.scene.envmap import wp_dir_to_uv
 from warp_sg.sg.algebra_wp import one_minus_dot, sg_integral
 
-from precompute.environment.cubemap import cube_dir, cube_face_of
+from precompute.environment.cubemap import bordered_bilinear, cube_dir, cube_face_of
 
 PI = wp.constant(3.141592653589793)
 TWO_PI = wp.constant(6.283185307179586)
@@ -183,19 +183,7 @@ class GammaTable:
 @wp.func
 def _fetch_level(tab: GammaTable, level: int, face: int, a: float, b: float) -> wp.vec3:
     n = tab.level_size[level]
-    stride = n + 2
-    base = tab.level_offset[level] + face * stride * stride
-    # texel centre x_t = (a+1)/2·n − 0.5 (+1 border)  ->  x ∈ [0.5, n + 0.5]
-    x = (a + 1.0) * 0.5 * float(n) + 0.5
-    y = (b + 1.0) * 0.5 * float(n) + 0.5
-    x0 = wp.clamp(int(wp.floor(x)), 0, n)
-    y0 = wp.clamp(int(wp.floor(y)), 0, n)
-    fx = wp.clamp(x - float(x0), 0.0, 1.0)
-    fy = wp.clamp(y - float(y0), 0.0, 1.0)
-    i00 = base + y0 * stride + x0
-    t0 = tab.texels[i00] * (1.0 - fx) + tab.texels[i00 + 1] * fx
-    t1 = tab.texels[i00 + stride] * (1.0 - fx) + tab.texels[i00 + stride + 1] * fx
-    return t0 * (1.0 - fy) + t1 * fy
+    return bordered_bilinear(tab.texels, tab.level_offset[level] + face * (n + 2) * (n + 2), n, a, b)
 
 
 @wp.func
