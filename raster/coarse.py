@@ -66,3 +66,13 @@ def coarse_scatter_kernel(
                 slot = (ty * tiles_x + tx) * rows + row
                 k = wp.atomic_add(cursor, slot, 1)
                 queue[offsets[slot] + k] = rec
+
+
+@wp.kernel
+def relabel_kernel(base: int, queue: wp.array(dtype=SubTri), tri_ids: wp.array(dtype=wp.int32)):
+    """Queue record ``base + tid``: its triangle id (a row of a subset's index buffer) → the mesh's
+    id ``tri_ids[row]`` (``rasterize(tri_ids=...)``; after the scatter, which reads the row)."""
+    q = base + wp.tid()
+    rec = queue[q]
+    rec.tri = tri_ids[rec.tri]
+    queue[q] = rec

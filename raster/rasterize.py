@@ -32,7 +32,7 @@ from warp_sg.core.meshcheck import check_mesh
 from . import parallel
 from .bin import TILE, bin_count_kernel, scan_counts
 from warp_sg.scene.camera import Camera
-from .coarse import coarse_scatter_kernel
+from .coarse import coarse_scatter_kernel, relabel_kernel
 from .fine import fine_pixel_kernel, fine_tile_kernel, resolve_kernel, resolve_pixel_kernel
 from .triangle_setup import MAX_RESOLUTION, SubTri, guard_factors, setup_extra_kernel, setup_kernel, vertex_kernel
 
@@ -131,6 +131,9 @@ class VisibilityBuffer:
     _offsets: wp.array | None = None
     _rows: int = 1
     _inv_far: float = 0.0
+    #: ``rasterize(over=...)``: the buffer this one was drawn over (its queues hold the rest of
+    #: the triangles, which ``raster.subsample`` walks too)
+    _over: "VisibilityBuffer | None" = None
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -167,7 +170,8 @@ def _as_numpy_mesh(vertices, triangles):
 def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: int = 1,
               cull_backfaces=False, coverage_count: bool = False, max_pairs: int | None = None,
               schedule: str = "auto", profile: bool = False, validate: bool = True,
-              reuse: VisibilityBuffer | None = None, subsamples: int = 1) -> VisibilityBuffer:
+              reuse: VisibilityBuffer | None = None, subsamples: int = 1, over: VisibilityBuffer | None = None,
+              tri_ids: wp.array | None = None) -> VisibilityBuffer:
     """Rasterize a triangle mesh into a :class:`VisibilityBuffer` of (k·H, k·W) pixels.
 
     ``vertices`` (N, 3) float, ``triangles`` (M, 3) int (numpy or ``wp.array``); ``camera`` a
@@ -189,6 +193,16 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
     :func:`raster.subsample.subsample` finds the a×a coverage of any listed pixels later without
     another raster (adaptive antialiasing). One pass then (``max_pairs`` does not split it): the
     queue holds 64 bytes per (triangle, tile) pair, ~10 MB for 100 k triangles at 512².
+
+    ``over``: a buffer of the same camera, size and ``subsamples`` holding other triangles of the
+    same mesh; the result starts from its contents instead of an empty buffer, so it is the
+    buffer of both sets of triangles — bit for bit a raster of their union, since each
+    triangle's coverage, 1/w and barycentrics depend on it and the camera alone and the depth test
+    keeps the maximum of a total order (larger 1/w, ties to the lower triangle id). ``tri_ids``
+    ((M,) int ``wp.array``): the mesh's id of each row of ``triangles`` (a subset of a mesh, in
+    ascending order), written to the buffer and compared in ties instead of the row index. A
+    renderer whose dynamic objects move draws them over its static objects' buffer this way
+    (``warp_sg.renderer.moving_raster``).
     """
     device = resolve_device(device)
     if not isinstance(camera, Camera):
@@ -232,9 +246,18 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
         tri_id = wp.empty((H, W), dtype=wp.int32, device=device)
         bary = wp.empty((H, W), dtype=wp.vec2, device=device)
         best_invw = wp.empty((H, W), dtype=wp.float32, device=device)
-    best_invw.zero_()  # (memsets: on the CPU faster than clearing in the fine kernel's tiles)
-    tri_id.fill_(-1)
-    bary.zero_()
+    if over is not None:  # draw over the other triangles' buffer
+        if (over.width, over.height, over.supersample, over._subsamples, str(over.device)) != (W, H, k,
+                                                                                            int(subsamples), device):
+            raise InputError("over= needs a buffer of the same size, supersampling, subsamples and device",
+                             where="over")
+        wp.copy(best_invw, over.inv_depth)
+        wp.copy(tri_id, over.tri_id)
+        wp.copy(bary, over.bary)
+    else:
+        best_invw.zero_()  # (memsets: on the CPU faster than clearing in the fine kernel's tiles)
+        tri_id.fill_(-1)
+        bary.zero_()
     clock.lap("clear")
     coverage = wp.zeros((H, W), dtype=wp.int32, device=device) if coverage_count else None
     cov_arg = coverage if coverage is not None else wp.zeros((1, 1), dtype=wp.int32, device=device)
@@ -285,7 +308,7 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
                     "rows": bins.rows}
         _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera, best_invw, tri_id, bary, cov_arg,
                         coverage is not None, device, max_pairs or DEFAULT_MAX_PAIRS, schedule, stats, ws, clock,
-                        grid, keep)
+                        grid, keep, tri_ids)
     else:
         keep = {"queue": None, "offsets": None, "rows": 1} if int(subsamples) > 1 else None
     vb = VisibilityBuffer(tri_id, bary, best_invw, coverage, W, H, k, device, stats, _schedule=schedule,
@@ -293,6 +316,7 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
     if keep is not None:
         vb._subsamples, vb._queue, vb._offsets, vb._rows = int(subsamples), keep["queue"], keep["offsets"], keep["rows"]
         vb._inv_far = 1.0 / float(camera.far)
+    vb._over = over
     if profile:
         vb.depth
         clock.lap("resolve")
@@ -336,10 +360,11 @@ def tile_grid(width: int, height: int) -> tuple[int, int]:
 
 
 def _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera, best_invw, best_tri, best_bary,
-                    coverage, count_mode, device, max_pairs, schedule, stats, ws, clock, grid, keep):
+                    coverage, count_mode, device, max_pairs, schedule, stats, ws, clock, grid, keep, tri_ids=None):
     """Bin, scatter and draw in as many passes as the queue budget needs. ``keep`` (a dict, with
     ``subsamples``): one pass, whose queue (``keep["queue"]``: storage to reuse when large enough)
-    and offsets are returned in it."""
+    and offsets are returned in it. ``tri_ids``: the queued records' triangle ids are mapped
+    through it before the fine raster (``rasterize(tri_ids=...)``)."""
     n_sub = n_t + n_extra
     tiles_x, n_tiles, rows = bins.tiles_x, bins.n_tiles, bins.rows
     counts, offsets, cursor = bins.counts, bins.offsets, bins.cursor
@@ -392,11 +417,15 @@ def _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera, best_invw, best_tri,
             parallel.launch_rows(coarse_scatter_kernel, n, r,
                                  [lo, batch, rows, tiles_x, W, H, subs, offsets, cursor, queue, 0, grid], device)
         first = False
+        if tri_ids is not None:
+            parallel.launch(relabel_kernel, total, [queue, tri_ids], device, min_chunk=16384)
         clock.lap("coarse")
         args = [tiles_x, n_tiles, rows, W, H, inv_far, int(count_mode), offsets, queue, best_invw, best_tri,
                 best_bary, coverage]
-        if schedule == "tile":
-            parallel.launch(fine_tile_kernel, n_tiles, args, device, chunks=8 * parallel.cpu_workers(), min_chunk=1)
+        if schedule == "tile":  # (few pairs: fewer ranges, each costs a dispatch)
+            workers = parallel.cpu_workers()
+            parallel.launch(fine_tile_kernel, n_tiles, args, device, chunks=min(8 * workers, max(workers, total // 256)),
+                            min_chunk=1)
         else:
             parallel.launch(fine_pixel_kernel, n_tiles * TILE * TILE, args, device, min_chunk=TILE * TILE)
         clock.lap("fine")

@@ -52,7 +52,8 @@ def subsample_tiles_kernel(base: int, tiles: wp.array(dtype=int), tiles_x: int, 
                            sub_bary: wp.array2d(dtype=wp.vec2), sub_invw: wp.array2d(dtype=float)):
     """Tile ``tiles[base + tid]``: the a×a sub-samples of its listed pixels (``slot[y, x]`` ≥ 0:
     row of the outputs; sub-sample q = j·a + i) — the winning triangle (-1: none), its
-    barycentrics (b1, b2) and 1/w (0: none)."""
+    barycentrics (b1, b2) and 1/w (0: none), against what the outputs hold (cleared before the
+    first queue, :func:`subsample`)."""
     t = tiles[base + wp.tid()]
     tx = t % tiles_x
     ty = t / tiles_x
@@ -66,10 +67,6 @@ def subsample_tiles_kernel(base: int, tiles: wp.array(dtype=int), tiles_x: int, 
             s = slot[y, x]
             if s >= 0:
                 rowbits[y - Y0] = rowbits[y - Y0] | (1 << (x - X0))
-                for q in range(a * a):
-                    sub_tri[s, q] = -1
-                    sub_bary[s, q] = wp.vec2(0.0, 0.0)
-                    sub_invw[s, q] = 0.0
     g = 2 * a  # sub-sample coordinates in units of 1/(2a·SUBPIXEL) px
     o = wp.int64(SUBPIXEL)  # half a sub-pixel
     d = wp.int64(g) * o  # one pixel
@@ -159,7 +156,7 @@ def subsample(vb, pixels: wp.array):
     ``rasterize(..., subsamples=a)``: ``(tri, bary, inv_depth, tiles)`` — ``wp.array2d`` of shape
     (n, a²) (int, vec2, float; sub-sample q = j·a + i of pixel ``pixels[r]`` (row-major index
     y·W + x, distinct) in row r; tri -1 and inv_depth 0 where it sees nothing) and the number of
-    tiles visited."""
+    tiles visited. A buffer drawn over another (``rasterize(over=...)``) walks both's queues."""
     a = int(getattr(vb, "_subsamples", 1))
     if a < 2:
         raise ValueError("subsample() needs a buffer rasterised with subsamples > 1")
@@ -177,14 +174,16 @@ def subsample(vb, pixels: wp.array):
     flag = wp.zeros(n_tiles, dtype=int, device=device)
     parallel.launch(_slots_kernel, n, [pixels, W, tiles_x, slot, flag], device, min_chunk=16384)  # trivial: one range
     tiles = parallel.compact(flag, device)
-    if vb._offsets is None:  # nothing was binned: every sub-sample sees nothing
-        tri.fill_(-1)
-        bary.zero_()
-        invw.zero_()
-        return tri, bary, invw, int(tiles.shape[0])
-    parallel.launch(subsample_tiles_kernel, int(tiles.shape[0]),
-                    [tiles, tiles_x, vb._rows, W, H, a, float(vb._inv_far), slot, vb._offsets,
-                     vb._queue, tri, bary, invw], device, chunks=8 * parallel.cpu_workers(), min_chunk=1)
+    tri.fill_(-1)
+    bary.zero_()
+    invw.zero_()
+    layer = vb
+    while layer is not None:  # this buffer's queues and those of the buffers it was drawn over
+        if layer._offsets is not None:  # (None: nothing was binned)
+            parallel.launch(subsample_tiles_kernel, int(tiles.shape[0]),
+                            [tiles, tiles_x, layer._rows, W, H, a, float(layer._inv_far), slot, layer._offsets,
+                             layer._queue, tri, bary, invw], device, chunks=8 * parallel.cpu_workers(), min_chunk=1)
+        layer = layer._over
     return tri, bary, invw, int(tiles.shape[0])
 
 

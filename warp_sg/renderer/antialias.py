@@ -341,29 +341,54 @@ def _counts(idx, cand, edge, device) -> dict:
 
 
 class AntialiasCache:
-    """What antialiasing keeps between frames of one renderer (static geometry): the mesh's edge
-    adjacency (once), the contour mask of the current camera, and the sub-pixel coverage of the
-    last frame's candidate pixels — a re-shade (a material, light or environment edit: the same
-    visibility buffer) whose candidates did not change reuses it."""
+    """What antialiasing keeps between frames of one renderer: the mesh's edge adjacency (once),
+    the contour mask of the current camera, and the sub-pixel coverage of the last frame's
+    candidate pixels — a re-shade (a material, light or environment edit: the same visibility
+    buffer) whose candidates did not change reuses it.
 
-    def __init__(self, positions: wp.array, tris: wp.array, device):
+    ``moving`` (per triangle, a scene with dynamic objects, :mod:`warp_sg.renderer.moving_raster`):
+    the edges of static triangles only are marked once per camera, as per-pixel depths
+    (:func:`~warp_sg.shading.silhouette.contour_depths`), and each frame marks the edges of the
+    moving ones and merges (:func:`~warp_sg.shading.silhouette.merge_contours`): the same marks as
+    all edges marked against the frame's buffer."""
+
+    def __init__(self, positions: wp.array, tris: wp.array, device, moving=None):
         self.positions, self.tris, self.device = positions, tris, device
+        self.moving = None if moving is None else np.asarray(moving, bool)
         self.edges = None
         self._contours = (None, None, None)  # (camera, 1× buffer, marks)
+        self._static = (None, None)  # (camera, contour depths of the static edges)
         self._sub = (None, None, None)  # (visibility buffer, candidate list (numpy), coverage)
 
-    def contours(self, camera, vb1) -> wp.array:
-        """The contour marks of ``camera``, without the edges its 1× buffer ``vb1`` shows hidden."""
-        from warp_sg.shading.silhouette import edge_adjacency, mark_contours
+    def _edges(self):
+        from warp_sg.shading.silhouette import edge_adjacency
 
         if self.edges is None:
             ev, ef = edge_adjacency(self.positions.numpy(), self.tris.numpy())
-            self.edges = (wp.array(ev, dtype=wp.vec2i, device=self.device),
-                          wp.array(ef, dtype=wp.vec2i, device=self.device))
+            arrays = lambda sel: (wp.array(ev[sel], dtype=wp.vec2i, device=self.device),  # noqa: E731
+                                  wp.array(ef[sel], dtype=wp.vec2i, device=self.device))
+            if self.moving is None:
+                self.edges = arrays(slice(None))
+            else:  # an edge of a moving triangle moves (both faces' sides decide a silhouette)
+                mov = self.moving[ef[:, 0]] | ((ef[:, 1] >= 0) & self.moving[np.maximum(ef[:, 1], 0)])
+                self.edges = (arrays(~mov), arrays(mov))
+        return self.edges
+
+    def contours(self, camera, vb1) -> wp.array:
+        """The contour marks of ``camera``, without the edges its 1× buffer ``vb1`` shows hidden."""
+        from warp_sg.shading.silhouette import contour_depths, mark_contours, merge_contours
+
+        edges = self._edges()
         key = repr(camera)
         if self._contours[0] != key or self._contours[1] is not vb1:
-            self._contours = (key, vb1, mark_contours(self.positions, self.tris, *self.edges, camera, self.device,
-                                                      inv_depth=vb1.inv_depth))
+            if self.moving is None:
+                mark = mark_contours(self.positions, self.tris, *edges, camera, self.device, inv_depth=vb1.inv_depth)
+            else:
+                if self._static[0] != key:
+                    self._static = (key, contour_depths(self.positions, self.tris, *edges[0], camera, self.device))
+                mark = mark_contours(self.positions, self.tris, *edges[1], camera, self.device, inv_depth=vb1.inv_depth)
+                merge_contours(mark, self._static[1], vb1.inv_depth, self.device)
+            self._contours = (key, vb1, mark)
         return self._contours[2]
 
     def forget_frame(self) -> None:

@@ -87,6 +87,31 @@ def parse_transform_argument(text: str) -> tuple:
     return (int(name) if name.isdigit() else name), np.asarray(vals).reshape(4, 4)
 
 
+@wp.kernel(enable_backward=False)
+def move_vertices_kernel(ids: wp.array(dtype=int), slot: wp.array(dtype=int), rest_p: wp.array(dtype=wp.vec3),
+                         rest_n: wp.array(dtype=wp.vec3), rest_t: wp.array(dtype=wp.vec3),
+                         rest_ft: wp.array(dtype=wp.vec3), rest_fb: wp.array(dtype=wp.vec3),
+                         rest_cone: wp.array(dtype=wp.vec4), lin: wp.array(dtype=wp.mat33), rot: wp.array(dtype=wp.mat33),
+                         trans: wp.array(dtype=wp.vec3), frames: int, pos: wp.array(dtype=wp.vec3),
+                         nor: wp.array(dtype=wp.vec3), tan: wp.array(dtype=wp.vec3), frame_t: wp.array(dtype=wp.vec3),
+                         frame_b: wp.array(dtype=wp.vec3), cones: wp.array(dtype=wp.vec4)):
+    """Moving vertex ``ids[i]`` (its object's motion ``slot[i]``: ``P' = sR P + t``, directions
+    turned by ``R``): position, normal, tangent and, with ``frames``, its SSDF frame and cone axis."""
+    i = wp.tid()
+    v = ids[i]
+    k = slot[i]
+    R = rot[k]
+    pos[v] = lin[k] * rest_p[i] + trans[k]
+    nor[v] = R * rest_n[i]
+    tan[v] = R * rest_t[i]
+    if frames != 0:
+        frame_t[v] = R * rest_ft[i]
+        frame_b[v] = R * rest_fb[i]
+        c = rest_cone[i]
+        a = R * wp.vec3(c[0], c[1], c[2])
+        cones[v] = wp.vec4(a[0], a[1], a[2], c[3])
+
+
 class DynamicObjects:
     """The moving objects of one renderer (module docstring): built with each geometry the renderer
     installs (the input mesh, then the refined one), it owns the rest pose, the proxies and the
@@ -157,9 +182,14 @@ class DynamicObjects:
         self.version = 0 if previous is None else previous.version  # bumped by set_transform
         self._applied = self.version if previous is None else -1  # the version in the device arrays
         self._patched = {}  # cache name -> (array identity, version) of the last row patch
+        self._sky = None  # the moving vertices' sky table (_visible)
+        self._rest_dev = None  # the moving vertices' rest rows on the device (_device_rest)
         self._behind_key = None
         self.px = self._proxies_struct(r)
         self.rest_cones = None
+        from warp_sg.renderer.moving_raster import MovingRaster
+
+        self.raster = MovingRaster(g, self.flags, d)  # the static objects' buffer kept per camera
 
     # ------------------------------------------------------------------ precompute
     def ssdf(self, r):
@@ -177,6 +207,7 @@ class DynamicObjects:
         r.vis.frame_t = wp.array(self.rest_ft.astype(np.float32), dtype=wp.vec3, device=d)
         r.vis.frame_b = wp.array(self.rest_fb.astype(np.float32), dtype=wp.vec3, device=d)
         self.rest_cones = r.vis.cones.numpy().astype(np.float64)
+        self._sky = None
 
     def _proxies_struct(self, r):
         from warp_sg.shading.motion_wp import Proxies
@@ -251,27 +282,43 @@ class DynamicObjects:
             scene.invalidate_geometry()
         return k
 
+    def _delta(self, k) -> tuple:
+        """``(R, s, t)`` of object k's motion from the pose its geometry was built in (the identity
+        exactly when it is back there)."""
+        if np.array_equal(self.motion[k], self.rest_motion[k]):
+            return np.eye(3), 1.0, np.zeros(3)
+        return check_motion(self.motion[k] @ np.linalg.inv(self.rest_motion[k]))
+
+    def _device_rest(self, r):
+        """The moving vertices' rest rows on the device (:func:`move_vertices_kernel`'s inputs)."""
+        if self._rest_dev is None or self._rest_dev[0] != (self.rest_cones is not None):
+            ids = self.all_ids.numpy()
+            f32 = lambda a, t=wp.vec3: wp.array(np.ascontiguousarray(a[ids], np.float32), dtype=t, device=r.device)  # noqa: E731
+            cones = self.rest_cones if self.rest_cones is not None else np.zeros((len(self.rest_v), 4))
+            slot = np.concatenate([np.full(len(v), j, np.int32) for j, v in enumerate(self.ids.values())])
+            self._rest_dev = (self.rest_cones is not None, [wp.array(slot, dtype=int, device=r.device),
+                              f32(self.rest_v), f32(self.rest_n), f32(self.rest_t), f32(self.rest_ft), f32(self.rest_fb),
+                              f32(cones, wp.vec4)])
+        return self._rest_dev[1]
+
     def apply(self, r) -> bool:
-        """Write the current transforms into the renderer's arrays (module docstring); False when
-        nothing changed since the last call."""
+        """Write the current transforms into the renderer's arrays (module docstring): the moving
+        vertices' rows on the device (one :func:`move_vertices_kernel` launch), the proxies, and the
+        host copy of the geometry; False when nothing changed since the last call."""
         self._update_behind(r)
         if self._applied == self.version:
             return False
-        V = self.rest_v.copy()
-        N, Tg = self.rest_n.copy(), self.rest_t.copy()
-        FT, FB = self.rest_ft.copy(), self.rest_fb.copy()
-        vis_frames = self.rest_cones is not None  # (with shadows)
-        C = self.rest_cones.copy() if vis_frames else np.zeros((len(V), 4))
-        S = self.rest_spheres.copy()
-        B = self.rest_blobs.copy()
-        Bd = self.rest_bounds.copy()
+        S, B, Bd = self.rest_spheres.copy(), self.rest_blobs.copy(), self.rest_bounds.copy()
+        V, N, Tg = (np.array(a, np.float32) for a in (r.geometry.vertices, r.geometry.normals, r.geometry.tangents))
+        lin, rot, trans = [], [], []
         for k, ids in self.ids.items():
-            delta = self.motion[k] @ np.linalg.inv(self.rest_motion[k])  # from the pose the geometry was built in
-            R, s, t = check_motion(delta)
+            R, s, t = self._delta(k)
+            lin.append(s * R)
+            rot.append(R)
+            trans.append(t)
             V[ids] = self.rest_v[ids] @ (s * R).T + t
-            for A, rest in ((N, self.rest_n), (Tg, self.rest_t), (FT, self.rest_ft), (FB, self.rest_fb)):
-                A[ids] = rest[ids] @ R.T
-            C[ids, :3] = C[ids, :3] @ R.T
+            N[ids] = self.rest_n[ids] @ R.T
+            Tg[ids] = self.rest_t[ids] @ R.T
             own = self.sphere_owner == k
             S[own, :3] = self.rest_spheres[own, :3] @ (s * R).T + t
             S[own, 3] = self.rest_spheres[own, 3] * s
@@ -279,50 +326,66 @@ class DynamicObjects:
             B[k, 3] = self.rest_blobs[k, 3] * s
             Bd[k, :3] = self.rest_bounds[k, :3] @ (s * R).T + t
             Bd[k, 3] = self.rest_bounds[k, 3] * s if self.rest_bounds[k, 3] > 0 else -1.0
+        d = r.device
+        mats = lambda ms: wp.array(np.asarray(ms, np.float32), dtype=wp.mat33, device=d)  # noqa: E731
+        ga, frames = r.geo_arrays, self.rest_cones is not None  # (the SSDF frames and cones: with shadows)
+        out = [ga.positions, ga.normals, ga.tangents] + ([r.vis.frame_t, r.vis.frame_b, r.vis.cones] if frames else
+                                                          [ga.normals, ga.normals, wp.zeros(1, dtype=wp.vec4, device=d)])
+        wp.launch(move_vertices_kernel, dim=int(self.all_ids.shape[0]),
+                  inputs=[self.all_ids, *self._device_rest(r), mats(lin), mats(rot),
+                          wp.array(np.asarray(trans, np.float32), dtype=wp.vec3, device=d), int(frames), *out], device=d)
         f32 = lambda a: np.ascontiguousarray(a, np.float32)  # noqa: E731
-        ga = r.geo_arrays
-        ga.positions.assign(f32(V))
-        ga.normals.assign(f32(N))
-        ga.tangents.assign(f32(Tg))
-        if vis_frames:
-            r.vis.frame_t.assign(f32(FT))
-            r.vis.frame_b.assign(f32(FB))
-            r.vis.cones.assign(f32(C))
         if len(S):
             self.px.spheres.assign(f32(S))
         self.px.blobs.assign(f32(B))
         self.px.bounds.assign(f32(Bd))
-        r.geometry = replace(r.geometry, vertices=f32(V), normals=f32(N), tangents=f32(Tg))
+        r.geometry = replace(r.geometry, vertices=V, normals=N, tangents=Tg)
         r._vb_key = None  # the visibility buffer
         if r._culling is not None:
-            r._culling.moved(r.geometry)
+            r._culling.moved(r.geometry, list(self.ids))
         if r._aa is not None:
             r._aa.forget_frame()
         self._applied = self.version
         return True
 
+    def _visible(self, r, es, into) -> None:
+        """The moving vertices' rows of the environment's visible fraction, from the sky table
+        (:mod:`warp_sg.shading.sky_table`: their texels inside the cone listed once in the rest
+        pose, the map on a cube)."""
+        from warp_sg.shading.sky_table import MovingSky
+
+        env, cells = getattr(r, "env_light", None), getattr(r, "env_texel_radiance", None)
+        if env is None or cells is None or self.rest_cones is None:
+            return
+        if self._sky is None:
+            self._sky = MovingSky(self.all_ids.numpy(), (self.rest_n, self.rest_ft, self.rest_fb), self.rest_cones,
+                                  int(r.vis.mean.shape[0]), r.device)
+        self._sky.visible(r.vis, es, self._sky.table(cells, env.rotation_matrix()), into)
+
     def patch_caches(self, r, es) -> None:
-        """Recompute the per-vertex caches' rows of the moved vertices (a cache rebuilt this frame
-        already holds them): the lights' deficits, the environment's visible fraction, its lobes'."""
-        from warp_sg.shading.vertex_visibility import env_vertex_visibility, env_vertex_visible, light_vertex_deficit
+        """Recompute the per-vertex caches' rows of the moved vertices: the lights' deficits and the
+        environment lobes' visible fractions (a cache rebuilt this frame already holds them), and
+        the visible fraction of the environment's irradiance, which the moving vertices always
+        take from the sky table (:meth:`_visible`; after a rebuild too, so that a frame is a function
+        of the transforms)."""
+        from warp_sg.shading.vertex_visibility import env_vertex_visibility, light_vertex_deficit
 
         d, nv, ids = r.device, len(r.geometry.vertices), self.all_ids
-        jobs = (("light", r.light_vis_cache,
+        jobs = (("light", r.light_vis_cache, False,
                  lambda v: light_vertex_deficit(r.vis, r.geo_arrays.positions, r.light_arrays, nv,
                                                 r.scene.render.fh == "sigmoid", d, ids=ids, into=v)),
-                ("visible", r.env_visible_cache, lambda v: env_vertex_visible(r.vis, es, nv, d, ids=ids, into=v)),
-                ("lobes", r.env_vis_cache, lambda v: env_vertex_visibility(r.irr_table, r.vis, es, nv, d, ids=ids,
-                                                                          into=v)))
-        for name, cache, run in jobs:
+                ("visible", r.env_visible_cache, True, lambda v: self._visible(r, es, v)),
+                ("lobes", r.env_vis_cache, False,
+                 lambda v: env_vertex_visibility(r.irr_table, r.vis, es, nv, d, ids=ids, into=v)))
+        for name, cache, always, run in jobs:
             if cache.key is None:
                 continue
             ident = id(cache.value[0] if isinstance(cache.value, tuple) else cache.value)
             last = self._patched.get(name)
-            if last is None or last[0] != ident:  # (re)built with the current pose
-                self._patched[name] = (ident, self.version)
-            elif last[1] != self.version:
+            rebuilt = last is None or last[0] != ident  # (re)built with the current pose
+            if (rebuilt and always) or (not rebuilt and last[1] != self.version):
                 run(cache.value)
-                self._patched[name] = (ident, self.version)
+            self._patched[name] = (ident, self.version)
 
 
 __all__ = ["DynamicObjects", "object_index", "scene_with_transforms", "parse_transform_argument"]

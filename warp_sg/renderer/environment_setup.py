@@ -24,12 +24,16 @@ class EnvironmentSetup:
     materials)."""
 
     def _smooth_tris(self):
-        """(T,) uint8 triangles whose vertex normals agree within 5° (built once per geometry)."""
+        """(T,) uint8 triangles whose vertex normals agree within 5° (built once per installed mesh:
+        a rigid motion of dynamic objects keeps the angles between their normals, so their flags
+        are those of the pose the mesh was built in)."""
         g = self.geometry
-        if getattr(self, "_smooth", None) is None or self._smooth[0] is not g:
+        if getattr(self, "_smooth", None) is None or self._smooth[0] is not g.triangles:
             from warp_sg.shading.vertex_visibility import smooth_triangles
 
-            self._smooth = (g, wp.array(smooth_triangles(g.normals, g.triangles), dtype=wp.uint8, device=self.device))
+            normals = g.normals if self.dynamic is None else self.dynamic.rest_n
+            self._smooth = (g.triangles, wp.array(smooth_triangles(normals, g.triangles), dtype=wp.uint8,
+                                                  device=self.device))
         return self._smooth[1]
 
     def _setup_env_peaks(self):
@@ -132,11 +136,12 @@ class EnvironmentSetup:
 
     def _env_arrays(self):
         """EnvSG (world axes: rotation applied; amplitudes scaled) on the device, rebuilt only when
-        the rotation, the scale or the geometry (a progressive renderer's refined mesh) changes. Lobes that carry no energy (``|μ| ∫G`` below 1e-6 of the
+        the rotation, the scale or the installed mesh (a progressive renderer's refined mesh; not a
+        motion of dynamic objects) changes. Lobes that carry no energy (``|μ| ∫G`` below 1e-6 of the
         mixture's, e.g. amplitudes the non-negative fit set to 0) are left out."""
         env = self.env_light
         key = None if env is None or self._env_sg_base is None else (id(self._env_sg_base), float(env.rotation), float(env.scale),
-                                                                     id(self.geometry))  # (smooth: per triangle)
+                                                                     id(self.geometry.triangles))  # (smooth: per triangle)
         if self._env_arrays_key == key:
             return self._env_sg_arrays
         d = self.device

@@ -54,7 +54,10 @@ class FramePaths:
         args = self._bg_args(k)
         if rays:
             return self._bg.params(*args)
-        return self._bg.for_frame(*args, self._vb, bool(self.timings.get("raster_reused")))
+        vb, reused = self._vb, bool(self.timings.get("raster_reused"))
+        if vb is not None and vb._over is not None:  # moving objects drawn over the static ones' buffer:
+            vb, reused = vb._over, True  # the image where the static objects leave the background, per camera
+        return self._bg.for_frame(*args, vb, reused)
 
     def _bg_args(self, k: int) -> tuple:
         return self.scene.camera, k, self.env_light, getattr(self, "env_base", None), self.scene.render.background
@@ -64,12 +67,19 @@ class FramePaths:
         the tile queues antialiasing reads a×a sub-pixels from, ``raster.subsample``). The geometry
         is static and was validated once (``_setup_geometry``): it is rasterised from its device
         arrays, and the buffer is reused while the camera and k stay the same (material, light and
-        environment edits re-shade only)."""
+        environment edits re-shade only). With dynamic objects (and :attr:`incremental_raster`) the
+        static objects' buffer is kept per camera and only the moving ones are rasterised again
+        (:mod:`warp_sg.renderer.moving_raster`; the same buffer bit for bit)."""
         import raster
 
         k = self.scene.render.supersampling if k is None else k
         key = (repr(self.scene.camera), int(k), int(subsamples))
-        if self._vb_key != key:  # the old buffer's arrays are overwritten when the size matches
+        if self._vb_key != key and self.dynamic is not None and self.incremental_raster:
+            self._vb = self.dynamic.raster.rasterize(self.geo_arrays.positions, self.scene.camera, k, subsamples,
+                                                     self._cull_flags(), self.dynamic.version)
+            self._vb_key = key
+            self.timings["raster_reused"] = False
+        elif self._vb_key != key:  # the old buffer's arrays are overwritten when the size matches
             old, self._vb = self._vb, None
             self._vb = raster.rasterize(self.geo_arrays.positions, self.geo_arrays.tris, self.scene.camera,
                                         device=self.device, supersample=k, validate=False, reuse=old,
@@ -123,7 +133,9 @@ class FramePaths:
 
         d, cam = self.device, self.scene.camera
         if self._aa is None:
-            self._aa = AntialiasCache(self.geo_arrays.positions, self.geo_arrays.tris, d)
+            split = self.dynamic is not None and self.incremental_raster
+            self._aa = AntialiasCache(self.geo_arrays.positions, self.geo_arrays.tris, d,
+                                      moving=self.dynamic.raster.tri_moving if split else None)
         shade = lambda tri, bary, bg, out: self._launch_shade(tri, bary, bg, cam.origin, out)  # noqa: E731
         t0 = _timer(d)
         vb = self.rasterize(1, subsamples=a)

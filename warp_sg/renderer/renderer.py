@@ -68,6 +68,10 @@ class Renderer(FramePaths, VariantChoice, ResourceSetup, EnvironmentSetup):
     #: compute the refinement and SSDFs on a thread beside the environment fit and ΓL prefilter
     #: (the same data; False: one after the other, so each part's CPU time is its own)
     overlap_precompute = True
+    #: with dynamic objects, rasterise the static ones once per camera and merge the moving ones
+    #: into their buffer each frame (:mod:`warp_sg.renderer.moving_raster`; False: the whole mesh
+    #: every frame — the same image, bit for bit)
+    incremental_raster = True
     #: terms of eq. 36 shown (:meth:`set_terms`; the viewer's check boxes)
     show_diffuse = True
     show_specular = True

@@ -29,6 +29,7 @@ class BackfaceCulling:
 
         n_objects = len(geometry.object_names)
         self.device, self._cached = device, (None, False)
+        self._used = {}  # object -> its vertex ids (moved)
         self.tri_object = np.asarray(geometry.tri_object, np.int64)
         self.closed = np.zeros(n_objects, bool)
         self.corners = np.zeros((n_objects, 8, 3))
@@ -42,11 +43,16 @@ class BackfaceCulling:
             self.corners[k] = [[(lo, hi)[i >> 2 & 1][0], (lo, hi)[i >> 1 & 1][1], (lo, hi)[i & 1][2]] for i in range(8)]
             self.closed[k] = bool(trimesh.Trimesh(V, F, process=True).is_volume)
 
-    def moved(self, geometry) -> None:
-        """Objects moved rigidly (``warp_sg.renderer.dynamic_objects``): new bounding boxes; closedness stays."""
+    def moved(self, geometry, objects=None) -> None:
+        """Objects moved rigidly (``warp_sg.renderer.dynamic_objects``; ``objects``: their indices, default
+        all): new bounding boxes; closedness stays."""
         V, T = np.asarray(geometry.vertices, np.float64), np.asarray(geometry.triangles)
         for k in np.flatnonzero(self.closed):
-            used = V[np.unique(T[self.tri_object == k])]
+            if objects is not None and k not in objects:
+                continue
+            if k not in self._used:
+                self._used[k] = np.unique(T[self.tri_object == k])
+            used = V[self._used[k]]
             lo, hi = used.min(0), used.max(0)
             self.corners[k] = [[(lo, hi)[i >> 2 & 1][0], (lo, hi)[i >> 1 & 1][1], (lo, hi)[i & 1][2]] for i in range(8)]
         self._cached = (None, False)

@@ -123,10 +123,13 @@ def facing_kernel(base: int, pos: wp.array(dtype=wp.vec3), tris: wp.array(dtype=
 @wp.kernel(enable_backward=False)
 def mark_contours_kernel(base: int, pos: wp.array(dtype=wp.vec3), side: wp.array(dtype=wp.int8),
                          edge_v: wp.array(dtype=wp.vec2i), edge_f: wp.array(dtype=wp.vec2i), cam: ContourCamera,
-                         inv_depth: wp.array2d(dtype=float), occlusion: int, mark: wp.array2d(dtype=wp.uint8)):
+                         inv_depth: wp.array2d(dtype=float), occlusion: int, mark: wp.array2d(dtype=wp.uint8),
+                         per_plane: int, nearest: wp.array3d(dtype=float)):
     """Mark the pixels that edge ``base + tid`` passes through (within ``MARK_EPS``) if it is a
-    contour (``side``: :func:`facing_kernel`) — with ``occlusion``, not where it is hidden
-    (:func:`_hidden`)."""
+    contour (``side``: :func:`facing_kernel`): ``occlusion`` 0 everywhere, 1 not where it is hidden
+    (:func:`_hidden`), 2 instead of a mark the largest 1/depth of the nearest points of the
+    contour edges that pass through the pixel, ``nearest[e / per_plane, r, c]`` (0: none; each
+    range of ``per_plane`` edges owns one plane, so that CPU threads never write the same value)."""
     e = base + wp.tid()
     ef = edge_f[e]
     if ef[1] >= 0:
@@ -189,6 +192,8 @@ def mark_contours_kernel(base: int, pos: wp.array(dtype=wp.vec3), side: wp.array
         for c in range(c0, c1 + 1):
             if occlusion == 0:
                 mark[r, c] = wp.uint8(1)
+            elif occlusion == 2:
+                wp.atomic_max(nearest, e / per_plane, r, c, inv_near)
             elif not _hidden(inv_depth, r, c, inv_near):
                 mark[r, c] = wp.uint8(1)
 
@@ -221,6 +226,15 @@ def contour_camera(camera) -> ContourCamera:
     return c
 
 
+def _sides(positions: wp.array, tris: wp.array, cam: ContourCamera, device) -> wp.array:
+    """(T,) int8 of :func:`facing_kernel`: which way each triangle faces the eye."""
+    from raster import parallel
+
+    side = wp.empty(max(int(tris.shape[0]), 1), dtype=wp.int8, device=device)
+    parallel.launch(facing_kernel, int(tris.shape[0]), [positions, tris, cam.eye, side], device, min_chunk=4096)
+    return side
+
+
 def mark_contours(positions: wp.array, tris: wp.array, edge_v: wp.array, edge_f: wp.array, camera,
                   device, inv_depth: wp.array | None = None) -> wp.array:
     """(H, W) uint8: 1 on the pixels the mesh's contour edges pass through (see the module
@@ -231,13 +245,76 @@ def mark_contours(positions: wp.array, tris: wp.array, edge_v: wp.array, edge_f:
 
     mark = wp.zeros((int(camera.height), int(camera.width)), dtype=wp.uint8, device=device)
     cam = contour_camera(camera)
-    side = wp.empty(max(int(tris.shape[0]), 1), dtype=wp.int8, device=device)
-    parallel.launch(facing_kernel, int(tris.shape[0]), [positions, tris, cam.eye, side], device, min_chunk=4096)
+    side = _sides(positions, tris, cam, device)
     occ = inv_depth if inv_depth is not None else wp.zeros((1, 1), dtype=float, device=device)
     parallel.launch(mark_contours_kernel, int(edge_v.shape[0]),
-                    [positions, side, edge_v, edge_f, cam, occ, int(inv_depth is not None), mark], device,
-                    min_chunk=4096)
+                    [positions, side, edge_v, edge_f, cam, occ, int(inv_depth is not None), mark, 1,
+                     wp.zeros((1, 1, 1), dtype=float, device=device)], device, min_chunk=4096)
     return mark
 
 
-__all__ = ["ContourCamera", "contour_camera", "edge_adjacency", "facing_kernel", "mark_contours", "mark_contours_kernel"]
+def contour_depths(positions: wp.array, tris: wp.array, edge_v: wp.array, edge_f: wp.array, camera,
+                   device) -> wp.array:
+    """(H, W) float: per pixel the largest 1/depth of the nearest points of the contour edges that
+    pass through it (those :func:`mark_contours` marks without ``inv_depth``), 0 where none does.
+    :func:`merge_contours` turns it into the marks of any 1× buffer of the camera: whether an edge
+    is hidden at a pixel (:func:`_hidden`) is monotone in that 1/depth, so one value per pixel
+    decides for all the edges through it."""
+    from raster import parallel
+
+    H, W = int(camera.height), int(camera.width)
+    n = int(edge_v.shape[0])
+    cpu = str(device).startswith("cpu")
+    planes = max(1, min(parallel.cpu_workers(), n)) if cpu else 1
+    per = max(-(-n // planes), 1)
+    nearest = wp.zeros((planes, H, W), dtype=float, device=device)
+    cam = contour_camera(camera)
+    side = _sides(positions, tris, cam, device)
+    args = [positions, side, edge_v, edge_f, cam, wp.zeros((1, 1), dtype=float, device=device), 2,
+            wp.zeros((1, 1), dtype=wp.uint8, device=device), per, nearest]
+    parallel.launch_rows(mark_contours_kernel, n, planes, args, device)
+    if planes == 1:
+        return nearest.reshape((H, W))
+    out = wp.empty((H, W), dtype=float, device=device)
+    parallel.launch(_plane_max_kernel, H * W, [nearest, W, out], device, min_chunk=16384)
+    return out
+
+
+@wp.kernel(enable_backward=False)
+def _plane_max_kernel(base: int, planes: wp.array3d(dtype=float), width: int, out: wp.array2d(dtype=float)):
+    i = base + wp.tid()
+    r = i / width
+    c = i - r * width
+    m = planes[0, r, c]
+    for p in range(1, planes.shape[0]):
+        m = wp.max(m, planes[p, r, c])
+    out[r, c] = m
+
+
+@wp.kernel(enable_backward=False)
+def merge_contours_kernel(base: int, width: int, nearest: wp.array2d(dtype=float), inv_depth: wp.array2d(dtype=float),
+                          mark: wp.array2d(dtype=wp.uint8)):
+    """``mark[r, c]`` |= 1 where an edge of ``nearest`` (:func:`contour_depths`) is not hidden."""
+    i = base + wp.tid()
+    r = i / width
+    c = i - r * width
+    z = nearest[r, c]
+    if z > 0.0:
+        if not _hidden(inv_depth, r, c, z):
+            mark[r, c] = wp.uint8(1)
+
+
+def merge_contours(mark: wp.array, nearest: wp.array, inv_depth: wp.array, device) -> wp.array:
+    """``mark`` (of :func:`mark_contours`, in place) with the marks of the edges behind
+    ``nearest`` (:func:`contour_depths`) that ``inv_depth`` (the 1× buffer's) does not hide: with
+    ``mark`` from one set of edges and ``nearest`` from the rest, the marks of all of them, equal
+    to :func:`mark_contours` of the whole set."""
+    from raster import parallel
+
+    H, W = int(mark.shape[0]), int(mark.shape[1])
+    parallel.launch(merge_contours_kernel, H * W, [W, nearest, inv_depth, mark], device, min_chunk=16384)
+    return mark
+
+
+__all__ = ["ContourCamera", "contour_camera", "contour_depths", "edge_adjacency", "facing_kernel", "mark_contours",
+           "mark_contours_kernel", "merge_contours"]

@@ -74,7 +74,7 @@ _SQRT_2PI = wp.constant(float(np.sqrt(2.0 * np.pi)))
 
 
 @wp.func
-def _texel_ssdf(vis: Visibility, v: int, y: int, x: int) -> float:
+def texel_ssdf(vis: Visibility, v: int, y: int, x: int) -> float:
     """Vertex v's SSDF at texel (row y, column x) of its R×R map (PCA or decompressed form)."""
     nv = vis.basis.shape[2]
     if nv == 0:  # decompressed maps (SSDFData.device_arrays)
@@ -86,7 +86,7 @@ def _texel_ssdf(vis: Visibility, v: int, y: int, x: int) -> float:
 
 
 @wp.func
-def _vertex_frame(vis: Visibility, v: int, n: wp.vec3):
+def vertex_frame(vis: Visibility, v: int, n: wp.vec3):
     """(t, b) of the frame vertex v's SSDF is stored in: the stored frame of a moving object's vertex
     (``Visibility.frame_t``, ``frame_b``), else the frame of its normal."""
     if vis.frame_t.shape[0] == vis.normals.shape[0]:
@@ -125,7 +125,7 @@ def env_vertex_visibility_kernel(base: int, ids: wp.array(dtype=int), irr: wp.ar
         out[v, j] = 0.0
     cone = vis.cones[v]
     if cone[3] >= 0.0:  # something occludes this vertex: integrate its occluded texels
-        t, b = _vertex_frame(vis, v, n)
+        t, b = vertex_frame(vis, v, n)
         R = vis.mean.shape[0]
         h = _SQRT_2PI / float(R)
         om = 2.0 * wp.pi / float(R * R)
@@ -136,7 +136,7 @@ def env_vertex_visibility_kernel(base: int, ids: wp.array(dtype=int), irr: wp.ar
                 dl = _texel_dir(R, y, x)
                 d = local_to_world(dl, t, b, n)
                 if wp.dot(d, axis) >= c_min:
-                    occ = 1.0 - wp.clamp(0.5 + _texel_ssdf(vis, v, y, x) / h, 0.0, 1.0)
+                    occ = 1.0 - wp.clamp(0.5 + texel_ssdf(vis, v, y, x) / h, 0.0, 1.0)
                     if occ > 0.0:
                         wgt = occ * dl[2] * om
                         for j in range(nj):
@@ -173,6 +173,24 @@ def light_vertex_deficit_kernel(base: int, ids: wp.array(dtype=int), fh_mode: in
     out[v, j] = d
 
 
+@wp.func
+def visible_share(occ_sum: wp.vec3, seen_sum: wp.vec3, ex: wp.vec3, cone: wp.vec4, n: wp.vec3, h: float) -> wp.vec3:
+    """``F = 1 − O/(O + S + max(E − O − S, 0))`` per channel (:func:`env_vertex_visible_kernel`)
+    from the cone's occluded and visible sums ``O``, ``S`` and the exact irradiance ``E``; the
+    texels outside the cone count as visible unless the cone (its half-angle grown by the texel
+    side ``h``) holds the whole hemisphere of ``n``."""
+    axis = wp.vec3(cone[0], cone[1], cone[2])
+    outside = float(1.0)
+    if wp.acos(wp.clamp(wp.dot(axis, n), -1.0, 1.0)) + 0.5 * wp.pi <= cone[3] + h:
+        outside = 0.0
+    f = wp.vec3(1.0, 1.0, 1.0)
+    for c in range(3):
+        tot = occ_sum[c] + seen_sum[c] + outside * wp.max(ex[c] - occ_sum[c] - seen_sum[c], 0.0)
+        if tot > 0.0:
+            f[c] = wp.clamp(1.0 - occ_sum[c] / tot, 0.0, 1.0)
+    return f
+
+
 @wp.kernel(enable_backward=False)
 def env_vertex_visible_kernel(base: int, ids: wp.array(dtype=int), vis: Visibility, env: EnvSG,
                               out: wp.array(dtype=wp.vec3), out_irr: wp.array(dtype=wp.vec3)):
@@ -191,7 +209,7 @@ def env_vertex_visible_kernel(base: int, ids: wp.array(dtype=int), vis: Visibili
     f = wp.vec3(1.0, 1.0, 1.0)
     ex = irradiance_unscaled(env.exact, n)
     if cone[3] >= 0.0:
-        t, b = _vertex_frame(vis, v, n)
+        t, b = vertex_frame(vis, v, n)
         R = vis.mean.shape[0]
         h = _SQRT_2PI / float(R)
         om = 2.0 * wp.pi / float(R * R)
@@ -204,17 +222,11 @@ def env_vertex_visible_kernel(base: int, ids: wp.array(dtype=int), vis: Visibili
                 dl = _texel_dir(R, y, x)
                 d = local_to_world(dl, t, b, n)
                 if wp.dot(d, axis) >= c_min:
-                    s = wp.clamp(0.5 + _texel_ssdf(vis, v, y, x) / h, 0.0, 1.0)
+                    s = wp.clamp(0.5 + texel_ssdf(vis, v, y, x) / h, 0.0, 1.0)
                     e = env_lookup(env.radiance, env.exact.to_env, d) * (dl[2] * om)
                     occ_sum += e * (1.0 - s)
                     seen_sum += e * s
-        outside = float(1.0)  # the texels outside the cone (visible), unless the cone holds the hemisphere
-        if wp.acos(wp.clamp(wp.dot(axis, n), -1.0, 1.0)) + 0.5 * wp.pi <= cone[3] + h:
-            outside = 0.0
-        for c in range(3):
-            tot = occ_sum[c] + seen_sum[c] + outside * wp.max(ex[c] - occ_sum[c] - seen_sum[c], 0.0)
-            if tot > 0.0:
-                f[c] = wp.clamp(1.0 - occ_sum[c] / tot, 0.0, 1.0)
+        f = visible_share(occ_sum, seen_sum, ex, cone, n, h)
     out[v] = f
     out_irr[v] = wp.cw_mul(ex, f)
 
