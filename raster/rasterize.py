@@ -40,6 +40,8 @@ from .triangle_setup import MAX_RESOLUTION, SubTri, guard_factors, setup_extra_k
 #: 1/(2a·256) px as int32 (|coordinates| ≤ 2a·32000·256 < 2³¹)
 MAX_SUBSAMPLES = 16
 DEFAULT_MAX_PAIRS = 1 << 21  # triangle/tile pairs per pass: 128 MiB of 64-byte queue records
+#: fewer triangles than this are set up and binned in one range on the CPU (no thread pool)
+SMALL_MESH = 4096
 
 
 class _Workspace:
@@ -138,6 +140,22 @@ class VisibilityBuffer:
     @property
     def shape(self) -> tuple[int, int]:
         return (self.height, self.width)
+
+    def queue_bounds(self):
+        """``(x0, y0, x1, y1)``: the pixels (x0 ≤ x < x1, y0 ≤ y < y1) of the tiles that hold queued
+        triangles, kept with ``subsamples`` > 1 — every pixel these triangles cover lies inside —
+        or None when nothing was queued."""
+        if self._offsets is None:
+            return None
+        o = self._offsets.numpy()
+        n_tiles = (len(o) - 1) // self._rows
+        full = np.flatnonzero(o[self._rows::self._rows][:n_tiles] > o[:-1:self._rows][:n_tiles])
+        if not len(full):
+            return None
+        tx, _ = tile_grid(self.width, self.height)
+        cols, rows = full % tx, full // tx
+        return (int(cols.min()) * TILE, int(rows.min()) * TILE, min(int(cols.max() + 1) * TILE, self.width),
+                min(int(rows.max() + 1) * TILE, self.height))
 
     @property
     def depth(self) -> wp.array:
@@ -345,7 +363,8 @@ class _Bins:
         self.tiles_x = (W + TILE - 1) // TILE
         self.n_tiles = self.tiles_x * ((H + TILE - 1) // TILE)
         self.cpu = device.startswith("cpu")
-        self.rows = parallel.cpu_workers() if self.cpu else 1
+        # one counter row per pool thread (CPU); a few triangles in one range: a dispatch costs more
+        self.rows = parallel.cpu_workers() if self.cpu and n_t >= SMALL_MESH else 1
         self.counts = ws.get("counts", self.n_tiles * self.rows + 1, wp.int32)
         self.offsets = ws.get("offsets", self.n_tiles * self.rows + 1, wp.int32)
         self.cursor = ws.get("cursor", self.n_tiles * self.rows, wp.int32)
@@ -424,7 +443,7 @@ def _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera, best_invw, best_tri,
                 best_bary, coverage]
         if schedule == "tile":  # (few pairs: fewer ranges, each costs a dispatch)
             workers = parallel.cpu_workers()
-            parallel.launch(fine_tile_kernel, n_tiles, args, device, chunks=min(8 * workers, max(workers, total // 256)),
+            parallel.launch(fine_tile_kernel, n_tiles, args, device, chunks=min(8 * workers, max(1, total // 4096)),
                             min_chunk=1)
         else:
             parallel.launch(fine_pixel_kernel, n_tiles * TILE * TILE, args, device, min_chunk=TILE * TILE)

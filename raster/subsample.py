@@ -151,12 +151,14 @@ def _slots_kernel(base: int, pixels: wp.array(dtype=int), width: int, tiles_x: i
     tile_flag[(y >> TILE_BITS) * tiles_x + (x >> TILE_BITS)] = 1
 
 
-def subsample(vb, pixels: wp.array):
+def subsample(vb, pixels: wp.array, below=None):
     """What the a×a sub-samples of the listed pixels see, for a buffer of
     ``rasterize(..., subsamples=a)``: ``(tri, bary, inv_depth, tiles)`` — ``wp.array2d`` of shape
     (n, a²) (int, vec2, float; sub-sample q = j·a + i of pixel ``pixels[r]`` (row-major index
     y·W + x, distinct) in row r; tri -1 and inv_depth 0 where it sees nothing) and the number of
-    tiles visited. A buffer drawn over another (``rasterize(over=...)``) walks both's queues."""
+    tiles visited. A buffer drawn over another (``rasterize(over=...)``) walks both's queues;
+    ``below``: the ``(tri, bary, inv_depth)`` of these pixels in the buffers it was drawn over
+    (:class:`KeptSubsamples`), so that only its own queue is walked."""
     a = int(getattr(vb, "_subsamples", 1))
     if a < 2:
         raise ValueError("subsample() needs a buffer rasterised with subsamples > 1")
@@ -174,17 +176,114 @@ def subsample(vb, pixels: wp.array):
     flag = wp.zeros(n_tiles, dtype=int, device=device)
     parallel.launch(_slots_kernel, n, [pixels, W, tiles_x, slot, flag], device, min_chunk=16384)  # trivial: one range
     tiles = parallel.compact(flag, device)
-    tri.fill_(-1)
-    bary.zero_()
-    invw.zero_()
+    if below is None:
+        tri.fill_(-1)
+        bary.zero_()
+        invw.zero_()
+    else:
+        for dst, src in zip((tri, bary, invw), below):
+            wp.copy(dst, src)
     layer = vb
+    workers = parallel.cpu_workers()
     while layer is not None:  # this buffer's queues and those of the buffers it was drawn over
-        if layer._offsets is not None:  # (None: nothing was binned)
+        if layer._offsets is not None:  # (None: nothing was binned; a short queue: fewer ranges, each costs a dispatch)
+            chunks = min(8 * workers, max(1, int(layer.stats.get("pairs", 1 << 20)) // 4096))
             parallel.launch(subsample_tiles_kernel, int(tiles.shape[0]),
                             [tiles, tiles_x, layer._rows, W, H, a, float(layer._inv_far), slot, layer._offsets,
-                             layer._queue, tri, bary, invw], device, chunks=8 * parallel.cpu_workers(), min_chunk=1)
-        layer = layer._over
+                             layer._queue, tri, bary, invw], device, chunks=chunks, min_chunk=1)
+        layer = None if below is not None else layer._over
     return tri, bary, invw, int(tiles.shape[0])
 
 
-__all__ = ["subsample", "subsample_tiles_kernel"]
+@wp.kernel
+def _unknown_kernel(base: int, pixels: wp.array(dtype=int), width: int, row: wp.array2d(dtype=int),
+                    flag: wp.array(dtype=int)):
+    i = base + wp.tid()
+    k = pixels[i]
+    y = k / width
+    flag[i] = int(row[y, k - y * width] < 0)
+
+
+@wp.kernel
+def _keep_kernel(base: int, pixels: wp.array(dtype=int), pos: wp.array(dtype=int), first: int, width: int,
+                 row: wp.array2d(dtype=int), taken: wp.array(dtype=int)):
+    """New pixel j = ``pixels[pos[base + tid]]``: kept in row ``first + j``."""
+    j = base + wp.tid()
+    k = pixels[pos[j]]
+    taken[j] = k
+    y = k / width
+    row[y, k - y * width] = first + j
+
+
+@wp.kernel
+def _gather_rows_kernel(base: int, pixels: wp.array(dtype=int), width: int, row: wp.array2d(dtype=int),
+                        tri: wp.array2d(dtype=int), bary: wp.array2d(dtype=wp.vec2), invw: wp.array2d(dtype=float),
+                        out_tri: wp.array2d(dtype=int), out_bary: wp.array2d(dtype=wp.vec2),
+                        out_invw: wp.array2d(dtype=float)):
+    i = base + wp.tid()
+    k = pixels[i]
+    y = k / width
+    r = row[y, k - y * width]
+    for q in range(tri.shape[1]):
+        out_tri[i, q] = tri[r, q]
+        out_bary[i, q] = bary[r, q]
+        out_invw[i, q] = invw[r, q]
+
+
+class KeptSubsamples:
+    """:func:`subsample` of one buffer, kept by pixel between calls: a pixel's sub-samples are
+    computed the first time it is listed and copied out afterwards. A renderer whose moving objects
+    are drawn over its static objects' buffer (``rasterize(over=...)``) asks every frame for the
+    static buffer's sub-samples of a candidate list that changes a little (around the moving
+    objects, their shadows); with these as ``below`` :func:`subsample` walks the moving triangles'
+    queue only — the same values. At most ``max(4 n, 16384)`` pixels are kept (n: the last list's
+    length); beyond, the store starts again."""
+
+    def __init__(self, vb):
+        a = int(vb._subsamples)
+        self.vb, self.a, self.n, self.computed = vb, a, 0, 0
+        self.row = wp.full((vb.height, vb.width), -1, dtype=int, device=vb.device)
+        self.store = None
+
+    def _grow(self, rows: int) -> None:
+        if self.store is not None and self.store[0].shape[0] >= rows:
+            return
+        cap = max(rows + rows // 2, 1024)
+        new = (wp.empty((cap, self.a * self.a), dtype=int, device=self.vb.device),
+               wp.empty((cap, self.a * self.a), dtype=wp.vec2, device=self.vb.device),
+               wp.empty((cap, self.a * self.a), dtype=float, device=self.vb.device))
+        if self.store is not None and self.n:
+            for dst, src in zip(new, self.store):
+                wp.copy(dst, src, count=self.n * self.a * self.a)
+        self.store = new
+
+    def get(self, pixels: wp.array) -> tuple:
+        """``(tri, bary, inv_depth)`` of :func:`subsample` of the kept buffer for ``pixels``."""
+        d, W, a2 = self.vb.device, self.vb.width, self.a * self.a
+        n = int(pixels.shape[0])
+        flag = wp.empty(max(n, 1), dtype=int, device=d)
+        if n:
+            parallel.launch(_unknown_kernel, n, [pixels, W, self.row, flag], d, min_chunk=16384)
+        pos = parallel.compact(flag[:n], d)
+        m = int(pos.shape[0])
+        if self.n + m > max(4 * n, 16384):  # start again
+            self.row.fill_(-1)
+            self.n = 0
+            return self.get(pixels)
+        if m:
+            taken = wp.empty(m, dtype=int, device=d)
+            parallel.launch(_keep_kernel, m, [pixels, pos, self.n, W, self.row, taken], d, min_chunk=16384)
+            tri, bary, invw, _ = subsample(self.vb, taken)
+            self._grow(self.n + m)
+            for dst, src in zip(self.store, (tri, bary, invw)):
+                wp.copy(dst, src, dest_offset=self.n * a2, count=m * a2)
+            self.n += m
+            self.computed += m
+        out = (wp.empty((max(n, 1), a2), dtype=int, device=d), wp.empty((max(n, 1), a2), dtype=wp.vec2, device=d),
+               wp.empty((max(n, 1), a2), dtype=float, device=d))
+        if n:
+            parallel.launch(_gather_rows_kernel, n, [pixels, W, self.row, *self.store, *out], d, min_chunk=4096)
+        return tuple(x[:n] for x in out)
+
+
+__all__ = ["KeptSubsamples", "subsample", "subsample_tiles_kernel"]

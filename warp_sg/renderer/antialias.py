@@ -67,6 +67,7 @@ import warp as wp
 from warp_sg.shading.background import Background, background_at
 from warp_sg.brdf.material_wp import lum
 from warp_sg.renderer.antialias_candidates import CAND_CONTRAST, LIST_MIN_CHUNK, Candidates, object_of
+from warp_sg.renderer.antialias_cache import AntialiasCache, same_list  # noqa: F401  (re-exported)
 
 #: relative residual of a block's 1/depth off its fitted plane that makes it an edge
 EDGE_DEPTH_RESIDUAL = 0.01
@@ -340,93 +341,6 @@ def _counts(idx, cand, edge, device) -> dict:
     return {"candidate_pixels": int(n[0]), "edge_pixels": int(n[1]), "contrast_pixels": int(n[2])}
 
 
-class AntialiasCache:
-    """What antialiasing keeps between frames of one renderer: the mesh's edge adjacency (once),
-    the contour mask of the current camera, and the sub-pixel coverage of the last frame's
-    candidate pixels — a re-shade (a material, light or environment edit: the same visibility
-    buffer) whose candidates did not change reuses it.
-
-    ``moving`` (per triangle, a scene with dynamic objects, :mod:`warp_sg.renderer.moving_raster`):
-    the edges of static triangles only are marked once per camera, as per-pixel depths
-    (:func:`~warp_sg.shading.silhouette.contour_depths`), and each frame marks the edges of the
-    moving ones and merges (:func:`~warp_sg.shading.silhouette.merge_contours`): the same marks as
-    all edges marked against the frame's buffer."""
-
-    def __init__(self, positions: wp.array, tris: wp.array, device, moving=None):
-        self.positions, self.tris, self.device = positions, tris, device
-        self.moving = None if moving is None else np.asarray(moving, bool)
-        self.edges = None
-        self._contours = (None, None, None)  # (camera, 1× buffer, marks)
-        self._static = (None, None)  # (camera, contour depths of the static edges)
-        self._sub = (None, None, None)  # (visibility buffer, candidate list (numpy), coverage)
-
-    def _edges(self):
-        from warp_sg.shading.silhouette import edge_adjacency
-
-        if self.edges is None:
-            ev, ef = edge_adjacency(self.positions.numpy(), self.tris.numpy())
-            arrays = lambda sel: (wp.array(ev[sel], dtype=wp.vec2i, device=self.device),  # noqa: E731
-                                  wp.array(ef[sel], dtype=wp.vec2i, device=self.device))
-            if self.moving is None:
-                self.edges = arrays(slice(None))
-            else:  # an edge of a moving triangle moves (both faces' sides decide a silhouette)
-                mov = self.moving[ef[:, 0]] | ((ef[:, 1] >= 0) & self.moving[np.maximum(ef[:, 1], 0)])
-                self.edges = (arrays(~mov), arrays(mov))
-        return self.edges
-
-    def contours(self, camera, vb1) -> wp.array:
-        """The contour marks of ``camera``, without the edges its 1× buffer ``vb1`` shows hidden."""
-        from warp_sg.shading.silhouette import contour_depths, mark_contours, merge_contours
-
-        edges = self._edges()
-        key = repr(camera)
-        if self._contours[0] != key or self._contours[1] is not vb1:
-            if self.moving is None:
-                mark = mark_contours(self.positions, self.tris, *edges, camera, self.device, inv_depth=vb1.inv_depth)
-            else:
-                if self._static[0] != key:
-                    self._static = (key, contour_depths(self.positions, self.tris, *edges[0], camera, self.device))
-                mark = mark_contours(self.positions, self.tris, *edges[1], camera, self.device, inv_depth=vb1.inv_depth)
-                merge_contours(mark, self._static[1], vb1.inv_depth, self.device)
-            self._contours = (key, vb1, mark)
-        return self._contours[2]
-
-    def forget_frame(self) -> None:
-        """Drop the last frame's contours and coverage (the geometry moved; the edges stay)."""
-        self._contours, self._sub = (None, None, None), (None, None, None)
-
-    def subsamples(self, vb, idx: wp.array):
-        """``raster.subsample.subsample(vb, idx)``, reused when ``vb`` and the list are the last
-        frame's (compared where they are: :func:`same_list`)."""
-        from raster.subsample import subsample
-
-        old_vb, old_idx, sub = self._sub
-        if old_vb is vb and old_idx is not None and same_list(old_idx, idx):
-            return sub
-        sub = subsample(vb, idx)
-        self._sub = (vb, idx, sub)
-        return sub
-
-
-@wp.kernel(enable_backward=False)
-def _differs_kernel(a: wp.array(dtype=int), b: wp.array(dtype=int), out: wp.array(dtype=int)):
-    i = wp.tid()
-    if a[i] != b[i]:
-        out[0] = 1  # (every writer writes the same value)
-
-
-def same_list(a: wp.array, b: wp.array) -> bool:
-    """Whether two int arrays on one device hold the same values: numpy views on the CPU, a
-    comparison on the device elsewhere (one integer comes back, not the lists)."""
-    if a.shape != b.shape:
-        return False
-    if str(a.device).startswith("cpu"):
-        return bool(np.array_equal(a.numpy(), b.numpy()))
-    out = wp.zeros(1, dtype=int, device=a.device)
-    wp.launch(_differs_kernel, dim=a.shape[0], inputs=[a, b, out], device=a.device)
-    return int(out.numpy()[0]) == 0
-
-
 def _sample_list(n: int, device):
     """Storage of a 1 × n sample list for the shading kernel: (triangle, barycentrics, background)
     per sample, and its weight in its pixel."""
@@ -497,4 +411,4 @@ def render_adaptive(vb1, img, cache: AntialiasCache, camera, tri_object: wp.arra
     return img, stats
 
 
-__all__ = ["render_adaptive", "AntialiasCache", "EDGE_DEPTH_RESIDUAL", "PROBE_CONTRAST"]
+__all__ = ["render_adaptive", "AntialiasCache", "EDGE_DEPTH_RESIDUAL", "PROBE_CONTRAST", "same_list"]

@@ -91,17 +91,19 @@ def parse_transform_argument(text: str) -> tuple:
 def move_vertices_kernel(ids: wp.array(dtype=int), slot: wp.array(dtype=int), rest_p: wp.array(dtype=wp.vec3),
                          rest_n: wp.array(dtype=wp.vec3), rest_t: wp.array(dtype=wp.vec3),
                          rest_ft: wp.array(dtype=wp.vec3), rest_fb: wp.array(dtype=wp.vec3),
-                         rest_cone: wp.array(dtype=wp.vec4), lin: wp.array(dtype=wp.mat33), rot: wp.array(dtype=wp.mat33),
-                         trans: wp.array(dtype=wp.vec3), frames: int, pos: wp.array(dtype=wp.vec3),
+                         rest_cone: wp.array(dtype=wp.vec4), xf: wp.array(dtype=wp.vec3), frames: int,
+                         pos: wp.array(dtype=wp.vec3),
                          nor: wp.array(dtype=wp.vec3), tan: wp.array(dtype=wp.vec3), frame_t: wp.array(dtype=wp.vec3),
                          frame_b: wp.array(dtype=wp.vec3), cones: wp.array(dtype=wp.vec4)):
-    """Moving vertex ``ids[i]`` (its object's motion ``slot[i]``: ``P' = sR P + t``, directions
-    turned by ``R``): position, normal, tangent and, with ``frames``, its SSDF frame and cone axis."""
+    """Moving vertex ``ids[i]`` (its object's motion ``slot[i] = k``: ``P' = sR P + t``, directions
+    turned by ``R``; ``xf[7k:7k+7]`` the rows of sR, of R, and t): position, normal, tangent and,
+    with ``frames``, its SSDF frame and cone axis."""
     i = wp.tid()
     v = ids[i]
-    k = slot[i]
-    R = rot[k]
-    pos[v] = lin[k] * rest_p[i] + trans[k]
+    o = 7 * slot[i]
+    A = wp.matrix_from_rows(xf[o], xf[o + 1], xf[o + 2])
+    R = wp.matrix_from_rows(xf[o + 3], xf[o + 4], xf[o + 5])
+    pos[v] = A * rest_p[i] + xf[o + 6]
     nor[v] = R * rest_n[i]
     tan[v] = R * rest_t[i]
     if frames != 0:
@@ -184,6 +186,8 @@ class DynamicObjects:
         self._patched = {}  # cache name -> (array identity, version) of the last row patch
         self._sky = None  # the moving vertices' sky table (_visible)
         self._rest_dev = None  # the moving vertices' rest rows on the device (_device_rest)
+        self._host = None  # the host copy of the moving geometry (apply)
+        self._decomp = {}  # (object, matrix bytes) -> check_motion (_decomposed)
         self._behind_key = None
         self.px = self._proxies_struct(r)
         self.rest_cones = None
@@ -276,6 +280,7 @@ class DynamicObjects:
         M = np.eye(4)
         M[:3, :3], M[:3, 3] = s * R, t
         if not np.array_equal(M, self.motion[k]):
+            self._decomposed(k, M, (R, s, t))
             self.motion[k] = M
             self.version += 1
             scene.objects[k].motion = M
@@ -287,7 +292,19 @@ class DynamicObjects:
         exactly when it is back there)."""
         if np.array_equal(self.motion[k], self.rest_motion[k]):
             return np.eye(3), 1.0, np.zeros(3)
-        return check_motion(self.motion[k] @ np.linalg.inv(self.rest_motion[k]))
+        (R, s, t), (R0, s0, t0) = self._decomposed(k, self.motion[k]), self._decomposed(k, self.rest_motion[k])
+        Rd, sd = R @ R0.T, s / s0  # M·M0⁻¹ = [sR | t]·[R0ᵀ/s0 | −R0ᵀt0/s0]
+        return Rd, sd, t - sd * (Rd @ t0)
+
+    def _decomposed(self, k, M, known=None) -> tuple:
+        """``check_motion(M)`` of a validated motion of object k (``known``: it, computed already),
+        kept for the last few matrices."""
+        key = (k, M.tobytes())
+        if key not in self._decomp:
+            if len(self._decomp) > 8:
+                self._decomp.clear()
+            self._decomp[key] = check_motion(M) if known is None else known
+        return self._decomp[key]
 
     def _device_rest(self, r):
         """The moving vertices' rest rows on the device (:func:`move_vertices_kernel`'s inputs)."""
@@ -309,13 +326,15 @@ class DynamicObjects:
         if self._applied == self.version:
             return False
         S, B, Bd = self.rest_spheres.copy(), self.rest_blobs.copy(), self.rest_bounds.copy()
-        V, N, Tg = (np.array(a, np.float32) for a in (r.geometry.vertices, r.geometry.normals, r.geometry.tangents))
-        lin, rot, trans = [], [], []
-        for k, ids in self.ids.items():
+        if self._host is None:  # the host copy of the geometry, updated in place from now on
+            self._host = tuple(np.array(a, np.float32) for a in (r.geometry.vertices, r.geometry.normals,
+                                                                 r.geometry.tangents))
+            r.geometry = replace(r.geometry, vertices=self._host[0], normals=self._host[1], tangents=self._host[2])
+        V, N, Tg = self._host
+        xf = np.zeros((len(self.ids), 7, 3), np.float32)  # per object: the rows of sR, of R, and t
+        for j, (k, ids) in enumerate(self.ids.items()):
             R, s, t = self._delta(k)
-            lin.append(s * R)
-            rot.append(R)
-            trans.append(t)
+            xf[j] = np.vstack([s * R, R, t])
             V[ids] = self.rest_v[ids] @ (s * R).T + t
             N[ids] = self.rest_n[ids] @ R.T
             Tg[ids] = self.rest_t[ids] @ R.T
@@ -327,19 +346,17 @@ class DynamicObjects:
             Bd[k, :3] = self.rest_bounds[k, :3] @ (s * R).T + t
             Bd[k, 3] = self.rest_bounds[k, 3] * s if self.rest_bounds[k, 3] > 0 else -1.0
         d = r.device
-        mats = lambda ms: wp.array(np.asarray(ms, np.float32), dtype=wp.mat33, device=d)  # noqa: E731
         ga, frames = r.geo_arrays, self.rest_cones is not None  # (the SSDF frames and cones: with shadows)
         out = [ga.positions, ga.normals, ga.tangents] + ([r.vis.frame_t, r.vis.frame_b, r.vis.cones] if frames else
                                                           [ga.normals, ga.normals, wp.zeros(1, dtype=wp.vec4, device=d)])
         wp.launch(move_vertices_kernel, dim=int(self.all_ids.shape[0]),
-                  inputs=[self.all_ids, *self._device_rest(r), mats(lin), mats(rot),
-                          wp.array(np.asarray(trans, np.float32), dtype=wp.vec3, device=d), int(frames), *out], device=d)
+                  inputs=[self.all_ids, *self._device_rest(r), wp.array(xf.reshape(-1, 3), dtype=wp.vec3, device=d),
+                          int(frames), *out], device=d)
         f32 = lambda a: np.ascontiguousarray(a, np.float32)  # noqa: E731
         if len(S):
             self.px.spheres.assign(f32(S))
         self.px.blobs.assign(f32(B))
         self.px.bounds.assign(f32(Bd))
-        r.geometry = replace(r.geometry, vertices=V, normals=N, tangents=Tg)
         r._vb_key = None  # the visibility buffer
         if r._culling is not None:
             r._culling.moved(r.geometry, list(self.ids))
@@ -349,18 +366,19 @@ class DynamicObjects:
         return True
 
     def _visible(self, r, es, into) -> None:
-        """The moving vertices' rows of the environment's visible fraction, from the sky table
-        (:mod:`warp_sg.shading.sky_table`: their texels inside the cone listed once in the rest
-        pose, the map on a cube)."""
+        """The moving vertices' rows of the environment's visible fraction, from their weights
+        kept since the rest pose and the sky turned into each object's frame
+        (:mod:`warp_sg.shading.sky_table`)."""
         from warp_sg.shading.sky_table import MovingSky
 
         env, cells = getattr(r, "env_light", None), getattr(r, "env_texel_radiance", None)
         if env is None or cells is None or self.rest_cones is None:
             return
         if self._sky is None:
-            self._sky = MovingSky(self.all_ids.numpy(), (self.rest_n, self.rest_ft, self.rest_fb), self.rest_cones,
-                                  int(r.vis.mean.shape[0]), r.device)
-        self._sky.visible(r.vis, es, self._sky.table(cells, env.rotation_matrix()), into)
+            slot, _, rest_n, _, rest_ft, rest_fb, rest_cone = self._device_rest(r)
+            self._sky = MovingSky(r.vis, self.all_ids, slot.numpy(), (rest_n, rest_ft, rest_fb, rest_cone),
+                                  len(self.ids), r.device)
+        self._sky.visible(r.vis, es, cells, env.rotation_matrix(), [self._delta(k)[0] for k in self.ids], into)
 
     def patch_caches(self, r, es) -> None:
         """Recompute the per-vertex caches' rows of the moved vertices: the lights' deficits and the

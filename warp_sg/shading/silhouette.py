@@ -108,9 +108,12 @@ def _to_pixel(cam: ContourCamera, p: wp.vec3) -> wp.vec2:
 
 @wp.kernel(enable_backward=False)
 def facing_kernel(base: int, pos: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.vec3i), eye: wp.vec3,
-                  side: wp.array(dtype=wp.int8)):
-    """side[f] = +1 / −1 as triangle f faces the eye or away, 0 when degenerate (edge-on)."""
+                  faces: wp.array(dtype=int), side: wp.array(dtype=wp.int8)):
+    """side[f] = +1 / −1 as triangle f faces the eye or away, 0 when degenerate (edge-on), for
+    f = ``base + tid`` (``faces[base + tid]`` when ``faces`` is not empty)."""
     f = base + wp.tid()
+    if faces.shape[0] > 0:
+        f = faces[f]
     s = _facing(pos, tris[f], eye)
     v = wp.int8(0)
     if s > 0.0:
@@ -226,26 +229,31 @@ def contour_camera(camera) -> ContourCamera:
     return c
 
 
-def _sides(positions: wp.array, tris: wp.array, cam: ContourCamera, device) -> wp.array:
-    """(T,) int8 of :func:`facing_kernel`: which way each triangle faces the eye."""
+def _sides(positions: wp.array, tris: wp.array, cam: ContourCamera, device, faces=None) -> wp.array:
+    """(T,) int8 of :func:`facing_kernel`: which way each triangle faces the eye (only those of
+    ``faces``, a device int array, when given: the others are left undefined)."""
     from raster import parallel
 
     side = wp.empty(max(int(tris.shape[0]), 1), dtype=wp.int8, device=device)
-    parallel.launch(facing_kernel, int(tris.shape[0]), [positions, tris, cam.eye, side], device, min_chunk=4096)
+    n = int(tris.shape[0]) if faces is None else int(faces.shape[0])
+    ids = wp.zeros(0, dtype=int, device=device) if faces is None else faces
+    parallel.launch(facing_kernel, n, [positions, tris, cam.eye, ids, side], device, min_chunk=4096)
     return side
 
 
 def mark_contours(positions: wp.array, tris: wp.array, edge_v: wp.array, edge_f: wp.array, camera,
-                  device, inv_depth: wp.array | None = None) -> wp.array:
+                  device, inv_depth: wp.array | None = None, into: wp.array | None = None, faces=None) -> wp.array:
     """(H, W) uint8: 1 on the pixels the mesh's contour edges pass through (see the module
     docstring); ``edge_v``, ``edge_f`` of :func:`edge_adjacency` as ``vec2i`` arrays.
     ``inv_depth``: the camera's 1× visibility buffer's 1/depth (``VisibilityBuffer.inv_depth``, 0
-    where empty): then not where a nearer surface hides the edge (:func:`_hidden`)."""
+    where empty): then not where a nearer surface hides the edge (:func:`_hidden`). ``into``: marks
+    to add these to (in place) instead of an empty mask. ``faces``: the triangles of these edges
+    (a device int array; only their sides are computed)."""
     from raster import parallel
 
-    mark = wp.zeros((int(camera.height), int(camera.width)), dtype=wp.uint8, device=device)
+    mark = wp.zeros((int(camera.height), int(camera.width)), dtype=wp.uint8, device=device) if into is None else into
     cam = contour_camera(camera)
-    side = _sides(positions, tris, cam, device)
+    side = _sides(positions, tris, cam, device, faces)
     occ = inv_depth if inv_depth is not None else wp.zeros((1, 1), dtype=float, device=device)
     parallel.launch(mark_contours_kernel, int(edge_v.shape[0]),
                     [positions, side, edge_v, edge_f, cam, occ, int(inv_depth is not None), mark, 1,
@@ -257,7 +265,7 @@ def contour_depths(positions: wp.array, tris: wp.array, edge_v: wp.array, edge_f
                    device) -> wp.array:
     """(H, W) float: per pixel the largest 1/depth of the nearest points of the contour edges that
     pass through it (those :func:`mark_contours` marks without ``inv_depth``), 0 where none does.
-    :func:`merge_contours` turns it into the marks of any 1× buffer of the camera: whether an edge
+    :func:`decide_contours` turns it into the marks of any 1× buffer of the camera: whether an edge
     is hidden at a pixel (:func:`_hidden`) is monotone in that 1/depth, so one value per pixel
     decides for all the edges through it."""
     from raster import parallel
@@ -292,29 +300,35 @@ def _plane_max_kernel(base: int, planes: wp.array3d(dtype=float), width: int, ou
 
 
 @wp.kernel(enable_backward=False)
-def merge_contours_kernel(base: int, width: int, nearest: wp.array2d(dtype=float), inv_depth: wp.array2d(dtype=float),
-                          mark: wp.array2d(dtype=wp.uint8)):
-    """``mark[r, c]`` |= 1 where an edge of ``nearest`` (:func:`contour_depths`) is not hidden."""
+def decide_contours_kernel(base: int, x0: int, y0: int, width: int, nearest: wp.array2d(dtype=float),
+                           inv_depth: wp.array2d(dtype=float), mark: wp.array2d(dtype=wp.uint8)):
+    """Pixel ``base + tid`` of the ``width``-wide rectangle at (x0, y0): ``mark`` = 1 where an edge
+    of ``nearest`` (:func:`contour_depths`) is not hidden by ``inv_depth``, else 0."""
     i = base + wp.tid()
-    r = i / width
-    c = i - r * width
+    r = y0 + i / width
+    c = x0 + i - (i / width) * width
     z = nearest[r, c]
+    m = wp.uint8(0)
     if z > 0.0:
         if not _hidden(inv_depth, r, c, z):
-            mark[r, c] = wp.uint8(1)
+            m = wp.uint8(1)
+    mark[r, c] = m
 
 
-def merge_contours(mark: wp.array, nearest: wp.array, inv_depth: wp.array, device) -> wp.array:
-    """``mark`` (of :func:`mark_contours`, in place) with the marks of the edges behind
-    ``nearest`` (:func:`contour_depths`) that ``inv_depth`` (the 1× buffer's) does not hide: with
-    ``mark`` from one set of edges and ``nearest`` from the rest, the marks of all of them, equal
-    to :func:`mark_contours` of the whole set."""
+def decide_contours(mark: wp.array, nearest: wp.array, inv_depth: wp.array, device, region=None) -> wp.array:
+    """``mark`` (in place) = the marks of the edges behind ``nearest`` (:func:`contour_depths`)
+    that ``inv_depth`` (a 1× buffer's) does not hide — :func:`mark_contours` of those edges, bit
+    for bit — over ``region`` ``(x0, y0, x1, y1)`` (pixels x0 ≤ x < x1, y0 ≤ y < y1; default the
+    whole grid); the rest of ``mark`` is left as it is."""
     from raster import parallel
 
     H, W = int(mark.shape[0]), int(mark.shape[1])
-    parallel.launch(merge_contours_kernel, H * W, [W, nearest, inv_depth, mark], device, min_chunk=16384)
+    x0, y0, x1, y1 = (0, 0, W, H) if region is None else region
+    if x1 > x0 and y1 > y0:
+        parallel.launch(decide_contours_kernel, (x1 - x0) * (y1 - y0), [x0, y0, x1 - x0, nearest, inv_depth, mark],
+                        device, min_chunk=16384)
     return mark
 
 
 __all__ = ["ContourCamera", "contour_camera", "contour_depths", "edge_adjacency", "facing_kernel", "mark_contours",
-           "mark_contours_kernel", "merge_contours"]
+           "mark_contours_kernel", "decide_contours"]

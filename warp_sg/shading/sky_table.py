@@ -1,183 +1,237 @@
-r"""A cheaper quadrature of the visible sky for the vertices of moving objects.
+r"""The visible sky of a moving object's vertices: their weights kept, the sky turned into the object.
 
 The visible fraction of a vertex's diffuse environment irradiance
-(:func:`warp_sg.shading.vertex_visibility.env_vertex_visible_kernel`) sums, over the texels ``t``
-of the vertex's SSDF map inside its occluder cone, ``(n·d_t) L̄(d_t) Ω_t`` weighted by the
-texel's occluded and visible shares. A static vertex computes it when the environment turns; a
-vertex of a dynamic object (:mod:`warp_sg.renderer.dynamic_objects`) every time its object turns,
-because the texels' world directions ``d_t = R·D_t`` turn with it — a rotation of the object is a
-rotation of the sky in its frame, and nothing of the sum but the per-texel weights can be kept.
-:func:`moving_visible_kernel` computes the same sum, cheaper:
+(:func:`warp_sg.shading.vertex_visibility.env_vertex_visible_kernel`) is, with ``O`` and ``S``
+the occluded and visible parts of the cone's quadrature::
 
-* **only the texels inside the cone** (:meth:`SkyTable` ``texels``): which texels of a vertex's
-  map the cone holds does not change under a rigid motion (map, cone axis and texel directions
-  all turn with the object), so each moving vertex's list is found once, in the pose the
-  geometry was built in (:func:`cone_texels`), instead of testing all R² texels every frame — on
-  the turning blob 352 of 1024 texels on average;
-* **the local directions from a table** (``dirs``) instead of the concentric map's ``sin``/``cos``;
-* **the map on a cube**: ``L̄`` (the residual map box-filtered to 64 × 128,
-  ``precompute.environment.irradiance.cell_radiance``) is read by longitude and latitude — an
-  ``atan2`` and an ``asin`` per texel; ``radiance`` holds it resampled once per map onto a cube
-  with faces of :data:`FACE` texels and a one-texel border (each cube texel ``L̄`` read
-  bilinearly at its direction, as the map itself is read), read bilinearly on the face of the
-  direction's major axis (a division, no trigonometry: the irradiance table's lookup,
-  ``precompute.environment.irradiance.irradiance_unscaled``).
+    O = Σ_t (1 − s_t) c_t L̄(d_t),   S = Σ_t s_t c_t L̄(d_t),   c_t = (n·d_t) Ω_t,
 
-The cube's second interpolation smooths ``L̄`` by a fraction of its own cell (1.4° texels against
-2.8° cells at 64 per face); the visible fraction differs from the map-read quadrature by a few
-1e-5 (``tests/test_moving_caches.py``: the turning blob and a bowl that shadows itself deeply
-against :func:`~warp_sg.shading.vertex_visibility.env_vertex_visible`). The moving vertices
-use it at every pose, their first frame included, so a frame stays a function of the transforms.
+over the texels ``t`` of the vertex's SSDF map inside its occluder cone (``s_t`` the texel's visible
+share from its SSDF value, ``L̄`` the residual map box-filtered to 64 × 128,
+``precompute.environment.irradiance.cell_radiance``). A static vertex computes it when the
+environment turns; a vertex of a dynamic object (:mod:`warp_sg.renderer.dynamic_objects`) each
+time its object turns. But under the object's rigid motion ``R`` its map, its cone and its
+texels' directions turn together — ``d_t = R·D_t`` with ``D_t`` the direction in the pose the
+geometry was built in — so which texels the cone holds, their shares and weights do not change:
+only the sky does, and a rotation of the object is a rotation of the sky in the object's frame::
+
+    L̄(d_t) = L̄(R·D_t) = L'(D_t),   L' = L̄ ∘ R    (the sky seen from the object's own frame).
+
+So, once per vertex (:meth:`SkyTable.build`, in the rest pose): the texels inside the cone, each
+with its weights ``(1 − s_t) c_t``, ``s_t c_t`` and where ``D_t`` falls on a cube of :data:`FACE`
+texels per face edge (a one-texel border, as the irradiance table's,
+``precompute.environment.irradiance``). Once per frame and object (:func:`turn_sky_kernel`):
+``L'`` on that cube, each texel ``L̄`` read bilinearly at ``R·`` its direction — 6·34² = 6936
+reads instead of one per texel of every vertex. Then per vertex (:func:`moving_visible_kernel`):
+the two weighted sums of bilinear cube reads, and ``F`` as before. On the turning blob (384
+self-shadowed vertices, 352 of their 1024 texels in the cone on average) the frame's share drops
+from ≈ 20 ms of CPU to ≈ 1 ms.
+
+The cube's second interpolation smooths ``L̄`` by a fraction of its own cell (2.8° cube texels
+at the face centres against 2.8° cells); the visible fraction differs from the map-read quadrature
+by < 1e-4 (``tests/test_moving_caches.py`` measures it, against
+:func:`~warp_sg.shading.vertex_visibility.env_vertex_visible` on the same pose, for the turning
+blob and a bowl that shadows itself deeply). The moving vertices use it at every pose, their
+first frame included, so a frame stays a function of the transforms.
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the kernel annotations.
 import numpy as np
 import warp as wp
 
-from precompute.environment.irradiance import EnvIrradiance, IrradianceTable, irradiance_unscaled, \
-    texel_directions_with_border
+from precompute.environment.cubemap import cube_face_of
+from precompute.environment.irradiance import irradiance_unscaled, texel_directions_with_border
 from precompute.visibility.ssdf_wp import concentric_to_dir_wp
 
 from warp_sg.numeric.onb import local_to_world
-from warp_sg.shading.vertex_visibility import texel_ssdf, vertex_frame, visible_share
+from warp_sg.scene.envmap import env_lookup
+from warp_sg.shading.vertex_visibility import texel_ssdf, visible_share
 from warp_sg.shading.visibility_terms import EnvSG, Visibility
 
-#: texels per cube face edge (without the border) of the resampled map
-FACE = 64
+#: texels per cube face edge (without the border) of the turned sky
+FACE = 32
 _SQRT_2PI = wp.constant(float(np.sqrt(2.0 * np.pi)))
 
 
 @wp.struct
 class SkyTable:
-    """What :func:`moving_visible_kernel` reads besides the visibility: the residual map on a cube
-    (``radiance``, an irradiance-table layout of radiance in the map's frame, ``to_env`` the
-    environment's rotation), the local directions of the R×R SSDF texels (``dirs``, row-major),
-    and per listed vertex (``vertices``) its texels inside the cone, ``texels[start[k]:start[k+1]]``."""
+    """Per listed vertex ``k`` (``vertices[k]``, of object ``slot[k]``): its texels inside the cone,
+    ``start[k]`` to ``start[k+1]`` — per texel ``corner`` (the cube texel below and left of its
+    direction, in its object's cube), ``frac`` (the bilinear fractions) and ``weight``
+    (``(1 − s) c``, ``s c``). ``sky``: the turned sky of every object, cubes of ``size`` (with
+    border) one after the other."""
 
-    radiance: IrradianceTable
-    dirs: wp.array(dtype=wp.vec3)
     vertices: wp.array(dtype=int)
+    slot: wp.array(dtype=int)
     start: wp.array(dtype=int)
-    texels: wp.array(dtype=wp.uint16)
+    corner: wp.array(dtype=int)
+    frac: wp.array(dtype=wp.vec2)
+    weight: wp.array(dtype=wp.vec2)
+    sky: wp.array(dtype=wp.vec3)
+    size: int
+
+
+@wp.func
+def _cone_texel(dl: wp.vec3, t: wp.vec3, b: wp.vec3, n: wp.vec3, cone: wp.vec4, c_min: float) -> int:
+    """1 when the texel of local direction ``dl`` lies in the cone (the test of
+    ``env_vertex_visible_kernel``)."""
+    r = int(0)
+    if wp.dot(local_to_world(dl, t, b, n), wp.vec3(cone[0], cone[1], cone[2])) >= c_min:
+        r = 1
+    return r
+
+
+@wp.func
+def _texel_local(R: int, q: int) -> wp.vec3:
+    y = q / R
+    x = q - y * R
+    return concentric_to_dir_wp((float(x) + 0.5) * 2.0 / float(R) - 1.0, (float(y) + 0.5) * 2.0 / float(R) - 1.0)
 
 
 @wp.kernel(enable_backward=False)
-def _texel_dirs_kernel(R: int, out: wp.array(dtype=wp.vec3)):
-    k = wp.tid()
-    y = k / R
-    x = k - y * R
-    out[k] = concentric_to_dir_wp((float(x) + 0.5) * 2.0 / float(R) - 1.0, (float(y) + 0.5) * 2.0 / float(R) - 1.0)
+def count_texels_kernel(vis: Visibility, rest_n: wp.array(dtype=wp.vec3), rest_t: wp.array(dtype=wp.vec3),
+                        rest_b: wp.array(dtype=wp.vec3), rest_cone: wp.array(dtype=wp.vec4), count: wp.array(dtype=int)):
+    """``count[i]``: the texels inside listed vertex i's cone (its rest frame and cone)."""
+    i = wp.tid()
+    cone = rest_cone[i]
+    m = int(0)
+    if cone[3] >= 0.0:
+        R = vis.mean.shape[0]
+        c_min = wp.cos(wp.min(cone[3] + _SQRT_2PI / float(R), wp.pi))
+        for q in range(R * R):
+            m += _cone_texel(_texel_local(R, q), rest_t[i], rest_b[i], wp.normalize(rest_n[i]), cone, c_min)
+    count[i] = m
 
 
 @wp.kernel(enable_backward=False)
-def moving_visible_kernel(base: int, sky: SkyTable, vis: Visibility, env: EnvSG, out: wp.array(dtype=wp.vec3),
+def fill_texels_kernel(vis: Visibility, ids: wp.array(dtype=int), rest_n: wp.array(dtype=wp.vec3),
+                       rest_t: wp.array(dtype=wp.vec3), rest_b: wp.array(dtype=wp.vec3),
+                       rest_cone: wp.array(dtype=wp.vec4), start: wp.array(dtype=int), face: int,
+                       corner: wp.array(dtype=int), frac: wp.array(dtype=wp.vec2), weight: wp.array(dtype=wp.vec2)):
+    """Listed vertex i's texels inside its cone (:class:`SkyTable`): cube corner, fractions and
+    weights, from ``start[i]``."""
+    i = wp.tid()
+    cone = rest_cone[i]
+    if cone[3] < 0.0:
+        return
+    v = ids[i]
+    R = vis.mean.shape[0]
+    h = _SQRT_2PI / float(R)
+    om = 2.0 * wp.pi / float(R * R)
+    c_min = wp.cos(wp.min(cone[3] + h, wp.pi))
+    n = wp.normalize(rest_n[i])
+    j = start[i]
+    stride = face + 2
+    for q in range(R * R):
+        dl = _texel_local(R, q)
+        if _cone_texel(dl, rest_t[i], rest_b[i], n, cone, c_min) == 1:
+            y = q / R
+            s = wp.clamp(0.5 + texel_ssdf(vis, v, y, q - y * R) / h, 0.0, 1.0)
+            c = dl[2] * om
+            fab = cube_face_of(local_to_world(dl, rest_t[i], rest_b[i], n))
+            fx = (fab[1] + 1.0) * 0.5 * float(face) + 0.5  # (as precompute.environment.cubemap.bordered_bilinear)
+            fy = (fab[2] + 1.0) * 0.5 * float(face) + 0.5
+            x0 = wp.clamp(int(wp.floor(fx)), 0, face)
+            y0 = wp.clamp(int(wp.floor(fy)), 0, face)
+            corner[j] = int(fab[0]) * stride * stride + y0 * stride + x0
+            frac[j] = wp.vec2(wp.clamp(fx - float(x0), 0.0, 1.0), wp.clamp(fy - float(y0), 0.0, 1.0))
+            weight[j] = wp.vec2((1.0 - s) * c, s * c)
+            j += 1
+
+
+@wp.kernel(enable_backward=False)
+def turn_sky_kernel(base: int, dirs: wp.array(dtype=wp.vec3), radiance: wp.array2d(dtype=wp.vec3),
+                    to_env: wp.array(dtype=wp.mat33), out: wp.array(dtype=wp.vec3)):
+    """Cube texel ``p = base + tid`` of object ``p / |dirs|``: ``L̄`` (bilinear) along that object's
+    motion times the texel's direction, in the map's frame (``to_env[k] = Rᵀ_env · R_k``)."""
+    p = base + wp.tid()
+    n = dirs.shape[0]
+    k = p / n
+    out[p] = env_lookup(radiance, to_env[k], dirs[p - k * n])
+
+
+@wp.kernel(enable_backward=False)
+def moving_visible_kernel(base: int, tab: SkyTable, vis: Visibility, env: EnvSG, out: wp.array(dtype=wp.vec3),
                           out_irr: wp.array(dtype=wp.vec3)):
-    """Listed vertex ``k = base + tid`` (``v = sky.vertices[k]``): ``out[v]`` its visible fraction
-    and ``out_irr[v] = E ∘ F``, as :func:`~warp_sg.shading.vertex_visibility.env_vertex_visible_kernel`
-    over its listed texels with the table's directions and cube (module docstring)."""
+    """Listed vertex ``k = base + tid`` (``v = tab.vertices[k]``): ``out[v]`` its visible fraction
+    and ``out_irr[v] = E ∘ F``, as ``env_vertex_visible_kernel`` with ``L̄(d_t)`` read from its
+    object's turned sky (module docstring)."""
     k = base + wp.tid()
-    v = sky.vertices[k]
+    v = tab.vertices[k]
     n = wp.normalize(vis.normals[v])
     cone = vis.cones[v]
     f = wp.vec3(1.0, 1.0, 1.0)
     ex = irradiance_unscaled(env.exact, n)
     if cone[3] >= 0.0:
-        t, b = vertex_frame(vis, v, n)
-        R = vis.mean.shape[0]
-        h = _SQRT_2PI / float(R)
-        om = 2.0 * wp.pi / float(R * R)
+        stride = tab.size
+        o = tab.slot[k] * 6 * stride * stride
         occ_sum = wp.vec3(0.0, 0.0, 0.0)
         seen_sum = wp.vec3(0.0, 0.0, 0.0)
-        for j in range(sky.start[k], sky.start[k + 1]):
-            q = int(sky.texels[j])
-            y = q / R
-            dl = sky.dirs[q]
-            s = wp.clamp(0.5 + texel_ssdf(vis, v, y, q - y * R) / h, 0.0, 1.0)
-            e = irradiance_unscaled(sky.radiance, local_to_world(dl, t, b, n)) * (dl[2] * om)
-            occ_sum += e * (1.0 - s)
-            seen_sum += e * s
-        f = visible_share(occ_sum, seen_sum, ex, cone, n, h)
+        for j in range(tab.start[k], tab.start[k + 1]):
+            c = o + tab.corner[j]
+            fr = tab.frac[j]
+            t0 = tab.sky[c] * (1.0 - fr[0]) + tab.sky[c + 1] * fr[0]
+            t1 = tab.sky[c + stride] * (1.0 - fr[0]) + tab.sky[c + stride + 1] * fr[0]
+            e = t0 * (1.0 - fr[1]) + t1 * fr[1]
+            w = tab.weight[j]
+            occ_sum += e * w[0]
+            seen_sum += e * w[1]
+        f = visible_share(occ_sum, seen_sum, ex, cone, n, _SQRT_2PI / float(vis.mean.shape[0]))
     out[v] = f
     out_irr[v] = wp.cw_mul(ex, f)
 
 
-def texel_dirs(resolution: int, device) -> wp.array:
-    """(R²,) the local directions of an R×R equal-area concentric map's texels, row-major."""
-    R = int(resolution)
-    out = wp.empty(R * R, dtype=wp.vec3, device=device)
-    wp.launch(_texel_dirs_kernel, dim=R * R, inputs=[R, out], device=device)
-    return out
-
-
-def radiance_cube(cells: np.ndarray, face: int = FACE) -> EnvIrradiance:
-    """``cells`` (the (rows, 2·rows, 3) box-filtered map, ``cell_radiance``) on a bordered cube:
-    each texel the map read bilinearly at its direction (``warp_sg.scene.envmap.env_lookup``)."""
-    from warp_sg.scene.envmap import env_lookup_numpy
-
-    d = texel_directions_with_border(int(face)).reshape(-1, 3)
-    tex = env_lookup_numpy(np.asarray(cells, np.float64), d)
-    return EnvIrradiance(tex.reshape(6, face + 2, face + 2, 3).astype(np.float32))
-
-
-def cone_texels(dirs: np.ndarray, normals, tangents, bitangents, cones, resolution: int):
-    """``(start (n+1,), texels (Σ,) uint16)``: per vertex the row-major indices of its SSDF map's
-    texels inside its occluder cone (the test of ``env_vertex_visible_kernel``, ``d·axis ≥
-    cos(min(θ + h, π))``, in float64) — none for a vertex with no cone (θ < 0). ``dirs`` the
-    texels' local directions; the frames (t, b, n) and cones of one pose."""
-    R = int(resolution)
-    h = np.sqrt(2.0 * np.pi) / R
-    dl = np.asarray(dirs, np.float64).reshape(-1, 3)
-    cones = np.asarray(cones, np.float64).reshape(-1, 4)
-    counts = np.zeros(len(cones), np.int64)
-    parts = []
-    for i0 in range(0, len(cones), 256):  # (256 vertices × R² texels at a time)
-        sl = slice(i0, i0 + 256)
-        frame = np.stack([np.asarray(a, np.float64)[sl] for a in (tangents, bitangents, normals)], 1)  # (m, 3, 3)
-        D = np.einsum("tk,mkj->mtj", dl, frame)
-        c = cones[sl]
-        inside = (np.einsum("mtj,mj->mt", D, c[:, :3]) >= np.cos(np.minimum(c[:, 3] + h, np.pi))[:, None])
-        inside &= (c[:, 3] >= 0.0)[:, None]
-        counts[sl] = inside.sum(1)
-        parts.append(np.nonzero(inside)[1].astype(np.uint16))
-    start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
-    return start, (np.concatenate(parts) if parts else np.zeros(0, np.uint16))
-
-
 class MovingSky:
-    """The moving vertices' :class:`SkyTable` of one installed visibility: the lists (once), the
-    cube (once per map) and the table (per environment rotation)."""
+    """The :class:`SkyTable` of the moving vertices of one installed visibility (module docstring).
 
-    def __init__(self, vertices: np.ndarray, frames: tuple, cones: np.ndarray, resolution: int, device):
-        self.device, self.resolution = device, int(resolution)
-        self.dirs = texel_dirs(resolution, device)
-        n, t, b = frames
-        ids = np.asarray(vertices, np.int64)
-        start, texels = cone_texels(self.dirs.numpy(), n[ids], t[ids], b[ids], cones[ids], resolution)
-        self.count = len(ids)
-        self.vertices = wp.array(ids.astype(np.int32), dtype=int, device=device)
-        self.start = wp.array(start, dtype=int, device=device)
-        self.texels = wp.array(texels if len(texels) else np.zeros(1, np.uint16), dtype=wp.uint16, device=device)
-        self._cube = (None, None)  # (the cells it was made of, EnvIrradiance)
-        self._table = (None, None)  # (key, SkyTable)
+    ``vertices`` (mesh ids), ``slot`` (their object's index among the moving objects) and their
+    rest rows on the device (normals, SSDF frames, cones): the lists are built once, here."""
 
-    def table(self, cells: wp.array, rotation) -> SkyTable:
-        """The :class:`SkyTable` of the box-filtered map ``cells`` (a device array) turned by
-        ``rotation`` (environment → world)."""
-        if self._cube[0] is not cells:
-            self._cube, self._table = (cells, radiance_cube(cells.numpy())), (None, None)
-        key = (id(cells), tuple(np.asarray(rotation, np.float64).ravel()))
-        if self._table[0] != key:
-            st = SkyTable()
-            st.radiance = self._cube[1].table(rotation=rotation, scale=1.0, device=self.device)
-            st.dirs, st.vertices, st.start, st.texels = self.dirs, self.vertices, self.start, self.texels
-            self._table = (key, st)
-        return self._table[1]
-
-    def visible(self, vis: Visibility, env: EnvSG, table: SkyTable, into) -> None:
-        """The listed vertices' rows of ``into = (F, E ∘ F)`` (:func:`env_vertex_visible`'s), in place."""
+    def __init__(self, vis: Visibility, vertices: wp.array, slot: np.ndarray, rest: tuple, n_objects: int, device,
+                 face: int = FACE):
         from raster import parallel
 
-        if self.count:
-            parallel.launch(moving_visible_kernel, self.count, [table, vis, env, *into], self.device, min_chunk=32)
+        rest_n, rest_t, rest_b, rest_cone = rest
+        n = int(vertices.shape[0])
+        self.device, self.count, self.n_objects = device, n, int(n_objects)
+        count = wp.zeros(max(n, 1), dtype=int, device=device)
+        if n:
+            wp.launch(count_texels_kernel, dim=n, inputs=[vis, rest_n, rest_t, rest_b, rest_cone, count], device=device)
+        start, total = parallel.exclusive_scan(count)
+        st = np.append(start.numpy()[:n], total).astype(np.int32)
+        tab = SkyTable()
+        tab.vertices, tab.slot = vertices, wp.array(np.asarray(slot, np.int32), dtype=int, device=device)
+        tab.start = wp.array(st, dtype=int, device=device)
+        tab.corner = wp.empty(max(total, 1), dtype=int, device=device)
+        tab.frac = wp.empty(max(total, 1), dtype=wp.vec2, device=device)
+        tab.weight = wp.empty(max(total, 1), dtype=wp.vec2, device=device)
+        if total:
+            wp.launch(fill_texels_kernel, dim=n, inputs=[vis, vertices, rest_n, rest_t, rest_b, rest_cone, tab.start,
+                                                         int(face), tab.corner, tab.frac, tab.weight], device=device)
+        self.texels = int(total)
+        self.dirs = wp.array(texel_directions_with_border(int(face)).reshape(-1, 3).astype(np.float32), dtype=wp.vec3,
+                             device=device)
+        tab.size = int(face) + 2
+        tab.sky = wp.zeros(max(self.n_objects, 1) * int(self.dirs.shape[0]), dtype=wp.vec3, device=device)
+        self.table = tab
+        self._turned = None  # the key of the sky in tab.sky
+
+    def visible(self, vis: Visibility, env: EnvSG, radiance: wp.array, env_rotation, motions: list, into) -> None:
+        """The listed vertices' rows of ``into = (F, E ∘ F)`` (``env_vertex_visible``'s), in place:
+        the sky of map ``radiance`` (the box-filtered residual) turned by ``env_rotation`` and each
+        object's rotation ``motions[k]`` (from the rest pose), then the weighted sums."""
+        from raster import parallel
+
+        if not self.count:
+            return
+        to_env = np.stack([np.asarray(env_rotation, np.float64).T @ np.asarray(M, np.float64) for M in motions])
+        key = (id(radiance), to_env.tobytes())
+        if self._turned != key and self.texels:
+            m = len(motions) * int(self.dirs.shape[0])
+            parallel.launch(turn_sky_kernel, m, [self.dirs, radiance, wp.array(to_env.astype(np.float32),
+                                                                            dtype=wp.mat33, device=self.device),
+                                                 self.table.sky], self.device, min_chunk=2048)
+            self._turned = key
+        parallel.launch(moving_visible_kernel, self.count, [self.table, vis, env, *into], self.device, min_chunk=32)
 
 
-__all__ = ["FACE", "MovingSky", "SkyTable", "cone_texels", "moving_visible_kernel", "radiance_cube", "texel_dirs"]
+__all__ = ["FACE", "MovingSky", "SkyTable", "moving_visible_kernel", "turn_sky_kernel"]
