@@ -405,7 +405,7 @@ def test_candidate_lists_are_compared_on_their_device():
     path, one integer back) run here on the CPU against numpy."""
     import warp as wp
 
-    from warp_sg.renderer import antialias as A
+    from warp_sg.renderer import antialias_cache as A
 
     x = np.arange(0, 5000, 7, dtype=np.int32)
     y = x.copy()

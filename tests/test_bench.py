@@ -169,3 +169,16 @@ def test_first_image_comes_before_the_shadowed_frame(quick):
     assert row["case"].startswith("generated textured helmet")
     assert 0 < row["first_frame_s"] <= row["shadows_s"]  # one progressive run: the first frame, then shadows
     assert 0 < row["warm_s"] and 0 < row["cold_cpu_s"] and row["vertices"] > 0
+
+
+def test_moved_frames_are_compared_with_static_frames_of_the_same_run(quick):
+    """"objects that move": per scene a re-shaded frame, a camera-nudged one, a moved one whose
+    ratios are the quotients of those timings, and a cold renderer over the moved frame."""
+    rows = quick[0].sections["objects that move"]
+    reshade, nudged, moved, cold = rows[:4]
+    assert reshade["case"].endswith("static frame, shaded again") and moved["case"].endswith("set_object_transform")
+    assert _close(moved["vs_reshade"], moved["frame_s"] / reshade["frame_s"])
+    assert _close(moved["vs_nudged"], moved["frame_s"] / nudged["frame_s"])
+    assert _close(cold["cold_over_moved"], cold["frame_s"] / moved["frame_s"])
+    assert 0 < moved["raster_s"] < moved["frame_s"] and moved["motion_s"] > 0
+    assert rows[-1]["case"] == "setup" and "load average" in rows[-1]["note"]

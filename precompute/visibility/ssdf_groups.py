@@ -30,7 +30,8 @@ from precompute.visibility.ssdf import SSDF_VERSION, SSDFData, _ssdf_params, com
 from precompute.visibility.ssdf_wp import texel_directions
 from precompute.visibility.rays import needs_visibility, validate_mesh
 
-_VERSION = "ssdf-groups-v1"
+#: the producing code (this module and the proxies' flatness test): a change rebuilds the entries
+_VERSION = _cache.code_key(__name__, "precompute.visibility.proxies")
 
 
 def group_submesh(vertices, triangles, normals, tri_group, g):
