@@ -48,12 +48,12 @@ assert TILE == 16, "subsample_tiles_kernel keeps one 16-bit row mask per tile ro
 @wp.kernel
 def subsample_tiles_kernel(base: int, tiles: wp.array(dtype=int), tiles_x: int, rows: int, width: int, height: int,
                            a: int, inv_far: float, slot: wp.array2d(dtype=int), offsets: wp.array(dtype=wp.int32),
-                           queue: wp.array(dtype=SubTri), sub_tri: wp.array2d(dtype=int),
+                           queue: wp.array(dtype=SubTri), mask: wp.array(dtype=int), sub_tri: wp.array2d(dtype=int),
                            sub_bary: wp.array2d(dtype=wp.vec2), sub_invw: wp.array2d(dtype=float)):
     """Tile ``tiles[base + tid]``: the a×a sub-samples of its listed pixels (``slot[y, x]`` ≥ 0:
-    row of the outputs; sub-sample q = j·a + i) — the winning triangle (-1: none), its
-    barycentrics (b1, b2) and 1/w (0: none), against what the outputs hold (cleared before the
-    first queue, :func:`subsample`)."""
+    row of the outputs; sub-sample q = j·a + i; with ``mask`` not empty only the rows it flags) —
+    the winning triangle (-1: none), its barycentrics (b1, b2) and 1/w (0: none), against what the
+    outputs hold (cleared before the first queue, :func:`subsample`)."""
     t = tiles[base + wp.tid()]
     tx = t % tiles_x
     ty = t / tiles_x
@@ -66,7 +66,8 @@ def subsample_tiles_kernel(base: int, tiles: wp.array(dtype=int), tiles_x: int, 
         for x in range(X0, X1 + 1):
             s = slot[y, x]
             if s >= 0:
-                rowbits[y - Y0] = rowbits[y - Y0] | (1 << (x - X0))
+                if mask.shape[0] == 0 or mask[s] != 0:
+                    rowbits[y - Y0] = rowbits[y - Y0] | (1 << (x - X0))
     g = 2 * a  # sub-sample coordinates in units of 1/(2a·SUBPIXEL) px
     o = wp.int64(SUBPIXEL)  # half a sub-pixel
     d = wp.int64(g) * o  # one pixel
@@ -151,23 +152,26 @@ def _slots_kernel(base: int, pixels: wp.array(dtype=int), width: int, tiles_x: i
     tile_flag[(y >> TILE_BITS) * tiles_x + (x >> TILE_BITS)] = 1
 
 
-def subsample(vb, pixels: wp.array, below=None):
+def subsample(vb, pixels: wp.array, kept=None):
     """What the a×a sub-samples of the listed pixels see, for a buffer of
     ``rasterize(..., subsamples=a)``: ``(tri, bary, inv_depth, tiles)`` — ``wp.array2d`` of shape
     (n, a²) (int, vec2, float; sub-sample q = j·a + i of pixel ``pixels[r]`` (row-major index
     y·W + x, distinct) in row r; tri -1 and inv_depth 0 where it sees nothing) and the number of
     tiles visited. A buffer drawn over another (``rasterize(over=...)``) walks both's queues;
-    ``below``: the ``(tri, bary, inv_depth)`` of these pixels in the buffers it was drawn over
-    (:class:`KeptSubsamples`), so that only its own queue is walked."""
+    ``kept``: a :class:`KeptSubsamples` of the buffer it was drawn over, which gives the pixels it
+    has seen before and computes (and keeps) the others."""
     a = int(getattr(vb, "_subsamples", 1))
     if a < 2:
         raise ValueError("subsample() needs a buffer rasterised with subsamples > 1")
     device = vb.device
     n = int(pixels.shape[0])
     W, H = vb.width, vb.height
-    tri = wp.empty((max(n, 1), a * a), dtype=int, device=device)
-    bary = wp.empty((max(n, 1), a * a), dtype=wp.vec2, device=device)
-    invw = wp.empty((max(n, 1), a * a), dtype=float, device=device)
+    if kept is not None:
+        tri, bary, invw, unknown = kept.begin(pixels)
+    else:
+        tri = wp.full((max(n, 1), a * a), -1, dtype=int, device=device)
+        bary = wp.zeros((max(n, 1), a * a), dtype=wp.vec2, device=device)
+        invw = wp.zeros((max(n, 1), a * a), dtype=float, device=device)
     if n == 0:
         return tri[:0], bary[:0], invw[:0], 0
     tiles_x = (W + TILE - 1) // TILE
@@ -176,114 +180,132 @@ def subsample(vb, pixels: wp.array, below=None):
     flag = wp.zeros(n_tiles, dtype=int, device=device)
     parallel.launch(_slots_kernel, n, [pixels, W, tiles_x, slot, flag], device, min_chunk=16384)  # trivial: one range
     tiles = parallel.compact(flag, device)
-    if below is None:
-        tri.fill_(-1)
-        bary.zero_()
-        invw.zero_()
+    workers, n_t = parallel.cpu_workers(), int(tiles.shape[0])
+    none = wp.zeros(0, dtype=int, device=device)
+
+    def walk(layer, mask, tl):  # one buffer's queues over tiles tl (offsets None: nothing was binned)
+        m = int(tl.shape[0])
+        if layer._offsets is not None and m:  # ranges: 8 per thread, fewer for a short queue or a few tiles
+            chunks = min(8 * workers, max(1, int(layer.stats.get("pairs", 1 << 20)) // 4096), max(1, m // 16))
+            parallel.launch(subsample_tiles_kernel, m, [tl, tiles_x, layer._rows, W, H, a, float(layer._inv_far),
+                                                        slot, layer._offsets, layer._queue, mask, tri, bary, invw],
+                            device, chunks=chunks, min_chunk=1)
+
+    if kept is not None:
+        new_tiles = wp.zeros(n_tiles, dtype=int, device=device)  # the tiles of the pixels it has not seen
+        parallel.launch(_unknown_tiles_kernel, n, [pixels, unknown, W, tiles_x, new_tiles], device, min_chunk=16384)
+        walk(kept.vb, unknown, parallel.compact(new_tiles, device))
+        kept.finish(pixels, unknown, (tri, bary, invw))
+        walk(vb, none, tiles)
     else:
-        for dst, src in zip((tri, bary, invw), below):
-            wp.copy(dst, src)
-    layer = vb
-    workers = parallel.cpu_workers()
-    while layer is not None:  # this buffer's queues and those of the buffers it was drawn over
-        if layer._offsets is not None:  # (None: nothing was binned; a short queue: fewer ranges, each costs a dispatch)
-            chunks = min(8 * workers, max(1, int(layer.stats.get("pairs", 1 << 20)) // 4096))
-            parallel.launch(subsample_tiles_kernel, int(tiles.shape[0]),
-                            [tiles, tiles_x, layer._rows, W, H, a, float(layer._inv_far), slot, layer._offsets,
-                             layer._queue, tri, bary, invw], device, chunks=chunks, min_chunk=1)
-        layer = None if below is not None else layer._over
-    return tri, bary, invw, int(tiles.shape[0])
+        layer = vb
+        while layer is not None:  # this buffer's queues and those of the buffers it was drawn over
+            walk(layer, none, tiles)
+            layer = layer._over
+    return tri[:n], bary[:n], invw[:n], n_t
 
 
 @wp.kernel
-def _unknown_kernel(base: int, pixels: wp.array(dtype=int), width: int, row: wp.array2d(dtype=int),
-                    flag: wp.array(dtype=int)):
+def _unknown_tiles_kernel(base: int, pixels: wp.array(dtype=int), unknown: wp.array(dtype=int), width: int,
+                          tiles_x: int, tile_flag: wp.array(dtype=int)):
     i = base + wp.tid()
-    k = pixels[i]
-    y = k / width
-    flag[i] = int(row[y, k - y * width] < 0)
+    if unknown[i] != 0:
+        k = pixels[i]
+        y = k / width
+        tile_flag[(y >> TILE_BITS) * tiles_x + ((k - y * width) >> TILE_BITS)] = 1
 
 
 @wp.kernel
-def _keep_kernel(base: int, pixels: wp.array(dtype=int), pos: wp.array(dtype=int), first: int, width: int,
-                 row: wp.array2d(dtype=int), taken: wp.array(dtype=int)):
-    """New pixel j = ``pixels[pos[base + tid]]``: kept in row ``first + j``."""
-    j = base + wp.tid()
-    k = pixels[pos[j]]
-    taken[j] = k
-    y = k / width
-    row[y, k - y * width] = first + j
-
-
-@wp.kernel
-def _gather_rows_kernel(base: int, pixels: wp.array(dtype=int), width: int, row: wp.array2d(dtype=int),
-                        tri: wp.array2d(dtype=int), bary: wp.array2d(dtype=wp.vec2), invw: wp.array2d(dtype=float),
-                        out_tri: wp.array2d(dtype=int), out_bary: wp.array2d(dtype=wp.vec2),
-                        out_invw: wp.array2d(dtype=float)):
+def _begin_kernel(base: int, pixels: wp.array(dtype=int), width: int, row: wp.array2d(dtype=int),
+                  tri: wp.array2d(dtype=int), bary: wp.array2d(dtype=wp.vec2), invw: wp.array2d(dtype=float),
+                  out_tri: wp.array2d(dtype=int), out_bary: wp.array2d(dtype=wp.vec2),
+                  out_invw: wp.array2d(dtype=float), unknown: wp.array(dtype=int)):
+    """Listed pixel i: its kept row's sub-samples, or empty ones and ``unknown[i] = 1``."""
     i = base + wp.tid()
     k = pixels[i]
     y = k / width
     r = row[y, k - y * width]
+    unknown[i] = int(r < 0)
+    for q in range(out_tri.shape[1]):
+        if r >= 0:
+            out_tri[i, q] = tri[r, q]
+            out_bary[i, q] = bary[r, q]
+            out_invw[i, q] = invw[r, q]
+        else:
+            out_tri[i, q] = -1
+            out_bary[i, q] = wp.vec2(0.0, 0.0)
+            out_invw[i, q] = 0.0
+
+
+@wp.kernel
+def _keep_kernel(base: int, pixels: wp.array(dtype=int), pos: wp.array(dtype=int), first: int, width: int,
+                 tri: wp.array2d(dtype=int), bary: wp.array2d(dtype=wp.vec2), invw: wp.array2d(dtype=float),
+                 row: wp.array2d(dtype=int), kept_tri: wp.array2d(dtype=int), kept_bary: wp.array2d(dtype=wp.vec2),
+                 kept_invw: wp.array2d(dtype=float)):
+    """New pixel j (row ``pos[base + tid]`` of the outputs) kept in row ``first + j``."""
+    j = base + wp.tid()
+    i = pos[j]
+    k = pixels[i]
+    y = k / width
+    row[y, k - y * width] = first + j
     for q in range(tri.shape[1]):
-        out_tri[i, q] = tri[r, q]
-        out_bary[i, q] = bary[r, q]
-        out_invw[i, q] = invw[r, q]
+        kept_tri[first + j, q] = tri[i, q]
+        kept_bary[first + j, q] = bary[i, q]
+        kept_invw[first + j, q] = invw[i, q]
 
 
 class KeptSubsamples:
     """:func:`subsample` of one buffer, kept by pixel between calls: a pixel's sub-samples are
-    computed the first time it is listed and copied out afterwards. A renderer whose moving objects
+    computed the first time it is listed and copied afterwards. A renderer whose moving objects
     are drawn over its static objects' buffer (``rasterize(over=...)``) asks every frame for the
-    static buffer's sub-samples of a candidate list that changes a little (around the moving
-    objects, their shadows); with these as ``below`` :func:`subsample` walks the moving triangles'
-    queue only — the same values. At most ``max(4 n, 16384)`` pixels are kept (n: the last list's
-    length); beyond, the store starts again."""
+    sub-samples of a candidate list that changes a little (around the moving objects, their
+    shadows); ``subsample(moving, pixels, kept=KeptSubsamples(static))`` walks the static queues
+    for the new pixels only — the same values. At most ``max(4 n, 16384)`` pixels are kept (n:
+    the list's length); beyond, the store starts again. ``computed`` counts the pixels computed."""
 
     def __init__(self, vb):
         a = int(vb._subsamples)
         self.vb, self.a, self.n, self.computed = vb, a, 0, 0
         self.row = wp.full((vb.height, vb.width), -1, dtype=int, device=vb.device)
-        self.store = None
+        self.store = self._alloc(1)
 
-    def _grow(self, rows: int) -> None:
-        if self.store is not None and self.store[0].shape[0] >= rows:
-            return
-        cap = max(rows + rows // 2, 1024)
-        new = (wp.empty((cap, self.a * self.a), dtype=int, device=self.vb.device),
-               wp.empty((cap, self.a * self.a), dtype=wp.vec2, device=self.vb.device),
-               wp.empty((cap, self.a * self.a), dtype=float, device=self.vb.device))
-        if self.store is not None and self.n:
-            for dst, src in zip(new, self.store):
-                wp.copy(dst, src, count=self.n * self.a * self.a)
-        self.store = new
+    def _alloc(self, rows: int) -> tuple:
+        d, a2 = self.vb.device, self.a * self.a
+        return (wp.empty((rows, a2), dtype=int, device=d), wp.empty((rows, a2), dtype=wp.vec2, device=d),
+                wp.empty((rows, a2), dtype=float, device=d))
 
-    def get(self, pixels: wp.array) -> tuple:
-        """``(tri, bary, inv_depth)`` of :func:`subsample` of the kept buffer for ``pixels``."""
-        d, W, a2 = self.vb.device, self.vb.width, self.a * self.a
+    def begin(self, pixels: wp.array) -> tuple:
+        """``(tri, bary, inv_depth, unknown)`` of ``pixels``: the kept ones' sub-samples, empty
+        rows flagged in ``unknown`` for the others (:func:`subsample` walks the kept buffer's queues
+        for those, then calls :meth:`finish`)."""
         n = int(pixels.shape[0])
-        flag = wp.empty(max(n, 1), dtype=int, device=d)
+        out = self._alloc(max(n, 1))
+        unknown = wp.empty(max(n, 1), dtype=int, device=self.vb.device)
         if n:
-            parallel.launch(_unknown_kernel, n, [pixels, W, self.row, flag], d, min_chunk=16384)
-        pos = parallel.compact(flag[:n], d)
+            parallel.launch(_begin_kernel, n, [pixels, self.vb.width, self.row, *self.store, *out, unknown],
+                            self.vb.device, min_chunk=4096)
+        return (*out, unknown)
+
+    def finish(self, pixels: wp.array, unknown: wp.array, out: tuple) -> None:
+        """Keep the rows of ``out`` that ``unknown`` flags (computed now)."""
+        n = int(pixels.shape[0])
+        pos = parallel.compact(unknown[:n], self.vb.device)
         m = int(pos.shape[0])
+        if not m:
+            return
         if self.n + m > max(4 * n, 16384):  # start again
             self.row.fill_(-1)
             self.n = 0
-            return self.get(pixels)
-        if m:
-            taken = wp.empty(m, dtype=int, device=d)
-            parallel.launch(_keep_kernel, m, [pixels, pos, self.n, W, self.row, taken], d, min_chunk=16384)
-            tri, bary, invw, _ = subsample(self.vb, taken)
-            self._grow(self.n + m)
-            for dst, src in zip(self.store, (tri, bary, invw)):
-                wp.copy(dst, src, dest_offset=self.n * a2, count=m * a2)
-            self.n += m
-            self.computed += m
-        out = (wp.empty((max(n, 1), a2), dtype=int, device=d), wp.empty((max(n, 1), a2), dtype=wp.vec2, device=d),
-               wp.empty((max(n, 1), a2), dtype=float, device=d))
-        if n:
-            parallel.launch(_gather_rows_kernel, n, [pixels, W, self.row, *self.store, *out], d, min_chunk=4096)
-        return tuple(x[:n] for x in out)
+        if self.store[0].shape[0] < self.n + m:
+            new = self._alloc(max(2 * (self.n + m), 1024))
+            for dst, src in zip(new, self.store):
+                if self.n:
+                    wp.copy(dst, src, count=self.n * self.a * self.a)
+            self.store = new
+        parallel.launch(_keep_kernel, m, [pixels, pos, self.n, self.vb.width, *out, self.row, *self.store],
+                        self.vb.device, min_chunk=4096)
+        self.n += m
+        self.computed += m
 
 
 __all__ = ["KeptSubsamples", "subsample", "subsample_tiles_kernel"]

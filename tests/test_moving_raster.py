@@ -70,7 +70,7 @@ def test_a_part_drawn_over_the_others_equals_a_raster_of_the_union(seed, cull):
         pix = np.sort(rng.choice(72 * 56, size=400, replace=False)).astype(np.int32)
         idx = wp.array(pix, dtype=int)
         want = subsample(full, idx)
-        for got in (subsample(moving, idx), subsample(moving, idx, below=kept.get(idx))):
+        for got in (subsample(moving, idx), subsample(moving, idx, kept=kept)):
             for x, y in zip(got[:3], want[:3]):
                 assert np.array_equal(x.numpy(), y.numpy())
     assert kept.computed < 3 * 400  # (pixels listed again were copied, not computed)

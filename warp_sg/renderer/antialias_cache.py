@@ -113,7 +113,7 @@ class AntialiasCache:
 
             if self._kept is None or self._kept.vb is not vb._over:
                 self._kept = KeptSubsamples(vb._over)
-            sub = subsample(vb, idx, below=self._kept.get(idx))
+            sub = subsample(vb, idx, kept=self._kept)
         else:
             sub = subsample(vb, idx)
         self._sub = (vb, idx, sub)
