@@ -114,6 +114,21 @@ def launch(kernel, n: int, inputs: list, device: str, chunks: int | None = None,
     _run_ranges(one, [(b, min(step, n - b)) for b in range(0, n, step)], workers)
 
 
+def launch_split(kernel, bounds, inputs: list, device: str):
+    """Launch ``kernel`` over the ranges ``[bounds[i], bounds[i+1])`` (ascending element indices,
+    e.g. of equal work where elements cost unequally), one pool task each on the CPU; one launch
+    of them all on CUDA."""
+    b = [int(x) for x in bounds]
+    ranges = [(lo, hi - lo) for lo, hi in zip(b[:-1], b[1:]) if hi > lo]
+    if not ranges:
+        return
+    _ensure_loaded(kernel, device)
+    if len(ranges) == 1 or not str(device).startswith("cpu"):
+        wp.launch(kernel, dim=b[-1] - b[0], inputs=[b[0], *inputs], device=device)
+        return
+    _run_ranges(lambda lo, m: wp.launch(kernel, dim=m, inputs=[lo, *inputs], device=device), ranges, cpu_workers())
+
+
 def launch_rows(kernel, n: int, rows: int, inputs: list, device: str):
     """Launch over ``n`` elements split into exactly ``rows`` contiguous ranges of
     ``ceil(n / rows)`` elements, one thread each (range r owns row r of a per-row output)."""

@@ -28,20 +28,21 @@ def _mesh(rng, n=300):
     return V.astype(np.float32), T.astype(np.int32)
 
 
-def _split_raster(V, T, cam, part, cull, a):
+def _split_raster(V, T, cam, part, cull, a, device):
     import raster
 
     ids = [np.flatnonzero(~part).astype(np.int32), np.flatnonzero(part).astype(np.int32)]
     bufs = []
     for sel in ids:
         flags = cull if isinstance(cull, bool) else cull[sel]
-        bufs.append(raster.rasterize(V, T[sel], cam, subsamples=a, cull_backfaces=flags,
-                                     tri_ids=wp.array(sel, dtype=wp.int32), over=bufs[-1] if bufs else None))
+        bufs.append(raster.rasterize(V, T[sel], cam, device=device, subsamples=a, cull_backfaces=flags,
+                                     tri_ids=wp.array(sel, dtype=wp.int32, device=device),
+                                     over=bufs[-1] if bufs else None))
     return bufs
 
 
 @pytest.mark.parametrize("seed, cull", [(0, False), (1, True), (2, "flags")])
-def test_a_part_drawn_over_the_others_equals_a_raster_of_the_union(seed, cull):
+def test_a_part_drawn_over_the_others_equals_a_raster_of_the_union(seed, cull, device):
     import raster
     from raster.subsample import KeptSubsamples, subsample
 
@@ -55,8 +56,8 @@ def test_a_part_drawn_over_the_others_equals_a_raster_of_the_union(seed, cull):
     part = rng.random(len(T)) < 0.4
     part[40:70] = True  # the originals of the copies in one part, the copies in the other
     part[len(T) - 30:] = False
-    full = raster.rasterize(V, T, cam, subsamples=4, cull_backfaces=cull)
-    static, moving = _split_raster(V, T, cam, part, cull, 4)
+    full = raster.rasterize(V, T, cam, device=device, subsamples=4, cull_backfaces=cull)
+    static, moving = _split_raster(V, T, cam, part, cull, 4, device)
     assert full.stats["clipped_extra"] > 0
     assert moving._over is static
     for name in ("tri_id", "bary", "inv_depth"):
@@ -68,7 +69,7 @@ def test_a_part_drawn_over_the_others_equals_a_raster_of_the_union(seed, cull):
     kept = KeptSubsamples(static)
     for trial in range(3):
         pix = np.sort(rng.choice(72 * 56, size=400, replace=False)).astype(np.int32)
-        idx = wp.array(pix, dtype=int)
+        idx = wp.array(pix, dtype=int, device=device)
         want = subsample(full, idx)
         for got in (subsample(moving, idx), subsample(moving, idx, kept=kept)):
             for x, y in zip(got[:3], want[:3]):
