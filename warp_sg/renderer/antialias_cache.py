@@ -9,7 +9,7 @@ static objects' edges are marked once per camera, as per-pixel depths
 each pixel), and turned into marks against the static objects' own buffer. A frame then starts
 from those marks, decides them again only near the pixels the moving objects cover (there the
 frame's buffer differs from the static one; whether an edge is hidden at a pixel reads it and its
-4 neighbours, :func:`~warp_sg.shading.silhouette.merge_contours`), and adds the moving objects'
+4 neighbours, :func:`~warp_sg.shading.silhouette.decide_contours`), and adds the moving objects'
 edges marked against the frame's buffer: the marks of all edges against the frame's buffer, bit
 for bit, at the cost of the moving part.
 """

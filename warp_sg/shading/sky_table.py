@@ -17,7 +17,7 @@ only the sky does, and a rotation of the object is a rotation of the sky in the 
 
     L̄(d_t) = L̄(R·D_t) = L'(D_t),   L' = L̄ ∘ R    (the sky seen from the object's own frame).
 
-So, once per vertex (:meth:`SkyTable.build`, in the rest pose): the texels inside the cone, each
+So, once per vertex (:class:`MovingSky`, in the rest pose): the texels inside the cone, each
 with its weights ``(1 − s_t) c_t``, ``s_t c_t`` and where ``D_t`` falls on a cube of :data:`FACE`
 texels per face edge (a one-texel border, as the irradiance table's,
 ``precompute.environment.irradiance``). Once per frame and object (:func:`turn_sky_kernel`):
