@@ -87,6 +87,16 @@ def parse_transform_argument(text: str) -> tuple:
     return (int(name) if name.isdigit() else name), np.asarray(vals).reshape(4, 4)
 
 
+def _write(dst: wp.array, values: np.ndarray) -> None:
+    """``dst`` ← ``values`` (its shape): on the CPU in place through the array's own memory (no
+    temporary array), elsewhere a copy from the host."""
+    if dst.device.is_cpu:
+        view = dst.numpy()
+        view[...] = np.asarray(values).reshape(view.shape)
+    else:
+        dst.assign(np.ascontiguousarray(values, np.float32))
+
+
 @wp.kernel(enable_backward=False)
 def move_vertices_kernel(ids: wp.array(dtype=int), slot: wp.array(dtype=int), rest_p: wp.array(dtype=wp.vec3),
                          rest_n: wp.array(dtype=wp.vec3), rest_t: wp.array(dtype=wp.vec3),
@@ -187,6 +197,7 @@ class DynamicObjects:
         self._sky = None  # the moving vertices' sky table (_visible)
         self._rest_dev = None  # the moving vertices' rest rows on the device (_device_rest)
         self._host = None  # the host copy of the moving geometry (apply)
+        self._xf = None  # the moving objects' transforms on the device (apply)
         self._decomp = {}  # (object, matrix bytes) -> check_motion (_decomposed)
         self._behind_key = None
         self.px = self._proxies_struct(r)
@@ -349,14 +360,15 @@ class DynamicObjects:
         ga, frames = r.geo_arrays, self.rest_cones is not None  # (the SSDF frames and cones: with shadows)
         out = [ga.positions, ga.normals, ga.tangents] + ([r.vis.frame_t, r.vis.frame_b, r.vis.cones] if frames else
                                                           [ga.normals, ga.normals, wp.zeros(1, dtype=wp.vec4, device=d)])
+        if self._xf is None or self._xf.shape[0] != xf.shape[0] * 7:
+            self._xf = wp.empty(xf.shape[0] * 7, dtype=wp.vec3, device=d)
+        _write(self._xf, xf.reshape(-1, 3))
         wp.launch(move_vertices_kernel, dim=int(self.all_ids.shape[0]),
-                  inputs=[self.all_ids, *self._device_rest(r), wp.array(xf.reshape(-1, 3), dtype=wp.vec3, device=d),
-                          int(frames), *out], device=d)
-        f32 = lambda a: np.ascontiguousarray(a, np.float32)  # noqa: E731
+                  inputs=[self.all_ids, *self._device_rest(r), self._xf, int(frames), *out], device=d)
         if len(S):
-            self.px.spheres.assign(f32(S))
-        self.px.blobs.assign(f32(B))
-        self.px.bounds.assign(f32(Bd))
+            _write(self.px.spheres, S)
+        _write(self.px.blobs, B)
+        _write(self.px.bounds, Bd)
         r._vb_key = None  # the visibility buffer
         if r._culling is not None:
             r._culling.moved(r.geometry, list(self.ids))

@@ -216,8 +216,21 @@ def _hidden(inv_depth: wp.array2d(dtype=float), r: int, c: int, inv_edge: float)
     return m > t
 
 
+_CAMERAS: dict = {}  # repr(camera) -> ContourCamera, the last few
+
+
 def contour_camera(camera) -> ContourCamera:
-    """:class:`ContourCamera` of a ``warp_sg`` / ``raster`` camera (at its own resolution)."""
+    """:class:`ContourCamera` of a ``warp_sg`` / ``raster`` camera (at its own resolution; the
+    last few kept)."""
+    key = repr(camera)
+    if key not in _CAMERAS:
+        if len(_CAMERAS) > 8:
+            _CAMERAS.clear()
+        _CAMERAS[key] = _contour_camera(camera)
+    return _CAMERAS[key]
+
+
+def _contour_camera(camera) -> ContourCamera:
     r, u, f = (np.asarray(x, np.float32) for x in camera.basis())
     c = ContourCamera()
     c.eye = wp.vec3(*np.asarray(camera.origin, np.float32))
