@@ -52,4 +52,6 @@ def bin_count_kernel(
 def scan_counts(counts: wp.array, offsets: wp.array) -> int:
     """Exclusive prefix sum of ``counts`` (last entry is a 0 sentinel) → total pair count."""
     wp.utils.array_scan(counts, offsets, inclusive=False)
+    if offsets.device.is_cpu:  # (a view of the array's memory: no copy)
+        return int(offsets.numpy()[-1])
     return int(offsets[offsets.shape[0] - 1:].numpy()[0])

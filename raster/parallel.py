@@ -159,6 +159,8 @@ def exclusive_scan(values: wp.array) -> tuple[wp.array, int]:
     if n == 0:
         return offset, 0
     wp.utils.array_scan(values, offset, inclusive=False)
+    if offset.device.is_cpu:  # (views of the arrays' memory: no copies)
+        return offset, int(offset.numpy()[n - 1]) + int(values.numpy()[n - 1])
     return offset, int(offset[n - 1: n].numpy()[0] + values[n - 1: n].numpy()[0])
 
 

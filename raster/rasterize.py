@@ -441,10 +441,10 @@ def _bin_and_raster(subs, n_t, n_extra, bins, W, H, camera, best_invw, best_tri,
         clock.lap("coarse")
         args = [tiles_x, n_tiles, rows, W, H, inv_far, int(count_mode), offsets, queue, best_invw, best_tri,
                 best_bary, coverage]
-        if schedule == "tile":  # (few pairs: fewer ranges, each costs a dispatch)
+        if schedule == "tile":  # (a short queue: fewer ranges, each costs a dispatch)
             workers = parallel.cpu_workers()
-            parallel.launch(fine_tile_kernel, n_tiles, args, device, chunks=min(8 * workers, max(1, total // 4096)),
-                            min_chunk=1)
+            parallel.launch(fine_tile_kernel, n_tiles, args, device,
+                            chunks=8 * workers if total >= 16384 else max(1, total // 2048), min_chunk=1)
         else:
             parallel.launch(fine_pixel_kernel, n_tiles * TILE * TILE, args, device, min_chunk=TILE * TILE)
         clock.lap("fine")
