@@ -267,17 +267,19 @@ class Scene:
 
 
 def _expand_assets(objects: list, materials: dict, where: str) -> tuple[list, dict]:
-    """Every glTF object (``mesh = "*.glb" | "*.gltf"``) becomes one object per mesh primitive, in
-    the file's world frame with the object's transform; without a ``material`` of its own, the
-    file's materials join the scene as ``"<label>/<name>"`` (:mod:`warp_sg.scene.importers.gltf`)."""
-    from warp_sg.scene.importers.gltf import gltf_object_parts, is_gltf
+    """Every glTF or USD object (``mesh = "*.glb" | "*.gltf" | "*.usd" ...``) becomes one object per
+    mesh primitive (USD: per mesh and material subset), in the file's world frame with the object's
+    transform; without a ``material`` of its own, the file's materials join the scene as
+    ``"<label>/<name>"`` (:mod:`warp_sg.scene.importers.gltf`, :mod:`warp_sg.scene.importers.usd`)."""
+    from warp_sg.scene.importers import scene_asset_reader
 
     out, mats = [], dict(materials)
     for i, ob in enumerate(objects):
-        if ob.mesh is None or not is_gltf(ob.mesh):
+        read = None if ob.mesh is None else scene_asset_reader(ob.mesh)
+        if read is None:
             out.append(ob)
             continue
-        parts, specs = gltf_object_parts(ob.mesh, ob.label(i), materials=ob.material is None)
+        parts, specs = read(ob.mesh, ob.label(i), materials=ob.material is None)
         for key, spec in specs.items():
             if key in mats:
                 raise SceneError(f"[[objects]] #{i + 1} material '{key}' of {Path(ob.mesh).name} is also defined "

@@ -32,7 +32,7 @@ from warp_sg.brdf import MODELS
 from warp_sg.brdf.fresnel import PRESETS
 from warp_sg.scene.camera import Camera
 from warp_sg.scene.sky import procedural_sky
-from warp_sg.scene.importers.gltf import GLTF_SUFFIXES, is_gltf
+from warp_sg.scene.importers import brings_materials, material_suffixes
 from warp_sg.scene.lights import ENV_PROCEDURAL, DirectionalLight, EnvironmentLight, PointLight
 from warp_sg.scene.primitives import PRIMITIVE_PARAMS, PRIMITIVES
 from warp_sg.scene.model import RENDER_CHOICES, RENDER_INT_RANGES, RenderSettings, _suggest
@@ -227,25 +227,26 @@ def _suffix_pattern(suffixes) -> str:
 
 
 class _MeshObjectBase(Table):
-    """A mesh file; a glTF (.glb/.gltf) brings its own materials (:mod:`warp_sg.scene.importers.gltf`), any other
-    mesh needs ``material``."""
+    """A mesh file; a glTF (.glb/.gltf) or USD (.usd/.usda/.usdc/.usdz) brings its own materials
+    (:mod:`warp_sg.scene.importers.gltf`, :mod:`warp_sg.scene.importers.usd`), any other mesh needs ``material``."""
 
     model_config = ConfigDict(json_schema_extra={"anyOf": [
-        {"required": ["material"]}, {"properties": {"mesh": {"pattern": _suffix_pattern(GLTF_SUFFIXES)}}}]})
+        {"required": ["material"]}, {"properties": {"mesh": {"pattern": _suffix_pattern(material_suffixes())}}}]})
 
     @model_validator(mode="after")
     def _material_unless_gltf(self):
-        if self.material is None and not is_gltf(self.mesh):
-            fail("is missing (only a .glb/.gltf brings its own materials)", key="material")
+        if self.material is None and not brings_materials(self.mesh):
+            fail("is missing (only a .glb/.gltf or USD file brings its own materials)", key="material")
         return self
 
 
 def _object_model(prim: str | None):
     f = dict(_OBJECT_FIELDS)
     if prim is None:
-        f["mesh"] = (path("mesh file (any format trimesh reads; .glb/.gltf with their materials), relative to "
-                          "the scene file"), ...)
-        f["material"] = (string("name of a [materials.NAME] table (optional for .glb/.gltf: the file's)"), None)
+        f["mesh"] = (path("mesh file (any format trimesh reads; .glb/.gltf and USD with their materials), "
+                          "relative to the scene file"), ...)
+        f["material"] = (string("name of a [materials.NAME] table (optional for .glb/.gltf and USD: the file's)"),
+                         None)
         return create_model("MeshObject", __base__=_MeshObjectBase, __doc__=_MeshObjectBase.__doc__, **f)
     f["primitive"] = (Literal[prim], Field(description="built-in primitive"))
     for k, default in PRIMITIVE_PARAMS[prim].items():
