@@ -6,7 +6,7 @@
     warp-sg render ASSET.(glb|gltf|obj|ply|...) [--env SKY.(hdr|exr)] [--view AZ EL] [--print-scene] -o OUT
     warp-sg preview SCENE|ASSET [--env SKY] [--view AZ EL] [--screenshot PNG] [--window-size W H] [--exposure EV]
     warp-sg reference SCENE -o OUT --spp N         (arguments from warp_sg.groundtruth.reference)
-    warp-sg report SCENE -o DIR                    (arguments from warp_sg.tools.report)
+    warp-sg report SCENE -o DIR [--animation JOB.toml]   (arguments from warp_sg.tools.report)
     warp-sg bench                                  (arguments from warp_sg.tools.bench)
     warp-sg precompute SCENE [--cluster local:N|tcp://HOST:PORT]   (warp_sg.distributed.precompute)
     warp-sg batch JOB.toml [--cluster ...]         (warp_sg.distributed.batch)
