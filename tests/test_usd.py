@@ -20,27 +20,17 @@ from warp_sg.scene.importers.usd import load_usd  # noqa: E402
 from warp_sg.scene.plain_scenes import warp_bunny  # noqa: E402
 from warp_sg.tools.cli import main  # noqa: E402
 
-TOML = """
-[camera]
-origin = [0.0, 1.0, 4.0]
-target = [0.0, 0.5, 0.0]
-fov = 40.0
-width = 16
-height = 16
+def _scene_file(folder, mesh, material=None):
+    """A scene holding ``mesh`` (the file's materials unless ``material``), written by ``scene_toml``."""
+    from warp_sg.scene.importers.asset import scene_toml
 
-[[objects]]
-mesh = "{mesh}"
-{material}
-
-[materials.red]
-model = "lambert"
-kd = [0.8, 0.1, 0.1]
-
-[[lights]]
-type = "directional"
-direction = [0.0, 1.0, 0.0]
-intensity = [1.0, 1.0, 1.0]
-"""
+    ob = {"mesh": mesh, **({"material": material} if material else {})}
+    doc = {"camera": {"origin": [0.0, 1.0, 4.0], "target": [0.0, 0.5, 0.0], "width": 16, "height": 16},
+           "objects": [ob], "materials": {"red": {"model": "lambert", "kd": [0.8, 0.1, 0.1]}},
+           "lights": [{"type": "directional", "direction": [0.0, 1.0, 0.0], "intensity": [1.0, 1.0, 1.0]}]}
+    path = folder / "s.toml"
+    path.write_text(scene_toml(doc))
+    return path
 
 
 def _stage(path, up="Y", mpu=1.0):
@@ -172,8 +162,7 @@ def test_display_colour_and_preview_surface_become_the_materials(tmp_path):
     mat.CreateSurfaceOutput().ConnectToSource(sh.ConnectableAPI(), "surface")
     UsdShade.MaterialBindingAPI.Apply(shiny.GetPrim()).Bind(mat)
     st.Save()
-    toml = tmp_path / "s.toml"
-    toml.write_text(TOML.format(mesh=path.name, material=""))
+    toml = _scene_file(tmp_path, path.name)
     with warnings.catch_warnings():
         warnings.simplefilter("error", AssetWarning)  # a plain file: not a word
         sc = load_scene(toml)
@@ -185,8 +174,7 @@ def test_display_colour_and_preview_surface_become_the_materials(tmp_path):
     assert gold["alpha"] == pytest.approx(0.16, rel=1e-6)
     assert gold["fresnel"]["schlick"] == pytest.approx(0.04 * (1 - m) + m * d, rel=1e-6)
     assert [ob.name for ob in sc.objects] == ["mats.usda/plain", "mats.usda/shiny"]
-    toml.write_text(TOML.format(mesh=path.name, material='material = "red"'))
-    sc = load_scene(toml)
+    sc = load_scene(_scene_file(tmp_path, path.name, "red"))
     assert sc.material_names == ["red"] and len(sc.geometry().triangles) == 2
 
 
@@ -204,10 +192,8 @@ def test_texture_driven_input_is_one_warning(tmp_path):
     mat.CreateSurfaceOutput().ConnectToSource(sh.ConnectableAPI(), "surface")
     UsdShade.MaterialBindingAPI.Apply(m.GetPrim()).Bind(mat)
     st.Save()
-    toml = tmp_path / "s.toml"
-    toml.write_text(TOML.format(mesh=path.name, material=""))
     with pytest.warns(AssetWarning) as rec:
-        load_scene(toml)
+        load_scene(_scene_file(tmp_path, path.name))
     msgs = [str(w.message) for w in rec]
     assert len(msgs) == 1 and "'wood'" in msgs[0] and "diffuseColor" in msgs[0] and "\n" not in msgs[0]
 
