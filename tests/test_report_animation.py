@@ -91,6 +91,18 @@ def test_animation_rows_are_the_region_errors_of_the_scene_at_each_pose(report):
     assert not scene_regions(gone)["object"].any()
 
 
+def test_animation_report_of_a_scene_object_leaves_it_as_it_was(tmp_path):
+    """From Python, with a list of variants: the scene given is not moved by the report's renderer
+    (its objects-away pose was the last one set)."""
+    from warp_sg.tools.report_animation import run_animation_report
+
+    sc = ws.load_scene(write_plain_scene(tmp_path, size=8, dynamic=True, render=SMALL))
+    rep = run_animation_report(sc, [{"objects": {"object": {"translate": [0.3, 0.0, 0.0]}}}], tmp_path / "r", spp=4,
+                               progress=False)
+    assert len(rep.rows) == 1 and rep.rows[0]["away"] == 0
+    assert sc.objects[0].motion is None
+
+
 @pytest.mark.parametrize("case, message", [
     ("static", "not dynamic"),
     ("scene", "not the report's scene"),

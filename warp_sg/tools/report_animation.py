@@ -33,6 +33,7 @@ the row's ``away`` index K.
 """
 from __future__ import annotations
 
+import copy
 import csv
 import dataclasses
 import json
@@ -157,8 +158,8 @@ def run_animation_report(scene, animation, out_dir, device=None, spp=None, super
                          progress: bool = True, width=None, height=None, quick: bool = False) -> AnimationReport:
     """Render every frame of ``animation`` with one Renderer and its Monte-Carlo reference, and
     write the per-frame rows into ``out_dir`` (module docstring). ``scene``: a Scene or a scene
-    file; ``animation``: a job file, a Job or a list of variants; ``spp``: samples per pixel of
-    each reference (default :data:`DEFAULT_ANIMATION_SPP`, ``quick``: 64)."""
+    file (a Scene is copied, not changed); ``animation``: a job file, a Job or a list of variants;
+    ``spp``: samples per pixel of each reference (default :data:`DEFAULT_ANIMATION_SPP`, ``quick``: 64)."""
     from warp_sg.core.device import device_for
     from warp_sg.core.image_io import save_image
     from warp_sg.distributed.rendering import apply_variant
@@ -167,7 +168,8 @@ def run_animation_report(scene, animation, out_dir, device=None, spp=None, super
     from warp_sg.scene.loader import load_scene
 
     scene_path = scene if isinstance(scene, (str, Path)) else None
-    scene = with_resolution(load_scene(scene) if scene_path is not None else scene, width, height)
+    # (a copy: the renderer's setters change its scene, the caller's stays as it was)
+    scene = with_resolution(load_scene(scene) if scene_path is not None else copy.deepcopy(scene), width, height)
     variants = animation_variants(scene, animation, scene_path)
     spp = int(spp or (64 if quick else DEFAULT_ANIMATION_SPP))
     if spp < 1 or int(supersample) < 1:
