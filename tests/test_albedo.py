@@ -1,4 +1,4 @@
-"""The environment specular's energy correction (``warp_sg.brdf.albedo``): in a white furnace (a
+"""The environment specular's energy correction (``warp_sg.brdf.kernel.albedo``): in a white furnace (a
 constant environment, a lone sphere: nothing occludes) the SG render of every glossy model equals
 the Monte-Carlo reference, which samples the exact BRDF — per ring of view angles, from normal to
 grazing views. Before the correction the warped slice was off by up to −19 % / +12 % (GGX

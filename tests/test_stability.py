@@ -348,7 +348,7 @@ def test_roughness_to_zero_keeps_microfacet_fits_and_slices_finite():
 # ------------------------------------------------------------------------------------------------
 # kernel-side BRDFs (what the renderer and the reference evaluate) at extremes
 # ------------------------------------------------------------------------------------------------
-from warp_sg.brdf import material_wp as MW  # noqa: E402
+from warp_sg.brdf.kernel import material_wp as MW  # noqa: E402
 
 
 @wp.kernel

@@ -112,13 +112,13 @@ class SpecularBRDF(BRDF):
 
     def ndf_sg(self, n_lobes=1, method="analytic"):
         """SG mixture of the NDF in the local frame: ``(axes (K,3), sharpness (K,), amplitude (K,))``."""
-        from .fit import ndf_sg_for
+        from .fitting.fit import ndf_sg_for
 
         return ndf_sg_for(self, n_lobes, method)
 
     def table_lobes(self, n_lobes=1, method="analytic"):
         """The NDF lobes stored in the kernel's lobe table (``material_struct.material_lobes``):
-        ``ndf_sg`` with the model's lobe count (:func:`warp_sg.brdf.fit.lobe_count`)."""
-        from .fit import lobe_count
+        ``ndf_sg`` with the model's lobe count (:func:`warp_sg.brdf.fitting.fit.lobe_count`)."""
+        from .fitting.fit import lobe_count
 
         return self.ndf_sg(lobe_count(self, n_lobes), method)

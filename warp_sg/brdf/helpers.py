@@ -1,7 +1,7 @@
 """Numeric helpers of the BRDF models (numpy, float64): parameter checks and direction algebra.
 
 They sit below both the model classes (:mod:`warp_sg.brdf.base`) and the NDF fits
-(:mod:`warp_sg.brdf.fit`), so neither imports the other's module for them. Forms (see
+(:mod:`warp_sg.brdf.fitting.fit`), so neither imports the other's module for them. Forms (see
 :mod:`warp_sg.brdf.base`): ``ln(h·n) = log1p(−(hx² + hy²)/(1 + hz))``, ``θh = atan2(√(hx² + hy²), hz)``.
 """
 from __future__ import annotations

@@ -8,9 +8,9 @@ A model is one class (a :class:`~warp_sg.brdf.base.BRDF` subclass in a module of
   its scene-file parameters;
 * its numpy evaluation (``diffuse``, ``mo``, ``ndf``, ``specular``) and its fit hooks
   (``ndf_analytic_lambda``, ``aniso_layout``, ``table_lobes``, ... see
-  :mod:`warp_sg.brdf.fit`);
+  :mod:`warp_sg.brdf.fitting.fit`);
 * ``KERNEL`` — a :class:`Kernel` of its ``@wp.func``\ s: what the kernel switch
-  (:mod:`warp_sg.brdf.material_variants`) calls for a material of this code;
+  (:mod:`warp_sg.brdf.kernel.material_variants`) calls for a material of this code;
 
 and is registered by :func:`register` (a class decorator). Everything that switches on the model
 — the kernel functions ``brdf_eval``, ``brdf_sample``, ``brdf_pdf``, ``slice_lobe`` ..., the

@@ -12,7 +12,7 @@ Data flow (docs/architecture.md "Conventions"): ``scene → precompute (cached) 
   (``precompute.fit_environment_sgs``, eq. 34) and the prefiltered ΓL pyramid for the specular
   term (``precompute.prefilter_environment``, eq. 35), both of the *unrotated, unscaled* map, so
   rotation and scale changes cost nothing;
-* materials (``brdf.material_wp.pack_materials``) and textures (one atlas).
+* materials (``brdf.kernel.material_wp.pack_materials``) and textures (one atlas).
 
 ``render()`` rasterises the camera view (``raster.rasterize``, k×k supersampled), shades every
 (sub)pixel once with the kernel variant the scene needs (:mod:`warp_sg.shading.kernel`), and box-resolves

@@ -27,9 +27,9 @@ from ...core.errors import InputError
 from ...sg import EPSILON
 from ..base import SpecularBRDF, as_rgb, as_scalar, dirs, half_vector
 from ..fresnel import parse_fresnel
-from ..material_eval_wp import aniso_axis, as_exponent_log, expm1_neg_f, fresnel_eval, half_vec
-from ..material_sample_wp import as_h, as_pdf_h, reflect_about
-from ..material_struct import LN_EPS, PI, Material
+from ..kernel.material_eval_wp import aniso_axis, as_exponent_log, expm1_neg_f, fresnel_eval, half_vec
+from ..kernel.material_sample_wp import as_h, as_pdf_h, reflect_about
+from ..kernel.material_struct import LN_EPS, PI, Material
 from ..registry import Kernel, register
 
 

@@ -18,9 +18,9 @@ import warp as wp
 
 from ...core.errors import InputError
 from ..base import SpecularBRDF, as_rgb, as_scalar, dirs, suggest, upper
-from ..material_eval_wp import lafortune_lobe
-from ..material_sample_wp import cos_power_dir, cos_power_pdf, cosine_dir
-from ..material_struct import INV_PI, Material
+from ..kernel.material_eval_wp import lafortune_lobe
+from ..kernel.material_sample_wp import cos_power_dir, cos_power_pdf, cosine_dir
+from ..kernel.material_struct import INV_PI, Material
 from ..registry import Kernel, register
 
 

@@ -14,8 +14,8 @@ import numpy as np
 import warp as wp
 
 from ..base import BRDF, INV_PI, as_rgb, as_scalar, dirs, upper
-from ..material_eval_wp import oren_nayar_params
-from ..material_struct import Material
+from ..kernel.material_eval_wp import oren_nayar_params
+from ..kernel.material_struct import Material
 from ..registry import Kernel, register
 
 

@@ -26,11 +26,11 @@ import warp as wp
 from ...numeric.fastmath import fast_atan2
 from ..base import SpecularBRDF, as_rgb, as_scalar, dirs, half_vector, sin2_theta, theta_of
 from ..fresnel import parse_fresnel
-from ..material_eval_wp import fresnel_eval, half_vec
-from ..material_eval_wp import g_over_cos as g_over_cos_f
-from ..material_eval_wp import sin2_theta as sin2_theta_f
-from ..material_sample_wp import beckmann_h, beckmann_pdf_h, reflect_about
-from ..material_struct import INV_PI, Material
+from ..kernel.material_eval_wp import fresnel_eval, half_vec
+from ..kernel.material_eval_wp import g_over_cos as g_over_cos_f
+from ..kernel.material_eval_wp import sin2_theta as sin2_theta_f
+from ..kernel.material_sample_wp import beckmann_h, beckmann_pdf_h, reflect_about
+from ..kernel.material_struct import INV_PI, Material
 from ..registry import Kernel, register
 
 

@@ -20,10 +20,10 @@ import numpy as np
 import warp as wp
 
 from ..base import SpecularBRDF, as_rgb, as_scalar, dirs, log_cos_theta
-from ..material_eval_wp import cos_pow, log1p_f, reflect_z
-from ..material_eval_wp import log_cos_theta as log_cos_theta_f
-from ..material_sample_wp import cos_power_dir, cos_power_pdf, reflect_about
-from ..material_struct import TWO_PI, Material
+from ..kernel.material_eval_wp import cos_pow, log1p_f, reflect_z
+from ..kernel.material_eval_wp import log_cos_theta as log_cos_theta_f
+from ..kernel.material_sample_wp import cos_power_dir, cos_power_pdf, reflect_about
+from ..kernel.material_struct import TWO_PI, Material
 from ..registry import Kernel, register
 
 

@@ -19,9 +19,9 @@ import warp as wp
 
 from ...sg import EPSILON
 from ..base import SpecularBRDF, as_rgb, as_roughness, dirs
-from ..material_eval_wp import aniso_axis
-from ..material_sample_wp import beckmann_h, beckmann_pdf_h, reflect_about
-from ..material_struct import LN_EPS, PI, Material
+from ..kernel.material_eval_wp import aniso_axis
+from ..kernel.material_sample_wp import beckmann_h, beckmann_pdf_h, reflect_about
+from ..kernel.material_struct import LN_EPS, PI, Material
 from ..registry import Kernel, register
 
 
