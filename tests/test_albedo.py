@@ -12,7 +12,8 @@ from warp_sg.groundtruth.region_error import box_reference
 from warp_sg.renderer.renderer import Renderer
 from warp_sg.scene.camera import Camera
 from warp_sg.scene.lights import EnvironmentLight
-from warp_sg.scene.model import Material, RenderSettings, Scene, SceneObject
+from warp_sg.scene.model import Material, Scene, SceneObject
+from warp_sg.scene.render_settings import RenderSettings
 from warp_sg.scene.textures import Texture
 
 MODELS = {

@@ -142,7 +142,8 @@ def test_self_shadows_turn_with_the_object_against_a_ray_cast():
     from precompute.visibility.rays import ray_visibility
     from warp_sg.scene.camera import Camera
     from warp_sg.scene.lights import DirectionalLight
-    from warp_sg.scene.model import Material, RenderSettings, Scene, SceneObject
+    from warp_sg.scene.model import Material, Scene, SceneObject
+    from warp_sg.scene.render_settings import RenderSettings
 
     la = np.array([0.5, 0.6, 0.62]) / np.linalg.norm([0.5, 0.6, 0.62])
     ring = SceneObject(material="m", primitive="torus", name="ring", dynamic=True,

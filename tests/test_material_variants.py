@@ -24,7 +24,8 @@ from warp_sg.core.errors import InputError
 from warp_sg.renderer.renderer import Renderer
 from warp_sg.scene.camera import Camera
 from warp_sg.scene.lights import DirectionalLight, EnvironmentLight
-from warp_sg.scene.model import RenderSettings, Scene, SceneObject
+from warp_sg.scene.model import Scene, SceneObject
+from warp_sg.scene.render_settings import RenderSettings
 
 #: one material per model family: (model name, parameters, model code)
 FAMILIES = [

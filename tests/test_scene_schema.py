@@ -145,7 +145,7 @@ def test_schema_lists_every_model_with_exactly_its_parameters(schema):
 def test_every_key_has_a_description_and_every_render_setting_is_in_the_schema(schema):
     from dataclasses import fields
 
-    from warp_sg.scene.model import RenderSettings
+    from warp_sg.scene.render_settings import RenderSettings
 
     render = schema["definitions"]["RenderTable"]["properties"]
     assert set(render) == {f.name for f in fields(RenderSettings)}

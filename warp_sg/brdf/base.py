@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .helpers import (COS_EPS, INV_PI, as_rgb, as_roughness, as_scalar, closest, dirs, half_vector, log_cos_theta,  # noqa: F401
+from .helpers import (COS_EPS, INV_PI, as_rgb, as_roughness, as_scalar, dirs, half_vector, log_cos_theta,  # noqa: F401
                       reflect_z, sin2_theta, suggest, theta_of, upper)
 
 

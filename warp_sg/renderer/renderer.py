@@ -77,6 +77,7 @@ class Renderer(FramePaths, VariantChoice, ResourceSetup, EnvironmentSetup):
                  precomputed: dict | None = None, progressive: bool = False):
         if not isinstance(scene, Scene):
             raise InputError(f"expected a warp_sg.Scene, got {type(scene).__name__}", where="scene")
+        scene.render.validate()  # the scene-file model's rule, for settings edited since the Scene was built
         self.scene = scene
         self._ssdf_compute = ssdf_compute
         self._precomputed = precomputed

@@ -21,7 +21,8 @@ from warp_sg.scene.geometry import MESH_SUFFIXES
 #: files that are assets (meshes, glTF), not scenes
 ASSET_SUFFIXES = MESH_SUFFIXES
 from warp_sg.scene.lights import DirectionalLight, EnvironmentLight, PointLight
-from warp_sg.scene.model import COLOUR_PARAMS, Material, RenderSettings, Scene, SceneObject, Transform
+from warp_sg.scene.model import COLOUR_PARAMS, Material, Scene, SceneObject, Transform
+from warp_sg.scene.render_settings import RenderSettings
 from warp_sg.scene.textures import Texture
 
 

@@ -11,8 +11,9 @@ while a scene is typed.
 The schema follows the code, not a copy of it: material tables have one branch per entry of
 ``warp_sg.brdf.MODELS`` with that model's ``PARAMS`` (a discriminated union on ``model``), objects
 one branch per primitive of ``warp_sg.scene.primitives.PRIMITIVE_PARAMS`` (plus ``mesh``), lights one
-per ``type``; defaults come from the records' own dataclass defaults, ``[render]``'s ranges from
-``warp_sg.scene.model.RENDER_INT_RANGES``.
+per ``type``; defaults come from the records' own dataclass defaults, and ``[render]`` is the
+model of :mod:`warp_sg.scene.render_settings` (:func:`~warp_sg.scene.render_settings.render_table`,
+which also checks scenes built in Python).
 
 Leaf values are the types of :mod:`warp_sg.scene.values` (each a check in the project's wording
 and the same rule as JSON Schema); :func:`error_message` turns pydantic's first error into the
@@ -29,15 +30,16 @@ from typing import Annotated, Any, Literal
 from pydantic import ConfigDict, Field, create_model, model_validator
 
 from warp_sg.brdf import MODELS
+from warp_sg.core.suggest import did_you_mean
 from warp_sg.brdf.fresnel import PRESETS
 from warp_sg.scene.camera import Camera
 from warp_sg.scene.sky import procedural_sky
 from warp_sg.scene.importers.gltf import GLTF_SUFFIXES, is_gltf
 from warp_sg.scene.lights import ENV_PROCEDURAL, DirectionalLight, EnvironmentLight, PointLight
 from warp_sg.scene.primitives import PRIMITIVE_PARAMS, PRIMITIVES
-from warp_sg.scene.model import RENDER_CHOICES, RENDER_INT_RANGES, RenderSettings, _suggest
-from warp_sg.scene.values import (Table, anything, boolean, choice, fail, int_or_ints, integer, number, number_or_vector,
-                           path, require_tag, rgb, string, tagged, vector)
+from warp_sg.scene.render_settings import render_table
+from warp_sg.scene.values import (Table, anything, boolean, choice, fail, failure_text, int_or_ints, integer, number,
+                                  number_or_vector, path, require_tag, rgb, string, tagged, vector)
 
 DRAFT = "http://json-schema.org/draft-04/schema#"
 
@@ -257,9 +259,9 @@ def _object_tag(v):
     if not isinstance(v, dict):
         fail(f"must be a table, got {type(v).__name__}")
     if "mesh" not in v and "primitive" not in v:
-        typo = next((k for k in v if _suggest(k, ("mesh", "primitive"))), None)
+        typo = next((k for k in v if did_you_mean(k, ("mesh", "primitive"))), None)
         if typo is not None:
-            fail(f"unknown{_suggest(typo, ('mesh', 'primitive'))}", key=typo)
+            fail(f"unknown{did_you_mean(typo, ('mesh', 'primitive'))}", key=typo)
     if ("mesh" in v) == ("primitive" in v):
         fail("give exactly one of 'mesh' or 'primitive'")
     if "primitive" in v:
@@ -373,52 +375,7 @@ def _light_branch(v) -> str:
 
 LightTable = tagged(LIGHT_MODELS, _light_branch, _light_tag)
 
-_RS = _defaults(RenderSettings)
-#: the one documentation of the ``[render]`` keys (``RenderSettings`` points here)
-_RENDER_DOC = {
-    "shadows": "SSDF soft shadows, eq. 23–31 (off: visibility 1, no SSDF precompute)",
-    "supersampling": "k: raster and shade at k·H × k·W, box-resolved",
-    "antialias": "a: coverage at a×a sub-pixels, shading edge-adaptive: interior pixels once, edge pixels once "
-                 "per triangle they see, weighted by coverage, contrasting pixels at every sub-pixel "
-                 "(1 = off; used when supersampling = 1)",
-    "lobes": "SG lobes of the NDF of isotropic models (anisotropic Ashikhmin-Shirley uses its own 'lobes')",
-    "env_lobes": "SG lobes of the environment for the diffuse term (eq. 39; < 10 in the paper)",
-    "env_peaks": "at most this many sharp environment peaks (a sun) separated from the map and shaded as "
-                 "directional lights (precompute.environment.peaks; 0 = off)",
-    "visibility_budget": "with shadows: refine the mesh where visibility changes, up to this many vertices "
-                         "(precompute.refine_for_visibility; 0 = the mesh as given)",
-    "pca_terms": "SSDF PCA terms (NV)",
-    "ssdf_resolution": "SSDF map resolution",
-    "gamma_levels": "λ levels of the ΓL pyramid (0 = default ladder: λ0 = 0.5 growing by √2 up to the map's "
-                    "resolution)",
-    "gamma_resolution": "largest cube face of the ΓL pyramid",
-    "fh": "Fh: 'table' (exact, tabulated) or 'sigmoid' (paper appendix)",
-    "visibility_sampling": "SSDF of the directions that do not depend on the view (environment lobes, lights) "
-                           "and the diffuse environment sum: 'vertex' (once per vertex, cached, interpolated; "
-                           "warp_sg.shading.vertex_visibility) or 'pixel' (one SSDF lookup per lobe and light per pixel)",
-    "background": "pixels that see no object show the environment",
-    "device": "default device: 'cpu', 'cuda', 'cuda:N' or 'auto'",
-}
-
-
-def _render_type(k):
-    """The type of ``[render]`` key ``k``: its range, its choices, else the type of its default."""
-    doc, default = _RENDER_DOC.get(k, k), _RS[k]
-    if k in RENDER_INT_RANGES:
-        return integer(*RENDER_INT_RANGES[k], description=doc)
-    if k in RENDER_CHOICES:
-        return choice(RENDER_CHOICES[k], doc)
-    if isinstance(default, bool):
-        return boolean(doc)
-    if isinstance(default, int):
-        return integer(description=doc)
-    if isinstance(default, float):
-        return number(description=doc)
-    return string(doc)
-
-
-RenderTable = create_model("RenderTable", __base__=Table, __doc__="Quality settings of the SG renderer.",
-                           **{k: (_render_type(k), _RS[k]) for k in _RS})
+RenderTable = render_table()
 
 
 class SceneFile(Table):
@@ -470,11 +427,7 @@ def error_message(err: dict, data: dict) -> str:
     loc, typ = tuple(err["loc"]), err["type"]
     label, raw, rest = _table_label(data, loc)
     key = _key_path(raw, rest)
-    if typ == "scene":
-        ctx = err["ctx"]
-        key = ".".join(x for x in (key, ctx["key"]) if x)
-        text = f"key '{key}'{ctx['sep']}{ctx['msg']}" if key else ctx["msg"]
-    elif typ == "missing":
+    if typ == "missing":
         if label and not key:
             return f"table {label} is missing"
         text = f"key '{key}' is missing"
@@ -487,8 +440,8 @@ def error_message(err: dict, data: dict) -> str:
         text = f"key '{key}' must not be empty"
     elif typ == "literal_error":
         text = f"key '{key}' must be {err['ctx']['expected']}"
-    else:
-        text = f"key '{key}': {err['msg']}" if key else err["msg"]
+    else:  # a failed check of ours (its words) or another pydantic error
+        text = failure_text(err, key)
     return f"{label} {text}" if label else text
 
 

@@ -67,6 +67,25 @@ def _positive_int(name):
     return conv
 
 
+def _render_key(key):
+    """An option that sets ``[render]`` key ``key``: an integer the scene-file model accepts for it
+    (:func:`warp_sg.scene.render_settings.render_table`, the one rule of the key)."""
+    def conv(s):
+        from warp_sg.scene.render_settings import RenderSettings
+
+        try:
+            v = int(s)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be an integer, got {s!r}") from None
+        try:
+            RenderSettings(**{key: v}).validate()
+        except InputError as e:
+            raise argparse.ArgumentTypeError(str(e)) from None
+        return v
+
+    return conv
+
+
 def _float(s):
     """A finite number (``inf`` and ``nan`` are refused: they make every pixel inf or NaN)."""
     try:
@@ -106,8 +125,8 @@ def add_render_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--print-scene", action="store_true",
                    help="print the scene as TOML (with an asset: the scene made for it; -o optional)")
     add_device_argument(p)
-    p.add_argument("--spp", "--supersampling", dest="supersampling", type=_positive_int("--supersampling"),
-                   default=None, help="supersampling factor k (k×k samples per pixel, box filter)")
+    p.add_argument("--spp", "--supersampling", dest="supersampling", type=_render_key("supersampling"),
+                   default=None, help="[render] supersampling: the factor k (k×k samples per pixel, box filter)")
     p.add_argument("--exposure", type=_float, default=0.0, help="exposure in stops applied before writing (default 0)")
     p.add_argument("--width", type=_positive_int("--width"), default=None, help="override the camera width")
     p.add_argument("--height", type=_positive_int("--height"), default=None, help="override the camera height")

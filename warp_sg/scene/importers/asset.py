@@ -28,7 +28,8 @@ from warp_sg.scene.camera import Camera
 from warp_sg.core.errors import InputError, MeshError
 from warp_sg.scene.importers.gltf import is_gltf, load_gltf
 from warp_sg.scene.lights import EnvironmentLight
-from warp_sg.scene.model import Material, RenderSettings, Scene, SceneObject, Transform
+from warp_sg.scene.model import Material, Scene, SceneObject, Transform
+from warp_sg.scene.render_settings import RenderSettings
 
 #: (azimuth, elevation) of the default view, degrees
 DEFAULT_VIEW = (30.0, 20.0)
