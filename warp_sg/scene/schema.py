@@ -208,7 +208,8 @@ _OBJECT_FIELDS = {
     "name": (string("label used in messages"), None),
     "translate": (vector(description="translation (applied last)"), None),
     "scale": (number_or_vector(3, description="scale: a number or 3 numbers, > 0"), None),
-    "rotate": (vector(description="Euler angles (degrees) about X, then Y, then Z"), None),
+    "rotate": (vector(description="Euler angles (degrees) about X, then Y, then Z: P' = translate + Rz·Ry·Rx·"
+                                  "(scale ⊙ P)"), None),
     "dynamic": (boolean("the object may move after the precompute (Renderer.set_object_transform): its "
                         "self-shadows are kept in its own frame, its shadows on others come from proxies"), None),
 }
@@ -218,7 +219,9 @@ _PRIMITIVE_PARAM_TYPES = {
     "major_radius": number(**_POS, description="radius of the ring (axis +Y)"),
     "minor_radius": number(**_POS, description="radius of the tube"),
     "size": number_or_vector(2, description="[sx, sz] (normal +Y) or one number"),
-    "resolution": int_or_ints(2, description="tessellation: 2 integers (or one for both)"),
+    "resolution": int_or_ints(2, description="tessellation: [n_theta, n_phi] (sphere), [nx, nz] (plane; SSDF "
+                                             "shadows need vertices), [n_major, n_minor] (torus), or one integer "
+                                             "for both"),
 }
 
 

@@ -10,7 +10,7 @@
     warp-sg bench                                  (arguments from warp_sg.tools.bench)
     warp-sg precompute SCENE [--cluster local:N|tcp://HOST:PORT]   (warp_sg.distributed.precompute)
     warp-sg batch JOB.toml [--cluster ...]         (warp_sg.distributed.batch)
-    warp-sg schema [-o FILE]                       (JSON Schema of scene files, warp_sg.scene.schema)
+    warp-sg schema [-o FILE] [--markdown]          (JSON Schema of scene files, warp_sg.scene.schema; or the key reference)
 
 ``render``, ``precompute``, ``report``, ``bench`` and ``batch`` take ``--cluster``: the SSDF precompute
 (and batch / reference work) then runs on Dask (docs/distributed.md); without it Dask is not imported.
@@ -273,15 +273,22 @@ def preview_main(args) -> int:
 def add_schema_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("-o", "--output", default=None,
                    help="write the schema to this file (atomically; missing folders are created) instead of stdout")
+    p.add_argument("--markdown", action="store_true",
+                   help="the reference of every key as Markdown (docs/scene-keys.md) instead of the JSON Schema")
 
 
 def schema_main(args) -> int:
     from warp_sg.scene.json_schema import schema_text, write_schema
 
+    text = None
+    if args.markdown:
+        from warp_sg.scene.key_reference import keys_markdown
+
+        text = keys_markdown()
     if args.output:
-        write_schema(args.output)
+        write_schema(args.output, text)
     else:
-        sys.stdout.write(schema_text())
+        sys.stdout.write(text or schema_text())
     return 0
 
 
@@ -314,9 +321,10 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                                    "l next light, h hide widgets. --screenshot PNG renders off-screen.")
     add_preview_arguments(p)
     p.set_defaults(func=preview_main)
-    p = sub.add_parser("schema", help="print the JSON Schema of scene files (for editors)",
+    p = sub.add_parser("schema", help="print the JSON Schema of scene files (for editors), or their key reference",
                        description="Print the JSON Schema (Draft 4) of the TOML scene format, for editors' TOML "
-                                   "language servers (Taplo / Even Better TOML): see docs/rendering.md, \"Editor completion and validation\".")
+                                   "language servers (Taplo / Even Better TOML): see docs/rendering.md, \"Editor completion and validation\"; "
+                                   "with --markdown the reference of every key (docs/scene-keys.md).")
     add_schema_arguments(p)
     p.set_defaults(func=schema_main)
     for name, (mod, help_) in EXTERNAL.items():
