@@ -27,7 +27,8 @@ class BRDF:
     NAME = "base"
     #: the kernel code (``Material.model``), unique per registered model
     CODE = -1
-    PARAMS: tuple[str, ...] = ()
+    #: the scene-file parameters, ``{name: warp_sg.brdf.params.Param}`` (in constructor order)
+    PARAMS: dict = {}
     #: the kernel side (:class:`warp_sg.brdf.registry.Kernel`), set by the model's module
     KERNEL = None
     is_specular = False

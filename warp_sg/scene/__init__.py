@@ -48,7 +48,7 @@ in :mod:`warp_sg.scene.camera`.
 from warp_sg.scene.camera import Camera
 from warp_sg.scene.geometry import Geometry, build_geometry, object_mesh, uv_tangents, validate_mesh, vertex_normals
 from warp_sg.scene.lights import DirectionalLight, EnvironmentLight, PointLight
-from warp_sg.scene.model import COLOUR_PARAMS, NON_TEXTURE_PARAMS, Light, Material, Scene, SceneObject, Transform
+from warp_sg.scene.model import COLOUR_PARAMS, Light, Material, Scene, SceneObject, Transform
 from warp_sg.scene.render_settings import RenderSettings
 from warp_sg.scene.loader import load_scene
 from warp_sg.scene.textures import Texture

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from pydantic import ValidationError
 
+from warp_sg.brdf import MODELS
 from warp_sg.scene.camera import Camera
 from warp_sg.brdf.energy import energy_excess
 from warp_sg.core.errors import ImageError, InputError, InputWarning, SceneError
@@ -86,8 +87,6 @@ class _Builder:
         return tex
 
     def materials(self, raw: dict) -> dict:
-        from warp_sg.scene.schema import param_type
-
         out = {}
         for name, md in raw.items():
             tab = f"[materials.{name}]"
@@ -98,7 +97,7 @@ class _Builder:
                     continue
                 if k == "file":
                     params[k] = str(self.file(tab, k, v))
-                elif param_type(model, k)[2] and isinstance(v, (str, dict)):
+                elif MODELS[model].PARAMS[k].texture and isinstance(v, (str, dict)):
                     textures[k] = self.texture(tab, k, v, colour=k in COLOUR_PARAMS)
                 else:
                     params[k] = v  # as written: the BRDF model reads it

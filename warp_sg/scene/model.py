@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from warp_sg.brdf import MODELS
 from warp_sg.scene.camera import Camera
 from warp_sg.core.errors import SceneError
 from warp_sg.core.suggest import did_you_mean
@@ -95,9 +96,8 @@ class SceneObject:
         return self.name or (Path(self.mesh).name if self.mesh is not None else self.primitive) or f"objects[{index}]"
 
 
-#: Parameters that are RGB colours (others are scalars); parameters that cannot be textures.
-COLOUR_PARAMS = ("kd", "ks")
-NON_TEXTURE_PARAMS = ("fresnel", "lobes", "file")
+#: Parameters that are RGB colours (others are scalars): those the models declare so (``Param.kind``)
+COLOUR_PARAMS = tuple(dict.fromkeys(k for cls in MODELS.values() for k, p in cls.PARAMS.items() if p.kind == "rgb"))
 
 
 @dataclass
@@ -240,4 +240,4 @@ def _expand_assets(objects: list, materials: dict, where: str) -> tuple[list, di
     return out, mats
 
 
-__all__ = ["Scene", "SceneObject", "Material", "Transform", "Light", "COLOUR_PARAMS", "NON_TEXTURE_PARAMS"]
+__all__ = ["Scene", "SceneObject", "Material", "Transform", "Light", "COLOUR_PARAMS"]

@@ -9,7 +9,9 @@ editors with a TOML language server (Taplo / "Even Better TOML") complete keys a
 while a scene is typed.
 
 The schema follows the code, not a copy of it: material tables have one branch per entry of
-``warp_sg.brdf.MODELS`` with that model's ``PARAMS`` (a discriminated union on ``model``), objects
+``warp_sg.brdf.MODELS`` with that model's ``PARAMS`` (a discriminated union on ``model``; each
+parameter's kind, bound, meaning and texture rule as the model declares it,
+:mod:`warp_sg.brdf.params`), objects
 one branch per primitive of ``warp_sg.scene.primitives.PRIMITIVE_PARAMS`` (plus ``mesh``), lights one
 per ``type``; defaults come from the records' own dataclass defaults, and ``[render]`` is the
 model of :mod:`warp_sg.scene.render_settings` (:func:`~warp_sg.scene.render_settings.render_table`,
@@ -107,42 +109,26 @@ class LafortuneLobe(Table):
     n: number(lo=0, description="exponent (sharpness)")
 
 
-# material parameters: (type, description, texturable); per-model entries override per-name ones
-_POS, _NONNEG = dict(lo=0, lo_open=True), dict(lo=0)
-PARAM_TYPES: dict = {
-    "kd": (rgb(raw=True), "diffuse albedo (number or RGB)", True),
-    "ks": (rgb(raw=True), "specular scale (number or RGB)", True),
-    "m": (number(**_POS), "roughness m (Beckmann slope RMS)", True),
-    "n": (number(**_NONNEG), "Phong exponent", True),
-    "sigma": (number(**_NONNEG), "Oren–Nayar roughness σ (radians)", True),
-    "alpha": (number(**_POS), "isotropic roughness α", True),
-    "alpha_x": (number(**_POS), "roughness along the tangent", True),
-    "alpha_y": (number(**_POS), "roughness along the bitangent", True),
-    "nu": (number(**_NONNEG), "exponent along the tangent", True),
-    "nv": (number(**_NONNEG), "exponent along the bitangent", True),
-    "fresnel": (FRESNEL, "Fresnel: a preset (" + ", ".join(PRESETS) + ") or {schlick}, {eta} or {eta, k}", False),
-    "lobes": (integer(lo=1), "number of SG lobes of the NDF fit", False),
-    "file": (path(), "MERL .binary file, relative to the scene file", False),
-    "eta": (number(**_POS), "index of refraction used for the microfacet fit", False),
-    "pca_terms": (integer(lo=0), "PCA terms of the shadowing fit", False),
-    ("ashikhmin_shirley", "lobes"): (integer(lo=1, odd=True), "number of SG lobes (odd) along the longer axis",
-                                     False),
-    ("ggx", "lobes"): (integer(lo=1), "number of NDF SG lobes (default 3 isotropic, 9 anisotropic; odd when "
-                       "anisotropic)", False),
-    ("ggx", "alpha"): (number(**_POS), "isotropic roughness α (glTF: roughness²; default 0.3)", True),
-    ("lafortune", "lobes"): (Annotated[list[LafortuneLobe], Field(min_length=1)],
-                             "lobes: a list of {cx, cy, cz, n} tables", False),
-}
-#: parameters that may be a texture (the kernel's texture slots, ``warp_sg.shading.surface``)
-TEXTURE_PARAMS = tuple(k for k, v in PARAM_TYPES.items() if isinstance(k, str) and v[2])
+_POS = dict(lo=0, lo_open=True)
 
 
-def param_type(model: str, name: str):
-    """(type, description, texturable) of material parameter ``name`` of ``model``."""
-    spec = PARAM_TYPES.get((model, name)) or PARAM_TYPES.get(name)
-    if spec is None:  # a parameter the schema does not know yet: a number or a texture
-        spec = (number(), f"parameter {name} of {model}", True)
-    return spec
+def param_value(param):
+    """The value type of a model parameter (a :class:`warp_sg.brdf.params.Param` of ``PARAMS``)."""
+    if param.kind == "rgb":
+        return rgb(raw=True)
+    if param.kind == "number":
+        return number(lo=param.lo, lo_open=param.lo_open)
+    if param.kind == "integer":
+        return integer(lo=param.lo, odd=param.odd)
+    if param.kind == "fresnel":
+        return FRESNEL
+    if param.kind == "file":
+        return path()
+    return Annotated[list[LafortuneLobe], Field(min_length=1)]  # "lafortune_lobes"
+
+
+#: parameters that may be a texture, over every model (the kernel's texture slots, ``warp_sg.shading.surface``)
+TEXTURE_PARAMS = tuple(dict.fromkeys(k for cls in MODELS.values() for k, p in cls.PARAMS.items() if p.texture))
 
 
 def _jsonable(v):
@@ -156,11 +142,11 @@ def _material_model(name: str, cls):
     constructor) plus ``normal_map`` and ``tangent_map``."""
     sig = inspect.signature(cls.__init__).parameters
     fields_ = {"model": (Literal[name], Field(description=f"BRDF model {cls.__name__}"))}
-    for p in cls.PARAMS:
-        typ, desc, tex = param_type(name, p)
+    for p, param in cls.PARAMS.items():
+        typ, desc = param_value(param), param.description
         d = sig[p].default if p in sig else None
         extra = {"default": _jsonable(d)} if d not in (None, inspect.Parameter.empty) else None
-        typ = _texture_or(typ, desc) if tex else Annotated[typ, Field(description=desc)]
+        typ = _texture_or(typ, desc) if param.texture else Annotated[typ, Field(description=desc)]
         fields_[p] = (typ, Field(None, json_schema_extra=extra))
     for p, desc in (("normal_map", "tangent-space normal map (RGB)"),
                     ("tangent_map", "tangent direction map (RG)")):
@@ -449,5 +435,5 @@ def error_message(err: dict, data: dict) -> str:
 
 
 __all__ = ["SceneFile", "CameraTable", "RenderTable", "TextureTable", "FresnelTable", "MATERIAL_MODELS",
-           "OBJECT_MODELS", "LIGHT_MODELS", "PARAM_TYPES", "TEXTURE_PARAMS", "param_type", "error_message",
+           "OBJECT_MODELS", "LIGHT_MODELS", "TEXTURE_PARAMS", "param_value", "error_message",
            "DRAFT"]

@@ -43,6 +43,8 @@ with overlap-normalised amplitudes, fitted lobes rescaled by the curvature ratio
 and visible-normal sampling (cosine samples for ``n·o ≤ 0``).
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the @wp.func annotations.
+from dataclasses import replace
+
 import numpy as np
 import warp as wp
 
@@ -53,6 +55,7 @@ from ..kernel.material_eval_wp import (_aniso_overlap, aniso_axis, fresnel_eval,
                                 ggx_table_lobe, half_vec)
 from ..kernel.material_sample_wp import cosine_dir, ggx_pdf_i, ggx_vndf_h, reflect_about
 from ..kernel.material_struct import INV_PI, PI, Material
+from ..params import ALPHA_X, ALPHA_Y, FRESNEL, KD, KS, Param
 from ..registry import Kernel, register
 
 #: default number of NDF lobes (isotropic; see docs/ggx.md for the error against lobe count)
@@ -250,7 +253,13 @@ class GGX(SpecularBRDF):
     CODE = 10
     KERNEL = Kernel(ndf=ggx_ndf, mo=ggx_mo, analytic_lobe=ggx_lobe, table_lobe=ggx_fitted_lobe, sample=ggx_sample,
                     pdf=ggx_pdf)
-    PARAMS = ("kd", "ks", "alpha", "alpha_x", "alpha_y", "fresnel", "lobes")
+    PARAMS = {"kd": KD, "ks": KS,
+              "alpha": Param("number", "isotropic roughness α (glTF: roughness²; default 0.3)", lo=0, lo_open=True,
+                             texture=True, slider=(0.01, 1.0)),
+              "alpha_x": replace(ALPHA_X, slider=(0.01, 1.0)), "alpha_y": replace(ALPHA_Y, slider=(0.01, 1.0)),
+              "fresnel": FRESNEL,
+              "lobes": Param("integer", "number of NDF SG lobes (default 3 isotropic, 9 anisotropic; odd when "
+                             "anisotropic)", lo=1)}
 
     def __init__(self, kd=(0.0, 0.0, 0.0), ks=(1.0, 1.0, 1.0), alpha=None, alpha_x=None, alpha_y=None,
                  fresnel=None, lobes=None):

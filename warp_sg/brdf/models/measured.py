@@ -71,6 +71,7 @@ from ..fitting.measured_fit import (  # noqa: F401  (the fit, re-exported)
     eq11, fit_microfacet, fit_ndf_sg, fit_ndf_sg_anisotropic, sg_mixture, shadowing_basis,
 )
 from ..kernel.measured_wp import measured_mo, merl_eval
+from ..params import Param
 from ..registry import Kernel, register
 
 
@@ -155,7 +156,10 @@ class Measured(SpecularBRDF):
     CODE = 9
     KERNEL = Kernel(ndf=measured_ndf, mo=measured_mo_of, eval=measured_eval, sample=measured_sample,
                     pdf_h=measured_pdf_h)
-    PARAMS = ("file", "lobes", "eta", "pca_terms")
+    PARAMS = {"file": Param("file", "MERL .binary file, relative to the scene file"),
+              "lobes": Param("integer", "number of SG lobes of the NDF fit", lo=1),
+              "eta": Param("number", "index of refraction used for the microfacet fit", lo=0, lo_open=True),
+              "pca_terms": Param("integer", "PCA terms of the shadowing fit", lo=0)}
 
     def __init__(self, file=None, lobes=1, eta=1.33, pca_terms=8, *, table=None, cache=True):
         if (file is None) == (table is None):
