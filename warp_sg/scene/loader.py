@@ -14,17 +14,18 @@ from pathlib import Path
 from pydantic import ValidationError
 
 from warp_sg.brdf import MODELS
-from warp_sg.scene.camera import Camera
 from warp_sg.brdf.energy import energy_excess
 from warp_sg.core.errors import ImageError, InputError, InputWarning, SceneError
+from warp_sg.scene.camera import Camera
 from warp_sg.scene.geometry import MESH_SUFFIXES
+from warp_sg.scene.lights import DirectionalLight, EnvironmentLight, PointLight
+from warp_sg.scene.model import COLOUR_PARAMS, Material, Scene, SceneObject, Transform
+from warp_sg.scene.primitives import PRIMITIVE_PARAMS
+from warp_sg.scene.render_settings import RenderSettings
+from warp_sg.scene.textures import Texture
 
 #: files that are assets (meshes, glTF), not scenes
 ASSET_SUFFIXES = MESH_SUFFIXES
-from warp_sg.scene.lights import DirectionalLight, EnvironmentLight, PointLight
-from warp_sg.scene.model import COLOUR_PARAMS, Material, Scene, SceneObject, Transform
-from warp_sg.scene.render_settings import RenderSettings
-from warp_sg.scene.textures import Texture
 
 
 class _Builder:
@@ -59,8 +60,7 @@ class _Builder:
             tab = f"[[objects]] #{i + 1}"
             given = ob.model_dump(exclude_unset=True)
             prim = given.get("primitive")
-            params = {k: v for k, v in given.items() if k in type(ob).model_fields and k not in
-                      ("mesh", "primitive", "material", "name", "translate", "scale", "rotate", "dynamic")}
+            params = {k: v for k, v in given.items() if prim is not None and k in PRIMITIVE_PARAMS[prim]}
             tr = Transform()
             if "translate" in given:
                 tr.translate = given["translate"]
