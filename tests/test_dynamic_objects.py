@@ -155,7 +155,8 @@ def _self_shadow_agreement(r, la, R):
 def _one_object_scene(ob, la):
     from warp_sg.scene.camera import Camera
     from warp_sg.scene.lights import DirectionalLight
-    from warp_sg.scene.model import Material, RenderSettings, Scene
+    from warp_sg.scene.model import Material, Scene
+    from warp_sg.scene.render_settings import RenderSettings
 
     return Scene(camera=Camera(origin=(0, 2, 4), target=(0, 0.5, 0), up=(0, 1, 0), fov=40, width=16, height=16),
                  objects=[ob], materials={"m": Material("lambert", {"kd": [0.6, 0.6, 0.6]})},

@@ -30,7 +30,8 @@ from warp_sg.scene.importers import brings_materials
 from warp_sg.scene.importers.gltf import is_gltf, load_gltf
 from warp_sg.scene.importers.usd import is_usd, load_usd
 from warp_sg.scene.lights import EnvironmentLight
-from warp_sg.scene.model import Material, RenderSettings, Scene, SceneObject, Transform
+from warp_sg.scene.model import Material, Scene, SceneObject, Transform
+from warp_sg.scene.render_settings import RenderSettings
 
 #: (azimuth, elevation) of the default view, degrees
 DEFAULT_VIEW = (30.0, 20.0)
