@@ -18,7 +18,9 @@ on the device (:func:`compute_ssdf`; the kernels of steps 2–5 are :mod:`precom
 3. **jump flooding** (Rong & Tan 2006) on the concentric grid with the angular metric: passes with
    steps R/2, R/4, …, 1, then 2, 1 again ("JFA+2"); each texel keeps, among the seeds held by its
    8 neighbours at the current step and itself, the one with the largest dot product. Cost
-   O(R² log R) per vertex, not O(R⁴);
+   O(R² log R) per vertex, not O(R⁴). When the rays are cast finer than the stored grid (the
+   default 64² → 32²) the flooding runs on the stored grid over seed texels and a local pass
+   brings each ray texel its nearest seed (:mod:`precompute.visibility.jump_flood`, "Coarse-to-fine");
 4. signed distance ``±arccos(d·seed)`` with true angles; visible texels also take ``min`` with their
    elevation ``asin(z)`` (the horizon is a boundary); values are clamped to [−π/2, π/2] (a texel
    with nothing visible anywhere gets −π/2; ``fh`` ratios below −π/2 are ≤ e^{−λ} anyway);
@@ -44,7 +46,8 @@ from warp_sg.numeric.pca import pca
 from warp_sg.core.stage_clock import StageClock, thread_cpu
 
 from precompute.visibility.adaptive_rays import adaptive_visibility, levels
-from precompute.visibility.jump_flood import downsample_kernel, jfa_kernel, jfa_steps, seed_kernel, signed_kernel
+from precompute.visibility.jump_flood import (coarse_seed_kernel, downsample_kernel, fine_seed_kernel, jfa_kernel,
+                                             jfa_steps, jfa_texel_kernel, seed_kernel, signed_kernel)
 from precompute.visibility.occluder_cone import occluder_cones
 from precompute.visibility.ssdf_wp import texel_directions
 from precompute.visibility.rays import OFFSET_SCALE, _MeshContext, _tqdm, launch_visibility, run_batches, validate_mesh
@@ -83,15 +86,47 @@ def _check_resolutions(resolution, ray_resolution):
                          f"({resolution})", where="ray_resolution")
 
 
+_COARSE_DIRS: dict = {}
+
+
+def _coarse_dirs(R, device):
+    """The ``R²`` texel directions of the stored grid (the coarse search's cells), on ``device``."""
+    key = (int(R), str(device))
+    if key not in _COARSE_DIRS:
+        _COARSE_DIRS[key] = wp.array(texel_directions(R).reshape(-1, 3).astype(np.float32), dtype=wp.vec3,
+                                     device=device)
+    return _COARSE_DIRS[key]
+
+
+def _nearest_seeds(a, dirs, Rr, R, device):
+    """The nearest boundary point of every ray texel, from the seeds ``a`` (B, Rr²): jump flooding at
+    ``Rr²``, or, when ``Rr = f·R`` with f ≥ 2, the coarse-to-fine search of
+    :mod:`precompute.visibility.jump_flood` (flooding on the ``R²`` grid, then a local fine pass)."""
+    B, N = int(a.shape[0]), Rr * Rr
+    b = wp.empty((B, N), dtype=wp.vec3, device=device)
+    if Rr == R:
+        for step in jfa_steps(Rr):
+            wp.launch(jfa_kernel, dim=(B, N), device=device, inputs=[a, dirs, Rr, step, b])
+            a, b = b, a
+        return a
+    f, M = Rr // R, R * R
+    cdirs = _coarse_dirs(R, device)
+    ca = wp.empty((B, M), dtype=int, device=device)
+    cb = wp.empty((B, M), dtype=int, device=device)
+    wp.launch(coarse_seed_kernel, dim=(B, M), device=device, inputs=[a, cdirs, R, f, ca])
+    for step in jfa_steps(R):
+        wp.launch(jfa_texel_kernel, dim=(B, M), device=device, inputs=[ca, a, cdirs, R, step, cb])
+        ca, cb = cb, ca
+    wp.launch(fine_seed_kernel, dim=(B, N), device=device, inputs=[a, ca, dirs, Rr, f, b])
+    return b
+
+
 def _fit_maps(vis, dirs, Rr, R, device):
     """(B, R²) SSDFs of the (B, Rr²) visibility maps ``vis`` (steps 2–5 of the module docstring)."""
     B, N = int(vis.shape[0]), Rr * Rr
     a = wp.empty((B, N), dtype=wp.vec3, device=device)
-    b = wp.empty((B, N), dtype=wp.vec3, device=device)
     wp.launch(seed_kernel, dim=(B, N), device=device, inputs=[vis, dirs, Rr, a])
-    for step in jfa_steps(Rr):
-        wp.launch(jfa_kernel, dim=(B, N), device=device, inputs=[a, dirs, Rr, step, b])
-        a, b = b, a
+    a = _nearest_seeds(a, dirs, Rr, R, device)
     sd = wp.empty((B, N), dtype=float, device=device)
     wp.launch(signed_kernel, dim=(B, N), device=device, inputs=[vis, a, dirs, sd])
     if Rr != R:
