@@ -7,9 +7,10 @@ from one precompute each, by ``Renderer.set_object_transform``.
 * ``ball``: ``examples/rolling.toml`` — a ball (``dynamic = true``) rolls 2.4 m across a floor of
   two triangles under the procedural sun-sky, without slipping (it turns by distance/radius about
   the axis up × direction), drifting a little sideways.
-* ``turntable``: the lumpy blob of ``examples/assets`` (it shadows itself) turns once on a
-  turntable, on the same floor under the sky EXR with a sun of :mod:`warp_sg.scene.plain_scenes` (no
-  bunny ships with the project; the blob's self-shadows turn with it).
+* ``turntable``: the Stanford bunny (the USD file that ships with warp-lang, 12 200 triangles, read
+  by :mod:`warp_sg.scene.importers.usd`; needs ``pip install warp-sg[usd]``) turns once on a turntable,
+  on the same floor under the sky EXR with a sun of :mod:`warp_sg.scene.plain_scenes`, scaled to
+  0.97 m and set on the floor; its self-shadows (ears, head, haunch) turn with it.
 
 Writes ``ball_000.png`` ..., ``turntable_000.png`` ... and prints each frame's time next to a
 static frame's. ``--reference SPP``: also the Monte-Carlo reference of the middle frame of each
@@ -42,7 +43,7 @@ def ball_poses(n: int):
 
 
 def turntable_poses(n: int):
-    """The blob turned once about the vertical axis through its centre (0, 0.5, 0)."""
+    """The bunny turned once about the vertical axis through its centre (0, 0.5, 0)."""
     for a in np.linspace(0.0, 360.0, n, endpoint=False):
         yield motion_about(rotation_about([0.0, 1.0, 0.0], a), [0.0, 0.5, 0.0])
 
@@ -96,7 +97,7 @@ def main(argv=None) -> int:
                  args.reference, args.device)
     if args.only in (None, "turntable"):
         with tempfile.TemporaryDirectory() as tmp:
-            scene = ws.load_scene(write_plain_scene(tmp, obj="blob", light="sky", size=args.size, dynamic=True))
+            scene = ws.load_scene(write_plain_scene(tmp, obj="bunny", light="sky", size=args.size, dynamic=True))
             sequence("turntable", scene, turntable_poses(args.frames), out, args.size, args.reference, args.device)
     return 0
 

@@ -44,7 +44,7 @@ def shading_variants():
            "emission": False, "occlusion": False, "coat": False, "vertex_colors": False, "cutouts": False,
            "moving": False}
     variants = [full] + [replace(full, **{f.name: off[f.name]}) for f in fields(S.Features)]
-    # material-model variants (brdf.material_variants): Oren–Nayar, Cook–Torrance, Lafortune,
+    # material-model variants (brdf.kernel.material_variants): Oren–Nayar, Cook–Torrance, Lafortune,
     # measured, GGX, and Lambert + Blinn–Phong + Ward + Ashikhmin–Shirley
     variants += [replace(full, models=ms) for ms in ((1,), (4,), (8,), (9,), (10,), (0, 3, 6, 7))]
     # the per-vertex diffuse environment sum needs ρd = kd/π and no normal maps (shading.EVTX)

@@ -1,6 +1,6 @@
 """GGX NDF SG fits: error against lobe count for α ∈ [0.01, 1] (supplement Fig. 3 style).
 
-For each α and K = 1..4 lobes — ``fit``: the least-squares fit of :mod:`warp_sg.brdf.fit` at that α
+For each α and K = 1..4 lobes — ``fit``: the least-squares fit of :mod:`warp_sg.brdf.fitting.fit` at that α
 (non-negative amplitudes; K = 1: λ with μ = 1); ``table``: the shipped node fits interpolated at α
 (:func:`warp_sg.brdf.models.ggx.table_lobes`, what the renderer uses); ``taylor``: the single lobe
 λ = 4/α² − 4 — two errors:
@@ -26,7 +26,7 @@ from tqdm import tqdm
 
 from warp_sg.core.files import atomic_output
 from warp_sg.brdf import GGX
-from warp_sg.brdf.fit import eq11_error
+from warp_sg.brdf.fitting.fit import eq11_error
 from warp_sg.brdf.helpers import half_vector
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -1,7 +1,7 @@
-"""Generate ``warp_sg/brdf/ggx_lobe_table.py``: the isotropic GGX NDF SG fits at roughness nodes.
+"""Generate ``warp_sg/brdf/fitting/ggx_lobe_table.py``: the isotropic GGX NDF SG fits at roughness nodes.
 
 For every node α = 0.025, 0.05, ..., 0.975 and K = 1..4 lobes, the least-squares fit of
-:mod:`warp_sg.brdf.fit` (non-negative amplitudes; K = 1: λ with μ = 1) of ``D̂ = 1/(cos²θ +
+:mod:`warp_sg.brdf.fitting.fit` (non-negative amplitudes; K = 1: λ with μ = 1) of ``D̂ = 1/(cos²θ +
 sin²θ/α²)²``, stored as the normalised sharpness ``λk/(1/α² − 1)`` and the amplitude ``μk``.
 :func:`warp_sg.brdf.models.ggx.table_lobes` and the kernel (``material_eval_wp.ggx_table_lobe``)
 interpolate them linearly in α, so per-texel (textured) roughness gets fitted lobes.
@@ -20,7 +20,7 @@ from warp_sg.core.files import atomic_output
 from warp_sg.brdf.models.ggx import GGX, TABLE_A0, TABLE_N, TABLE_STEP, node_fit
 
 ROOT = Path(__file__).resolve().parents[1]
-OUT = ROOT / "warp_sg" / "brdf" / "ggx_lobe_table.py"
+OUT = ROOT / "warp_sg" / "brdf" / "fitting" / "ggx_lobe_table.py"
 
 
 def main():

@@ -42,7 +42,8 @@ def fps() -> int:
     import warp_sg as ws
     from warp_sg.scene.lights import EnvironmentLight, PointLight
     from warp_sg.scene.camera import Camera
-    from warp_sg.scene.model import RenderSettings, Scene, SceneObject
+    from warp_sg.scene.model import Scene, SceneObject
+    from warp_sg.scene.render_settings import RenderSettings
 
     knot = trimesh.creation.torus(major_radius=0.6, minor_radius=0.25, major_sections=1000, minor_sections=500)
     V, F = np.asarray(knot.vertices), np.asarray(knot.faces)

@@ -6,7 +6,7 @@ Builds the CUDA PTX of the shading kernel (``warp_sg.shading.kernel.shade_kernel
 the features of ``examples/cook_torrance.toml`` (environment SG diffuse and prefiltered specular, a
 light, SSDF shadows, per-vertex environment visibility) and of its all-Lambert version, each as the
 generic all-model kernel and as the variant specialised to the scene's material models
-(``brdf.material_variants``), and reports what ``ptxas -v`` allocates for each: registers per
+(``brdf.kernel.material_variants``), and reports what ``ptxas -v`` allocates for each: registers per
 thread, spill stores / loads and stack bytes. Needs ``ptxas`` on the PATH (CUDA toolkit). A
 static figure, not a timing: fewer spills and less stack mean less local-memory traffic per
 thread; the frame-time effect needs a GPU run.
@@ -63,7 +63,7 @@ def main(argv=None) -> int:
     wp.config.quiet = True
     wp.init()
     from warp_sg.shading import kernel as S
-    from warp_sg.brdf.material_variants import ALL_MODELS
+    from warp_sg.brdf.kernel.material_variants import ALL_MODELS
 
     ct = S.Features(env_diffuse=S.ENV_SG, env_specular=S.ENV_PREFILTERED, lights=True, specular=True, shadows=True,
                     env_vis_vertex=True, models=(0, 4))

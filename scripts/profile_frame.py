@@ -14,7 +14,7 @@ For each scene: precompute once, then
 * **shading parts** (process CPU time of a re-shade, visibility buffer reused): the full kernel
   and the kernel variants without shadows, environment diffuse, environment specular and local
   lights; the difference divided by the number of lobes (or lights) is the cost of one lobe;
-* **material-model variants** (``brdf.material_variants``): the re-shade CPU time of the kernel
+* **material-model variants** (``brdf.kernel.material_variants``): the re-shade CPU time of the kernel
   specialised to the scene's material models against the generic all-model kernel (measured
   alternately, best of each), and the CPU time to compile each (a real compile only with an empty
   Warp kernel cache: ``--kernel-cache`` names a fresh folder).
@@ -126,7 +126,7 @@ def profile(path, size, repeat, visibility_sampling=None):
 
 
 def _generic(f):
-    from warp_sg.brdf.material_variants import ALL_MODELS
+    from warp_sg.brdf.kernel.material_variants import ALL_MODELS
 
     return replace(f, models=tuple(sorted(ALL_MODELS)))
 

@@ -93,7 +93,7 @@ def fig2(out, quick):
 
 def fig3(out, quick):
     import warp_sg.brdf as B
-    from warp_sg.brdf.fit import fit_error
+    from warp_sg.brdf.fitting.fit import fit_error
 
     plt = _plt()
     kw = dict(n_o=8, n_th=48, n_ph=32) if quick else dict(n_o=24)
@@ -124,7 +124,7 @@ def fig3(out, quick):
 
 def fig9(out, quick):
     import warp_sg.brdf as B
-    from warp_sg.brdf.fit import fit_error, warp_error
+    from warp_sg.brdf.fitting.fit import fit_error, warp_error
 
     plt = _plt()
     kw = dict(n_o=8, n_th=48, n_ph=32) if quick else dict(n_o=24)

@@ -1,4 +1,4 @@
-"""The environment specular's energy correction (``warp_sg.brdf.albedo``): in a white furnace (a
+"""The environment specular's energy correction (``warp_sg.brdf.kernel.albedo``): in a white furnace (a
 constant environment, a lone sphere: nothing occludes) the SG render of every glossy model equals
 the Monte-Carlo reference, which samples the exact BRDF — per ring of view angles, from normal to
 grazing views. Before the correction the warped slice was off by up to −19 % / +12 % (GGX
@@ -12,7 +12,8 @@ from warp_sg.groundtruth.region_error import box_reference
 from warp_sg.renderer.renderer import Renderer
 from warp_sg.scene.camera import Camera
 from warp_sg.scene.lights import EnvironmentLight
-from warp_sg.scene.model import Material, RenderSettings, Scene, SceneObject
+from warp_sg.scene.model import Material, Scene, SceneObject
+from warp_sg.scene.render_settings import RenderSettings
 from warp_sg.scene.textures import Texture
 
 MODELS = {

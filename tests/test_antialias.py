@@ -8,7 +8,8 @@ import pytest
 import warp_sg as ws
 from warp_sg.scene.lights import DirectionalLight, EnvironmentLight
 from warp_sg.scene.camera import Camera
-from warp_sg.scene.model import RenderSettings, Scene, SceneObject
+from warp_sg.scene.model import Scene, SceneObject
+from warp_sg.scene.render_settings import RenderSettings
 
 
 def _scene(**render):

@@ -7,7 +7,7 @@ import pytest
 import warp as wp
 
 import warp_sg.brdf as B
-from warp_sg.brdf import material_wp as M
+from warp_sg.brdf.kernel import material_wp as M
 
 
 def all_models():

@@ -14,11 +14,12 @@ import pytest
 import warp as wp
 
 from warp_sg import brdf as B
-from warp_sg.brdf import material_wp as M
+from warp_sg.brdf.kernel import material_wp as M
 from warp_sg.brdf import registry
 from warp_sg.brdf.base import SpecularBRDF, as_rgb, as_scalar, dirs, half_vector
-from warp_sg.brdf.material_eval_wp import cos_pow, log_cos_theta
-from warp_sg.brdf.material_sample_wp import reflect_about
+from warp_sg.brdf.params import KD, KS, Param
+from warp_sg.brdf.kernel.material_eval_wp import cos_pow, log_cos_theta
+from warp_sg.brdf.kernel.material_sample_wp import reflect_about
 from warp_sg.core.errors import InputError
 
 TWO_PI = 2.0 * np.pi
@@ -61,7 +62,7 @@ def _free_code():
 
 class NormalisedBlinnPhong(SpecularBRDF):
     NAME = "normalised_blinn_phong_test"
-    PARAMS = ("kd", "ks", "n")
+    PARAMS = {"kd": KD, "ks": KS, "n": Param("number", "exponent", lo=0, texture=True)}
     KERNEL = registry.Kernel(ndf=_nbp_ndf, mo=_nbp_mo, analytic_lobe=_nbp_lobe, sample=_nbp_sample, pdf_h=_nbp_pdf_h)
 
     def __init__(self, kd=(0.0, 0.0, 0.0), ks=(1.0, 1.0, 1.0), n=30.0):
@@ -200,6 +201,26 @@ def test_the_registry_refuses_a_taken_name_or_code_and_a_model_without_kernel():
     with pytest.raises(ValueError, match="KERNEL"):
         registry.register(NoKernel)
     assert "code_clash_test" not in B.MODELS and "no_kernel_test" not in B.MODELS
+
+
+def test_the_registry_refuses_parameters_that_are_not_declared_params():
+    from dataclasses import replace
+
+    class TupleParams(NormalisedBlinnPhong):
+        NAME = "tuple_params_test"
+        PARAMS = ("kd", "ks", "n")  # names without their declarations
+
+    class DanglingAlternative(NormalisedBlinnPhong):
+        NAME = "dangling_alternative_test"
+        PARAMS = {"kd": KD, "n_x": replace(KS, instead_of="n_iso")}
+
+    for cls, words in ((TupleParams, "PARAMS must be a dict"), (DanglingAlternative, "instead of 'n_iso'")):
+        cls.CODE = _free_code()
+        with pytest.raises(ValueError, match=words):
+            registry.register(cls)
+        assert cls.NAME not in B.MODELS
+    with pytest.raises(ValueError, match="kind"):
+        Param("colour", "not a kind")
 
 
 def test_every_shipped_model_declares_its_kernel_and_a_distinct_code():

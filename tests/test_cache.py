@@ -173,7 +173,7 @@ def test_cached_producers_key_on_a_code_hash_not_a_version_number():
     import precompute.environment.prefilter as pf
     import precompute.visibility.refine as rf
     import precompute.visibility.ssdf as ss
-    from warp_sg.brdf import measured_fit as mf
+    from warp_sg.brdf.fitting import measured_fit as mf
 
     keys = {pf: pf._VERSION, ei: ei._VERSION, es: es._VERSION, rf: rf._VERSION, ss: ss.SSDF_VERSION,
             mf: mf.FIT_VERSION}

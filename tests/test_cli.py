@@ -111,6 +111,8 @@ def test_help_and_usage_errors(capsys):
     assert rc == 2 and "scene" in err
     rc, _, err = run(["render", "x.toml", "-o", "y.png", "--spp", "0"], capsys)
     assert rc == 2 and "--supersampling" in err
+    rc, _, err = run(["render", "x.toml", "-o", "y.png", "--spp", "17"], capsys)  # the [render] key's range
+    assert rc == 2 and "--supersampling" in err and "must be in [1, 16], got 17" in err
 
 
 def test_missing_scene_file_and_bad_device_exit_2(scene_file, tmp_path, capsys):

@@ -19,7 +19,8 @@ from warp_sg.scene.envmap import env_lookup_numpy
 from warp_sg.renderer.renderer import Renderer
 from warp_sg.scene.camera import Camera
 from warp_sg.scene.lights import EnvironmentLight
-from warp_sg.scene.model import Material, RenderSettings, Scene
+from warp_sg.scene.model import Material, Scene
+from warp_sg.scene.render_settings import RenderSettings
 from warp_sg.scene.model import SceneObject
 
 KD = np.array([0.6, 0.5, 0.4])

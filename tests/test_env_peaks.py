@@ -144,7 +144,8 @@ def _white_sphere_error(env_light):
     from precompute.environment.sg_fit import irradiance_reference
     from warp_sg.renderer.renderer import Renderer
     from warp_sg.scene.camera import Camera
-    from warp_sg.scene.model import Material, RenderSettings, Scene, SceneObject
+    from warp_sg.scene.model import Material, Scene, SceneObject
+    from warp_sg.scene.render_settings import RenderSettings
 
     cam = Camera(origin=(0.0, 0.0, 3.0), target=(0.0, 0.0, 0.0), fov=35.0, width=40, height=40)
     ball = SceneObject(material="w", primitive="sphere", params={"radius": 0.8, "resolution": (64, 128)})

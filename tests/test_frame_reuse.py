@@ -13,7 +13,8 @@ from warp_sg.scene.lights import DirectionalLight
 from warp_sg.renderer.renderer import Renderer
 from warp_sg.scene.camera import Camera
 from warp_sg.scene.lights import EnvironmentLight
-from warp_sg.scene.model import Material, RenderSettings, Scene, SceneObject
+from warp_sg.scene.model import Material, Scene, SceneObject
+from warp_sg.scene.render_settings import RenderSettings
 
 
 def _scene(kd=(0.6, 0.5, 0.4), origin=(0.0, 1.2, 3.0)):

@@ -19,7 +19,8 @@ from warp_sg.scene.lights import DirectionalLight, EnvironmentLight
 from warp_sg.groundtruth.reference import reference
 from warp_sg.groundtruth.region_error import region_errors, scene_regions
 from warp_sg.renderer.renderer import Renderer
-from warp_sg.scene.model import Material, RenderSettings, Scene, SceneObject
+from warp_sg.scene.model import Material, Scene, SceneObject
+from warp_sg.scene.render_settings import RenderSettings
 
 CONST = [EnvironmentLight(procedural="constant", options={"radiance": [0.4, 0.45, 0.5]})]
 SUN = [DirectionalLight(direction=(0.3, 1.0, 0.4), radius=0.1, intensity=(2.0, 2.0, 2.0))] + CONST

@@ -1,4 +1,4 @@
-"""Shading kernels specialised per set of material models (``brdf.material_variants``).
+"""Shading kernels specialised per set of material models (``brdf.kernel.material_variants``).
 
 * the specialised BRDF functions against the numpy models (independent reference: the closed
   forms of ``warp_sg.brdf`` and its numpy slice lobes), one kernel per model family;
@@ -18,13 +18,14 @@ import warp as wp
 
 import warp_sg.brdf as B
 from warp_sg.shading import kernel as S
-from warp_sg.brdf import material_wp as M
-from warp_sg.brdf.material_variants import ALL_MODELS, material_funcs
+from warp_sg.brdf.kernel import material_wp as M
+from warp_sg.brdf.kernel.material_variants import ALL_MODELS, material_funcs
 from warp_sg.core.errors import InputError
 from warp_sg.renderer.renderer import Renderer
 from warp_sg.scene.camera import Camera
 from warp_sg.scene.lights import DirectionalLight, EnvironmentLight
-from warp_sg.scene.model import RenderSettings, Scene, SceneObject
+from warp_sg.scene.model import Scene, SceneObject
+from warp_sg.scene.render_settings import RenderSettings
 
 #: one material per model family: (model name, parameters, model code)
 FAMILIES = [

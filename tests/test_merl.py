@@ -6,7 +6,7 @@ import pytest
 import warp as wp
 
 from warp_sg.brdf import CookTorrance, merl
-from warp_sg.brdf.measured_wp import merl_eval, merl_index
+from warp_sg.brdf.kernel.measured_wp import merl_eval, merl_index
 from warp_sg.core.errors import InputError
 
 

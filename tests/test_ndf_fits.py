@@ -10,7 +10,7 @@ import pytest
 from scipy import integrate, optimize
 
 import warp_sg.brdf as B
-from warp_sg.brdf.fit import EPSILON, fit_error
+from warp_sg.brdf.fitting.fit import EPSILON, fit_error
 from warp_sg.core.errors import InputError
 
 
@@ -269,7 +269,7 @@ def test_single_lobe_results_unchanged_by_multi_lobe_fits():
 
 
 def test_multi_lobe_fit_is_deterministic():
-    from warp_sg.brdf import fit as F
+    from warp_sg.brdf.fitting import fit as F
 
     model = B.CookTorrance(m=0.15)
     ndf = _ndf_theta(model)
@@ -284,7 +284,7 @@ def test_multi_lobe_fit_is_deterministic():
 
 
 def test_material_table_carries_the_distinct_lobes():
-    from warp_sg.brdf import material_wp as M
+    from warp_sg.brdf.kernel import material_wp as M
 
     models = [B.CookTorrance(ks=0.8, m=0.15), B.BlinnPhong(n=50)]
     table = M.pack_materials(models, 3, "cpu")

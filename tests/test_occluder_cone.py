@@ -17,7 +17,8 @@ from warp_sg.scene.primitives import plane, sphere
 from warp_sg.renderer.renderer import Renderer
 from warp_sg.scene.camera import Camera
 from warp_sg.scene.lights import DirectionalLight, EnvironmentLight
-from warp_sg.scene.model import Material, RenderSettings, Scene, SceneObject
+from warp_sg.scene.model import Material, Scene, SceneObject
+from warp_sg.scene.render_settings import RenderSettings
 
 R, RR = 16, 32
 

@@ -317,7 +317,8 @@ def test_reference_and_sg_renderer_agree_on_a_convex_object(case, cache_dir):
     from warp_sg.groundtruth.reference import render_reference
     from warp_sg.groundtruth.region_error import image_errors
     from warp_sg.scene.camera import Camera
-    from warp_sg.scene.model import RenderSettings, Scene, SceneObject
+    from warp_sg.scene.model import Scene, SceneObject
+    from warp_sg.scene.render_settings import RenderSettings
 
     cam = Camera(origin=(0, 0.5, 3), target=(0, 0.5, 0), up=(0, 1, 0), fov=30, width=16, height=16)
     if case == "point-light-specular":

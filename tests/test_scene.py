@@ -9,7 +9,8 @@ import pytest
 import warp_sg as ws
 from warp_sg.core.errors import MeshError, SceneError
 from warp_sg.scene.primitives import plane, sphere, torus
-from warp_sg.scene.model import Material, RenderSettings, Scene, SceneObject, Transform
+from warp_sg.scene.model import Material, Scene, SceneObject, Transform
+from warp_sg.scene.render_settings import RenderSettings
 from warp_sg.scene.loader import load_scene
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
@@ -201,6 +202,38 @@ def test_bad_scene_file_raises_scene_error_naming_file_table_and_key(tmp_path, o
         load_scene(write(tmp_path, sub(old, new)))
     assert message in str(ei.value)
     assert str(ei.value).startswith("scene.toml: ")
+
+
+@pytest.mark.parametrize("key,toml,value,message", [
+    ("supersampling", "0", 0, "[render] key 'supersampling' must be in [1, 16], got 0"),
+    ("antialias", "9", 9, "[render] key 'antialias' must be in [1, 8], got 9"),
+    ("lobes", "2.5", 2.5, "[render] key 'lobes' must be an integer, got 2.5"),
+    ("shadows", "1", 1, "[render] key 'shadows' must be true or false, got 1"),
+    ("fh", '"spline"', "spline", "[render] key 'fh' must be 'table' or 'sigmoid', got 'spline'"),
+    ("visibility_sampling", '"texel"', "texel", "[render] key 'visibility_sampling' must be 'vertex' or 'pixel', "
+                                                "got 'texel'"),
+    ("device", "3", 3, "[render] key 'device' must be a string, got 3"),
+])
+def test_python_render_settings_are_refused_in_the_scene_files_words(tmp_path, key, toml, value, message):
+    """One rule for [render]: the same bad value in a scene file and in a Scene built in Python
+    gives the same line (the file's prefixed with its name)."""
+    with pytest.raises(SceneError) as from_file:
+        load_scene(write(tmp_path, sub("shadows = false", f"{key} = {toml}")))
+    assert str(from_file.value) == f"scene.toml: {message}"
+    with pytest.raises(SceneError) as from_python:
+        Scene(camera=ws.scene.Camera(), objects=[SceneObject(material="a", primitive="sphere")],
+              materials={"a": Material("lambert")}, lights=[ws.scene.DirectionalLight((0, 1, 0))],
+              render=RenderSettings(**{key: value}))
+    assert str(from_python.value) == message
+
+
+def test_render_settings_edited_after_the_scene_was_built_are_checked_by_the_renderer():
+    sc = Scene(camera=ws.scene.Camera(width=4, height=4), objects=[SceneObject(material="a", primitive="sphere")],
+               materials={"a": Material("lambert")}, lights=[ws.scene.DirectionalLight((0, 1, 0))],
+               render=RenderSettings(shadows=False, supersampling=np.int64(2)))  # a numpy integer is an integer
+    sc.render.supersampling = 17
+    with pytest.raises(SceneError, match=r"^\[render\] key 'supersampling' must be in \[1, 16\], got 17$"):
+        ws.Renderer(sc)
 
 
 def test_missing_mesh_file_and_missing_scene_file_are_scene_errors(tmp_path):

@@ -145,7 +145,7 @@ def test_schema_lists_every_model_with_exactly_its_parameters(schema):
 def test_every_key_has_a_description_and_every_render_setting_is_in_the_schema(schema):
     from dataclasses import fields
 
-    from warp_sg.scene.model import RenderSettings
+    from warp_sg.scene.render_settings import RenderSettings
 
     render = schema["definitions"]["RenderTable"]["properties"]
     assert set(render) == {f.name for f in fields(RenderSettings)}
@@ -318,6 +318,52 @@ def test_cli_schema_prints_the_schema_and_writes_it_atomically(tmp_path, capsys)
     rc = main(["schema", "-o", str(tmp_path)])  # a folder
     err = capsys.readouterr().err
     assert rc == 2 and "is a folder" in err and len(err.strip().splitlines()) == 1
+
+
+def test_committed_key_reference_equals_the_generated_one(tmp_path, capsys):
+    from warp_sg.scene.key_reference import keys_markdown
+    from warp_sg.tools.cli import main
+
+    committed = ROOT / "docs" / "scene-keys.md"
+    assert committed.read_text(encoding="utf-8") == keys_markdown(), \
+        "docs/scene-keys.md is stale: run `warp-sg schema --markdown -o docs/scene-keys.md`"
+    assert main(["schema", "--markdown", "-o", str(tmp_path / "keys.md")]) == 0
+    assert (tmp_path / "keys.md").read_text(encoding="utf-8") == committed.read_text(encoding="utf-8")
+
+
+@pytest.mark.parametrize("node,text", [
+    ({"type": "integer", "minimum": 1, "maximum": 16}, "integer in [1, 16]"),
+    ({"type": "integer", "minimum": 1, "not": {"multipleOf": 2}}, "odd integer ≥ 1"),
+    ({"type": "number", "minimum": 0, "exclusiveMinimum": True, "maximum": 179.0}, "number in (0, 179]"),
+    ({"type": "number", "minimum": 0, "exclusiveMinimum": True}, "number > 0"),
+    ({"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}, "3 × number"),
+    ({"anyOf": [{"type": "number", "minimum": 0}, {"type": "boolean"}]}, "number ≥ 0 or true or false"),
+    ({"enum": ["table", "sigmoid"]}, '`"table"` \\| `"sigmoid"`'),
+    ({"$ref": "#/definitions/TextureTable"}, "a TextureTable"),
+])
+def test_key_reference_words_each_json_schema_rule(node, text):
+    from warp_sg.scene.key_reference import value_text
+
+    assert value_text(node) == text
+
+
+def test_key_reference_lists_every_render_setting_and_model_parameter_with_its_rule():
+    from dataclasses import fields
+
+    from warp_sg.brdf import MODELS
+    from warp_sg.scene.key_reference import keys_markdown
+    from warp_sg.scene.render_settings import RenderSettings
+
+    text = keys_markdown()
+    render = text.split("## [render]")[1]
+    for f in fields(RenderSettings):
+        assert f"| `{f.name}` |" in render, f.name
+    assert "| `supersampling` | integer in [1, 16] | `1` |" in render
+    assert "| `fh` | `\"table\"` \\| `\"sigmoid\"` | `\"table\"` |" in render
+    materials = text.split("## [materials.NAME]")[1].split("## Material values")[0]
+    for name, cls in MODELS.items():
+        block = materials.split(f"**Material_{name}**")[1].split("**Material_")[0]
+        assert all(f"| `{p}` |" in block for p in cls.PARAMS), name
 
 
 def test_fuzzed_values_give_one_line_input_errors_never_pydantic_errors(tmp_path):

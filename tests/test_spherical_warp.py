@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import warp_sg.brdf as B
-from warp_sg.brdf.fit import warp_error
+from warp_sg.brdf.fitting.fit import warp_error
 from warp_sg.brdf.spherical_warp import WARP_COS_EPS, eval_slice, spherical_warp
 
 

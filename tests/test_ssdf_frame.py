@@ -294,7 +294,8 @@ def test_renderer_sun_on_sphere_has_no_seam():
     import warp_sg as ws
     from warp_sg.scene.camera import Camera
     from warp_sg.scene.lights import DirectionalLight
-    from warp_sg.scene.model import RenderSettings, Scene, SceneObject
+    from warp_sg.scene.model import Scene, SceneObject
+    from warp_sg.scene.render_settings import RenderSettings
 
     S = 128
     cam = Camera(origin=(-3.0, 0.5, 0.0), target=(0.0, 0.5, 0.0), fov=22.0, width=S, height=S)

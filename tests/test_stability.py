@@ -348,7 +348,7 @@ def test_roughness_to_zero_keeps_microfacet_fits_and_slices_finite():
 # ------------------------------------------------------------------------------------------------
 # kernel-side BRDFs (what the renderer and the reference evaluate) at extremes
 # ------------------------------------------------------------------------------------------------
-from warp_sg.brdf import material_wp as MW  # noqa: E402
+from warp_sg.brdf.kernel import material_wp as MW  # noqa: E402
 
 
 @wp.kernel
@@ -460,7 +460,8 @@ def test_point_lights_at_the_surface_or_very_far_are_finite_and_exact(device, ca
 def _small_scene(scale):
     from warp_sg.scene.lights import DirectionalLight, EnvironmentLight, PointLight
     from warp_sg.scene.camera import Camera
-    from warp_sg.scene.model import RenderSettings, Scene, SceneObject, Transform
+    from warp_sg.scene.model import Scene, SceneObject, Transform
+    from warp_sg.scene.render_settings import RenderSettings
 
     k = float(scale)
     cam = Camera(origin=(0.0, 1.2 * k, 3.0 * k), target=(0.0, 0.3 * k, 0.0), up=(0.0, 1.0, 0.0), fov=40.0,

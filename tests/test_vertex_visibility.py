@@ -14,7 +14,8 @@ from warp_sg.numeric.onb import frame_from_normal
 from warp_sg.renderer.renderer import Renderer
 from warp_sg.scene.camera import Camera
 from warp_sg.scene.lights import EnvironmentLight, PointLight
-from warp_sg.scene.model import Material, RenderSettings, Scene, SceneObject
+from warp_sg.scene.model import Material, Scene, SceneObject
+from warp_sg.scene.render_settings import RenderSettings
 
 
 def _scene(mode="vertex", rotation=0.0, width=48, height=40, light=None, model="lambert"):

@@ -365,3 +365,24 @@ def test_dragging_a_dynamic_objects_handle_moves_it_and_the_o_key_turns_it(tmp_p
         assert v.renderer.ssdf is ssdf  # no precompute
     finally:
         v.close()
+
+
+@pytest.mark.parametrize("model,given,sliders", [
+    ("ward", {"alpha": 0.1}, ["kd", "ks", "alpha"]),
+    ("ward", {}, ["kd", "ks", "alpha"]),
+    ("ward", {"alpha_x": 0.1, "alpha_y": 0.3}, ["kd", "ks", "alpha_x", "alpha_y"]),
+    ("ward", {"alpha_y": 0.3}, ["kd", "ks", "alpha_x", "alpha_y"]),
+    ("ggx", {"alpha": 0.5}, ["kd", "ks", "alpha"]),
+    ("cook_torrance", {"m": 0.2}, ["kd", "ks", "m"]),
+    ("ashikhmin_shirley", {}, ["kd", "ks", "nu", "nv"]),
+    ("oren_nayar", {}, ["kd", "sigma"]),
+    ("lafortune", {}, ["kd", "ks"]),
+    ("measured", {"file": "x.binary"}, []),
+])
+def test_the_sliders_are_the_declared_parameters_of_the_model_the_material_uses(model, given, sliders):
+    """A slider per parameter with a declared range; of ``alpha`` and the pair given instead of it,
+    the ones the material sets (no display needed)."""
+    from warp_sg.brdf import MODELS
+    from warp_sg.tools.viewer_widgets import slider_params
+
+    assert slider_params(MODELS[model].PARAMS, given) == sliders

@@ -22,7 +22,10 @@ Algorithm (:func:`fit_environment_sgs`):
    absorbs that approximation's bias; both blocks are normalised by the map's mean radiance
    (default ``w_E = 10``: the irradiance error drops by ~2.5× for an unchanged radiance error).
    Amplitudes are eliminated by variable projection (non-negative least squares for given
-   axes and sharpness), so the solver only moves 4 parameters per lobe.
+   axes and sharpness, :mod:`precompute.environment.varpro`), so the solver only moves 4
+   parameters per lobe, with the exact Jacobian of the reduced residual (Golub–Pereyra, for
+   the NNLS free set held fixed) from the analytic derivatives of the system's columns
+   (:mod:`precompute.environment.sg_design`). BLAS runs on one thread here (small matrices).
 
 Returns :class:`EnvSGFit`, a 3-tuple ``(axes (K, 3), sharpness (K,), amplitude (K, 3))``
 (float64) with the fit statistics in ``.info``. The axes are in the map's own frame: for an
@@ -43,7 +46,11 @@ from warp_sg import sg as sgm
 from warp_sg.core.cache import code_key
 from warp_sg.scene.envmap import downsample_envmap, row_solid_angles, texel_directions, validate_envmap
 
-_VERSION = code_key(__name__, sgm, downsample_envmap)  # the producing code
+from . import sg_design, varpro
+from .sg_design import LobeDesign, irradiance_matrix
+from .varpro import Projection
+
+_VERSION = code_key(__name__, sgm, downsample_envmap, sg_design, varpro)  # the producing code
 from warp_sg.core.image_io import LUMINANCE  # noqa: E402
 
 
@@ -79,8 +86,11 @@ def _working_map(env: np.ndarray, rows: int) -> np.ndarray:
     O(N²) peak blur and the fit."""
     env = np.asarray(env, np.float64)
     h, w = env.shape[:2]
-    while h > rows and h % 2 == 0 and w % 2 == 0 and h // 2 >= rows:
-        env = downsample_envmap(env, 2)
+    f = 1
+    while h // f > rows and (h // f) % 2 == 0 and (w // f) % 2 == 0 and h // f // 2 >= rows:
+        f *= 2
+    if f > 1:  # one box pass: the solid-angle average over f × f children is that of the mip chain
+        env = downsample_envmap(env, f)
         h, w = env.shape[:2]
     if h > 2 * rows or w > 4 * rows:
         env = _area_resample(env, min(h, rows), min(w, 2 * rows))
@@ -141,26 +151,6 @@ def irradiance_reference(env, normals, supersample: int = 1):
     return out.reshape(np.shape(normals)[:-1] + (3,))
 
 
-def _irradiance_matrix(normals, axes, lam, cosine=None):
-    """Irradiance at each normal of each unit-amplitude SG, (..., K): ``⟨C*(n), G_k⟩`` through the
-    clamped-cosine SG(s) ``cosine = (λc, μc)`` (scalars or lists of a multi-lobe fit; default
-    eq. 40), or with ``cosine="exact"`` ``∫ G_k max(n·i, 0) di`` by ``warp_sg.sg.irradiance``
-    (within 2 %, what the renderer evaluates)."""
-    n = np.asarray(normals, np.float64)
-    ax = np.asarray(axes, np.float64)
-    lam = np.asarray(lam, np.float64)
-    if isinstance(cosine, str):
-        from warp_sg.sg.irradiance import sg_irradiance_norm_np
-
-        c = np.einsum("...d,kd->...k", n, ax)
-        return sg_irradiance_norm_np(c, np.broadcast_to(lam, c.shape)) * sgm.integral(lam, 1.0)
-    lc, mc = cosine if cosine is not None else (sgm.CLAMPED_COSINE_SHARPNESS, sgm.CLAMPED_COSINE_AMPLITUDE)
-    out = 0.0
-    for l_c, m_c in zip(np.atleast_1d(np.asarray(lc, np.float64)), np.atleast_1d(np.asarray(mc, np.float64))):
-        out = out + sgm.inner_product(n[..., None, :], l_c, m_c, ax, lam, 1.0)  # a sum over cosine lobes
-    return out
-
-
 def sg_irradiance(axes, sharpness, amplitude, normals, cosine=None):
     """``E*(n) = Σ_k ⟨C*(n), G_k⟩`` with the clamped-cosine SG ``C*`` (default eq. 40), or with
     ``cosine="exact"`` the exact irradiance of each SG (``warp_sg.sg.irradiance``, what the renderer
@@ -168,7 +158,7 @@ def sg_irradiance(axes, sharpness, amplitude, normals, cosine=None):
 
     ``cosine``: ``"exact"`` or an optional ``(λc, μc)`` pair (or lists of them for a multi-lobe cosine fit).
     """
-    return np.einsum("...k,kc->...c", _irradiance_matrix(normals, axes, sharpness, cosine),
+    return np.einsum("...k,kc->...c", irradiance_matrix(normals, axes, sharpness, cosine),
                      np.asarray(amplitude, np.float64))
 
 
@@ -196,7 +186,13 @@ def _greedy_peaks(d, om, L, n_max, lam_max, min_fraction=0.03):
     ≥ 0.35 rad from the previous peaks."""
     resid = L.copy()
     axes, lams = [], []
-    def blur(e):  # SG blur (λ = 16) of per-texel energies, in row chunks (bounded memory)
+    # SG blur (λ = 16) of per-texel energies: the kernel once for a working map of the default
+    # size (32 MB), else in row chunks (bounded memory)
+    kernel = np.exp(-16.0 * (1.0 - d @ d.T)) if len(d) <= 2048 else None
+
+    def blur(e):
+        if kernel is not None:
+            return kernel @ e
         out = np.empty(len(d))
         for i0 in range(0, len(d), 1024):
             out[i0 : i0 + 1024] = np.exp(-16.0 * (1.0 - d[i0 : i0 + 1024] @ d.T)) @ e
@@ -227,25 +223,6 @@ def _greedy_peaks(d, om, L, n_max, lam_max, min_fraction=0.03):
     return axes, lams
 
 
-def _design(d, om, normals, axes, lam, w_e, cosine):
-    """Stacked linear system of the amplitudes: rows √Ω G(d_j) and w_E E_G(n_m), the irradiance of
-    each SG through ``cosine`` (:func:`_irradiance_matrix`)."""
-    g = np.exp(-lam[None, :] * 0.5 * np.sum((d[:, None, :] - axes[None, :, :]) ** 2, -1))
-    A = [np.sqrt(om)[:, None] * g]
-    if w_e > 0:
-        A.append(w_e * _irradiance_matrix(normals, axes, lam, cosine))
-    return np.concatenate(A, 0)
-
-
-def _solve_amplitudes(A, B):
-    from scipy.optimize import nnls
-
-    mu = np.zeros((A.shape[1], B.shape[1]))
-    for c in range(B.shape[1]):
-        mu[:, c] = nnls(A, B[:, c], maxiter=50 * A.shape[1])[0]
-    return mu
-
-
 def _fit(env, n_lobes, rows, irradiance_weight, n_normals, max_nfev, cosine=None):
     from scipy.optimize import least_squares
 
@@ -273,26 +250,18 @@ def _fit(env, n_lobes, rows, irradiance_weight, n_normals, max_nfev, cosine=None
     lams0 = np.concatenate([plams, np.full(n_rest, lam_rest)])
     K = len(lams0)
 
-    def unpack(x):
-        x = x.reshape(K, 4)
-        ax = x[:, :3] / np.linalg.norm(x[:, :3], axis=1, keepdims=True)
-        return ax, np.exp(x[:, 3])
-
-    def residual(x):
-        ax, lam = unpack(x)
-        A = _design(d, om, normals, ax, lam, w_e, cosine)
-        mu = _solve_amplitudes(A, B)
-        return (A @ mu - B).ravel()
-
+    design = LobeDesign([(d, np.sqrt(om), "radiance")] + ([(normals, np.full(n_normals, w_e), "irradiance")]
+                                                         if w_e > 0 else []), cosine)
+    proj = Projection(design.evaluate, design.derivative, B, np.repeat(np.arange(K), 4))
     x0 = np.concatenate([axes0, np.log(lams0)[:, None]], 1).ravel()
     lo = np.tile([-np.inf] * 3 + [math.log(0.05)], K)
     hi = np.tile([np.inf] * 3 + [math.log(lam_max)], K)
     x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
-    r0 = residual(x0)
-    res = least_squares(residual, x0, bounds=(lo, hi), method="trf", tr_solver="lsmr", max_nfev=max_nfev,
-                        diff_step=1e-4)
-    ax, lam = unpack(res.x)
-    mu = _solve_amplitudes(_design(d, om, normals, ax, lam, w_e, cosine), B) * scale
+    r0 = proj.residual(x0)
+    res = least_squares(proj.residual, x0, jac=proj.jacobian, bounds=(lo, hi), method="trf", tr_solver="lsmr",
+                        max_nfev=max_nfev)
+    ax, lam, _ = design.unpack(res.x)
+    mu = proj.evaluate(res.x)[1] * scale
     # statistics on the working map
     model, _ = _model(d, ax, lam, mu)
     err2, ref2 = (om[:, None] * (model - L) ** 2).sum(), (om[:, None] * L**2).sum()
@@ -350,8 +319,11 @@ def fit_environment_sgs(
                   nfev=int(max_nfev), cosine=cos_key)
 
     def build():
-        ax, lam, mu, info = _fit(env, n_lobes, int(rows), float(irradiance_weight), int(n_normals), int(max_nfev),
-                                 cosine)
+        from threadpoolctl import threadpool_limits
+
+        with threadpool_limits(limits=1, user_api="blas"):  # small matrices: OpenBLAS threads only spin
+            ax, lam, mu, info = _fit(env, n_lobes, int(rows), float(irradiance_weight), int(n_normals),
+                                     int(max_nfev), cosine)
         out = {"axes": ax, "sharpness": lam, "amplitude": mu}
         for k, v in info.items():
             out["info_" + k] = np.asarray(v)

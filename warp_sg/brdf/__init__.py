@@ -6,7 +6,7 @@ Models are keyed in :data:`MODELS` by their scene-file names, in one registry
 its name, kernel code, parameters, fit hooks and kernel ``@wp.func`` functions); :func:`make_model`
 validates the parameter names (an unknown one raises :class:`~warp_sg.core.errors.InputError` naming
 the closest). The kernel side (``Material`` struct, ``brdf_eval``, ``slice_lobe`` ..., generated
-from the registry) is in :mod:`warp_sg.brdf.material_wp`.
+from the registry) is in :mod:`warp_sg.brdf.kernel.material_wp`.
 """
 from __future__ import annotations
 
@@ -41,14 +41,6 @@ def make_model(name, **params):
     model = cls(**params)
     check_diffuse_albedo(model)
     return model
-
-
-def __getattr__(name):
-    if name == "material_wp":  # the kernel side compiles on first use
-        import importlib
-
-        return importlib.import_module("warp_sg.brdf.material_wp")
-    raise AttributeError(f"module 'warp_sg.brdf' has no attribute {name!r}")
 
 
 __all__ = [

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .helpers import (COS_EPS, INV_PI, as_rgb, as_roughness, as_scalar, closest, dirs, half_vector, log_cos_theta,  # noqa: F401
+from .helpers import (COS_EPS, INV_PI, as_rgb, as_roughness, as_scalar, dirs, half_vector, log_cos_theta,  # noqa: F401
                       reflect_z, sin2_theta, suggest, theta_of, upper)
 
 
@@ -27,7 +27,8 @@ class BRDF:
     NAME = "base"
     #: the kernel code (``Material.model``), unique per registered model
     CODE = -1
-    PARAMS: tuple[str, ...] = ()
+    #: the scene-file parameters, ``{name: warp_sg.brdf.params.Param}`` (in constructor order)
+    PARAMS: dict = {}
     #: the kernel side (:class:`warp_sg.brdf.registry.Kernel`), set by the model's module
     KERNEL = None
     is_specular = False
@@ -112,13 +113,13 @@ class SpecularBRDF(BRDF):
 
     def ndf_sg(self, n_lobes=1, method="analytic"):
         """SG mixture of the NDF in the local frame: ``(axes (K,3), sharpness (K,), amplitude (K,))``."""
-        from .fit import ndf_sg_for
+        from .fitting.fit import ndf_sg_for
 
         return ndf_sg_for(self, n_lobes, method)
 
     def table_lobes(self, n_lobes=1, method="analytic"):
         """The NDF lobes stored in the kernel's lobe table (``material_struct.material_lobes``):
-        ``ndf_sg`` with the model's lobe count (:func:`warp_sg.brdf.fit.lobe_count`)."""
-        from .fit import lobe_count
+        ``ndf_sg`` with the model's lobe count (:func:`warp_sg.brdf.fitting.fit.lobe_count`)."""
+        from .fitting.fit import lobe_count
 
         return self.ndf_sg(lobe_count(self, n_lobes), method)

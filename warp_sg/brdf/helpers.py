@@ -1,16 +1,15 @@
 """Numeric helpers of the BRDF models (numpy, float64): parameter checks and direction algebra.
 
 They sit below both the model classes (:mod:`warp_sg.brdf.base`) and the NDF fits
-(:mod:`warp_sg.brdf.fit`), so neither imports the other's module for them. Forms (see
+(:mod:`warp_sg.brdf.fitting.fit`), so neither imports the other's module for them. Forms (see
 :mod:`warp_sg.brdf.base`): ``ln(h·n) = log1p(−(hx² + hy²)/(1 + hz))``, ``θh = atan2(√(hx² + hy²), hz)``.
 """
 from __future__ import annotations
 
-import difflib
-
 import numpy as np
 
 from ..core.errors import InputError
+from ..core.suggest import closest
 
 INV_PI = 1.0 / np.pi
 #: Smallest cosine used where a model divides by a cosine (grazing guard).
@@ -20,13 +19,8 @@ COS_EPS = 1e-6
 MAX_PARAM = 1e20
 
 
-def closest(name, options):
-    m = difflib.get_close_matches(str(name), list(options), n=1, cutoff=0.0)
-    return m[0] if m else None
-
-
 def suggest(name, options):
-    c = closest(name, options)
+    c = closest(name, options, cutoff=0.0)  # however unlike: a BRDF name or parameter always gets one
     return f" (did you mean '{c}'?)" if c else ""
 
 
@@ -120,5 +114,5 @@ def upper(o, i):
     return (o[..., 2] > 0) & (i[..., 2] > 0)
 
 
-__all__ = ["INV_PI", "COS_EPS", "closest", "suggest", "as_rgb", "as_scalar", "dirs", "half_vector", "sin2_theta",
+__all__ = ["INV_PI", "COS_EPS", "suggest", "as_rgb", "as_scalar", "dirs", "half_vector", "sin2_theta",
            "log_cos_theta", "theta_of", "reflect_z", "upper"]

@@ -5,12 +5,13 @@ A model is one class (a :class:`~warp_sg.brdf.base.BRDF` subclass in a module of
 
 * ``NAME`` — its scene-file name (``model = "ward"``), ``CODE`` — its kernel code (the
   ``Material.model`` field; a small distinct integer, ``0 ≤ CODE < MAX_CODES``) and ``PARAMS`` —
-  its scene-file parameters;
+  its scene-file parameters, ``{name: Param}`` (:mod:`warp_sg.brdf.params`: kind, bound, meaning,
+  texture, slider; what the scene-file model and the viewer read);
 * its numpy evaluation (``diffuse``, ``mo``, ``ndf``, ``specular``) and its fit hooks
   (``ndf_analytic_lambda``, ``aniso_layout``, ``table_lobes``, ... see
-  :mod:`warp_sg.brdf.fit`);
+  :mod:`warp_sg.brdf.fitting.fit`);
 * ``KERNEL`` — a :class:`Kernel` of its ``@wp.func``\ s: what the kernel switch
-  (:mod:`warp_sg.brdf.material_variants`) calls for a material of this code;
+  (:mod:`warp_sg.brdf.kernel.material_variants`) calls for a material of this code;
 
 and is registered by :func:`register` (a class decorator). Everything that switches on the model
 — the kernel functions ``brdf_eval``, ``brdf_sample``, ``brdf_pdf``, ``slice_lobe`` ..., the
@@ -22,6 +23,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields
 from typing import Any
+
+from .params import check_params
 
 #: model codes are bits of the kernel's model masks (``material_variants``): at most this many
 MAX_CODES = 31
@@ -89,8 +92,7 @@ def register(cls):
         raise ValueError(f"{cls.__name__}: CODE must be an integer in [0, {MAX_CODES}), got {code!r}")
     if not isinstance(getattr(cls, "KERNEL", None), Kernel):
         raise ValueError(f"{cls.__name__}: KERNEL must be a warp_sg.brdf.registry.Kernel")
-    if not isinstance(getattr(cls, "PARAMS", None), tuple):
-        raise ValueError(f"{cls.__name__}: PARAMS must be a tuple of parameter names")
+    check_params(cls)
     for other in (MODELS.get(name), BY_CODE.get(code)):
         if other is not None and other is not cls:
             raise ValueError(f"{cls.__name__}: model name '{name}' or code {code} is taken by {other.__name__}")

@@ -73,6 +73,18 @@ def check_output_path(path, suffixes=IMAGE_SUFFIXES, create_parents: bool = Fals
     return p
 
 
+def output_folder(out_dir) -> Path:
+    """``out_dir``, created if missing; one line when it cannot be created or written."""
+    out = Path(out_dir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise InputError(f"cannot create the output folder ({e.strerror})", where=str(out)) from None
+    if not os.access(out, os.W_OK):
+        raise InputError("output folder is not writable", where=str(out))
+    return out
+
+
 def make_parents(path: Path) -> None:
     """Create the missing folders of ``path`` (after :func:`check_output_path` allowed them)."""
     try:

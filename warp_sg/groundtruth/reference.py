@@ -46,7 +46,7 @@ import numpy as np
 import warp as wp
 
 from warp_sg.groundtruth import sampling as S
-from warp_sg.brdf import material_wp as M  # contract: Material, pack_materials, brdf_*
+from warp_sg.brdf.kernel import material_wp as M  # contract: Material, pack_materials, brdf_*
 from warp_sg.core.device import add_device_argument, device_for, resolve_device
 from warp_sg.core.errors import InputError
 from warp_sg.scene.lights import DirectionalLight, PointLight

@@ -15,7 +15,7 @@ the coat lobe with probability ``c/2``. Camera and shadow rays pass through alph
 import warp as wp
 
 from warp_sg.groundtruth import sampling as S
-from warp_sg.brdf import material_wp as M  # contract: Material, brdf_eval, brdf_sample, brdf_pdf
+from warp_sg.brdf.kernel import material_wp as M  # contract: Material, brdf_eval, brdf_sample, brdf_pdf
 from warp_sg.brdf.models.ggx import GGX
 from warp_sg.shading.cutout import Cutouts, blocked, first_opaque_hit
 from warp_sg.numeric.onb import local_to_world, world_to_local

@@ -65,7 +65,7 @@ import numpy as np
 import warp as wp
 
 from warp_sg.shading.background import Background, background_at
-from warp_sg.brdf.material_wp import lum
+from warp_sg.brdf.kernel.material_wp import lum
 from warp_sg.renderer.antialias_candidates import CAND_CONTRAST, LIST_MIN_CHUNK, Candidates, object_of
 from warp_sg.renderer.antialias_cache import AntialiasCache, same_list  # noqa: F401  (re-exported)
 

@@ -10,7 +10,7 @@ the few candidates only.
 # NOTE: no ``from __future__ import annotations`` — Warp reads the kernel annotations.
 import warp as wp
 
-from warp_sg.brdf.material_wp import lum
+from warp_sg.brdf.kernel.material_wp import lum
 
 
 #: relative luminance difference to a neighbour that makes an interior pixel supersampled

@@ -37,6 +37,7 @@ import warp as wp
 
 from warp_sg.core.errors import SceneError
 from warp_sg.numeric.onb import frame_from_normal
+from warp_sg.core.suggest import did_you_mean
 from warp_sg.numeric.rigid_motion import check_motion
 
 
@@ -50,9 +51,7 @@ def object_index(scene, obj) -> int:
     labels = [ob.label(i) for i, ob in enumerate(scene.objects)]
     if obj in labels:
         return labels.index(obj)
-    from warp_sg.scene.model import _suggest
-
-    raise SceneError(f"no object '{obj}'{_suggest(obj, labels)}", where="set_object_transform")
+    raise SceneError(f"no object '{obj}'{did_you_mean(obj, labels)}", where="set_object_transform")
 
 
 def scene_with_transforms(scene, transforms: dict):

@@ -12,7 +12,7 @@ Data flow (docs/architecture.md "Conventions"): ``scene → precompute (cached) 
   (``precompute.fit_environment_sgs``, eq. 34) and the prefiltered ΓL pyramid for the specular
   term (``precompute.prefilter_environment``, eq. 35), both of the *unrotated, unscaled* map, so
   rotation and scale changes cost nothing;
-* materials (``brdf.material_wp.pack_materials``) and textures (one atlas).
+* materials (``brdf.kernel.material_wp.pack_materials``) and textures (one atlas).
 
 ``render()`` rasterises the camera view (``raster.rasterize``, k×k supersampled), shades every
 (sub)pixel once with the kernel variant the scene needs (:mod:`warp_sg.shading.kernel`), and box-resolves
@@ -81,6 +81,7 @@ class Renderer(FramePaths, VariantChoice, ResourceSetup, EnvironmentSetup):
                  precomputed: dict | None = None, progressive: bool = False):
         if not isinstance(scene, Scene):
             raise InputError(f"expected a warp_sg.Scene, got {type(scene).__name__}", where="scene")
+        scene.render.validate()  # the scene-file model's rule, for settings edited since the Scene was built
         self.scene = scene
         self._ssdf_compute = ssdf_compute
         self._precomputed = precomputed

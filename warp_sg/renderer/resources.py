@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from warp_sg.brdf.term_mask import TermMask
+from warp_sg.brdf.kernel.term_mask import TermMask
 from warp_sg.core.errors import InputError, SceneError
 from warp_sg.renderer.progressive import ShadowJob
 from warp_sg.renderer.visibility_setup import refine_key, visibility_arrays
@@ -160,7 +160,7 @@ class ResourceSetup:
         return True
 
     def _setup_materials(self):
-        from warp_sg.brdf.material_wp import pack_materials
+        from warp_sg.brdf.kernel.material_wp import pack_materials
         from warp_sg.shading.surface_layers import coat_models, layer_arrays
 
         scene = self.scene
@@ -196,9 +196,9 @@ class ResourceSetup:
         mt.atlas = build_atlas(images, self.device)
         self.material_textures = mt
         if self.has_specular and self.scene.environment is not None:
-            # the environment specular's energy correction, per material (brdf.albedo); a textured
+            # the environment specular's energy correction, per material (brdf.kernel.albedo); a textured
             # first parameter (a roughness map) gets its table over the texture's range
-            from warp_sg.brdf import albedo
+            from warp_sg.brdf.kernel import albedo
             from warp_sg.sg.irradiance import irradiance_table_array
 
             ranges = [None if s < 0 else (max(float(np.min(images[s][..., 0])), 1e-4),

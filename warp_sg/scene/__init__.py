@@ -1,7 +1,7 @@
 r"""Scenes: TOML files (``tomllib``) and the equivalent Python objects.
 
-``ws.load_scene(path)`` reads a scene file (every key: docs/rendering.md "Scene files"; in brief below) and returns a
-:class:`Scene`; ``ws.Scene(camera=..., objects=[...], materials={...}, lights=[...])`` builds the
+``ws.load_scene(path)`` reads a scene file (every key: docs/scene-keys.md; their use:
+docs/rendering.md "Scene files") and returns a :class:`Scene`; ``ws.Scene(camera=..., objects=[...], materials={...}, lights=[...])`` builds the
 same thing in Python. Every mistake is a :class:`~warp_sg.core.errors.SceneError` (or
 ``MeshError``/``ImageError`` for unusable files) whose message names the file, the table and the
 key or element, e.g. ``scene.toml: [camera] key 'fvo' unknown — did you mean 'fov'?``.
@@ -25,7 +25,7 @@ Records (what the renderer *and* the Monte-Carlo reference read)
   :class:`~warp_sg.scene.lights.DirectionalLight` (unit direction *towards* the light, angular radius in
   radians, intensity = irradiance E) and at most one :class:`~warp_sg.scene.lights.EnvironmentLight`
   (file | procedural "sky"/"constant", options, scale, rotation degrees about +Y).
-* ``Scene.render`` — :class:`RenderSettings` (the ``[render]`` table).
+* ``Scene.render`` — :class:`RenderSettings` (the ``[render]`` table, :mod:`warp_sg.scene.render_settings`).
 * ``Scene.geometry()`` — :class:`Geometry`: every object flattened into one triangle soup in world
   space (vertices, normals, uvs, tangents, triangles, ``tri_material`` indexing
   ``Scene.material_names``, ``tri_object``), validated (NaN vertex / out-of-range index →
@@ -33,36 +33,23 @@ Records (what the renderer *and* the Monte-Carlo reference read)
 
 All objects share one geometry, so they shadow each other (multi-object composition).
 
-Scene file schema in brief (``+`` marks the keys added to the first version's)::
-
-    [camera]    origin, target, up, fov, width, height, near+, far+
-    [[objects]] mesh = "file" | primitive = "sphere"|"plane"|"torus"; material; name+;
-                translate+, scale+, rotate+; primitive parameters:
-                  sphere: center, radius, resolution = [n_theta, n_phi]
-                  plane:  center, size = [sx, sz] (normal +Y), resolution = [nx, nz]
-                  torus:  center, major_radius, minor_radius, resolution = [n_major, n_minor]
-    [materials.NAME]  model + the model's parameters (docs/rendering.md table; each numeric parameter a
-                constant, a texture path "file.png"/"file.exr", or {texture = "f.png", scale = 1,
-                offset = 0, srgb = bool}); normal_map+, tangent_map+ (texture paths or tables)
-    [[lights]]  type = "point": position, radius, intensity
-                type = "directional": direction, radius, intensity
-                type = "environment": file | procedural ("sky" | "constant"), options+ (table),
-                scale, rotation+ (degrees about +Y)
-    [render]    the renderer's quality settings (keys, ranges and meanings: ``warp-sg schema``,
-                the scene-file model of :mod:`warp_sg.scene.schema`)
+Scene file keys: every table and key with its values, default and meaning is generated from the
+scene-file models of :mod:`warp_sg.scene.schema` into ``docs/scene-keys.md`` (``warp-sg schema
+--markdown``); the ``[render]`` table is :mod:`warp_sg.scene.render_settings`'s, which also checks
+the :class:`RenderSettings` of a scene built in Python.
 
 Files: this module is the public entry and re-exports every name; the data model is in
-:mod:`warp_sg.scene.model`, the TOML loader in :mod:`warp_sg.scene.loader`, the typed models of the
-file format it validates with (and their JSON Schema, ``warp-sg schema``) in
-:mod:`warp_sg.scene.schema` and :mod:`warp_sg.scene.values`, mesh
+:mod:`warp_sg.scene.model` and :mod:`warp_sg.scene.render_settings`, the TOML loader in :mod:`warp_sg.scene.loader`, the typed models of the
+file format it validates with (and their JSON Schema, ``warp-sg schema``, and key reference) in
+:mod:`warp_sg.scene.schema`, :mod:`warp_sg.scene.values` and :mod:`warp_sg.scene.key_reference`, mesh
 files, normals, tangents and the flattened :class:`Geometry` in :mod:`warp_sg.scene.geometry`, the camera
 in :mod:`warp_sg.scene.camera`.
 """
 from warp_sg.scene.camera import Camera
 from warp_sg.scene.geometry import Geometry, build_geometry, object_mesh, uv_tangents, validate_mesh, vertex_normals
 from warp_sg.scene.lights import DirectionalLight, EnvironmentLight, PointLight
-from warp_sg.scene.model import (COLOUR_PARAMS, NON_TEXTURE_PARAMS, RENDER_KEYS, Light, Material, RenderSettings, Scene,
-                          SceneObject, Transform, _suggest)
+from warp_sg.scene.model import COLOUR_PARAMS, Light, Material, Scene, SceneObject, Transform
+from warp_sg.scene.render_settings import RenderSettings
 from warp_sg.scene.loader import load_scene
 from warp_sg.scene.textures import Texture
 

@@ -15,11 +15,13 @@ coordinates ``X = (x/w + 1)/2 · W``, ``Y = (1 − y/w)/2 · H``.
 
 ``ray_directions`` / ``ray_origins`` give the primary rays through the pixel centres of the
 same camera (for ray casting references); they agree with the projection to float precision.
+:func:`with_resolution` is a scene's copy with its camera at another resolution.
 """
 from __future__ import annotations
 
+import copy
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -131,3 +133,17 @@ class Camera:
     def forward(self) -> np.ndarray:
         """Unit view axis (float64); ``depth = t · dot(ray_direction, forward)``."""
         return self.basis()[2]
+
+
+def with_resolution(scene, width=None, height=None):
+    """A copy of ``scene`` whose camera renders ``width`` × ``height`` (one given: keep the aspect)."""
+    if not width and not height:
+        return scene
+    cam = scene.camera
+    if width and not height:
+        height = max(1, round(cam.height * width / cam.width))
+    if height and not width:
+        width = max(1, round(cam.width * height / cam.height))
+    sc = copy.copy(scene)
+    sc.camera = replace(cam, width=int(width), height=int(height))
+    return sc

@@ -17,8 +17,9 @@ from warp_sg.core.meshcheck import check_mesh, closed_and_oriented, signed_volum
 from warp_sg.scene.primitives import MeshData, make_primitive
 from warp_sg.core.watchdog import MAX_TRIANGLES, check_size
 
-#: mesh files an object's ``mesh`` may name (read by trimesh; ``.glb``/``.gltf`` by :mod:`warp_sg.scene.importers.gltf`)
-MESH_SUFFIXES = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
+#: mesh files an object's ``mesh`` may name (read by trimesh; ``.glb``/``.gltf`` by :mod:`warp_sg.scene.importers.gltf`,
+#: USD by :mod:`warp_sg.scene.importers.usd`)
+MESH_SUFFIXES = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf", ".usd", ".usda", ".usdc", ".usdz")
 #: largest world-space coordinate magnitude: beyond it float32 shading and trimesh's vertex welding
 #: (positions × 1e8 as int64) lose the mesh (a unit sphere scaled by 1e14 renders wrong)
 MAX_COORDINATE = 1e12

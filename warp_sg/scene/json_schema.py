@@ -95,14 +95,14 @@ def schema_text() -> str:
     return json.dumps(json_schema(), indent=2, ensure_ascii=False) + "\n"
 
 
-def write_schema(path) -> Path:
-    """Write :func:`schema_text` to ``path`` atomically (missing folders are created)."""
+def write_schema(path, text: str | None = None) -> Path:
+    """Write ``text`` (default :func:`schema_text`) to ``path`` atomically (missing folders are created)."""
     p = Path(path)
     if p.is_dir():
         raise InputError("is a folder, not a file", where=str(p))
     make_parents(p)
     with atomic_output(p) as tmp:
-        Path(tmp).write_text(schema_text(), encoding="utf-8")
+        Path(tmp).write_text(schema_text() if text is None else text, encoding="utf-8")
     return p
 
 

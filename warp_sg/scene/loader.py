@@ -13,16 +13,19 @@ from pathlib import Path
 
 from pydantic import ValidationError
 
-from warp_sg.scene.camera import Camera
+from warp_sg.brdf import MODELS
 from warp_sg.brdf.energy import energy_excess
 from warp_sg.core.errors import ImageError, InputError, InputWarning, SceneError
+from warp_sg.scene.camera import Camera
 from warp_sg.scene.geometry import MESH_SUFFIXES
+from warp_sg.scene.lights import DirectionalLight, EnvironmentLight, PointLight
+from warp_sg.scene.model import COLOUR_PARAMS, Material, Scene, SceneObject, Transform
+from warp_sg.scene.primitives import PRIMITIVE_PARAMS
+from warp_sg.scene.render_settings import RenderSettings
+from warp_sg.scene.textures import Texture
 
 #: files that are assets (meshes, glTF), not scenes
 ASSET_SUFFIXES = MESH_SUFFIXES
-from warp_sg.scene.lights import DirectionalLight, EnvironmentLight, PointLight
-from warp_sg.scene.model import COLOUR_PARAMS, Material, RenderSettings, Scene, SceneObject, Transform
-from warp_sg.scene.textures import Texture
 
 
 class _Builder:
@@ -57,8 +60,7 @@ class _Builder:
             tab = f"[[objects]] #{i + 1}"
             given = ob.model_dump(exclude_unset=True)
             prim = given.get("primitive")
-            params = {k: v for k, v in given.items() if k in type(ob).model_fields and k not in
-                      ("mesh", "primitive", "material", "name", "translate", "scale", "rotate", "dynamic")}
+            params = {k: v for k, v in given.items() if prim is not None and k in PRIMITIVE_PARAMS[prim]}
             tr = Transform()
             if "translate" in given:
                 tr.translate = given["translate"]
@@ -85,8 +87,6 @@ class _Builder:
         return tex
 
     def materials(self, raw: dict) -> dict:
-        from warp_sg.scene.schema import param_type
-
         out = {}
         for name, md in raw.items():
             tab = f"[materials.{name}]"
@@ -97,7 +97,7 @@ class _Builder:
                     continue
                 if k == "file":
                     params[k] = str(self.file(tab, k, v))
-                elif param_type(model, k)[2] and isinstance(v, (str, dict)):
+                elif MODELS[model].PARAMS[k].texture and isinstance(v, (str, dict)):
                     textures[k] = self.texture(tab, k, v, colour=k in COLOUR_PARAMS)
                 else:
                     params[k] = v  # as written: the BRDF model reads it

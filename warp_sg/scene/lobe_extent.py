@@ -45,7 +45,7 @@ def sharpest_ndf_lobe(scene, names=None) -> float:
     """Largest NDF lobe sharpness λ_D of the scene's specular materials (0: none is specular);
     ``names``: the materials to consider (default: those of the scene's geometry)."""
     from warp_sg.brdf import make_model
-    from warp_sg.brdf.material_struct import material_lobes
+    from warp_sg.brdf.kernel.material_struct import material_lobes
 
     n_lobes = int(scene.render.lobes)
     names = set(scene.geometry().material_names if names is None else names)

@@ -1,23 +1,26 @@
-"""The scene's data model: :class:`Scene` and its records :class:`SceneObject`, :class:`Transform`,
-:class:`Material` and :class:`RenderSettings` (what the renderer *and* the Monte-Carlo reference
-read; the fields are described in :mod:`warp_sg.scene`, which re-exports every name). Validation
-of a whole scene happens in ``Scene.__post_init__``; the TOML file is read by
-:mod:`warp_sg.scene.loader`, the geometry flattened by :mod:`warp_sg.scene.geometry`.
+"""The scene's data model: :class:`Scene` and its records :class:`SceneObject`, :class:`Transform`
+and :class:`Material`, with the ``[render]`` settings of :mod:`warp_sg.scene.render_settings`
+(what the renderer *and* the Monte-Carlo reference read; the fields are described in
+:mod:`warp_sg.scene`, which re-exports every name). Validation of a whole scene happens in
+``Scene.__post_init__``; the TOML file is read by :mod:`warp_sg.scene.loader`, the geometry
+flattened by :mod:`warp_sg.scene.geometry`.
 """
 from __future__ import annotations
 
-import difflib
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from warp_sg.brdf import MODELS
 from warp_sg.scene.camera import Camera
 from warp_sg.core.errors import SceneError
+from warp_sg.core.suggest import did_you_mean
 from warp_sg.scene.geometry import Geometry, build_geometry
 from warp_sg.scene.lights import DirectionalLight, EnvironmentLight, PointLight
 from warp_sg.scene.material_layers import MaterialLayers
 from warp_sg.scene.primitives import MeshData
+from warp_sg.scene.render_settings import RenderSettings
 from warp_sg.scene.textures import Texture
 
 
@@ -93,9 +96,8 @@ class SceneObject:
         return self.name or (Path(self.mesh).name if self.mesh is not None else self.primitive) or f"objects[{index}]"
 
 
-#: Parameters that are RGB colours (others are scalars); parameters that cannot be textures.
-COLOUR_PARAMS = ("kd", "ks")
-NON_TEXTURE_PARAMS = ("fresnel", "lobes", "file")
+#: Parameters that are RGB colours (others are scalars): those the models declare so (``Param.kind``)
+COLOUR_PARAMS = tuple(dict.fromkeys(k for cls in MODELS.values() for k, p in cls.PARAMS.items() if p.kind == "rgb"))
 
 
 @dataclass
@@ -143,59 +145,6 @@ class Material:
 Light = PointLight | DirectionalLight | EnvironmentLight
 
 
-#: the integer settings of ``[render]`` and their ranges [lo, hi] (``RenderSettings.validate`` and the
-#: scene schema, :mod:`warp_sg.scene.schema`)
-RENDER_INT_RANGES = {"supersampling": (1, 16), "antialias": (1, 8), "lobes": (1, 16), "env_lobes": (1, 64),
-                     "env_peaks": (0, 16), "visibility_budget": (0, 10_000_000), "pca_terms": (1, 256),
-                     "ssdf_resolution": (4, 1024), "gamma_levels": (0, 64), "gamma_resolution": (4, 1024)}
-#: the string settings of ``[render]`` and their choices (``RenderSettings.validate`` and the scene schema)
-RENDER_CHOICES = {"fh": ("table", "sigmoid"), "visibility_sampling": ("vertex", "pixel")}
-
-
-@dataclass
-class RenderSettings:
-    """The ``[render]`` table: quality knobs of the SG renderer. The keys' meanings, ranges and
-    choices are documented once, in the scene-file model ``warp_sg.scene.schema.RenderTable``
-    (``warp-sg schema``, ``docs/scene.schema.json``); the ranges and choices are
-    :data:`RENDER_INT_RANGES` and :data:`RENDER_CHOICES`."""
-
-    shadows: bool = True
-    supersampling: int = 1
-    antialias: int = 4
-    lobes: int = 1
-    env_lobes: int = 8
-    env_peaks: int = 8
-    visibility_budget: int = 20000
-    pca_terms: int = 32
-    ssdf_resolution: int = 32
-    gamma_levels: int = 0
-    gamma_resolution: int = 128
-    fh: str = "table"
-    visibility_sampling: str = "vertex"
-    background: bool = True
-    device: str = "cpu"
-
-    def validate(self, where="[render]"):
-        for k, (lo, hi) in RENDER_INT_RANGES.items():
-            v = getattr(self, k)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
-                raise SceneError(f"{where} key '{k}' must be an integer, got {v!r}")
-            if not lo <= v <= hi:
-                raise SceneError(f"{where} key '{k}' must be in [{lo}, {hi}], got {v}")
-        for k in ("shadows", "background"):
-            if not isinstance(getattr(self, k), bool):
-                raise SceneError(f"{where} key '{k}' must be true or false, got {getattr(self, k)!r}")
-        for k, options in RENDER_CHOICES.items():
-            if getattr(self, k) not in options:
-                raise SceneError(f"{where} key '{k}' must be {' or '.join(repr(o) for o in options)}, "
-                                 f"got {getattr(self, k)!r}")
-        if not isinstance(self.device, str):
-            raise SceneError(f"{where} key 'device' must be a string, got {self.device!r}")
-
-
-RENDER_KEYS = tuple(f.name for f in fields(RenderSettings))
-
-
 # --------------------------------------------------------------------------------------------
 # Scene
 # --------------------------------------------------------------------------------------------
@@ -229,7 +178,7 @@ class Scene:
         for i, ob in enumerate(self.objects):
             if ob.material not in self.materials:
                 raise SceneError(f"[[objects]] #{i + 1} material '{ob.material}' is not defined"
-                                 f"{_suggest(ob.material, self.materials)}", where=where)
+                                 f"{did_you_mean(ob.material, self.materials)}", where=where)
         envs = [li for li in self.lights if isinstance(li, EnvironmentLight)]
         if len(envs) > 1:
             raise SceneError("at most one environment light is supported", where=where)
@@ -238,7 +187,7 @@ class Scene:
                 raise SceneError(f"[[lights]] #{j + 1} is not a light record: {li!r}", where=where)
         if not self.lights:
             raise SceneError("the scene has no lights (add a [[lights]] table)", where=where)
-        self.render.validate(f"[render]" if self.path is None else "[render]")
+        self.render.validate()
         self._geometry = None
 
     # convenience views -------------------------------------------------------------------
@@ -267,17 +216,19 @@ class Scene:
 
 
 def _expand_assets(objects: list, materials: dict, where: str) -> tuple[list, dict]:
-    """Every glTF object (``mesh = "*.glb" | "*.gltf"``) becomes one object per mesh primitive, in
-    the file's world frame with the object's transform; without a ``material`` of its own, the
-    file's materials join the scene as ``"<label>/<name>"`` (:mod:`warp_sg.scene.importers.gltf`)."""
-    from warp_sg.scene.importers.gltf import gltf_object_parts, is_gltf
+    """Every glTF or USD object (``mesh = "*.glb" | "*.gltf" | "*.usd" ...``) becomes one object per
+    mesh primitive (USD: per mesh and material subset), in the file's world frame with the object's
+    transform; without a ``material`` of its own, the file's materials join the scene as
+    ``"<label>/<name>"`` (:mod:`warp_sg.scene.importers.gltf`, :mod:`warp_sg.scene.importers.usd`)."""
+    from warp_sg.scene.importers import scene_asset_reader
 
     out, mats = [], dict(materials)
     for i, ob in enumerate(objects):
-        if ob.mesh is None or not is_gltf(ob.mesh):
+        read = None if ob.mesh is None else scene_asset_reader(ob.mesh)
+        if read is None:
             out.append(ob)
             continue
-        parts, specs = gltf_object_parts(ob.mesh, ob.label(i), materials=ob.material is None)
+        parts, specs = read(ob.mesh, ob.label(i), materials=ob.material is None)
         for key, spec in specs.items():
             if key in mats:
                 raise SceneError(f"[[objects]] #{i + 1} material '{key}' of {Path(ob.mesh).name} is also defined "
@@ -291,10 +242,4 @@ def _expand_assets(objects: list, materials: dict, where: str) -> tuple[list, di
     return out, mats
 
 
-def _suggest(name, options) -> str:
-    m = difflib.get_close_matches(str(name), [str(o) for o in options], n=1, cutoff=0.5)
-    return f" — did you mean '{m[0]}'?" if m else ""
-
-
-__all__ = ["Scene", "SceneObject", "Material", "Transform", "RenderSettings", "Light", "COLOUR_PARAMS",
-           "NON_TEXTURE_PARAMS", "RENDER_KEYS", "RENDER_INT_RANGES", "RENDER_CHOICES"]
+__all__ = ["Scene", "SceneObject", "Material", "Transform", "Light", "COLOUR_PARAMS"]

@@ -5,7 +5,9 @@ else. :func:`write_plain_scene` writes, into a folder, exactly what a modelling 
 
 * ``floor.obj`` — the floor as **one 6×6 quad: two triangles**, four vertices;
 * the object: an icosphere (``sphere.ply``, trimesh's icosphere, 1280 triangles, radius 0.5 on the
-  floor) or a non-convex blob (``blob.obj``, the shipped example asset, lumpy and self-shadowing);
+  floor), a non-convex blob (``blob.obj``, the shipped example asset, lumpy and self-shadowing) or
+  the Stanford bunny (the USD file that ships with warp-lang, :func:`warp_bunny`: 12 200 triangles,
+  scaled to 0.97 m and set on the floor; reading it needs ``usd-core``);
 * the light: an equirectangular sky EXR (``sky.exr``: blue gradient, a small sun of radiance
   ~1000 at 36° elevation holding about half of the irradiance, as outdoors;
   :func:`warp_sg.scene.sky.procedural_sky`), or one spherical point light, or a directional light;
@@ -90,12 +92,30 @@ def write_sky_exr(path: Path, width: int = 256, height: int = 128, sun_radiance:
     return path
 
 
+#: the bunny of :func:`warp_bunny` on the floor: 0.6 × its 1.62-unit height, its bounding box centred
+#: on the vertical axis through the origin with its lowest point at y = 0
+BUNNY_PLACEMENT = {"scale": 0.6, "translate": [0.0899, -0.0127, -0.0439]}
+
+
+def warp_bunny() -> Path:
+    """The Stanford bunny that ships with warp-lang (``warp/examples/assets/bunny.usd``, binary USD,
+    6102 points, 12 200 triangles, metres, +Y up)."""
+    import warp
+
+    from warp_sg.core.errors import MeshError
+
+    path = Path(warp.__file__).resolve().parent / "examples" / "assets" / "bunny.usd"
+    if not path.is_file():
+        raise MeshError("this warp-lang installation does not ship examples/assets/bunny.usd", where=str(path))
+    return path
+
+
 def write_plain_scene(folder, obj: str = "sphere", light: str = "sky", material: str = "lambert",
                       size: int = 96, render: dict | None = None, floor_material: str = "lambert",
                       dynamic: bool = False) -> Path:
     """Write a plain-input scene into ``folder`` and return the path of its ``scene.toml``.
 
-    ``obj``: "sphere" | "blob"; ``light``: "sky" (EXR with a sun) | "point" | "sun" (a
+    ``obj``: "sphere" | "blob" | "bunny"; ``light``: "sky" (EXR with a sun) | "point" | "sun" (a
     directional light) | "sky+point"; ``material``: a key of :data:`MATERIALS` for the object, or a
     material table (dict of TOML values, e.g. ``{"model": "ggx", "alpha": 0.3}``);
     ``render``: extra ``[render]`` keys; ``dynamic``: the object may move
@@ -112,6 +132,8 @@ def write_plain_scene(folder, obj: str = "sphere", light: str = "sky", material:
         (folder / "blob.obj").write_text(src.read_text())
         ob = {"mesh": "blob.obj", "material": "object", "name": "object", "scale": 0.45,
               "translate": [0.0, 0.5, 0.0]}
+    elif obj == "bunny":  # the file's own material is replaced by the scene's
+        ob = {"mesh": warp_bunny().as_posix(), "material": "object", "name": "object", **BUNNY_PLACEMENT}
     else:
         raise ValueError(f"unknown object {obj!r}")
     if dynamic:
@@ -138,4 +160,4 @@ def write_plain_scene(folder, obj: str = "sphere", light: str = "sky", material:
     return path
 
 
-__all__ = ["write_plain_scene", "write_floor_obj", "write_sphere_ply", "write_sky_exr", "sun_direction", "MATERIALS"]
+__all__ = ["write_plain_scene", "warp_bunny", "BUNNY_PLACEMENT", "write_floor_obj", "write_sphere_ply", "write_sky_exr", "sun_direction", "MATERIALS"]

@@ -9,10 +9,13 @@ editors with a TOML language server (Taplo / "Even Better TOML") complete keys a
 while a scene is typed.
 
 The schema follows the code, not a copy of it: material tables have one branch per entry of
-``warp_sg.brdf.MODELS`` with that model's ``PARAMS`` (a discriminated union on ``model``), objects
+``warp_sg.brdf.MODELS`` with that model's ``PARAMS`` (a discriminated union on ``model``; each
+parameter's kind, bound, meaning and texture rule as the model declares it,
+:mod:`warp_sg.brdf.params`), objects
 one branch per primitive of ``warp_sg.scene.primitives.PRIMITIVE_PARAMS`` (plus ``mesh``), lights one
-per ``type``; defaults come from the records' own dataclass defaults, ``[render]``'s ranges from
-``warp_sg.scene.model.RENDER_INT_RANGES``.
+per ``type``; defaults come from the records' own dataclass defaults, and ``[render]`` is the
+model of :mod:`warp_sg.scene.render_settings` (:func:`~warp_sg.scene.render_settings.render_table`,
+which also checks scenes built in Python).
 
 Leaf values are the types of :mod:`warp_sg.scene.values` (each a check in the project's wording
 and the same rule as JSON Schema); :func:`error_message` turns pydantic's first error into the
@@ -29,15 +32,16 @@ from typing import Annotated, Any, Literal
 from pydantic import ConfigDict, Field, create_model, model_validator
 
 from warp_sg.brdf import MODELS
+from warp_sg.core.suggest import did_you_mean
 from warp_sg.brdf.fresnel import PRESETS
 from warp_sg.scene.camera import Camera
 from warp_sg.scene.sky import procedural_sky
-from warp_sg.scene.importers.gltf import GLTF_SUFFIXES, is_gltf
+from warp_sg.scene.importers import brings_materials, material_suffixes
 from warp_sg.scene.lights import ENV_PROCEDURAL, DirectionalLight, EnvironmentLight, PointLight
 from warp_sg.scene.primitives import PRIMITIVE_PARAMS, PRIMITIVES
-from warp_sg.scene.model import RENDER_CHOICES, RENDER_INT_RANGES, RenderSettings, _suggest
-from warp_sg.scene.values import (Table, anything, boolean, choice, fail, int_or_ints, integer, number, number_or_vector,
-                           path, require_tag, rgb, string, tagged, vector)
+from warp_sg.scene.render_settings import render_table
+from warp_sg.scene.values import (Table, anything, boolean, choice, fail, failure_text, int_or_ints, integer, number,
+                                  number_or_vector, path, require_tag, rgb, string, tagged, vector)
 
 DRAFT = "http://json-schema.org/draft-04/schema#"
 
@@ -105,42 +109,26 @@ class LafortuneLobe(Table):
     n: number(lo=0, description="exponent (sharpness)")
 
 
-# material parameters: (type, description, texturable); per-model entries override per-name ones
-_POS, _NONNEG = dict(lo=0, lo_open=True), dict(lo=0)
-PARAM_TYPES: dict = {
-    "kd": (rgb(raw=True), "diffuse albedo (number or RGB)", True),
-    "ks": (rgb(raw=True), "specular scale (number or RGB)", True),
-    "m": (number(**_POS), "roughness m (Beckmann slope RMS)", True),
-    "n": (number(**_NONNEG), "Phong exponent", True),
-    "sigma": (number(**_NONNEG), "Oren–Nayar roughness σ (radians)", True),
-    "alpha": (number(**_POS), "isotropic roughness α", True),
-    "alpha_x": (number(**_POS), "roughness along the tangent", True),
-    "alpha_y": (number(**_POS), "roughness along the bitangent", True),
-    "nu": (number(**_NONNEG), "exponent along the tangent", True),
-    "nv": (number(**_NONNEG), "exponent along the bitangent", True),
-    "fresnel": (FRESNEL, "Fresnel: a preset (" + ", ".join(PRESETS) + ") or {schlick}, {eta} or {eta, k}", False),
-    "lobes": (integer(lo=1), "number of SG lobes of the NDF fit", False),
-    "file": (path(), "MERL .binary file, relative to the scene file", False),
-    "eta": (number(**_POS), "index of refraction used for the microfacet fit", False),
-    "pca_terms": (integer(lo=0), "PCA terms of the shadowing fit", False),
-    ("ashikhmin_shirley", "lobes"): (integer(lo=1, odd=True), "number of SG lobes (odd) along the longer axis",
-                                     False),
-    ("ggx", "lobes"): (integer(lo=1), "number of NDF SG lobes (default 3 isotropic, 9 anisotropic; odd when "
-                       "anisotropic)", False),
-    ("ggx", "alpha"): (number(**_POS), "isotropic roughness α (glTF: roughness²; default 0.3)", True),
-    ("lafortune", "lobes"): (Annotated[list[LafortuneLobe], Field(min_length=1)],
-                             "lobes: a list of {cx, cy, cz, n} tables", False),
-}
-#: parameters that may be a texture (the kernel's texture slots, ``warp_sg.shading.surface``)
-TEXTURE_PARAMS = tuple(k for k, v in PARAM_TYPES.items() if isinstance(k, str) and v[2])
+_POS = dict(lo=0, lo_open=True)
 
 
-def param_type(model: str, name: str):
-    """(type, description, texturable) of material parameter ``name`` of ``model``."""
-    spec = PARAM_TYPES.get((model, name)) or PARAM_TYPES.get(name)
-    if spec is None:  # a parameter the schema does not know yet: a number or a texture
-        spec = (number(), f"parameter {name} of {model}", True)
-    return spec
+def param_value(param):
+    """The value type of a model parameter (a :class:`warp_sg.brdf.params.Param` of ``PARAMS``)."""
+    if param.kind == "rgb":
+        return rgb(raw=True)
+    if param.kind == "number":
+        return number(lo=param.lo, lo_open=param.lo_open)
+    if param.kind == "integer":
+        return integer(lo=param.lo, odd=param.odd)
+    if param.kind == "fresnel":
+        return FRESNEL
+    if param.kind == "file":
+        return path()
+    return Annotated[list[LafortuneLobe], Field(min_length=1)]  # "lafortune_lobes"
+
+
+#: parameters that may be a texture, over every model (the kernel's texture slots, ``warp_sg.shading.surface``)
+TEXTURE_PARAMS = tuple(dict.fromkeys(k for cls in MODELS.values() for k, p in cls.PARAMS.items() if p.texture))
 
 
 def _jsonable(v):
@@ -154,11 +142,11 @@ def _material_model(name: str, cls):
     constructor) plus ``normal_map`` and ``tangent_map``."""
     sig = inspect.signature(cls.__init__).parameters
     fields_ = {"model": (Literal[name], Field(description=f"BRDF model {cls.__name__}"))}
-    for p in cls.PARAMS:
-        typ, desc, tex = param_type(name, p)
+    for p, param in cls.PARAMS.items():
+        typ, desc = param_value(param), param.description
         d = sig[p].default if p in sig else None
         extra = {"default": _jsonable(d)} if d not in (None, inspect.Parameter.empty) else None
-        typ = _texture_or(typ, desc) if tex else Annotated[typ, Field(description=desc)]
+        typ = _texture_or(typ, desc) if param.texture else Annotated[typ, Field(description=desc)]
         fields_[p] = (typ, Field(None, json_schema_extra=extra))
     for p, desc in (("normal_map", "tangent-space normal map (RGB)"),
                     ("tangent_map", "tangent direction map (RG)")):
@@ -206,7 +194,8 @@ _OBJECT_FIELDS = {
     "name": (string("label used in messages"), None),
     "translate": (vector(description="translation (applied last)"), None),
     "scale": (number_or_vector(3, description="scale: a number or 3 numbers, > 0"), None),
-    "rotate": (vector(description="Euler angles (degrees) about X, then Y, then Z"), None),
+    "rotate": (vector(description="Euler angles (degrees) about X, then Y, then Z: P' = translate + Rz·Ry·Rx·"
+                                  "(scale ⊙ P)"), None),
     "dynamic": (boolean("the object may move after the precompute (Renderer.set_object_transform): its "
                         "self-shadows are kept in its own frame, its shadows on others come from proxies"), None),
 }
@@ -216,7 +205,9 @@ _PRIMITIVE_PARAM_TYPES = {
     "major_radius": number(**_POS, description="radius of the ring (axis +Y)"),
     "minor_radius": number(**_POS, description="radius of the tube"),
     "size": number_or_vector(2, description="[sx, sz] (normal +Y) or one number"),
-    "resolution": int_or_ints(2, description="tessellation: 2 integers (or one for both)"),
+    "resolution": int_or_ints(2, description="tessellation: [n_theta, n_phi] (sphere), [nx, nz] (plane; SSDF "
+                                             "shadows need vertices), [n_major, n_minor] (torus), or one integer "
+                                             "for both"),
 }
 
 
@@ -227,25 +218,26 @@ def _suffix_pattern(suffixes) -> str:
 
 
 class _MeshObjectBase(Table):
-    """A mesh file; a glTF (.glb/.gltf) brings its own materials (:mod:`warp_sg.scene.importers.gltf`), any other
-    mesh needs ``material``."""
+    """A mesh file; a glTF (.glb/.gltf) or USD (.usd/.usda/.usdc/.usdz) brings its own materials
+    (:mod:`warp_sg.scene.importers.gltf`, :mod:`warp_sg.scene.importers.usd`), any other mesh needs ``material``."""
 
     model_config = ConfigDict(json_schema_extra={"anyOf": [
-        {"required": ["material"]}, {"properties": {"mesh": {"pattern": _suffix_pattern(GLTF_SUFFIXES)}}}]})
+        {"required": ["material"]}, {"properties": {"mesh": {"pattern": _suffix_pattern(material_suffixes())}}}]})
 
     @model_validator(mode="after")
     def _material_unless_gltf(self):
-        if self.material is None and not is_gltf(self.mesh):
-            fail("is missing (only a .glb/.gltf brings its own materials)", key="material")
+        if self.material is None and not brings_materials(self.mesh):
+            fail("is missing (only a .glb/.gltf or USD file brings its own materials)", key="material")
         return self
 
 
 def _object_model(prim: str | None):
     f = dict(_OBJECT_FIELDS)
     if prim is None:
-        f["mesh"] = (path("mesh file (any format trimesh reads; .glb/.gltf with their materials), relative to "
-                          "the scene file"), ...)
-        f["material"] = (string("name of a [materials.NAME] table (optional for .glb/.gltf: the file's)"), None)
+        f["mesh"] = (path("mesh file (any format trimesh reads; .glb/.gltf and USD with their materials), "
+                          "relative to the scene file"), ...)
+        f["material"] = (string("name of a [materials.NAME] table (optional for .glb/.gltf and USD: the file's)"),
+                         None)
         return create_model("MeshObject", __base__=_MeshObjectBase, __doc__=_MeshObjectBase.__doc__, **f)
     f["primitive"] = (Literal[prim], Field(description="built-in primitive"))
     for k, default in PRIMITIVE_PARAMS[prim].items():
@@ -257,9 +249,9 @@ def _object_tag(v):
     if not isinstance(v, dict):
         fail(f"must be a table, got {type(v).__name__}")
     if "mesh" not in v and "primitive" not in v:
-        typo = next((k for k in v if _suggest(k, ("mesh", "primitive"))), None)
+        typo = next((k for k in v if did_you_mean(k, ("mesh", "primitive"))), None)
         if typo is not None:
-            fail(f"unknown{_suggest(typo, ('mesh', 'primitive'))}", key=typo)
+            fail(f"unknown{did_you_mean(typo, ('mesh', 'primitive'))}", key=typo)
     if ("mesh" in v) == ("primitive" in v):
         fail("give exactly one of 'mesh' or 'primitive'")
     if "primitive" in v:
@@ -373,52 +365,7 @@ def _light_branch(v) -> str:
 
 LightTable = tagged(LIGHT_MODELS, _light_branch, _light_tag)
 
-_RS = _defaults(RenderSettings)
-#: the one documentation of the ``[render]`` keys (``RenderSettings`` points here)
-_RENDER_DOC = {
-    "shadows": "SSDF soft shadows, eq. 23–31 (off: visibility 1, no SSDF precompute)",
-    "supersampling": "k: raster and shade at k·H × k·W, box-resolved",
-    "antialias": "a: coverage at a×a sub-pixels, shading edge-adaptive: interior pixels once, edge pixels once "
-                 "per triangle they see, weighted by coverage, contrasting pixels at every sub-pixel "
-                 "(1 = off; used when supersampling = 1)",
-    "lobes": "SG lobes of the NDF of isotropic models (anisotropic Ashikhmin-Shirley uses its own 'lobes')",
-    "env_lobes": "SG lobes of the environment for the diffuse term (eq. 39; < 10 in the paper)",
-    "env_peaks": "at most this many sharp environment peaks (a sun) separated from the map and shaded as "
-                 "directional lights (precompute.environment.peaks; 0 = off)",
-    "visibility_budget": "with shadows: refine the mesh where visibility changes, up to this many vertices "
-                         "(precompute.refine_for_visibility; 0 = the mesh as given)",
-    "pca_terms": "SSDF PCA terms (NV)",
-    "ssdf_resolution": "SSDF map resolution",
-    "gamma_levels": "λ levels of the ΓL pyramid (0 = default ladder: λ0 = 0.5 growing by √2 up to the map's "
-                    "resolution)",
-    "gamma_resolution": "largest cube face of the ΓL pyramid",
-    "fh": "Fh: 'table' (exact, tabulated) or 'sigmoid' (paper appendix)",
-    "visibility_sampling": "SSDF of the directions that do not depend on the view (environment lobes, lights) "
-                           "and the diffuse environment sum: 'vertex' (once per vertex, cached, interpolated; "
-                           "warp_sg.shading.vertex_visibility) or 'pixel' (one SSDF lookup per lobe and light per pixel)",
-    "background": "pixels that see no object show the environment",
-    "device": "default device: 'cpu', 'cuda', 'cuda:N' or 'auto'",
-}
-
-
-def _render_type(k):
-    """The type of ``[render]`` key ``k``: its range, its choices, else the type of its default."""
-    doc, default = _RENDER_DOC.get(k, k), _RS[k]
-    if k in RENDER_INT_RANGES:
-        return integer(*RENDER_INT_RANGES[k], description=doc)
-    if k in RENDER_CHOICES:
-        return choice(RENDER_CHOICES[k], doc)
-    if isinstance(default, bool):
-        return boolean(doc)
-    if isinstance(default, int):
-        return integer(description=doc)
-    if isinstance(default, float):
-        return number(description=doc)
-    return string(doc)
-
-
-RenderTable = create_model("RenderTable", __base__=Table, __doc__="Quality settings of the SG renderer.",
-                           **{k: (_render_type(k), _RS[k]) for k in _RS})
+RenderTable = render_table()
 
 
 class SceneFile(Table):
@@ -470,11 +417,7 @@ def error_message(err: dict, data: dict) -> str:
     loc, typ = tuple(err["loc"]), err["type"]
     label, raw, rest = _table_label(data, loc)
     key = _key_path(raw, rest)
-    if typ == "scene":
-        ctx = err["ctx"]
-        key = ".".join(x for x in (key, ctx["key"]) if x)
-        text = f"key '{key}'{ctx['sep']}{ctx['msg']}" if key else ctx["msg"]
-    elif typ == "missing":
+    if typ == "missing":
         if label and not key:
             return f"table {label} is missing"
         text = f"key '{key}' is missing"
@@ -487,11 +430,11 @@ def error_message(err: dict, data: dict) -> str:
         text = f"key '{key}' must not be empty"
     elif typ == "literal_error":
         text = f"key '{key}' must be {err['ctx']['expected']}"
-    else:
-        text = f"key '{key}': {err['msg']}" if key else err["msg"]
+    else:  # a failed check of ours (its words) or another pydantic error
+        text = failure_text(err, key)
     return f"{label} {text}" if label else text
 
 
 __all__ = ["SceneFile", "CameraTable", "RenderTable", "TextureTable", "FresnelTable", "MATERIAL_MODELS",
-           "OBJECT_MODELS", "LIGHT_MODELS", "PARAM_TYPES", "TEXTURE_PARAMS", "param_type", "error_message",
+           "OBJECT_MODELS", "LIGHT_MODELS", "TEXTURE_PARAMS", "param_value", "error_message",
            "DRAFT"]

@@ -14,19 +14,31 @@ key); :func:`tagged` builds a discriminated union whose tags are dropped from er
 from __future__ import annotations
 
 import math
+import numbers
 from typing import Annotated, Any, Union
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Discriminator, PlainValidator, Tag, WithJsonSchema, \
     model_validator
 from pydantic_core import PydanticCustomError
 
-from warp_sg.scene.model import _suggest
+from warp_sg.core.suggest import did_you_mean
 
 
 def fail(msg: str, key: str = "", sep: str = " "):
     """A validation failure with the project's wording; ``key`` names a key inside the table (the
     line reads ``key '<key>'<sep><msg>``)."""
     raise PydanticCustomError("scene", "{msg}", {"msg": msg, "key": key, "sep": sep})
+
+
+def failure_text(err: dict, key: str = "") -> str:
+    """The words of one failed check (a pydantic error dict) at key path ``key`` of its table:
+    ``key '<key>'<sep><msg>`` for a :func:`fail` (its own ``key`` appended), ``<msg>`` for a
+    failure of the table itself, ``key '<key>': <pydantic's message>`` for any other error."""
+    if err["type"] != "scene":
+        return f"key '{key}': {err['msg']}" if key else err["msg"]
+    ctx = err["ctx"]
+    key = ".".join(x for x in (key, ctx["key"]) if x)
+    return f"key '{key}'{ctx['sep']}{ctx['msg']}" if key else ctx["msg"]
 
 
 def _leaf(check, schema: dict, description: str | None = None):
@@ -71,8 +83,9 @@ def number(lo=None, lo_open=False, hi=None, description=None):
 
 
 def _check_int(v, lo=None, hi=None, odd=False) -> int:
-    if isinstance(v, bool) or not isinstance(v, int):
+    if isinstance(v, bool) or not isinstance(v, numbers.Integral):  # (a numpy integer of a Python-built scene too)
         fail(f"must be an integer, got {v!r}")
+    v = int(v)
     if lo is not None and hi is not None and not lo <= v <= hi:
         fail(f"must be in [{lo}, {hi}], got {v}")
     if lo is not None and v < lo:
@@ -195,7 +208,7 @@ def choice(options, description=None, *, fold_case=False):
         if w not in options:
             if len(options) <= 3:
                 fail(f"must be {' or '.join(repr(o) for o in options)}, got {v!r}")
-            fail(f"unknown value {v!r}{_suggest(v, options)} (use {', '.join(options)})", sep=": ")
+            fail(f"unknown value {v!r}{did_you_mean(v, options)} (use {', '.join(options)})", sep=": ")
         return v
 
     return _leaf(check, {"type": "string", "enum": list(options)}, description)
@@ -222,7 +235,7 @@ class Table(BaseModel):
         allowed = tuple(cls.model_fields)
         for k in data:
             if k not in allowed:
-                fail("unknown" + (_suggest(k, allowed) or f" (valid keys: {', '.join(allowed)})"), key=k)
+                fail("unknown" + (did_you_mean(k, allowed) or f" (valid keys: {', '.join(allowed)})"), key=k)
         return data
 
 
@@ -232,12 +245,12 @@ def require_tag(v, key: str, options, noun: str) -> None:
     if not isinstance(v, dict):
         fail(f"must be a table, got {type(v).__name__}")
     if key not in v:
-        typo = next((k for k in v if _suggest(k, (key,))), None)
+        typo = next((k for k in v if did_you_mean(k, (key,))), None)
         if typo is not None:
             fail(f"unknown — did you mean '{key}'?", key=typo)
         fail("is missing", key=key)
     if v[key] not in options:
-        fail(f"unknown {noun} {v[key]!r}{_suggest(v[key], options)} (use {', '.join(options)})", key=key, sep=": ")
+        fail(f"unknown {noun} {v[key]!r}{did_you_mean(v[key], options)} (use {', '.join(options)})", key=key, sep=": ")
 
 
 def tagged(branches: dict, tag_of, before=None):
@@ -251,5 +264,5 @@ def tagged(branches: dict, tag_of, before=None):
 
 
 
-__all__ = ["Table", "tagged", "require_tag", "fail", "number", "integer", "vector", "number_or_vector", "rgb", "int_or_ints", "string",
+__all__ = ["Table", "tagged", "require_tag", "fail", "failure_text", "number", "integer", "vector", "number_or_vector", "rgb", "int_or_ints", "string",
            "path", "boolean", "choice", "anything"]

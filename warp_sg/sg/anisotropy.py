@@ -3,10 +3,10 @@ r"""Anisotropic reflectance with N-lobe SG mixtures: error against N (supplement
 Two anisotropic models, Ashikhmin–Shirley (supplement eq. 12–13) and anisotropic Ward
 (lecture; supplement eq. 4–6 with ``αx ≠ αy``), their NDFs approximated by N SG lobes
 (odd N; the construction of supplement eq. 14 — ``method="analytic"`` — or the L-BFGS-B fit of
-:func:`warp_sg.brdf.fit.fit_anisotropic` started from it — ``method="fit"``). Three errors:
+:func:`warp_sg.brdf.fitting.fit.fit_anisotropic` started from it — ``method="fit"``). Three errors:
 
 * ``ndf``: supplement eq. 11 of ``Mo(o, i) · D*(h)`` against ``ρs`` over all (o, i)
-  (:func:`warp_sg.brdf.fit.fit_error`; what supplement Fig. 5c plots);
+  (:func:`warp_sg.brdf.fitting.fit.fit_error`; what supplement Fig. 5c plots);
 * ``slice``: eq. 11 of the warped slice (paper eq. 17–22, :func:`warp_sg.brdf.slice_lobes_numpy`)
   against ``ρs(o, ·)`` for a fixed set of view directions — adds the spherical-warp error;
 * ``render``: a rendered sphere (orthographic view along z, tangent = ``(0, 1, 0) × n``) lit by one SG
@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from warp_sg.brdf import AshikhminShirley, Ward, slice_lobes_numpy
-from warp_sg.brdf.fit import fit_error
+from warp_sg.brdf.fitting.fit import fit_error
 
 #: default models of the study
 DEFAULT_MODELS = {
@@ -43,7 +43,7 @@ def make(name, n_lobes, **params):
 
 def ndf_error(model, n_lobes, method="analytic", **quadrature):
     """Supplement eq. 11 of ``Mo · D*`` (N-lobe NDF) against ``ρs`` (``quadrature``: ``n_o``,
-    ``n_phi_o``, ``n_th``, ``n_ph`` of :func:`warp_sg.brdf.fit.eq11_error`)."""
+    ``n_phi_o``, ``n_th``, ``n_ph`` of :func:`warp_sg.brdf.fitting.fit.eq11_error`)."""
     return fit_error(model, n_lobes, method, **quadrature)
 
 

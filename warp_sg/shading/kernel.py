@@ -42,7 +42,7 @@ NDF lobes, eq. 17–22, ``shading_slice_lobe``)::
     Rs += c(o) Σ_k μ_k ∫G_k e(Ns·p_k, λ_k) · ΓL(p, λ)/∫G(λ) (eq. 35) · vis_ratio(p, λ),   (p, λ) = C* ⊗ G_k
 
 ``c(o) = A(o)/A*(o)`` is the material's tabulated ratio of the exact BRDF's directional albedo to
-the slice lobes' (``warp_sg.brdf.albedo``): the warp's energy error, up to ±20 %, removed.
+the slice lobes' (``warp_sg.brdf.kernel.albedo``): the warp's energy error, up to ±20 %, removed.
 
 The clamped-cosine SG ``C*`` (eq. 40) only places and sizes the product lobe whose visibility
 and mean radiance stand for the cosine-weighted lobe; the cosine itself is exact. The diffuse BRDF
@@ -64,7 +64,7 @@ Kernel variants: the kernel is specialised by scene content (``Features``): envi
 (SSDF), textures, normal/tangent maps, the material layers (emission, occlusion, coat, vertex
 colours, cut-outs), the fh method and the set of material models (the BRDF
 functions, ``shading_slice_lobe`` and ``diffuse_at`` come from ``material_funcs`` of
-``brdf.material_variants``, built for just those models). Variants are created once per feature
+``brdf.kernel.material_variants``, built for just those models). Variants are created once per feature
 tuple and cached (``shade_kernel``); code a scene does not need is removed at compile time with
 ``wp.static``. The kernel is 1-D over row-major samples with an index offset ``base`` and ``per``
 samples per thread (:data:`PIXELS_PER_THREAD` on the CPU, 1 on CUDA), so on the CPU disjoint
@@ -79,8 +79,8 @@ import warp as wp
 
 from warp_sg.shading.background import Background, background_along, background_at
 from warp_sg.shading.cutout import Cutouts, see_behind
-from warp_sg.brdf.albedo import albedo_correction
-from warp_sg.brdf.material_wp import ALL_MODELS, Material, above, constant_diffuse, material_funcs
+from warp_sg.brdf.kernel.albedo import albedo_correction
+from warp_sg.brdf.kernel.material_wp import ALL_MODELS, Material, above, constant_diffuse, material_funcs
 from warp_sg.numeric.fastmath import fast_asin
 from warp_sg.numeric.onb import local_to_world, world_to_local
 from warp_sg.scene.lights import LightArrays, light_irradiance
@@ -381,7 +381,7 @@ def shade_kernel(f: Features):
                                 pv, lv = visible_lobe(vis, q, pa, lam, vd[1])
                             g = gamma_mean(gamma, pv, lv)  # L̄ = ΓL(p, λ)/∫G(λ)
                             spec += wp.cw_mul(mw, g) * (e * vd[0])
-                if nspec > 0:  # the slice's energy made the BRDF's: A(o)/A*(o) (brdf.albedo)
+                if nspec > 0:  # the slice's energy made the BRDF's: A(o)/A*(o) (brdf.kernel.albedo)
                     col += wp.cw_mul(spec, albedo_correction(mat, o_l))
                 if wp.static(COAT):
                     cspec = wp.vec3(0.0, 0.0, 0.0)

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from warp_sg.brdf.material_wp import Material, texel_param0
+from warp_sg.brdf.kernel.material_wp import Material, texel_param0
 from warp_sg.core.errors import SceneError
 from warp_sg.numeric.onb import frame_tangent, local_to_world
 from warp_sg.scene.textures import TextureAtlas, tex_sample

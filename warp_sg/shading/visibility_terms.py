@@ -18,7 +18,7 @@ import warp as wp
 from precompute.environment.irradiance import IrradianceTable
 from precompute.visibility.occluder_cone import occluder_clearance
 from precompute.visibility.ssdf_wp import SSDFPoint, ssdf_at
-from warp_sg.brdf.material_wp import lum
+from warp_sg.brdf.kernel.material_wp import lum
 from warp_sg.numeric.fastmath import fast_asin
 from warp_sg.sg import CLAMPED_COSINE_SHARPNESS
 from warp_sg.sg.fh import fh_ratio_table_pair, fh_theta_max_wp

@@ -87,7 +87,8 @@ def bench_scene(width=160, height=120, *, env=True, lights=True, diffuse_only=Fa
     from warp_sg import brdf as B
     from warp_sg.scene.lights import DirectionalLight, EnvironmentLight, PointLight
     from warp_sg.scene.camera import Camera
-    from warp_sg.scene.model import RenderSettings, Scene, SceneObject
+    from warp_sg.scene.model import Scene, SceneObject
+    from warp_sg.scene.render_settings import RenderSettings
 
     cam = Camera(origin=(0.0, 1.6, 4.2), target=(0.0, 0.45, 0.0), up=(0.0, 1.0, 0.0), fov=38.0, width=int(width),
                  height=int(height))

@@ -27,7 +27,8 @@ def scaling_scene(n_triangles: int, size: int, device: str = "cpu"):
     from warp_sg import brdf as B
     from warp_sg.scene.lights import EnvironmentLight, PointLight
     from warp_sg.scene.camera import Camera
-    from warp_sg.scene.model import RenderSettings, Scene, SceneObject
+    from warp_sg.scene.model import Scene, SceneObject
+    from warp_sg.scene.render_settings import RenderSettings
 
     minor = max(3, int(round(np.sqrt(n_triangles / 8.0))))
     major = max(3, int(round(n_triangles / (2.0 * minor))))

@@ -6,11 +6,11 @@
     warp-sg render ASSET.(glb|gltf|obj|ply|...) [--env SKY.(hdr|exr)] [--view AZ EL] [--print-scene] -o OUT
     warp-sg preview SCENE|ASSET [--env SKY] [--view AZ EL] [--screenshot PNG] [--window-size W H] [--exposure EV]
     warp-sg reference SCENE -o OUT --spp N         (arguments from warp_sg.groundtruth.reference)
-    warp-sg report SCENE -o DIR                    (arguments from warp_sg.tools.report)
+    warp-sg report SCENE -o DIR [--animation JOB.toml]   (arguments from warp_sg.tools.report)
     warp-sg bench                                  (arguments from warp_sg.tools.bench)
     warp-sg precompute SCENE [--cluster local:N|tcp://HOST:PORT]   (warp_sg.distributed.precompute)
     warp-sg batch JOB.toml [--cluster ...]         (warp_sg.distributed.batch)
-    warp-sg schema [-o FILE]                       (JSON Schema of scene files, warp_sg.scene.schema)
+    warp-sg schema [-o FILE] [--markdown]          (JSON Schema of scene files, warp_sg.scene.schema; or the key reference)
 
 ``render``, ``precompute``, ``report``, ``bench`` and ``batch`` take ``--cluster``: the SSDF precompute
 (and batch / reference work) then runs on Dask (docs/distributed.md); without it Dask is not imported.
@@ -67,6 +67,25 @@ def _positive_int(name):
     return conv
 
 
+def _render_key(key):
+    """An option that sets ``[render]`` key ``key``: an integer the scene-file model accepts for it
+    (:func:`warp_sg.scene.render_settings.render_table`, the one rule of the key)."""
+    def conv(s):
+        from warp_sg.scene.render_settings import RenderSettings
+
+        try:
+            v = int(s)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be an integer, got {s!r}") from None
+        try:
+            RenderSettings(**{key: v}).validate()
+        except InputError as e:
+            raise argparse.ArgumentTypeError(str(e)) from None
+        return v
+
+    return conv
+
+
 def _float(s):
     """A finite number (``inf`` and ``nan`` are refused: they make every pixel inf or NaN)."""
     try:
@@ -106,8 +125,8 @@ def add_render_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--print-scene", action="store_true",
                    help="print the scene as TOML (with an asset: the scene made for it; -o optional)")
     add_device_argument(p)
-    p.add_argument("--spp", "--supersampling", dest="supersampling", type=_positive_int("--supersampling"),
-                   default=None, help="supersampling factor k (k×k samples per pixel, box filter)")
+    p.add_argument("--spp", "--supersampling", dest="supersampling", type=_render_key("supersampling"),
+                   default=None, help="[render] supersampling: the factor k (k×k samples per pixel, box filter)")
     p.add_argument("--exposure", type=_float, default=0.0, help="exposure in stops applied before writing (default 0)")
     p.add_argument("--width", type=_positive_int("--width"), default=None, help="override the camera width")
     p.add_argument("--height", type=_positive_int("--height"), default=None, help="override the camera height")
@@ -254,15 +273,22 @@ def preview_main(args) -> int:
 def add_schema_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("-o", "--output", default=None,
                    help="write the schema to this file (atomically; missing folders are created) instead of stdout")
+    p.add_argument("--markdown", action="store_true",
+                   help="the reference of every key as Markdown (docs/scene-keys.md) instead of the JSON Schema")
 
 
 def schema_main(args) -> int:
     from warp_sg.scene.json_schema import schema_text, write_schema
 
+    text = None
+    if args.markdown:
+        from warp_sg.scene.key_reference import keys_markdown
+
+        text = keys_markdown()
     if args.output:
-        write_schema(args.output)
+        write_schema(args.output, text)
     else:
-        sys.stdout.write(schema_text())
+        sys.stdout.write(text or schema_text())
     return 0
 
 
@@ -295,9 +321,10 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                                    "l next light, h hide widgets. --screenshot PNG renders off-screen.")
     add_preview_arguments(p)
     p.set_defaults(func=preview_main)
-    p = sub.add_parser("schema", help="print the JSON Schema of scene files (for editors)",
+    p = sub.add_parser("schema", help="print the JSON Schema of scene files (for editors), or their key reference",
                        description="Print the JSON Schema (Draft 4) of the TOML scene format, for editors' TOML "
-                                   "language servers (Taplo / Even Better TOML): see docs/rendering.md, \"Editor completion and validation\".")
+                                   "language servers (Taplo / Even Better TOML): see docs/rendering.md, \"Editor completion and validation\"; "
+                                   "with --markdown the reference of every key (docs/scene-keys.md).")
     add_schema_arguments(p)
     p.set_defaults(func=schema_main)
     for name, (mod, help_) in EXTERNAL.items():

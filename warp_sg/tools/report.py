@@ -25,6 +25,10 @@ the fraction of pixels off by more than 3× (:mod:`warp_sg.groundtruth.region_er
 ``report.csv``, ``report.md`` (summary + table + embedded plots), ``error_vs_time.png`` (log-log,
 one curve per knob, the MC curve on the same axes), ``psnr_vs_time.png``, ``images.png`` (truth,
 renderer, difference), ``report.json``.
+
+``warp-sg report SCENE --animation JOB.toml -o DIR`` reports an animation instead: per frame of a
+``warp-sg batch`` job file, the region biases and the moved objects' shadow centroid offset
+against that frame's reference (:mod:`warp_sg.tools.report_animation`).
 """
 from __future__ import annotations
 
@@ -41,8 +45,10 @@ import numpy as np
 from warp_sg.core.cache import content_key, fresh_cache, note_build, note_hit, record_builds
 
 from warp_sg.core.device import add_device_argument, device_for
+from warp_sg.core.files import output_folder
 from warp_sg.core.errors import InputError
 from warp_sg.groundtruth.region_error import image_errors
+from warp_sg.scene.camera import with_resolution
 from warp_sg.tools.report_outputs import write_outputs, write_rows_csv
 
 # knob name -> (full sweep, quick sweep); only knobs present in the scene's render settings run.
@@ -211,20 +217,6 @@ def mc_curve(scene, truth, device="cpu", max_spp=64, seed=2, progress=True, per_
     return rows
 
 
-def with_resolution(scene, width=None, height=None):
-    """A copy of ``scene`` whose camera renders ``width`` × ``height`` (one given: keep the aspect)."""
-    if not width and not height:
-        return scene
-    cam = scene.camera
-    if width and not height:
-        height = max(1, round(cam.height * width / cam.width))
-    if height and not width:
-        width = max(1, round(cam.width * height / cam.height))
-    sc = copy.copy(scene)
-    sc.camera = dataclasses.replace(cam, width=int(width), height=int(height))
-    return sc
-
-
 def run_report(scene, out_dir, device=None, quick=False, truth_spp=None, mc_max_spp=None, knobs=None,
                progress=True, frames=None, width=None, height=None, cluster=None, reuse=True) -> Report:
     """Run the sweep for ``scene`` (a Scene or a path) and write the report into ``out_dir``.
@@ -245,13 +237,7 @@ def run_report(scene, out_dir, device=None, quick=False, truth_spp=None, mc_max_
 
     scene = with_resolution(_load(scene), width, height)
     device = device_for(device, scene)
-    out = Path(out_dir)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise InputError(f"cannot create the output folder ({e.strerror})", where=str(out)) from None
-    if not os.access(out, os.W_OK):
-        raise InputError("output folder is not writable", where=str(out))
+    out = output_folder(out_dir)
     truth_spp = int(truth_spp or (64 if quick else DEFAULT_TRUTH_SPP))
     mc_max_spp = int(mc_max_spp or max(1, truth_spp // 8))
     frames = frames or (1 if quick else 3)
@@ -330,6 +316,10 @@ def add_cli_arguments(p) -> None:
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--cluster", default=None, metavar="local:N|tcp://HOST:PORT",
                    help="split the ground truth's samples across a Dask cluster (docs/distributed.md)")
+    p.add_argument("--animation", default=None, metavar="JOB.toml",
+                   help="per-frame errors of an animation instead of the sweep: the frames of a `warp-sg batch` "
+                        "job file (object transforms, camera, ...) against each frame's MC reference "
+                        "(--truth-spp samples per pixel, default 1024; --quick: 64); writes animation.csv/.md")
 
 
 def cli_main(args) -> int:
@@ -339,6 +329,16 @@ def cli_main(args) -> int:
         v = getattr(args, k)
         if v is not None and v < 1:
             raise InputError(f"must be >= 1, got {v}", where=f"--{k}")
+    if getattr(args, "animation", None) is not None:
+        from warp_sg.tools.report_animation import run_animation_report
+
+        if args.cluster:
+            raise InputError("an animation report renders its references on this machine", where="--cluster")
+        rep = run_animation_report(args.scene, args.animation, args.output, device=args.device, spp=args.truth_spp,
+                                   quick=args.quick, progress=not args.no_progress, width=args.width,
+                                   height=args.height)
+        print(f"animation report ({len(rep.rows)} frames) written to {rep.files['markdown']}")
+        return 0
     rep = run_report(args.scene, args.output, device=args.device, quick=args.quick, truth_spp=args.truth_spp,
                      progress=not args.no_progress, width=args.width, height=args.height,
                      cluster=getattr(args, "cluster", None))

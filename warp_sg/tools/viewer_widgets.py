@@ -6,10 +6,11 @@ goes through a ``Renderer`` setter (``set_material``, ``update_light``,
 renders: coarse while a widget is dragged (its ``Start``/``EndInteractionEvent`` bracket the
 drag), full when it is released.
 
-* Left column: the selected material's parameters — ``kd`` and ``ks`` as the largest channel
-  (the hue is kept), and the model's scalar roughness (:data:`MODEL_SLIDERS`: Phong / Blinn-Phong
-  ``n``, Cook-Torrance / Torrance-Sparrow ``m``, Ward ``alpha`` or ``alpha_x``/``alpha_y``,
-  Ashikhmin-Shirley ``nu``/``nv``, Oren-Nayar ``sigma``). Textured parameters have no slider.
+* Left column: the selected material's parameters with a slider range in the model's ``PARAMS``
+  (:mod:`warp_sg.brdf.params`; :func:`slider_params`) — ``kd`` and ``ks`` as the largest channel
+  (the hue is kept), and the model's scalar roughness (Phong / Blinn-Phong ``n``, Cook-Torrance /
+  Torrance-Sparrow ``m``, Ward and GGX ``alpha`` or ``alpha_x``/``alpha_y``, Ashikhmin-Shirley
+  ``nu``/``nv``, Oren-Nayar ``sigma``). Textured parameters have no slider.
   A left click on an object selects its material (``Viewport.pick``).
 * Right column: the selected local light's intensity (largest channel, hue kept) and radius;
   the environment's rotation (degrees about +Y) and scale; the display exposure (stops).
@@ -31,18 +32,20 @@ import numpy as np
 
 from warp_sg.scene.lights import DirectionalLight, PointLight
 
-#: per model, the scalar parameters with a slider: (name, low, high)
-MODEL_SLIDERS = {
-    "oren_nayar": (("sigma", 0.0, 1.5),),
-    "phong": (("n", 1.0, 1000.0),),
-    "blinn_phong": (("n", 1.0, 1000.0),),
-    "cook_torrance": (("m", 0.02, 1.0),),
-    "torrance_sparrow": (("m", 0.02, 1.0),),
-    "ward": (("alpha", 0.02, 0.8),),
-    "ashikhmin_shirley": (("nu", 1.0, 2000.0), ("nv", 1.0, 2000.0)),
-}
-#: Ward with separate roughness along the tangent / bitangent
-WARD_ANISO = (("alpha_x", 0.02, 0.8), ("alpha_y", 0.02, 0.8))
+
+def slider_params(params: dict, given) -> list:
+    """The parameters of a model's ``PARAMS`` ({name: Param}) that get a slider: those with a
+    ``slider`` range, and of a parameter and those given ``instead_of`` it, the ones ``given``
+    (Ward's ``alpha_x``/``alpha_y`` when the material sets either, else its ``alpha``)."""
+    out = []
+    for name, p in params.items():
+        if p.slider is None:
+            continue
+        rivals = [q for q, r in params.items() if r.instead_of == (p.instead_of or name)]
+        chosen = any(q in given for q in rivals)
+        if not rivals or chosen == (p.instead_of is not None):
+            out.append(name)
+    return out
 
 _ROW0, _ROW_STEP = 0.86, 0.105
 _COLS = ((0.02, 0.30), (0.70, 0.98))
@@ -132,15 +135,14 @@ class Editor:
         """(parameter, low, high, value) of material ``name``'s sliders."""
         m = self.renderer.scene.materials[name]
         model = m.brdf
-        params = [p for p in ("kd", "ks") if p in type(model).PARAMS and p not in m.textures]
-        out = [(p, 0.0, 1.0, _peak(getattr(model, p))) for p in params]
-        specs = MODEL_SLIDERS.get(m.model, ())
-        if m.model == "ward" and ("alpha_x" in m.params or "alpha_y" in m.params):
-            specs = WARD_ANISO
-        for p, lo, hi in specs:
-            if p not in m.textures:
-                v = float(getattr(model, p))
-                out.append((p, min(lo, v), max(hi, v), v))
+        params = type(model).PARAMS
+        out = []
+        for p in slider_params(params, m.params):
+            if p in m.textures:
+                continue
+            (lo, hi), rgb = params[p].slider, params[p].kind == "rgb"
+            v = _peak(getattr(model, p)) if rgb else float(getattr(model, p))
+            out.append((p, lo, hi, v) if rgb else (p, min(lo, v), max(hi, v), v))
         return out
 
     def _material_sliders(self) -> None:
@@ -302,4 +304,4 @@ class Editor:
         return "\n".join(lines)
 
 
-__all__ = ["Editor", "MODEL_SLIDERS"]
+__all__ = ["Editor", "slider_params"]

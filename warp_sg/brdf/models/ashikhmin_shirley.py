@@ -27,9 +27,10 @@ from ...core.errors import InputError
 from ...sg import EPSILON
 from ..base import SpecularBRDF, as_rgb, as_scalar, dirs, half_vector
 from ..fresnel import parse_fresnel
-from ..material_eval_wp import aniso_axis, as_exponent_log, expm1_neg_f, fresnel_eval, half_vec
-from ..material_sample_wp import as_h, as_pdf_h, reflect_about
-from ..material_struct import LN_EPS, PI, Material
+from ..kernel.material_eval_wp import aniso_axis, as_exponent_log, expm1_neg_f, fresnel_eval, half_vec
+from ..kernel.material_sample_wp import as_h, as_pdf_h, reflect_about
+from ..kernel.material_struct import LN_EPS, PI, Material
+from ..params import FRESNEL, KD, KS, Param
 from ..registry import Kernel, register
 
 
@@ -96,7 +97,11 @@ class AshikhminShirley(SpecularBRDF):
     CODE = 7
     KERNEL = Kernel(ndf=ashikhmin_shirley_ndf, mo=ashikhmin_shirley_mo, analytic_lobe=ashikhmin_shirley_lobe,
                     sample=ashikhmin_shirley_sample, pdf_h=ashikhmin_shirley_pdf_h)
-    PARAMS = ("kd", "ks", "nu", "nv", "fresnel", "lobes")
+    PARAMS = {"kd": KD, "ks": KS,
+              "nu": Param("number", "exponent along the tangent", lo=0, texture=True, slider=(1.0, 2000.0)),
+              "nv": Param("number", "exponent along the bitangent", lo=0, texture=True, slider=(1.0, 2000.0)),
+              "fresnel": FRESNEL,
+              "lobes": Param("integer", "number of SG lobes (odd) along the longer axis", lo=1, odd=True)}
 
     def __init__(self, kd=(0.0, 0.0, 0.0), ks=(1.0, 1.0, 1.0), nu=100.0, nv=100.0, fresnel=None, lobes=7):
         self.kd = as_rgb(kd, "kd")

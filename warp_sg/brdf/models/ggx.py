@@ -18,16 +18,16 @@ is evaluated as ``1/((n·i)(n·o) + (n·i) L(o) + (n·o) L(i))`` with
 ``L(v) = vz Λ(v) = a²/(2(√(vz² + a²) + vz))``, ``a² = αx² vx² + αy² vy²`` (no cancellation, finite
 at grazing unless both directions are grazing).
 
-SG fits of ``D̂`` (:mod:`warp_sg.brdf.fit`): ``D̂ = 1/(cos²θ + sin²θ/α²)² = 1 − 2(1/α² − 1)θ² + …``
+SG fits of ``D̂`` (:mod:`warp_sg.brdf.fitting.fit`): ``D̂ = 1/(cos²θ + sin²θ/α²)² = 1 − 2(1/α² − 1)θ² + …``
 (Taylor single lobe ``λ = 4/α² − 4``, ``μ = 1``: :meth:`GGX.ndf_analytic_lambda`). Isotropic
 K-lobe fits (K = 1..4; non-negative amplitudes, a θ grid that covers the long tail ``D̂ ≈ (α/θ)⁴``
-out to ``25α``) are shipped at 39 roughness nodes (``ggx_lobe_table.py``, made by
+out to ``25α``) are shipped at 39 roughness nodes (``fitting/ggx_lobe_table.py``, made by
 ``scripts/ggx_lobe_table.py``) and interpolated in α (:func:`table_lobes`) — in the kernel too, so
 a textured α gets fitted lobes per texel. Other counts (or ``method="fit"``) fit the constant α
 directly. Anisotropic: the Ashikhmin–Shirley N-lobe layout (supplement eq. 14) with extent ``θv``
 where ``D̂`` along the wide axis falls to ε = 0.1, the common sharpness ``2/min(α)²`` — half the
 Taylor value, so the wider lobes follow GGX's heavy tails — and amplitudes ``D̂(pk)`` divided by
-the lobes' overlap at pk (:func:`warp_sg.brdf.fit.aniso_lobes`), so that more lobes do not
+the lobes' overlap at pk (:func:`warp_sg.brdf.fitting.fit.aniso_lobes`), so that more lobes do not
 overshoot (supplement eq. 11 error of (αx, αy) = (0.3, 0.06) for N = 5, 7, 9, 15: 0.18, 0.048,
 0.027, 0.029; with ``4/α² − 4`` and plain ``D̂(pk)``: 0.45, 0.28, 0.15, 0.077; docs/ggx.md).
 ``lobes``: NDF lobes (default :data:`DEFAULT_LOBES` isotropic, :data:`DEFAULT_ANISO_LOBES`
@@ -43,16 +43,19 @@ with overlap-normalised amplitudes, fitted lobes rescaled by the curvature ratio
 and visible-normal sampling (cosine samples for ``n·o ≤ 0``).
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the @wp.func annotations.
+from dataclasses import replace
+
 import numpy as np
 import warp as wp
 
 from ...core.errors import InputError
 from ..base import SpecularBRDF, as_rgb, as_roughness, dirs, half_vector
 from ..fresnel import parse_fresnel
-from ..material_eval_wp import (_aniso_overlap, aniso_axis, fresnel_eval, ggx_extent, ggx_g2_over_cos, ggx_ndf_peak1,
+from ..kernel.material_eval_wp import (_aniso_overlap, aniso_axis, fresnel_eval, ggx_extent, ggx_g2_over_cos, ggx_ndf_peak1,
                                 ggx_table_lobe, half_vec)
-from ..material_sample_wp import cosine_dir, ggx_pdf_i, ggx_vndf_h, reflect_about
-from ..material_struct import INV_PI, PI, Material
+from ..kernel.material_sample_wp import cosine_dir, ggx_pdf_i, ggx_vndf_h, reflect_about
+from ..kernel.material_struct import INV_PI, PI, Material
+from ..params import ALPHA_X, ALPHA_Y, FRESNEL, KD, KS, Param
 from ..registry import Kernel, register
 
 #: default number of NDF lobes (isotropic; see docs/ggx.md for the error against lobe count)
@@ -63,7 +66,7 @@ DEFAULT_ANISO_LOBES = 9
 from ...sg import EPSILON  # noqa: E402
 #: the isotropic multi-lobe fit covers θ ∈ [0, min(π/2, FIT_EXTENT α)]
 FIT_EXTENT = 25.0
-#: roughness nodes of the shipped isotropic fits (ggx_lobe_table.py): α = TABLE_A0 + TABLE_STEP·n
+#: roughness nodes of the shipped isotropic fits (fitting/ggx_lobe_table.py): α = TABLE_A0 + TABLE_STEP·n
 TABLE_A0 = 0.025
 TABLE_STEP = 0.025
 TABLE_N = 39
@@ -80,7 +83,7 @@ def _curvature(alpha):
 
 def node_fit(alpha, k):
     """The K-lobe least-squares fit at one table node: ``(λ/(1/α² − 1), μ)`` (``fit`` method)."""
-    from ..fit import ndf_sg_for
+    from ..fitting.fit import ndf_sg_for
 
     _, lam, mu = ndf_sg_for(GGX(alpha=alpha, lobes=k), k, "fit")
     return lam / _curvature(alpha), mu
@@ -93,7 +96,7 @@ def table_lobes(alpha, k):
     first node the normalised fit is that of the first node (the NDF is a function of tan θ/α
     there); above the last the lobes flatten with the curvature, to constant ones at α = 1. Interpolated fits stay within ~2× of a fresh fit's error (docs/ggx.md).
     Returns ``(λ (K,), μ (K,))``; the kernel does the same (``material_eval_wp.ggx_table_lobe``)."""
-    from ..ggx_lobe_table import LAMBDA_NORM, MU
+    from ..fitting.ggx_lobe_table import LAMBDA_NORM, MU
 
     ln_t, mu_t = np.asarray(LAMBDA_NORM[k]), np.asarray(MU[k])
     a1 = TABLE_A0 + TABLE_STEP * (TABLE_N - 1)
@@ -250,7 +253,13 @@ class GGX(SpecularBRDF):
     CODE = 10
     KERNEL = Kernel(ndf=ggx_ndf, mo=ggx_mo, analytic_lobe=ggx_lobe, table_lobe=ggx_fitted_lobe, sample=ggx_sample,
                     pdf=ggx_pdf)
-    PARAMS = ("kd", "ks", "alpha", "alpha_x", "alpha_y", "fresnel", "lobes")
+    PARAMS = {"kd": KD, "ks": KS,
+              "alpha": Param("number", "isotropic roughness α (glTF: roughness²; default 0.3)", lo=0, lo_open=True,
+                             texture=True, slider=(0.01, 1.0)),
+              "alpha_x": replace(ALPHA_X, slider=(0.01, 1.0)), "alpha_y": replace(ALPHA_Y, slider=(0.01, 1.0)),
+              "fresnel": FRESNEL,
+              "lobes": Param("integer", "number of NDF SG lobes (default 3 isotropic, 9 anisotropic; odd when "
+                             "anisotropic)", lo=1)}
 
     def __init__(self, kd=(0.0, 0.0, 0.0), ks=(1.0, 1.0, 1.0), alpha=None, alpha_x=None, alpha_y=None,
                  fresnel=None, lobes=None):
@@ -324,7 +333,7 @@ class GGX(SpecularBRDF):
     def ndf_sg(self, n_lobes=1, method="analytic"):
         """NDF SG lobes. Isotropic with ``method="analytic"`` and ``lobes`` in :data:`TABLE_LOBES`:
         :func:`table_lobes` (the kernel computes the same from the per-texel α); otherwise the
-        fits and constructions of :mod:`warp_sg.brdf.fit` (``self.lobes`` lobes)."""
+        fits and constructions of :mod:`warp_sg.brdf.fitting.fit` (``self.lobes`` lobes)."""
         if self.isotropic and method == "analytic" and self.lobes in TABLE_LOBES:
             lam, mu = table_lobes(self.alpha_x, self.lobes)
             return np.tile([0.0, 0.0, 1.0], (self.lobes, 1)), lam, mu
@@ -335,7 +344,7 @@ class GGX(SpecularBRDF):
         lobes from the table (isotropic, ``analytic``, K in :data:`TABLE_LOBES`), else None."""
         if not (self.isotropic and method == "analytic" and self.lobes in TABLE_LOBES):
             return None
-        from ..ggx_lobe_table import LAMBDA_NORM, MU
+        from ..fitting.ggx_lobe_table import LAMBDA_NORM, MU
 
         return np.asarray(LAMBDA_NORM[self.lobes]).reshape(-1), np.asarray(MU[self.lobes]).reshape(-1)
 

@@ -18,9 +18,10 @@ import warp as wp
 
 from ...core.errors import InputError
 from ..base import SpecularBRDF, as_rgb, as_scalar, dirs, suggest, upper
-from ..material_eval_wp import lafortune_lobe
-from ..material_sample_wp import cos_power_dir, cos_power_pdf, cosine_dir
-from ..material_struct import INV_PI, Material
+from ..kernel.material_eval_wp import lafortune_lobe
+from ..kernel.material_sample_wp import cos_power_dir, cos_power_pdf, cosine_dir
+from ..kernel.material_struct import INV_PI, Material
+from ..params import KD, KS, Param
 from ..registry import Kernel, register
 
 
@@ -85,7 +86,7 @@ class Lafortune(SpecularBRDF):
     CODE = 8
     KERNEL = Kernel(mo=lafortune_mo, specular=lafortune_specular, slice=lafortune_slice, sample=lafortune_sample,
                     pdf=lafortune_pdf)
-    PARAMS = ("kd", "ks", "lobes")
+    PARAMS = {"kd": KD, "ks": KS, "lobes": Param("lafortune_lobes", "lobes: a list of {cx, cy, cz, n} tables")}
 
     def __init__(self, kd=(0.0, 0.0, 0.0), ks=(1.0, 1.0, 1.0), lobes=({"cx": -1.0, "cy": -1.0, "cz": 1.0, "n": 20.0},)):
         self.kd = as_rgb(kd, "kd")

@@ -14,8 +14,9 @@ import numpy as np
 import warp as wp
 
 from ..base import BRDF, INV_PI, as_rgb, as_scalar, dirs, upper
-from ..material_eval_wp import oren_nayar_params
-from ..material_struct import Material
+from ..kernel.material_eval_wp import oren_nayar_params
+from ..kernel.material_struct import Material
+from ..params import KD, Param
 from ..registry import Kernel, register
 
 
@@ -39,7 +40,7 @@ class Lambert(BRDF):
 
     NAME = "lambert"
     CODE = 0
-    PARAMS = ("kd",)
+    PARAMS = {"kd": KD}
     KERNEL = Kernel()
 
     def __init__(self, kd=(0.8, 0.8, 0.8)):
@@ -53,7 +54,8 @@ class OrenNayar(BRDF):
 
     NAME = "oren_nayar"
     CODE = 1
-    PARAMS = ("kd", "sigma")
+    PARAMS = {"kd": KD, "sigma": Param("number", "Oren–Nayar roughness σ (radians)", lo=0, texture=True,
+                                       slider=(0.0, 1.5))}
     KERNEL = Kernel(diffuse=oren_nayar_diffuse, texel_param0=oren_nayar_texel_param0)
 
     def __init__(self, kd=(0.8, 0.8, 0.8), sigma=0.3):

@@ -50,7 +50,7 @@ table (``measured_mo``), the NDF and its sampling the SG mixture of the lobe tab
 (``1 − cos θ = −log1p(−u (1 − e^{−2λ}))/λ``, one lobe drawn by its weight).
 
 Files: this module holds the model class :class:`Measured` and the report; the fit itself is in
-:mod:`warp_sg.brdf.measured_fit` (re-exported here).
+:mod:`warp_sg.brdf.fitting.measured_fit` (re-exported here).
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the @wp.func annotations.
 import hashlib
@@ -64,13 +64,14 @@ from ...core.errors import InputError
 from .. import merl
 from ..base import SpecularBRDF, as_scalar, dirs, half_vector, upper
 from ..fresnel import fresnel_eq14, fresnel_normalised  # noqa: F401  (eq. 14, normalised at normal incidence)
-from ..material_sample_wp import cosine_dir, reflect_about, sg_lobe_weight, sg_mixture_pdf, sg_sample_dir
-from ..material_struct import Material
-from ..measured_fit import (  # noqa: F401  (the fit, re-exported)
+from ..kernel.material_sample_wp import cosine_dir, reflect_about, sg_lobe_weight, sg_mixture_pdf, sg_sample_dir
+from ..kernel.material_struct import Material
+from ..fitting.measured_fit import (  # noqa: F401  (the fit, re-exported)
     COS_MIN, D_SOLID_ANGLE, D_THETA, FIT_VERSION, N_S, S_THETA, _cell_geometry, _hat, _interp_S, compress_shadowing,
     eq11, fit_microfacet, fit_ndf_sg, fit_ndf_sg_anisotropic, sg_mixture, shadowing_basis,
 )
-from ..measured_wp import measured_mo, merl_eval
+from ..kernel.measured_wp import measured_mo, merl_eval
+from ..params import Param
 from ..registry import Kernel, register
 
 
@@ -155,7 +156,10 @@ class Measured(SpecularBRDF):
     CODE = 9
     KERNEL = Kernel(ndf=measured_ndf, mo=measured_mo_of, eval=measured_eval, sample=measured_sample,
                     pdf_h=measured_pdf_h)
-    PARAMS = ("file", "lobes", "eta", "pca_terms")
+    PARAMS = {"file": Param("file", "MERL .binary file, relative to the scene file"),
+              "lobes": Param("integer", "number of SG lobes of the NDF fit", lo=1),
+              "eta": Param("number", "index of refraction used for the microfacet fit", lo=0, lo_open=True),
+              "pca_terms": Param("integer", "PCA terms of the shadowing fit", lo=0)}
 
     def __init__(self, file=None, lobes=1, eta=1.33, pca_terms=8, *, table=None, cache=True):
         if (file is None) == (table is None):

@@ -26,11 +26,12 @@ import warp as wp
 from ...numeric.fastmath import fast_atan2
 from ..base import SpecularBRDF, as_rgb, as_scalar, dirs, half_vector, sin2_theta, theta_of
 from ..fresnel import parse_fresnel
-from ..material_eval_wp import fresnel_eval, half_vec
-from ..material_eval_wp import g_over_cos as g_over_cos_f
-from ..material_eval_wp import sin2_theta as sin2_theta_f
-from ..material_sample_wp import beckmann_h, beckmann_pdf_h, reflect_about
-from ..material_struct import INV_PI, Material
+from ..kernel.material_eval_wp import fresnel_eval, half_vec
+from ..kernel.material_eval_wp import g_over_cos as g_over_cos_f
+from ..kernel.material_eval_wp import sin2_theta as sin2_theta_f
+from ..kernel.material_sample_wp import beckmann_h, beckmann_pdf_h, reflect_about
+from ..kernel.material_struct import INV_PI, Material
+from ..params import FRESNEL, KD, KS, Param
 from ..registry import Kernel, register
 
 
@@ -98,7 +99,8 @@ def vcavity_g(o, i, h):
 
 
 class _Microfacet(SpecularBRDF):
-    PARAMS = ("kd", "ks", "m", "fresnel")
+    PARAMS = {"kd": KD, "ks": KS, "m": Param("number", "roughness m (Beckmann slope RMS)", lo=0, lo_open=True,
+                                             texture=True, slider=(0.02, 1.0)), "fresnel": FRESNEL}
 
     def __init__(self, kd=(0.0, 0.0, 0.0), ks=(1.0, 1.0, 1.0), m=0.2, fresnel=None):
         self.kd = as_rgb(kd, "kd")

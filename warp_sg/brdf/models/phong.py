@@ -20,10 +20,11 @@ import numpy as np
 import warp as wp
 
 from ..base import SpecularBRDF, as_rgb, as_scalar, dirs, log_cos_theta
-from ..material_eval_wp import cos_pow, log1p_f, reflect_z
-from ..material_eval_wp import log_cos_theta as log_cos_theta_f
-from ..material_sample_wp import cos_power_dir, cos_power_pdf, reflect_about
-from ..material_struct import TWO_PI, Material
+from ..kernel.material_eval_wp import cos_pow, log1p_f, reflect_z
+from ..kernel.material_eval_wp import log_cos_theta as log_cos_theta_f
+from ..kernel.material_sample_wp import cos_power_dir, cos_power_pdf, reflect_about
+from ..kernel.material_struct import TWO_PI, Material
+from ..params import KD, KS, Param
 from ..registry import Kernel, register
 
 
@@ -97,7 +98,7 @@ class _CosinePower(SpecularBRDF):
     """Shared by Phong and Blinn–Phong: parameters (kd, ks, n), ``Mo = (n+2)/(2π)``, analytic SG
     sharpness ``λ = n`` and the kernel parameters."""
 
-    PARAMS = ("kd", "ks", "n")
+    PARAMS = {"kd": KD, "ks": KS, "n": Param("number", "Phong exponent", lo=0, texture=True, slider=(1.0, 1000.0))}
 
     def __init__(self, kd=(0.0, 0.0, 0.0), ks=(1.0, 1.0, 1.0), n=50.0):
         self.kd = as_rgb(kd, "kd")

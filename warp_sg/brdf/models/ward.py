@@ -19,9 +19,10 @@ import warp as wp
 
 from ...sg import EPSILON
 from ..base import SpecularBRDF, as_rgb, as_roughness, dirs
-from ..material_eval_wp import aniso_axis
-from ..material_sample_wp import beckmann_h, beckmann_pdf_h, reflect_about
-from ..material_struct import LN_EPS, PI, Material
+from ..kernel.material_eval_wp import aniso_axis
+from ..kernel.material_sample_wp import beckmann_h, beckmann_pdf_h, reflect_about
+from ..kernel.material_struct import LN_EPS, PI, Material
+from ..params import ALPHA_X, ALPHA_Y, KD, KS, Param
 from ..registry import Kernel, register
 
 
@@ -70,7 +71,8 @@ class Ward(SpecularBRDF):
     NAME = "ward"
     CODE = 6
     KERNEL = Kernel(ndf=ward_ndf, mo=ward_mo, analytic_lobe=ward_lobe, sample=ward_sample, pdf_h=ward_pdf_h)
-    PARAMS = ("kd", "ks", "alpha", "alpha_x", "alpha_y")
+    PARAMS = {"kd": KD, "ks": KS, "alpha": Param("number", "isotropic roughness α", lo=0, lo_open=True, texture=True,
+                                                 slider=(0.02, 0.8)), "alpha_x": ALPHA_X, "alpha_y": ALPHA_Y}
 
     def __init__(self, kd=(0.0, 0.0, 0.0), ks=(1.0, 1.0, 1.0), alpha=None, alpha_x=None, alpha_y=None):
         self.kd = as_rgb(kd, "kd")

@@ -2,8 +2,8 @@ r"""A scene for one asset file (``warp-sg render asset.glb --env sky.hdr -o out.
 
 :func:`asset_scene_dict` writes the TOML document of a scene that shows the asset:
 
-* the asset as one object (a glTF keeps its own materials, :mod:`warp_sg.scene.importers.gltf`; any other mesh
-  gets :data:`ASSET_MATERIAL`, a grey GGX dielectric);
+* the asset as one object (a glTF or USD file keeps its own materials, :mod:`warp_sg.scene.importers.gltf`,
+  :mod:`warp_sg.scene.importers.usd`; any other mesh gets :data:`ASSET_MATERIAL`, a grey GGX dielectric);
 * a ground plane under its bounding box (:data:`GROUND_MATERIAL`, side ``GROUND_SIZE × r``),
   where ``r`` is the bounding sphere's radius (half the box diagonal) about the box centre ``c``;
 * a camera looking at ``c`` from azimuth ``az`` (about +Y, from +Z towards +X) and elevation ``el``
@@ -26,9 +26,12 @@ import numpy as np
 
 from warp_sg.scene.camera import Camera
 from warp_sg.core.errors import InputError, MeshError
+from warp_sg.scene.importers import brings_materials
 from warp_sg.scene.importers.gltf import is_gltf, load_gltf
+from warp_sg.scene.importers.usd import is_usd, load_usd
 from warp_sg.scene.lights import EnvironmentLight
-from warp_sg.scene.model import Material, RenderSettings, Scene, SceneObject, Transform
+from warp_sg.scene.model import Material, Scene, SceneObject, Transform
+from warp_sg.scene.render_settings import RenderSettings
 
 #: (azimuth, elevation) of the default view, degrees
 DEFAULT_VIEW = (30.0, 20.0)
@@ -56,6 +59,8 @@ def asset_bounds(path) -> tuple[np.ndarray, np.ndarray]:
         raise MeshError("is a folder, not an asset file", where=str(path))
     if is_gltf(path):
         return load_gltf(path, images=False).bounds()
+    if is_usd(path):
+        return load_usd(path).bounds()
     if not path.is_file():
         raise MeshError("asset file not found", where=str(path))
     with warnings.catch_warnings():  # the scene's own load reports them (once)
@@ -94,7 +99,7 @@ def asset_scene_dict(asset, env=None, view=DEFAULT_VIEW, width: int = DEFAULT_SI
     r = max(float(np.linalg.norm(hi - lo)) / 2, 1e-6)
     ob = {"mesh": str(asset), "name": "asset"}
     mats = {}
-    if not is_gltf(asset):
+    if not brings_materials(asset):
         ob["material"] = "asset"
         mats["asset"] = dict(ASSET_MATERIAL)
     ground = {"primitive": "plane", "name": "ground", "material": "ground",

@@ -1,7 +1,7 @@
 """The kernel-side material record: the ``Material`` ``@wp.struct``, its Fresnel codes, and
 :func:`pack_materials` (BRDF models → a :class:`MaterialTable` on a device). Part of the BRDF
-contract of :mod:`warp_sg.brdf.material_wp`, which re-exports every name; the ``@wp.func``s that
-read the struct are in :mod:`~warp_sg.brdf.material_eval_wp` and :mod:`~warp_sg.brdf.material_sample_wp`.
+contract of :mod:`warp_sg.brdf.kernel.material_wp`, which re-exports every name; the ``@wp.func``s that
+read the struct are in :mod:`~warp_sg.brdf.kernel.material_eval_wp` and :mod:`~warp_sg.brdf.kernel.material_sample_wp`.
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the @wp.func / struct annotations.
 import math
@@ -9,10 +9,10 @@ import math
 import numpy as np
 import warp as wp
 
-from ..core.errors import InputError
-from ..sg import EPSILON
-from .fit import is_anisotropic as _is_anisotropic
-from .registry import analytic_codes
+from ...core.errors import InputError
+from ...sg import EPSILON
+from ..fitting.fit import is_anisotropic as _is_anisotropic
+from ..registry import analytic_codes
 
 FRESNEL_NONE = wp.constant(0)
 FRESNEL_SCHLICK = wp.constant(1)
@@ -46,7 +46,7 @@ class Material:
     lobe_amplitude: wp.array(dtype=float)
     merl_data: wp.array(dtype=float)
     mo_tables: wp.array3d(dtype=float)
-    #: the environment-specular energy correction (``warp_sg.brdf.albedo``): entries of this
+    #: the environment-specular energy correction (``warp_sg.brdf.kernel.albedo``): entries of this
     #: material in the shared ``albedo`` array, layout ``albedo_kind`` / ``albedo_nq`` (0: none)
     #: and the range of its textured first parameter as ``albedo_q0 = ln q0``,
     #: ``albedo_q1 = 1/ln(q1/q0)``
@@ -87,7 +87,7 @@ class MaterialTable:
         return len(self.records)
 
     def rebuild(self):
-        """Copy ``structs`` (edited fields, e.g. ``warp_sg.brdf.albedo.attach``) to ``materials``."""
+        """Copy ``structs`` (edited fields, e.g. ``warp_sg.brdf.kernel.albedo.attach``) to ``materials``."""
         if self.structs:
             self.materials = wp.array(self.structs, dtype=Material, device=self.device)
 
@@ -106,7 +106,7 @@ def pack_materials(models, n_lobes=1, device="cpu", method="analytic"):
     count (Ashikhmin–Shirley ``lobes``, measured ``lobes``, Lafortune) keep theirs. ``method``:
     "analytic" (in-kernel lobes from the parameters, textured parameters allowed) or "fit"
     (nonlinear fits stored in the table)."""
-    from ..core.device import resolve_device
+    from ...core.device import resolve_device
 
     device = resolve_device(device)
     models = list(models)

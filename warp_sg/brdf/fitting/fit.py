@@ -26,10 +26,10 @@ import functools
 
 import numpy as np
 
-from ..core.errors import InputError
-from ..sg import EPSILON  # noqa: F401  (ε of supplement eq. 14, for the models' layouts)
-from .helpers import half_vector, suggest
-from .spherical_warp import WARP_COS_EPS
+from ...core.errors import InputError
+from ...sg import EPSILON  # noqa: F401  (ε of supplement eq. 14, for the models' layouts)
+from ..helpers import half_vector, suggest
+from ..spherical_warp import WARP_COS_EPS
 
 METHODS = ("analytic", "fit")
 
@@ -484,7 +484,7 @@ def fit_error(model, n_lobes=1, method="analytic", **kw):
 
 def warp_error(model, n_lobes=1, method="analytic", **kw):
     """eq. 11 error of the spherically warped SG slice (paper eq. 22; supplement Fig. 9), ks = 1."""
-    from .spherical_warp import eval_slice, slice_lobes_numpy
+    from ..spherical_warp import eval_slice, slice_lobes_numpy
 
     def approx(O, I):
         o = O[:, 0, :]

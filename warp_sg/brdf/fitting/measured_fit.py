@@ -10,11 +10,11 @@ import functools
 
 import numpy as np
 
-from ..core.cache import code_key
-from ..core.errors import InputError
-from ..numeric.pca import pca
-from . import merl
-from .fresnel import fresnel_normalised
+from ...core.cache import code_key
+from ...core.errors import InputError
+from ...numeric.pca import pca
+from .. import merl
+from ..fresnel import fresnel_normalised
 
 N_S = 90
 #: shadowing nodes θ_a = a/(N_S − 1) · π/2
@@ -103,7 +103,7 @@ def fit_ndf_sg(theta, D, weights, n_lobes=1):
 
 def fit_ndf_sg_anisotropic(ndf, n_lobes, theta_max=None):
     """SG mixture with free axes for an anisotropic NDF ``ndf(h (...,3)) -> (...)`` (paper §4.2:
-    L-BFGS-B, via :func:`warp_sg.brdf.fit.fit_anisotropic`). Start: ``n_lobes`` lobes along the
+    L-BFGS-B, via :func:`warp_sg.brdf.fitting.fit.fit_anisotropic`). Start: ``n_lobes`` lobes along the
     principal axis of the NDF's second moments on the tangent plane, spread over the width where
     D drops to 0.1 (supplement eq. 14), common λ from the narrow width."""
     from .fit import fit_anisotropic

@@ -1,8 +1,8 @@
-r"""Importance sampling side of the kernel BRDF contract (:mod:`warp_sg.brdf.material_wp`, which
+r"""Importance sampling side of the kernel BRDF contract (:mod:`warp_sg.brdf.kernel.material_wp`, which
 re-exports every name and documents each model's sampling): the building blocks of the models'
 ``sample`` / ``pdf`` hooks (cosine, cosine-power, Beckmann, Ashikhmin–Shirley, GGX visible-normal
 and SG mixture directions with their densities). ``brdf_sample`` / ``brdf_pdf`` themselves switch
-on the model and are generated from the registry (:mod:`~warp_sg.brdf.material_variants`).
+on the model and are generated from the registry (:mod:`~warp_sg.brdf.kernel.material_variants`).
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the @wp.func / struct annotations.
 import warp as wp

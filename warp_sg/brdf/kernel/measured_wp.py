@@ -1,4 +1,4 @@
-r"""Kernel-side measured (MERL) BRDF functions, used by :mod:`warp_sg.brdf.material_wp`.
+r"""Kernel-side measured (MERL) BRDF functions, used by :mod:`warp_sg.brdf.kernel.material_wp`.
 
 * ``merl_eval(data, offset, o, i) -> vec3`` — the exact measured BRDF by table lookup, the same
   indexing as the MERL reference code (``BRDFRead.cpp``, Matusik et al. 2003) and pbrt's

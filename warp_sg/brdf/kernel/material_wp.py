@@ -42,11 +42,11 @@ Each model's own ``@wp.func`` functions live in its file in :mod:`warp_sg.brdf.m
 ``CODE`` (``warp_sg.brdf.MODELS[name].CODE``).
 
 Files: this module is the public entry (``from warp_sg.brdf import material_wp as M``) and
-re-exports every name of :mod:`~warp_sg.brdf.material_struct` (the struct and packing),
-:mod:`~warp_sg.brdf.material_eval_wp` (model-independent building blocks),
-:mod:`~warp_sg.brdf.material_variants` (the functions that switch on ``mat.model``, generated from
+re-exports every name of :mod:`~warp_sg.brdf.kernel.material_struct` (the struct and packing),
+:mod:`~warp_sg.brdf.kernel.material_eval_wp` (model-independent building blocks),
+:mod:`~warp_sg.brdf.kernel.material_variants` (the functions that switch on ``mat.model``, generated from
 the registry: the generic all-model ones here, and ``material_funcs(models)`` for kernels
-specialised to a set of models) and :mod:`~warp_sg.brdf.material_sample_wp` (importance sampling
+specialised to a set of models) and :mod:`~warp_sg.brdf.kernel.material_sample_wp` (importance sampling
 building blocks) — the same objects, so kernels may use either.
 """
 from .material_struct import (  # noqa: F401
@@ -68,4 +68,4 @@ from .material_sample_wp import (  # noqa: F401
     ggx_pdf_i, ggx_vndf_h, reflect_about, sg_lobe_weight, sg_mixture_pdf, sg_sample_dir,
 )
 from .measured_wp import fresnel_dielectric, measured_mo, merl_eval  # noqa: F401
-from .registry import constant_diffuse  # noqa: F401
+from ..registry import constant_diffuse  # noqa: F401

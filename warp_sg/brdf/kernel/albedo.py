@@ -43,11 +43,11 @@ import math
 import numpy as np
 import warp as wp
 
-from ..sg.irradiance import sg_irradiance_norm
-from ..sg.algebra_wp import sg_integral
+from ...sg.irradiance import sg_irradiance_norm
+from ...sg.algebra_wp import sg_integral
 from .material_struct import Material
 from .material_variants import brdf_pdf, brdf_sample, material_funcs
-from .models.ggx import GGX
+from ..models.ggx import GGX
 
 #: GGX's code: an isotropic GGX material's roughness map sets αx = αy (``textured_material``)
 _GGX = GGX.CODE

@@ -1,16 +1,16 @@
-r"""Evaluation side of the kernel BRDF contract (:mod:`warp_sg.brdf.material_wp`, which re-exports
+r"""Evaluation side of the kernel BRDF contract (:mod:`warp_sg.brdf.kernel.material_wp`, which re-exports
 every name and documents the contract): the model-independent building blocks of ``brdf_eval``,
 ``brdf_mo``, ``brdf_ndf`` and the SG lobes of the specular slice (half vector, Fresnel, shadowing
 terms, GGX and Ashikhmin–Shirley pieces, the Lafortune lobe, the GGX node table, the spherical
 warp of an axis ``warp_axis``, the horizon lift ``above``). The functions that switch on
-``mat.model`` are built from these in :mod:`~warp_sg.brdf.material_variants`, once per set of
+``mat.model`` are built from these in :mod:`~warp_sg.brdf.kernel.material_variants`, once per set of
 models. Local frame, z+ = normal, x = tangent.
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the @wp.func / struct annotations.
 import warp as wp
 
-from ..numeric.onb import frame_bitangent, frame_tangent
-from ..core.image_io import LUMINANCE
+from ...numeric.onb import frame_bitangent, frame_tangent
+from ...core.image_io import LUMINANCE
 from .material_struct import LN_EPS, WARP_COS_EPS, Material
 from .measured_wp import fresnel_dielectric
 

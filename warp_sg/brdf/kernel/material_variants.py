@@ -1,7 +1,7 @@
 r"""The material-model switch of the kernel BRDF contract, generated from the registry and
 specialised per set of models.
 
-Every ``@wp.func`` of :mod:`~warp_sg.brdf.material_wp` that depends on ``mat.model`` is built here
+Every ``@wp.func`` of :mod:`~warp_sg.brdf.kernel.material_wp` that depends on ``mat.model`` is built here
 by :func:`material_funcs` for a set of model codes (``CODE`` of the classes in
 :mod:`warp_sg.brdf.registry`). Each model declares its kernel functions in its own file
 (:class:`~warp_sg.brdf.registry.Kernel`: ``ndf``, ``mo``, ``specular``, ``diffuse``, ``eval``,
@@ -12,7 +12,7 @@ default. A model outside the set has no link at all (its code is removed at comp
 kernel built from ``material_funcs({Lambert.CODE})`` contains no microfacet, Lafortune or
 measured code (fewer registers and less divergence on a GPU, less code per pixel on the CPU).
 The all-model set :func:`all_models` gives the generic functions that
-:mod:`~warp_sg.brdf.material_wp` re-exports (Monte-Carlo reference, sampling, tests), so the
+:mod:`~warp_sg.brdf.kernel.material_wp` re-exports (Monte-Carlo reference, sampling, tests), so the
 generic and the specialised functions are the same source.
 
 The model-independent parts (in the order a caller sees them):
@@ -41,12 +41,12 @@ from typing import Any, NamedTuple
 
 import warp as wp
 
-from ..core.errors import InputError
-from . import models as _models  # noqa: F401  (registers every model)
+from ...core.errors import InputError
+from .. import models as _models  # noqa: F401  (registers every model)
 from .material_eval_wp import above, aniso_axis, half_vec, warp_axis
 from .material_sample_wp import cosine_pdf, cosine_sample, reflect_about
 from .material_struct import INV_PI, Material
-from .registry import BY_CODE, codes
+from ..registry import BY_CODE, codes
 
 _CACHE: dict = {}
 
@@ -438,7 +438,7 @@ def material_funcs(models=None) -> MaterialFuncs:
     return fs
 
 
-#: the generic (all-model) functions, re-exported by :mod:`~warp_sg.brdf.material_wp`
+#: the generic (all-model) functions, re-exported by :mod:`~warp_sg.brdf.kernel.material_wp`
 GENERIC = material_funcs(ALL_MODELS)
 (_, _, brdf_ndf, mo_raw, brdf_mo, brdf_specular, brdf_diffuse, brdf_eval, _aniso_lobe, ndf_lobe, slice_lobe_count,
  warp_lobe, slice_lobe, shading_slice_lobe, diffuse_at, brdf_sample, brdf_pdf, texel_param0) = GENERIC
