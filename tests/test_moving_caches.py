@@ -21,6 +21,7 @@ def _torus_scene(tmp_path):
     from warp_sg.scene.model import Material, RenderSettings, Scene, SceneObject
     from warp_sg.scene.plain_scenes import write_sky_exr
 
+    tmp_path.mkdir(parents=True, exist_ok=True)
     sky = write_sky_exr(tmp_path / "sky.exr")
     ring = SceneObject(material="m", primitive="torus", name="ring", dynamic=True,
                        params={"center": (0, 0.5, 0), "major_radius": 0.45, "minor_radius": 0.2,
@@ -100,3 +101,22 @@ def test_a_second_renderer_reads_the_grouped_ssdfs_from_the_cache(tmp_path, cach
     assert "ssdf" not in built(second)
     assert np.array_equal(a.ssdf.weights, b.ssdf.weights) and np.array_equal(a.ssdf.cones, b.ssdf.cones)
     assert entry_path("ssdf_groups", a.ssdf.key).is_file() and str(cache_dir) in str(entry_path("ssdf_groups", "k"))
+
+
+def test_texel_lists_over_their_budget_leave_the_map_quadrature(tmp_path, monkeypatch):
+    """``WARP_SG_SKY_TABLE_MB`` too small for the lists: the moving vertices are integrated against
+    the map itself (the reference quadrature, exactly); a budget that is not a number is refused."""
+    from warp_sg.core.errors import InputError
+
+    monkeypatch.setenv("WARP_SG_SKY_TABLE_MB", "0.001")
+    r = ws.Renderer(_torus_scene(tmp_path))
+    r.set_object_transform("ring", motion_about(rotation_about([1, 0, 0], 60.0), [0.0, 0.5, 0.0]))
+    r.render()
+    assert not r.dynamic._sky.fits
+    ids = r.dynamic.all_ids.numpy()
+    assert np.array_equal(r.env_visible_cache.value[0].numpy()[ids], _reference_rows(r)[0])
+    monkeypatch.setenv("WARP_SG_SKY_TABLE_MB", "lots")
+    r2 = ws.Renderer(_torus_scene(tmp_path / "again"))
+    r2.set_object_transform("ring", np.eye(4))
+    with pytest.raises(InputError, match="WARP_SG_SKY_TABLE_MB"):
+        r2.render()

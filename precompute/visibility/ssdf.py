@@ -299,7 +299,7 @@ class SSDFData:
                 wp.array(self.weights, dtype=float, device=device))
 
 
-def _budget_mib(variable: str, default: str) -> int:
+def budget_mib(variable: str, default: str) -> int:
     """Bytes of the MiB budget in environment variable ``variable`` (``default`` when unset); a
     value that is not a number is an :class:`InputError` naming the variable."""
     import os
@@ -316,14 +316,14 @@ def decompress_budget() -> int:
     """Bytes the renderer may spend on decompressed SSDF maps (``SSDFData.device_arrays``):
     ``WARP_SG_SSDF_DECOMPRESS_MB`` (default 256 MiB; 0 keeps the PCA form). 50 k vertices at the
     default 32² maps take 205 MB."""
-    return _budget_mib("WARP_SG_SSDF_DECOMPRESS_MB", "256")
+    return budget_mib("WARP_SG_SSDF_DECOMPRESS_MB", "256")
 
 
 def memory_budget() -> int:
     """Bytes of uncompressed SSDFs ``ssdf_for_mesh`` keeps in memory (``WARP_SG_SSDF_MEMORY_MB``,
     default 1024 MiB); beyond, the rows go to a temporary file in the cache folder and PCA and the
     occluder cones read them back in chunks (out of core: 1 M vertices at 32² are 4 GiB on disk)."""
-    return _budget_mib("WARP_SG_SSDF_MEMORY_MB", "1024")
+    return budget_mib("WARP_SG_SSDF_MEMORY_MB", "1024")
 
 
 @contextlib.contextmanager

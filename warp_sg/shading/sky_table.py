@@ -53,6 +53,17 @@ from warp_sg.shading.visibility_terms import EnvSG, Visibility
 
 #: texels per cube face edge (without the border) of the turned sky
 FACE = 32
+#: bytes per listed texel (corner, fractions, weights)
+TEXEL_BYTES = 20
+
+
+def table_budget() -> int:
+    """Bytes the texel lists may take (``WARP_SG_SKY_TABLE_MB``, default 256 MiB: the turning
+    blob's take 2.7 MB, the 12.9 k moving vertices of the refined Stanford bunny 198 MB); beyond,
+    the moving vertices are integrated against the map itself, every texel, every frame."""
+    from precompute.visibility.ssdf import budget_mib
+
+    return budget_mib("WARP_SG_SKY_TABLE_MB", "256")
 _SQRT_2PI = wp.constant(float(np.sqrt(2.0 * np.pi)))
 
 
@@ -201,6 +212,11 @@ class MovingSky:
         if n:
             wp.launch(count_texels_kernel, dim=n, inputs=[vis, rest_n, rest_t, rest_b, rest_cone, count], device=device)
         start, total = parallel.exclusive_scan(count)
+        #: whether the lists fit :func:`table_budget` (else :meth:`visible` is not to be called)
+        self.fits = total * TEXEL_BYTES <= table_budget()
+        if not self.fits:
+            self.count = self.texels = 0
+            return
         st = np.append(start.numpy()[:n], total).astype(np.int32)
         tab = SkyTable()
         tab.vertices, tab.slot = vertices, wp.array(np.asarray(slot, np.int32), dtype=int, device=device)
@@ -243,4 +259,4 @@ class MovingSky:
         parallel.launch_split(moving_visible_kernel, self.bounds, [self.table, vis, env, *into], self.device)
 
 
-__all__ = ["FACE", "MovingSky", "SkyTable", "moving_visible_kernel", "turn_sky_kernel"]
+__all__ = ["FACE", "MovingSky", "SkyTable", "moving_visible_kernel", "table_budget", "turn_sky_kernel"]
