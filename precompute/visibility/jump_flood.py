@@ -1,6 +1,6 @@
 r"""The kernels that turn a vertex's visibility map into its signed angular distance field (steps 2–5
 of :mod:`precompute.visibility.ssdf`): boundary seeds (:func:`seed_kernel`), jump flooding of
-the nearest boundary direction (:func:`jfa_kernel`, Rong & Tan 2006: O(R² log R) per vertex),
+the nearest boundary direction (:func:`jfa_texel_kernel`, Rong & Tan 2006: O(R² log R) per vertex),
 the signed distance ``±arccos(d·seed)`` with the horizon as a boundary (:func:`signed_kernel`)
 and the box downsampling to the stored resolution (:func:`downsample_kernel`).
 
@@ -68,30 +68,6 @@ def seed_kernel(vis: wp.array2d(dtype=wp.uint8), dirs: wp.array(dtype=wp.vec3), 
         if vis[k, tex + R] != me:
             best, best_dot = _consider(d, dirs[tex + R], best, best_dot)
     seeds[k, tex] = best
-
-
-@wp.kernel
-def jfa_kernel(src: wp.array2d(dtype=wp.vec3), dirs: wp.array(dtype=wp.vec3), R: int, step: int,
-                dst: wp.array2d(dtype=wp.vec3)):
-    """One jump-flooding pass with the angular metric (largest dot product wins)."""
-    k, tex = wp.tid()
-    j = tex // R
-    i = tex - j * R
-    d = dirs[tex]
-    best = src[k, tex]
-    best_dot = wp.dot(d, best)  # NO_SEED's dot loses to every boundary point's (≥ −1)
-    for dj in range(-1, 2):
-        jj = j + dj * step
-        if jj >= 0 and jj < R:
-            for di in range(-1, 2):
-                ii = i + di * step
-                if ii >= 0 and ii < R and (di != 0 or dj != 0):
-                    s = src[k, jj * R + ii]
-                    c = wp.dot(d, s)
-                    if c > best_dot:
-                        best_dot = c
-                        best = s
-    dst[k, tex] = best
 
 
 @wp.kernel
@@ -181,6 +157,18 @@ def jfa_texel_kernel(src: wp.array2d(dtype=int), seeds: wp.array2d(dtype=wp.vec3
 
 
 @wp.kernel
+def seed_at_kernel(seeds: wp.array2d(dtype=wp.vec3), idx: wp.array2d(dtype=int), out: wp.array2d(dtype=wp.vec3)):
+    """The seed each texel's index points at (:data:`NO_SEED` for the empty index −1): the result of
+    flooding on the ray grid itself."""
+    k, t = wp.tid()
+    src = idx[k, t]
+    if src >= 0:
+        out[k, t] = seeds[k, src]
+    else:
+        out[k, t] = NO_SEED
+
+
+@wp.kernel
 def fine_seed_kernel(seeds: wp.array2d(dtype=wp.vec3), coarse: wp.array2d(dtype=int), dirs: wp.array(dtype=wp.vec3),
                      Rf: int, f: int, out: wp.array2d(dtype=wp.vec3)):
     """Fine texel ``t``'s nearest boundary point: the best of its own seed, the seeds the 3×3 coarse
@@ -236,5 +224,5 @@ def jfa_steps(R: int) -> list[int]:
     return steps + [2, 1] if R > 2 else steps
 
 
-__all__ = ["seed_kernel", "jfa_kernel", "signed_kernel", "downsample_kernel", "jfa_steps", "NO_SEED",
-           "coarse_seed_kernel", "jfa_texel_kernel", "fine_seed_kernel"]
+__all__ = ["seed_kernel", "signed_kernel", "downsample_kernel", "jfa_steps", "NO_SEED",
+           "coarse_seed_kernel", "jfa_texel_kernel", "seed_at_kernel", "fine_seed_kernel"]

@@ -46,8 +46,8 @@ from warp_sg.numeric.pca import pca
 from warp_sg.core.stage_clock import StageClock, thread_cpu
 
 from precompute.visibility.adaptive_rays import adaptive_visibility, levels
-from precompute.visibility.jump_flood import (coarse_seed_kernel, downsample_kernel, fine_seed_kernel, jfa_kernel,
-                                             jfa_steps, jfa_texel_kernel, seed_kernel, signed_kernel)
+from precompute.visibility.jump_flood import (coarse_seed_kernel, downsample_kernel, fine_seed_kernel, jfa_steps,
+                                             jfa_texel_kernel, seed_at_kernel, seed_kernel, signed_kernel)
 from precompute.visibility.occluder_cone import occluder_cones
 from precompute.visibility.ssdf_wp import texel_directions
 from precompute.visibility.rays import OFFSET_SCALE, _MeshContext, _tqdm, launch_visibility, run_batches, validate_mesh
@@ -99,25 +99,24 @@ def _coarse_dirs(R, device):
 
 
 def _nearest_seeds(a, dirs, Rr, R, device):
-    """The nearest boundary point of every ray texel, from the seeds ``a`` (B, Rr²): jump flooding at
-    ``Rr²``, or, when ``Rr = f·R`` with f ≥ 2, the coarse-to-fine search of
-    :mod:`precompute.visibility.jump_flood` (flooding on the ``R²`` grid, then a local fine pass)."""
+    """The nearest boundary point of every ray texel, from the seeds ``a`` (B, Rr²): jump flooding of
+    seed-texel indices on the ``R²`` grid (:mod:`precompute.visibility.jump_flood`); when ``Rr = f·R``
+    with f ≥ 2 each cell starts from the best of its f×f texels' seeds and a local fine pass follows
+    ("Coarse-to-fine"), at f = 1 each texel starts from its own seed."""
     B, N = int(a.shape[0]), Rr * Rr
-    b = wp.empty((B, N), dtype=wp.vec3, device=device)
-    if Rr == R:
-        for step in jfa_steps(Rr):
-            wp.launch(jfa_kernel, dim=(B, N), device=device, inputs=[a, dirs, Rr, step, b])
-            a, b = b, a
-        return a
     f, M = Rr // R, R * R
-    cdirs = _coarse_dirs(R, device)
+    cdirs = dirs if f == 1 else _coarse_dirs(R, device)
     ca = wp.empty((B, M), dtype=int, device=device)
     cb = wp.empty((B, M), dtype=int, device=device)
     wp.launch(coarse_seed_kernel, dim=(B, M), device=device, inputs=[a, cdirs, R, f, ca])
     for step in jfa_steps(R):
         wp.launch(jfa_texel_kernel, dim=(B, M), device=device, inputs=[ca, a, cdirs, R, step, cb])
         ca, cb = cb, ca
-    wp.launch(fine_seed_kernel, dim=(B, N), device=device, inputs=[a, ca, dirs, Rr, f, b])
+    b = wp.empty((B, N), dtype=wp.vec3, device=device)
+    if f == 1:
+        wp.launch(seed_at_kernel, dim=(B, N), device=device, inputs=[a, ca, b])
+    else:
+        wp.launch(fine_seed_kernel, dim=(B, N), device=device, inputs=[a, ca, dirs, Rr, f, b])
     return b
 
 
