@@ -30,7 +30,6 @@ env_peaks, env_fit, env_prefilter) and ``precompute_cpu`` (their CPU seconds, al
 """
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import replace
 
@@ -187,17 +186,19 @@ class Renderer(FramePaths, VariantChoice, ResourceSetup, EnvironmentSetup):
         self.set_lights(lights)
 
     def set_environment_rotation(self, degrees: float) -> None:
-        if self.env_light is None:
-            raise SceneError("the scene has no environment light", where="set_environment_rotation")
-        self.env_light.rotation = float(degrees)
-        self._setup_lights()
+        self._set_environment("set_environment_rotation", rotation=degrees)
 
     def set_environment_scale(self, scale: float) -> None:
+        self._set_environment("set_environment_scale", scale=scale)
+
+    def _set_environment(self, what: str, **change) -> None:
+        """Change the environment light's ``scale`` or ``rotation``, checked by its record's rule
+        (the scene file's: :mod:`warp_sg.scene.light_tables`) before anything changes."""
         if self.env_light is None:
-            raise SceneError("the scene has no environment light", where="set_environment_scale")
-        if not (scale >= 0 and math.isfinite(scale)):
-            raise SceneError(f"must be >= 0, got {scale}", where="environment scale")
-        self.env_light.scale = float(scale)
+            raise SceneError("the scene has no environment light", where=what)
+        checked = replace(self.env_light, **change)  # the record checks; its map cache is shared
+        for k in change:
+            setattr(self.env_light, k, getattr(checked, k))
         self._setup_lights()
 
     def set_object_transform(self, obj, matrix) -> None:

@@ -21,23 +21,19 @@ from __future__ import annotations
 
 import copy
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
+from pydantic import model_validator
 
-from warp_sg.core.errors import InputError
-
-
-def _vec3(v, name):
-    a = np.asarray(v, dtype=np.float64).reshape(-1)
-    if a.shape != (3,) or not np.all(np.isfinite(a)):
-        raise InputError(f"must be 3 finite numbers, got {v!r}", where=f"camera.{name}")
-    return tuple(float(x) for x in a)
+from warp_sg.scene.values import Table, check_record, fail, integer, number, vector
 
 
 @dataclass
 class Camera:
-    """Pinhole camera (see module docstring). ``near``/``far`` bound the visible depth range."""
+    """Pinhole camera (see module docstring). ``near``/``far`` bound the visible depth range.
+    Checked by :class:`CameraTable`, the ``[camera]`` table's model, so a camera built in Python
+    is refused in the words of the scene file (``[camera] key 'fov' must be <= 179.0, got 180.0``)."""
 
     origin: tuple = (0.0, 1.0, 4.0)
     target: tuple = (0.0, 0.0, 0.0)
@@ -49,29 +45,9 @@ class Camera:
     far: float = 1e4
 
     def __post_init__(self):
-        self.origin = _vec3(self.origin, "origin")
-        self.target = _vec3(self.target, "target")
-        self.up = _vec3(self.up, "up")
-        try:
-            self.fov = float(self.fov)
-            self.near = float(self.near)
-            self.far = float(self.far)
-        except (TypeError, ValueError) as e:
-            raise InputError(f"fov/near/far must be numbers ({e})", where="camera") from None
-        if not (0.0 < self.fov < 180.0):
-            raise InputError(f"must be in (0, 180) degrees, got {self.fov}", where="camera.fov")
-        for name in ("width", "height"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or int(v) != v or int(v) < 1:
-                raise InputError(f"must be a positive integer, got {v!r}", where=f"camera.{name}")
-            setattr(self, name, int(v))
-        if not (0.0 < self.near < self.far) or not math.isfinite(self.far):
-            raise InputError(f"need 0 < near < far < inf, got near={self.near}, far={self.far}", where="camera.near")
-        f = np.subtract(self.target, self.origin)
-        if np.linalg.norm(f) == 0.0:
-            raise InputError("origin and target coincide", where="camera.target")
-        if np.linalg.norm(np.cross(f, self.up)) <= 1e-12 * np.linalg.norm(f) * np.linalg.norm(self.up):
-            raise InputError("up is parallel to the view direction", where="camera.up")
+        t = check_record(CameraTable, {f.name: getattr(self, f.name) for f in fields(self)}, "[camera]")
+        for f in fields(self):
+            setattr(self, f.name, getattr(t, f.name))
 
     # ------------------------------------------------------------------ frame
     def basis(self):
@@ -133,6 +109,35 @@ class Camera:
     def forward(self) -> np.ndarray:
         """Unit view axis (float64); ``depth = t · dot(ray_direction, forward)``."""
         return self.basis()[2]
+
+
+_POS = dict(lo=0, lo_open=True)
+
+
+class CameraTable(Table):
+    """Pinhole camera (Mitsuba ``look_at``): vertical field of view in degrees."""
+
+    origin: vector(description="eye position") = Camera.origin
+    target: vector(description="point looked at") = Camera.target
+    up: vector(description="up direction") = Camera.up
+    fov: number(lo=0, lo_open=True, hi=179.0, description="vertical field of view (degrees)") = Camera.fov
+    width: integer(lo=1, description="image width (pixels)") = Camera.width
+    height: integer(lo=1, description="image height (pixels)") = Camera.height
+    near: number(**_POS, description="near clipping distance") = Camera.near
+    far: number(**_POS, description="far clipping distance") = Camera.far
+
+    @model_validator(mode="after")
+    def _geometry(self):
+        o, t, u = self.origin, self.target, self.up
+        d = tuple(b - a for a, b in zip(o, t))
+        if all(abs(x) <= 1e-8 * (1 + abs(a)) for x, a in zip(d, o)):
+            fail("origin and target coincide")
+        c = (d[1] * u[2] - d[2] * u[1], d[2] * u[0] - d[0] * u[2], d[0] * u[1] - d[1] * u[0])
+        if math.hypot(*c) < 1e-9 * math.hypot(*d) * max(math.hypot(*u), 1e-30):
+            fail("up is parallel to the viewing direction (or zero)")
+        if not self.near < self.far:
+            fail(f"must be less than far = {self.far}, got {self.near}", key="near")
+        return self
 
 
 def with_resolution(scene, width=None, height=None):

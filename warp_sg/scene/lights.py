@@ -30,10 +30,12 @@ from pathlib import Path
 import numpy as np
 import warp as wp
 
+from warp_sg.core.errors import InputError, SceneError
+from warp_sg.scene.envmap import check_envmap_shape, load_envmap, rotate_envmap, rotation_y, validate_envmap
+from warp_sg.scene.light_tables import (DirectionalLightTable, EnvironmentData, LightTable,
+                                        PointLightTable, default_of)
 from warp_sg.scene.sky import procedural_sky
-from warp_sg.scene.envmap import (MAX_RADIANCE, check_envmap_shape, load_envmap, rotate_envmap, rotation_y,
-                     validate_envmap)
-from warp_sg.core.errors import InputError
+from warp_sg.scene.values import check_record
 from warp_sg.sg import EPSILON
 from warp_sg.sg.algebra_wp import expm1_neg
 
@@ -43,108 +45,76 @@ MIN_LIGHT_AREA = 1.0e-6
 FA_NUMERATOR = -2.0 * math.pi * math.log(EPSILON)
 
 
-def _rgb(v, where):
-    a = np.asarray(v, dtype=np.float64)
-    if a.ndim == 0:
-        a = np.full(3, float(a))
-    if a.shape != (3,) or not np.all(np.isfinite(a)):
-        raise InputError(f"expected a number or 3 finite numbers (RGB), got {v!r}", where=where)
-    if np.any(a < 0):
-        raise InputError(f"must be >= 0, got {a.tolist()}", where=where)
-    if np.any(a > MAX_RADIANCE):  # as for environment texels: float32 shading would overflow
-        raise InputError(f"must be <= {MAX_RADIANCE:g}, got {a.tolist()}", where=where)
-    return a
-
-
-def _vec3(v, where, *, unit=False):
-    a = np.asarray(v, dtype=np.float64)
-    if a.shape != (3,) or not np.all(np.isfinite(a)):
-        raise InputError(f"expected 3 finite numbers, got {v!r}", where=where)
-    if unit:
-        n = np.linalg.norm(a)
-        if n == 0:
-            raise InputError("must be a non-zero vector", where=where)
-        a = a / n
-    return a
-
-
-def _nonneg(v, where):
-    try:
-        x = float(v)
-    except (TypeError, ValueError):
-        raise InputError(f"expected a number, got {v!r}", where=where) from None
-    if not math.isfinite(x) or x < 0:
-        raise InputError(f"must be >= 0, got {v!r}", where=where)
-    return x
+def _check(model, label: str, **values):
+    """The validated table ``model`` of a light record's fields (the scene file's rule and words)."""
+    return check_record(model, values, f"[[lights]] ({label})")
 
 
 @dataclass
 class PointLight:
     """Spherical light: centre ``position``, ``radius`` r, ``intensity`` s (RGB, W/sr).
-    Should sit outside the objects' convex hulls (visibility is precomputed for distant light)."""
+    Should sit outside the objects' convex hulls (visibility is precomputed for distant light).
+    Checked by :class:`~warp_sg.scene.light_tables.PointLightTable`."""
 
     position: np.ndarray
-    radius: float = 0.1
-    intensity: np.ndarray = field(default_factory=lambda: np.ones(3))
+    radius: float = default_of(PointLightTable, "radius")
+    intensity: np.ndarray = field(default_factory=lambda: np.asarray(default_of(PointLightTable, "intensity")))
     type: str = field(default="point", init=False)
 
     def __post_init__(self):
-        self.position = _vec3(self.position, "point light.position")
-        self.radius = _nonneg(self.radius, "point light.radius")
-        self.intensity = _rgb(self.intensity, "point light.intensity")
+        t = _check(PointLightTable, "point light", type="point", position=self.position, radius=self.radius,
+                   intensity=self.intensity)
+        self.position, self.radius = np.asarray(t.position, np.float64), t.radius
+        self.intensity = np.asarray(t.intensity, np.float64)
 
 
 @dataclass
 class DirectionalLight:
     """Distant light from unit ``direction`` (towards the light), angular ``radius`` (radians),
-    irradiance ``intensity`` E (RGB)."""
+    irradiance ``intensity`` E (RGB). Checked by :class:`~warp_sg.scene.light_tables.DirectionalLightTable`."""
 
     direction: np.ndarray
-    radius: float = 0.02
-    intensity: np.ndarray = field(default_factory=lambda: np.ones(3))
+    radius: float = default_of(DirectionalLightTable, "radius")
+    intensity: np.ndarray = field(default_factory=lambda: np.asarray(default_of(DirectionalLightTable, "intensity")))
     type: str = field(default="directional", init=False)
 
     def __post_init__(self):
-        self.direction = _vec3(self.direction, "directional light.direction", unit=True)
-        self.radius = _nonneg(self.radius, "directional light.radius")
-        if self.radius > math.pi / 2:
-            raise InputError(f"must be <= π/2 radians, got {self.radius}", where="directional light.radius")
-        self.intensity = _rgb(self.intensity, "directional light.intensity")
-
-
-ENV_PROCEDURAL = ("sky", "constant")
+        t = _check(DirectionalLightTable, "directional light", type="directional", direction=self.direction,
+                   radius=self.radius, intensity=self.intensity)
+        d = np.asarray(t.direction, np.float64)
+        self.direction, self.radius = d / np.linalg.norm(d), t.radius
+        self.intensity = np.asarray(t.intensity, np.float64)
 
 
 @dataclass
 class EnvironmentLight:
     """Distant environment: ``file`` (equirectangular EXR or Radiance .hdr) or ``procedural`` ("sky" | "constant")
     with ``options`` (passed to ``procedural_sky``; "constant": ``radiance`` RGB, ``width``,
-    ``height``), times ``scale``, rotated ``rotation`` degrees about +Y."""
+    ``height``), times ``scale``, rotated ``rotation`` degrees about +Y. Checked by the
+    environment tables of :mod:`warp_sg.scene.light_tables` (``data``, an array given in Python, by
+    :class:`~warp_sg.scene.light_tables.EnvironmentData`)."""
 
     file: str | Path | None = None
     procedural: str | None = None
     options: dict = field(default_factory=dict)
-    scale: float = 1.0
-    rotation: float = 0.0
+    scale: float = default_of(EnvironmentData, "scale")
+    rotation: float = default_of(EnvironmentData, "rotation")
     data: np.ndarray | None = None  # (H, W, 3) radiance given directly (Python API)
     type: str = field(default="environment", init=False)
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self):
-        n = sum(x is not None for x in (self.file, self.procedural, self.data))
-        if n != 1:
-            raise InputError("give exactly one of 'file', 'procedural' (or data)", where="environment light")
-        if self.procedural is not None and self.procedural not in ENV_PROCEDURAL:
-            raise InputError(f"unknown procedural environment '{self.procedural}' (use {', '.join(ENV_PROCEDURAL)})",
-                             where="environment light.procedural")
-        self.scale = _nonneg(self.scale, "environment light.scale")
-        if self.scale > MAX_RADIANCE:
-            raise InputError(f"must be <= {MAX_RADIANCE:g}, got {self.scale!r}", where="environment light.scale")
-        try:
-            self.rotation = float(self.rotation)
-        except (TypeError, ValueError):
-            raise InputError(f"expected a number (degrees), got {self.rotation!r}",
-                             where="environment light.rotation") from None
+        given = {"type": "environment", "scale": self.scale, "rotation": self.rotation}
+        if self.data is not None:
+            if self.file is not None or self.procedural is not None:
+                raise SceneError("[[lights]] (environment light) give exactly one of 'file', 'procedural' or data")
+            t = _check(EnvironmentData, "environment light", **given)
+        else:
+            given.update({k: v for k, v in (("file", self.file), ("procedural", self.procedural)) if v is not None})
+            if self.options:
+                given["options"] = self.options
+            t = _check(LightTable, "environment light", **given)
+        self.scale, self.rotation = t.scale, t.rotation
 
     def base_radiance(self) -> np.ndarray:
         """Unscaled, unrotated (H, W, 3) float32 map (cached): what precompute prefilters."""
@@ -155,15 +125,11 @@ class EnvironmentLight:
                     raise InputError(f"environment data must be (H, W, 3), got {a.shape}", where="environment light")
                 a = validate_envmap(a, where="environment light.data")
             elif self.procedural == "constant":
-                o = dict(self.options)
-                rad = _rgb(o.pop("radiance", 1.0), "environment light.options.radiance")
-                w = int(o.pop("width", 64))
-                h = int(o.pop("height", 32))
-                if o:
-                    raise InputError(f"unknown option(s) {sorted(o)} for procedural 'constant'",
-                                     where="environment light.options")
+                o = self.options  # checked by ConstantOptions when the record was made
+                rad = np.broadcast_to(np.asarray(o.get("radiance", 1.0), np.float32), (3,))
+                w, h = int(o.get("width", 64)), int(o.get("height", 32))
                 check_envmap_shape(h, w, "environment light.options")  # before the texels exist
-                a = np.broadcast_to(rad.astype(np.float32), (h, w, 3)).copy()
+                a = np.broadcast_to(rad, (h, w, 3)).copy()
             elif self.procedural == "sky":
                 o = self.options
                 check_envmap_shape(o.get("height", 128), o.get("width", 256), "environment light.options")

@@ -11,7 +11,6 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, fields
 from functools import cache
 
-from warp_sg.core.errors import SceneError
 
 #: the integer keys and their ranges [lo, hi]
 RENDER_INT_RANGES = {"supersampling": (1, 16), "antialias": (1, 8), "lobes": (1, 16), "env_lobes": (1, 64),
@@ -70,15 +69,9 @@ class RenderSettings:
     def validate(self, where: str = "[render]") -> None:
         """Check every key with :func:`render_table`: a :class:`SceneError` ``<where> key 'k' ...``
         in the words of the TOML loader for the first key it rejects."""
-        from pydantic import ValidationError
+        from warp_sg.scene.values import check_record
 
-        from warp_sg.scene.values import failure_text
-
-        try:
-            render_table().model_validate(asdict(self))
-        except ValidationError as e:
-            err = e.errors()[0]
-            raise SceneError(f"{where} {failure_text(err, '.'.join(map(str, err['loc'])))}") from None
+        check_record(render_table(), asdict(self), where)
 
 
 @cache

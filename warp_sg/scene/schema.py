@@ -12,10 +12,11 @@ The schema follows the code, not a copy of it: material tables have one branch p
 ``warp_sg.brdf.MODELS`` with that model's ``PARAMS`` (a discriminated union on ``model``; each
 parameter's kind, bound, meaning and texture rule as the model declares it,
 :mod:`warp_sg.brdf.params`), objects
-one branch per primitive of ``warp_sg.scene.primitives.PRIMITIVE_PARAMS`` (plus ``mesh``), lights one
-per ``type``; defaults come from the records' own dataclass defaults, and ``[render]`` is the
-model of :mod:`warp_sg.scene.render_settings` (:func:`~warp_sg.scene.render_settings.render_table`,
-which also checks scenes built in Python).
+one branch per primitive of ``warp_sg.scene.primitives.PRIMITIVE_PARAMS`` (plus ``mesh``). The tables
+whose records a user also builds in Python are defined beside those records and check them too:
+``[camera]`` (:class:`warp_sg.scene.camera.CameraTable`), ``[[lights]]``
+(:mod:`warp_sg.scene.light_tables`, one branch per ``type``) and ``[render]``
+(:func:`warp_sg.scene.render_settings.render_table`).
 
 Leaf values are the types of :mod:`warp_sg.scene.values` (each a check in the project's wording
 and the same rule as JSON Schema); :func:`error_message` turns pydantic's first error into the
@@ -25,8 +26,6 @@ dump).
 from __future__ import annotations
 
 import inspect
-import math
-from dataclasses import MISSING, fields
 from typing import Annotated, Any, Literal
 
 from pydantic import ConfigDict, Field, create_model, model_validator
@@ -34,27 +33,15 @@ from pydantic import ConfigDict, Field, create_model, model_validator
 from warp_sg.brdf import MODELS
 from warp_sg.core.suggest import did_you_mean
 from warp_sg.brdf.fresnel import PRESETS
-from warp_sg.scene.camera import Camera
-from warp_sg.scene.sky import procedural_sky
+from warp_sg.scene.camera import CameraTable
 from warp_sg.scene.importers import brings_materials, material_suffixes
-from warp_sg.scene.lights import ENV_PROCEDURAL, DirectionalLight, EnvironmentLight, PointLight
+from warp_sg.scene.light_tables import LIGHT_MODELS, LightTable
 from warp_sg.scene.primitives import PRIMITIVE_PARAMS, PRIMITIVES
 from warp_sg.scene.render_settings import render_table
-from warp_sg.scene.values import (Table, anything, boolean, choice, fail, failure_text, int_or_ints, integer, number,
-                                  number_or_vector, path, require_tag, rgb, string, tagged, vector)
+from warp_sg.scene.values import (Table, boolean, choice, fail, failure_text, int_or_ints, integer, number,
+                                  number_or_vector, path, plain, require_tag, rgb, string, tagged, vector)
 
 DRAFT = "http://json-schema.org/draft-04/schema#"
-
-
-def _defaults(cls) -> dict:
-    """The defaults of a record dataclass (arrays as lists), so the schema shows what the code uses."""
-    out = {}
-    for f in fields(cls):
-        v = f.default if f.default is not MISSING else (
-            f.default_factory() if f.default_factory is not MISSING else MISSING)
-        if v is not MISSING:
-            out[f.name] = v.tolist() if hasattr(v, "tolist") else v
-    return out
 
 
 def _texture_or(value_type, description):
@@ -131,12 +118,6 @@ def param_value(param):
 TEXTURE_PARAMS = tuple(dict.fromkeys(k for cls in MODELS.values() for k, p in cls.PARAMS.items() if p.texture))
 
 
-def _jsonable(v):
-    if isinstance(v, (tuple, list)):
-        return [_jsonable(x) for x in v]
-    return v.tolist() if hasattr(v, "tolist") else v
-
-
 def _material_model(name: str, cls):
     """The table of ``[materials.X] model = name``: the model's ``PARAMS`` (defaults shown from its
     constructor) plus ``normal_map`` and ``tangent_map``."""
@@ -145,7 +126,7 @@ def _material_model(name: str, cls):
     for p, param in cls.PARAMS.items():
         typ, desc = param_value(param), param.description
         d = sig[p].default if p in sig else None
-        extra = {"default": _jsonable(d)} if d not in (None, inspect.Parameter.empty) else None
+        extra = {"default": plain(d)} if d not in (None, inspect.Parameter.empty) else None
         typ = _texture_or(typ, desc) if param.texture else Annotated[typ, Field(description=desc)]
         fields_[p] = (typ, Field(None, json_schema_extra=extra))
     for p, desc in (("normal_map", "tangent-space normal map (RGB)"),
@@ -163,30 +144,6 @@ def _material_tag(v):
 MATERIAL_MODELS = {name: _material_model(name, cls) for name, cls in MODELS.items()}
 MaterialTable = tagged({f"<model {k}>": m for k, m in MATERIAL_MODELS.items()},
                    lambda v: f"<model {v.get('model')}>" if isinstance(v, dict) else None, _material_tag)
-
-
-class CameraTable(Table):
-    """Pinhole camera (Mitsuba ``look_at``): vertical field of view in degrees."""
-
-    origin: vector(description="eye position") = Camera.origin
-    target: vector(description="point looked at") = Camera.target
-    up: vector(description="up direction") = Camera.up
-    fov: number(lo=0, lo_open=True, hi=179.0, description="vertical field of view (degrees)") = Camera.fov
-    width: integer(lo=1, description="image width (pixels)") = Camera.width
-    height: integer(lo=1, description="image height (pixels)") = Camera.height
-    near: number(**_POS, description="near clipping distance") = Camera.near
-    far: number(**_POS, description="far clipping distance") = Camera.far
-
-    @model_validator(mode="after")
-    def _geometry(self):
-        o, t, u = self.origin, self.target, self.up
-        d = tuple(b - a for a, b in zip(o, t))
-        if all(abs(x) <= 1e-8 * (1 + abs(a)) for x, a in zip(d, o)):
-            fail("origin and target coincide")
-        c = (d[1] * u[2] - d[2] * u[1], d[2] * u[0] - d[0] * u[2], d[0] * u[1] - d[1] * u[0])
-        if math.hypot(*c) < 1e-9 * math.hypot(*d) * max(math.hypot(*u), 1e-30):
-            fail("up is parallel to the viewing direction (or zero)")
-        return self
 
 
 _OBJECT_FIELDS = {
@@ -263,108 +220,6 @@ OBJECT_MODELS = {"<mesh>": _object_model(None), **{f"<primitive {p}>": _object_m
 SceneObjectTable = tagged(OBJECT_MODELS, lambda v: "<mesh>" if "mesh" in v else f"<primitive {v['primitive']}>",
                            _object_tag)
 
-_PL, _DL, _EL = _defaults(PointLight), _defaults(DirectionalLight), _defaults(EnvironmentLight)
-
-
-class PointLightTable(Table):
-    """A spherical light: radiance s/(π r²), irradiance s/d² at distance d."""
-
-    type: Annotated[Literal["point"], Field(description="light type")]
-    position: vector(description="centre")
-    radius: number(lo=0, description="radius (0: a delta light)") = _PL["radius"]
-    intensity: rgb(description="intensity s (W/sr): number or RGB") = _PL["intensity"]
-
-
-class DirectionalLightTable(Table):
-    """A distant light (a sun)."""
-
-    type: Annotated[Literal["directional"], Field(description="light type")]
-    direction: vector(nonzero=True, description="direction towards the light")
-    radius: number(lo=0, hi=math.pi / 2, description="angular radius (radians)") = _DL["radius"]
-    intensity: rgb(description="irradiance E on a surface facing the light: number or RGB") = _DL["intensity"]
-
-
-_SKY_TYPES = {  # procedural_sky's keywords (envmap.procedural_sky needs width, height >= 2)
-    "width": integer(lo=2, description="map width (texels)"),
-    "height": integer(lo=2, description="map height (texels)"),
-    "sun_direction": vector(nonzero=True, description="direction towards the sun"),
-    "sun_angular_radius": number(lo=0, description="sun disk radius (radians)"),
-    "sun_intensity": number(lo=0, description="sun radiance"),
-    "sun_color": rgb(raw=True, description="sun colour (number or RGB)"),
-    "zenith_color": rgb(raw=True, description="sky colour at the zenith"),
-    "horizon_color": rgb(raw=True, description="sky colour at the horizon"),
-    "ground_color": rgb(raw=True, description="colour below the horizon"),
-    "sky_intensity": number(lo=0, description="sky radiance scale"),
-    "halo": number(lo=0, description="strength of the glow around the sun"),
-    "horizon_blur": number(lo=0, description="width of the horizon transition"),
-    "supersample": integer(lo=1, description="sub-cells per texel side (box filter)"),
-}
-SkyOptions = create_model(
-    "SkyOptions", __base__=Table, __doc__="Keywords of warp_sg.scene.sky.procedural_sky.",
-    **{k: (_SKY_TYPES.get(k) or anything({}, f"procedural_sky keyword {k}"),
-           Field(None, json_schema_extra={"default": _jsonable(p.default)}))
-       for k, p in inspect.signature(procedural_sky).parameters.items()})
-
-
-class ConstantOptions(Table):
-    """A uniform environment."""
-
-    radiance: rgb(raw=True, description="radiance (number or RGB)") = None
-    width: integer(lo=1, description="map width (texels)") = None
-    height: integer(lo=1, description="map height (texels)") = None
-
-
-class _Environment(Table):
-    type: Annotated[Literal["environment"], Field(description="light type")]
-    scale: number(lo=0, description="radiance scale") = _EL["scale"]
-    rotation: number(description="rotation about +Y (degrees)") = _EL["rotation"]
-
-
-class EnvironmentFile(_Environment):
-    """An equirectangular environment map (Mitsuba convention) from a file."""
-
-    file: path("equirectangular map (EXR or Radiance .hdr), relative to the scene file")
-
-
-class EnvironmentSky(_Environment):
-    """The procedural all-frequency sky: gradient, ground, halo and a small bright sun."""
-
-    procedural: Annotated[Literal["sky"], Field(description="built-in map")]
-    options: Annotated[SkyOptions, Field(description="warp_sg.scene.sky.procedural_sky keywords")] = None
-
-
-class EnvironmentConstant(_Environment):
-    """A uniform environment."""
-
-    procedural: Annotated[Literal["constant"], Field(description="built-in map")]
-    options: Annotated[ConstantOptions, Field(description="radiance, width, height")] = None
-
-
-LIGHT_MODELS = {"<point>": PointLightTable, "<directional>": DirectionalLightTable,
-                "<environment file>": EnvironmentFile, "<environment sky>": EnvironmentSky,
-                "<environment constant>": EnvironmentConstant}
-LIGHT_TYPES = ("point", "directional", "environment")
-
-
-def _light_tag(v):
-    require_tag(v, "type", LIGHT_TYPES, "light type")
-    if v["type"] == "environment":
-        if ("file" in v) == ("procedural" in v):
-            fail("give exactly one of 'file' or 'procedural'")
-        if "procedural" in v and v["procedural"] not in ENV_PROCEDURAL:
-            fail(f"must be {' or '.join(repr(p) for p in ENV_PROCEDURAL)}, got {v['procedural']!r}",
-                 key="procedural")
-    return v
-
-
-def _light_branch(v) -> str:
-    if v["type"] != "environment":
-        return f"<{v['type']}>"
-    return "<environment file>" if "file" in v else f"<environment {v['procedural']}>"
-
-
-LightTable = tagged(LIGHT_MODELS, _light_branch, _light_tag)
-
 RenderTable = render_table()
 
 
@@ -435,6 +290,6 @@ def error_message(err: dict, data: dict) -> str:
     return f"{label} {text}" if label else text
 
 
-__all__ = ["SceneFile", "CameraTable", "RenderTable", "TextureTable", "FresnelTable", "MATERIAL_MODELS",
+__all__ = ["SceneFile", "CameraTable", "RenderTable", "LightTable", "TextureTable", "FresnelTable", "MATERIAL_MODELS",
            "OBJECT_MODELS", "LIGHT_MODELS", "TEXTURE_PARAMS", "param_value", "error_message",
            "DRAFT"]

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import numbers
+from pathlib import Path
 from typing import Annotated, Any, Union
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Discriminator, PlainValidator, Tag, WithJsonSchema, \
@@ -110,18 +111,20 @@ def integer(lo=None, hi=None, odd=False, description=None):
     return _leaf(lambda v: _check_int(v, lo, hi, odd), _int_schema(lo, hi, odd), description)
 
 
-def _check_vec(v, n=3, lo=None, lo_open=False, what="numbers") -> tuple:
+def _check_vec(v, n=3, lo=None, lo_open=False, what="numbers", hi=None) -> tuple:
     if not isinstance(v, list) or len(v) != n or not all(_is_num(x) for x in v):
         fail(f"must be a list of {n} {what}, got {v!r}")
     if not all(math.isfinite(x) for x in v):
         fail(f"must be finite, got {v!r}")
     if lo is not None and any(x < lo or (lo_open and x <= lo) for x in v):
         fail(f"must be {'>' if lo_open else '>='} {lo}, got {v!r}")
+    if hi is not None and any(x > hi for x in v):
+        fail(f"must be <= {hi:g}, got {v!r}")
     return tuple(float(x) for x in v)
 
 
-def _vec_schema(n=3, lo=None, lo_open=False) -> dict:
-    return {"type": "array", "items": _num_schema(lo, lo_open), "minItems": n, "maxItems": n}
+def _vec_schema(n=3, lo=None, lo_open=False, hi=None) -> dict:
+    return {"type": "array", "items": _num_schema(lo, lo_open, hi), "minItems": n, "maxItems": n}
 
 
 def vector(n=3, nonzero=False, description=None):
@@ -149,18 +152,18 @@ def number_or_vector(n, lo=0, lo_open=True, description=None):
     return _leaf(check, {"anyOf": [_num_schema(lo, lo_open), _vec_schema(n, lo, lo_open)]}, description)
 
 
-def rgb(raw=False, description=None):
-    """A colour: a number (grey) or 3 numbers, all >= 0; ``raw`` keeps the value as written."""
+def rgb(raw=False, hi=None, description=None):
+    """A colour: a number (grey) or 3 numbers, all >= 0 (and <= ``hi``); ``raw`` keeps the value as written."""
     def check(v):
         if _is_num(v):
-            out = (_check_num(v, 0),) * 3
+            out = (_check_num(v, 0, hi=hi),) * 3
         else:
             if not isinstance(v, list) or len(v) != 3 or not all(_is_num(x) for x in v):
                 fail(f"must be a number or a list of 3 numbers (RGB), got {v!r}")
-            out = _check_vec(v, 3, 0)
+            out = _check_vec(v, 3, 0, hi=hi)
         return v if raw else out
 
-    return _leaf(check, {"anyOf": [_num_schema(0), _vec_schema(3, 0)]}, description)
+    return _leaf(check, {"anyOf": [_num_schema(0, hi=hi), _vec_schema(3, 0, hi=hi)]}, description)
 
 
 def int_or_ints(n, lo=1, description=None):
@@ -263,6 +266,53 @@ def tagged(branches: dict, tag_of, before=None):
     return Annotated[(union, *metadata)]
 
 
+# --------------------------------------------------------------------------------------------
+# records built in Python: the same check, the same words
+# --------------------------------------------------------------------------------------------
+def plain(v):
+    """``v`` as TOML would give it: numpy scalars as Python numbers, arrays and tuples as lists
+    (element-wise), so a record built in Python (``Camera(origin=np.array(...))``) is checked by the
+    same model as the file's table."""
+    if isinstance(v, Path):
+        return str(v)
+    if hasattr(v, "tolist") and not isinstance(v, (bool, int, float, str)):
+        return v.tolist()  # numpy arrays and scalars
+    if isinstance(v, (tuple, list)):
+        return [plain(x) for x in v]
+    if isinstance(v, dict):
+        return {k: plain(x) for k, x in v.items()}
+    return v
 
-__all__ = ["Table", "tagged", "require_tag", "fail", "failure_text", "number", "integer", "vector", "number_or_vector", "rgb", "int_or_ints", "string",
+
+_ADAPTERS: dict = {}
+
+
+def _adapter(model):
+    """A (kept) pydantic ``TypeAdapter`` of ``model``: building one costs far more than a check."""
+    from pydantic import TypeAdapter
+
+    kept = _ADAPTERS.get(id(model))
+    if kept is None or kept[0] is not model:
+        kept = _ADAPTERS[id(model)] = (model, TypeAdapter(model))  # the model kept alive with its id
+    return kept[1]
+
+
+def check_record(model, data: dict, label: str):
+    """Validate ``data`` (a record's fields, :func:`plain`-ed) with the table model ``model`` (a
+    :class:`Table` or a :func:`tagged` union): the validated value, or a
+    :class:`~warp_sg.core.errors.SceneError` ``<label> key 'k' ...`` in the words of the scene-file
+    loader for the first failure (what ``Camera``, the light records and ``RenderSettings`` raise)."""
+    from pydantic import ValidationError
+
+    from warp_sg.core.errors import SceneError
+
+    try:
+        return _adapter(model).validate_python({k: plain(v) for k, v in data.items()})
+    except ValidationError as e:
+        err = e.errors()[0]
+        loc = [x for x in err["loc"] if not (isinstance(x, str) and x.startswith("<"))]  # union tags
+        raise SceneError(f"{label} {failure_text(err, '.'.join(map(str, loc)))}") from None
+
+
+__all__ = ["Table", "tagged", "require_tag", "fail", "failure_text", "plain", "check_record", "number", "integer", "vector", "number_or_vector", "rgb", "int_or_ints", "string",
            "path", "boolean", "choice", "anything"]
