@@ -65,57 +65,45 @@ def test_a_camera_built_in_python_is_refused_in_the_scene_files_words(tmp_path, 
     assert isinstance(from_python.value, InputError)  # what raster.rasterize's callers catch
 
 
-@pytest.mark.parametrize("toml,record,kwargs,message", [
-    ("radius = -0.1", PointLight, dict(position=(2.0, 3.0, 2.0), radius=-0.1), "key 'radius' must be >= 0, got -0.1"),
-    ("intensity = [1.0, 2e20, 1.0]", PointLight, dict(position=(2.0, 3.0, 2.0), intensity=np.array([1.0, 2e20, 1.0])),
+_P = '[[lights]]\ntype = "point"\n'
+_D = '[[lights]]\ntype = "directional"\n'
+_E = '[[lights]]\ntype = "environment"\n'
+LIGHT_CASES = [  # (the light's table in a file, the record, its arguments in Python, the words after the label)
+    (_P + "position = [2.0, 3.0, 2.0]\nradius = -0.1", PointLight, dict(position=(2.0, 3.0, 2.0), radius=-0.1),
+     "key 'radius' must be >= 0, got -0.1"),
+    (_P + "position = [2.0, 3.0, 2.0]\nintensity = [1.0, 2e20, 1.0]", PointLight,
+     dict(position=(2.0, 3.0, 2.0), intensity=np.array([1.0, 2e20, 1.0])),
      "key 'intensity' must be <= 1e+20, got [1.0, 2e+20, 1.0]"),
-    ("position = [1.0, nan, 0.0]", PointLight, dict(position=np.array([1.0, np.nan, 0.0])),
+    (_P + "position = [1.0, nan, 0.0]", PointLight, dict(position=np.array([1.0, np.nan, 0.0])),
      "key 'position' must be finite, got [1.0, nan, 0.0]"),
-])
-def test_a_point_light_built_in_python_is_refused_in_the_scene_files_words(tmp_path, toml, record, kwargs, message):
-    with pytest.raises(SceneError) as from_file:
-        _load(tmp_path, SCENE.format(camera=_camera(), lights=POINT.replace("position = [2.0, 3.0, 2.0]\n", "")
-                                     + ("position = [2.0, 3.0, 2.0]\n" if "position" not in toml else "") + toml))
-    assert str(from_file.value) == f"scene.toml: [[lights]] #1 {message}"
-    with pytest.raises(SceneError) as from_python:
-        record(**kwargs)
-    assert str(from_python.value) == f"[[lights]] (point light) {message}"
-
-
-@pytest.mark.parametrize("toml,kwargs,message", [
-    ('[[lights]]\ntype = "directional"\ndirection = [0.0, 0.0, 0.0]', dict(direction=(0, 0, 0)),
+    (_D + "direction = [0.0, 0.0, 0.0]", DirectionalLight, dict(direction=(0, 0, 0)),
      "key 'direction' must be a non-zero vector"),
-    ('[[lights]]\ntype = "directional"\ndirection = [0.0, 1.0, 0.0]\nradius = 2.0', dict(direction=(0, 1, 0), radius=2.0),
+    (_D + "direction = [0.0, 1.0, 0.0]\nradius = 2.0", DirectionalLight, dict(direction=(0, 1, 0), radius=2.0),
      "key 'radius' must be <= 1.5707963267948966, got 2.0"),
-])
-def test_a_directional_light_built_in_python_is_refused_in_the_scene_files_words(tmp_path, toml, kwargs, message):
+    (_E + 'procedural = "sky"\nscale = -1.0', EnvironmentLight, dict(procedural="sky", scale=-1.0),
+     "key 'scale' must be >= 0, got -1.0"),
+    (_E + 'procedural = "skies"', EnvironmentLight, dict(procedural="skies"),
+     "key 'procedural' must be 'sky' or 'constant', got 'skies'"),
+    (_E + 'procedural = "sky"\noptions = {sun_intensty = 3.0}', EnvironmentLight,
+     dict(procedural="sky", options={"sun_intensty": 3.0}),
+     "key 'options.sun_intensty' unknown — did you mean 'sun_intensity'?"),
+    (_E + 'procedural = "constant"\noptions = {radiance = -1.0}', EnvironmentLight,
+     dict(procedural="constant", options={"radiance": -1.0}), "key 'options.radiance' must be >= 0, got -1.0"),
+    (_E + 'procedural = "sky"\nrotation = "north"', EnvironmentLight, dict(procedural="sky", rotation="north"),
+     "key 'rotation' must be a number, got 'north'"),
+    (_E, EnvironmentLight, dict(), "give exactly one of 'file' or 'procedural'"),
+]
+LABELS = {PointLight: "point light", DirectionalLight: "directional light", EnvironmentLight: "environment light"}
+
+
+@pytest.mark.parametrize("toml,record,kwargs,message", LIGHT_CASES, ids=[c[3][:40] for c in LIGHT_CASES])
+def test_a_light_built_in_python_is_refused_in_the_scene_files_words(tmp_path, toml, record, kwargs, message):
     with pytest.raises(SceneError) as from_file:
         _load(tmp_path, SCENE.format(camera=_camera(), lights=toml))
     assert str(from_file.value) == f"scene.toml: [[lights]] #1 {message}"
     with pytest.raises(SceneError) as from_python:
-        DirectionalLight(**kwargs)
-    assert str(from_python.value) == f"[[lights]] (directional light) {message}"
-
-
-@pytest.mark.parametrize("toml,kwargs,message", [
-    ('procedural = "sky"\nscale = -1.0', dict(procedural="sky", scale=-1.0), "key 'scale' must be >= 0, got -1.0"),
-    ('procedural = "skies"', dict(procedural="skies"), "key 'procedural' must be 'sky' or 'constant', got 'skies'"),
-    ('procedural = "sky"\noptions = {sun_intensty = 3.0}', dict(procedural="sky", options={"sun_intensty": 3.0}),
-     "key 'options.sun_intensty' unknown — did you mean 'sun_intensity'?"),
-    ('procedural = "constant"\noptions = {radiance = -1.0}', dict(procedural="constant", options={"radiance": -1.0}),
-     "key 'options.radiance' must be >= 0, got -1.0"),
-    ('procedural = "sky"\nrotation = "north"', dict(procedural="sky", rotation="north"),
-     "key 'rotation' must be a number, got 'north'"),
-    ('type = "environment"', dict(), "give exactly one of 'file' or 'procedural'"),
-])
-def test_an_environment_light_built_in_python_is_refused_in_the_scene_files_words(tmp_path, toml, kwargs, message):
-    env = '[[lights]]\ntype = "environment"\n' + toml.replace('type = "environment"', "")
-    with pytest.raises(SceneError) as from_file:
-        _load(tmp_path, SCENE.format(camera=_camera(), lights=env))
-    assert str(from_file.value) == f"scene.toml: [[lights]] #1 {message}"
-    with pytest.raises(SceneError) as from_python:
-        EnvironmentLight(**kwargs)
-    assert str(from_python.value) == f"[[lights]] (environment light) {message}"
+        record(**kwargs)
+    assert str(from_python.value) == f"[[lights]] ({LABELS[record]}) {message}"
 
 
 def test_records_built_in_python_keep_numpy_values_and_the_files_defaults(tmp_path):
