@@ -92,7 +92,7 @@ from warp_sg.shading.surface_layers import Layers, coat_setup, emission_at, occl
 
 from precompute.environment.irradiance import env_irradiance  # noqa: E402
 from precompute.visibility.ssdf_wp import SSDFPoint, ssdf_point_framed  # noqa: E402
-from warp_sg.shading.motion_wp import Proxies, proxy_diffuse, proxy_ratio  # noqa: E402  (moving objects' occluder proxies)
+from warp_sg.shading.motion_wp import Proxies, moving_lobe, proxy_diffuse, proxy_ratio  # noqa: E402  (moving objects' occluder proxies)
 
 from warp_sg.shading.visibility_terms import (CC_LAM, EnvSG, GeometryArrays, Visibility, fh_fraction, vis_ratio,
                                               vis_ratio_depth, visible_irradiance, visible_lobe)
@@ -374,13 +374,16 @@ def shade_kernel(f: Features):
                             pw = local_to_world(pw_l, ts, bs, ns)
                             pa, lam = sg_product_lobe(ns, CC_LAM, pw, lw)
                             vd = vis_ratio_depth(SHADOWS, FH, vis, q, pa, lam)
-                            if wp.static(MOVING): vd[0] = wp.min(vd[0], proxy_ratio(FH, vis.fh_table, px, t, P, ng, pa, lam))  # noqa: E701,E501
                             pv = pa
                             lv = lam
-                            if vd[0] < 1.0:  # the mean radiance of the lobe's visible part
-                                pv, lv = visible_lobe(vis, q, pa, lam, vd[1])
+                            vr = vd[0]
+                            if wp.static(MOVING):  # the maps' and the proxies' cut, the smaller
+                                vr, pv, lv = moving_lobe(FH, vis, q, px, t, P, ng, pa, lam, vd)
+                            else:
+                                if vd[0] < 1.0:  # the mean radiance of the lobe's visible part
+                                    pv, lv = visible_lobe(vis, q, pa, lam, vd[1])
                             g = gamma_mean(gamma, pv, lv)  # L̄ = ΓL(p, λ)/∫G(λ)
-                            spec += wp.cw_mul(mw, g) * (e * vd[0])
+                            spec += wp.cw_mul(mw, g) * (e * vr)
                 if nspec > 0:  # the slice's energy made the BRDF's: A(o)/A*(o) (brdf.kernel.albedo)
                     col += wp.cw_mul(spec, albedo_correction(mat, o_l))
                 if wp.static(COAT):
@@ -391,11 +394,14 @@ def shade_kernel(f: Features):
                         if e > 0.0 and wp.length_sq(mw) > 0.0:
                             pa, lam = sg_product_lobe(ns_c, CC_LAM, local_to_world(pw_l, ts_c, bs_c, ns_c), lw)
                             vd = vis_ratio_depth(SHADOWS, FH, vis, q, pa, lam)
-                            if wp.static(MOVING): vd[0] = wp.min(vd[0], proxy_ratio(FH, vis.fh_table, px, t, P, ng, pa, lam))  # noqa: E701,E501
                             pv, lv = pa, lam
-                            if vd[0] < 1.0:
-                                pv, lv = visible_lobe(vis, q, pa, lam, vd[1])
-                            cspec += wp.cw_mul(mw, gamma_mean(gamma, pv, lv)) * (e * vd[0])
+                            vr = vd[0]
+                            if wp.static(MOVING):
+                                vr, pv, lv = moving_lobe(FH, vis, q, px, t, P, ng, pa, lam, vd)
+                            else:
+                                if vd[0] < 1.0:
+                                    pv, lv = visible_lobe(vis, q, pa, lam, vd[1])
+                            cspec += wp.cw_mul(mw, gamma_mean(gamma, pv, lv)) * (e * vr)
                     ccol += wp.cw_mul(cspec, albedo_correction(cm, oc_l))  # (zero without a coat)
             if wp.static(EMIT):
                 col += emission_at(lay, tex, mi, uv)

@@ -5,11 +5,19 @@ already in the precomputed SSDFs, i.e. where ``o`` or ``j`` is dynamic
 (:mod:`precompute.visibility.ssdf_groups`: the static objects shadow each other in their maps, a dynamic
 object only itself). Per shading point ``P`` (normal ``n``):
 
-* **SSDF** (:func:`proxy_theta`): ``θp(d) = min_j θ_j(d)`` with a sphere's ``∠(d, a) − α`` and a
-  plane's ``asin(σ d·m)`` (:mod:`precompute.visibility.proxies`); the lobe's visibility is ``min(V_own,
+* **SSDF** (:func:`proxy_theta`): ``θp(d) = min_j θ_j(d)`` with a sphere's ``∠(d, a) − α``
+  (:mod:`precompute.visibility.proxies`) and a flat object's :func:`polygon_theta`, the angle from
+  ``d`` to its outline on the sphere of directions (its edges are great-circle arcs; negative where
+  the ray hits it) — not the infinite plane it lies in, whose ``asin(σ d·m)`` hides the environment
+  past a floor's edge from a glossy object's grazing lobes; the lobe's visibility is ``min(V_own,
   fh(θp, λ)/fh(θh, λ))`` (:func:`proxy_ratio`), i.e. ``fh(min(θd, θp))/fh(θh)``: the SSDF of the
   union of occluders, ``min``, before the SSDF × SG product (eq. 30) — used for lights and for the
-  specular lobes (and the diffuse lobes of the per-pixel path).
+  specular lobes (and the diffuse lobes of the per-pixel path). A specular lobe's mean radiance is
+  read on its visible part (:func:`moving_lobe`): cut by the maps' occluders as in a static scene
+  (``visible_lobe``), or, where a proxy cuts more, moved away from that proxy (``cut_lobe``, the
+  same truncated-normal shift) — before, a glossy moving ball on a floor averaged the sky with
+  the ground the floor hides and was 9 % dark (``examples/rolling.toml``, against the
+  Monte-Carlo reference; now −0.2 %).
 * **Diffuse environment** (:func:`proxy_diffuse`): the visible fraction ``F`` of the irradiance is
   multiplied by ``Π_j (1 − O_j/E(n))`` over the objects (occlusions combined as independent, Ren
   et al. 2006's product of visibilities), each object seen as its one diffuse sphere
@@ -37,6 +45,7 @@ from warp_sg.scene.envmap import env_lookup
 from warp_sg.numeric.fastmath import fast_asin
 from warp_sg.sg.fh import fh_ratio_table_pair, fh_theta_max_wp
 from warp_sg.sg.ssdf_product import sg_visibility_scale_sigmoid
+from warp_sg.shading.visibility_terms import SSDFPoint, Visibility, cut_lobe, visible_lobe
 
 _HALF_PI = wp.constant(1.5707963267948966)
 _FAR = wp.constant(4.0)  # an SSDF beyond any angle: no proxy
@@ -100,11 +109,63 @@ def _sphere_theta(s: wp.vec4, P: wp.vec3, d: wp.vec3) -> float:
 
 
 @wp.func
-def proxy_theta(px: Proxies, tri: int, P: wp.vec3, d: wp.vec3, reach: float) -> float:
-    """``θp``: the SSDF at unit direction ``d`` of the proxies that occlude the point ``P`` of
+def _arc_distance(a: wp.vec3, b: wp.vec3, d: wp.vec3) -> float:
+    """The angle from unit ``d`` to the great-circle arc from unit ``a`` to unit ``b`` (the shorter
+    one): ``asin |d·u|`` (``u`` the arc's pole) where ``d`` projects inside the arc, else the angle
+    to the nearer end."""
+    c = wp.cross(a, b)
+    s = wp.length(c)
+    if s > 1.0e-9:
+        u = c / s
+        du = wp.dot(d, u)
+        q = d - u * du
+        if wp.length(q) > 1.0e-9 and wp.dot(wp.cross(a, q), u) >= 0.0 and wp.dot(wp.cross(q, b), u) >= 0.0:
+            return fast_asin(wp.min(wp.abs(du), 1.0))
+    return wp.acos(wp.clamp(wp.max(wp.dot(d, a), wp.dot(d, b)), -1.0, 1.0))
+
+
+@wp.func
+def polygon_theta(verts: wp.array(dtype=wp.vec3), start: int, count: int, m: wp.vec3, h: float, P: wp.vec3,
+                  d: wp.vec3) -> float:
+    """The SSDF (eq. 23) at unit direction ``d`` of a flat convex polygon (its vertices in order, in
+    the plane ``m·x + h = 0``) seen from ``P``: the angle from ``d`` to the polygon's outline on the
+    sphere of directions (its edges project to great-circle arcs), negative where the ray ``P + t d``
+    hits the polygon. A floor's outline instead of the infinite plane it lies in: directions that
+    pass its edge see the environment beyond it (the ground of the map near the horizon)."""
+    dist = float(_FAR)
+    sgn = int(0)
+    hit = int(1)
+    md = wp.dot(m, d)
+    t = float(-1.0)
+    if wp.abs(md) > 1.0e-12:
+        t = -(wp.dot(m, P) + h) / md
+    if t <= 0.0:
+        hit = 0
+    X = P + d * wp.max(t, 0.0)
+    for k in range(count):
+        va = verts[start + k]
+        vb = verts[start + (k + 1) % count]
+        dist = wp.min(dist, _arc_distance(wp.normalize(va - P), wp.normalize(vb - P), d))
+        side = wp.dot(wp.cross(vb - va, X - va), m)  # the hit point against edge k, in the plane
+        if hit != 0:
+            sk = wp.where(side >= 0.0, 1, -1)
+            if sgn == 0:
+                sgn = sk
+            elif sk != sgn:
+                hit = 0
+    if hit != 0:
+        return -dist
+    return dist
+
+
+@wp.func
+def proxy_theta_axis(px: Proxies, tri: int, P: wp.vec3, d: wp.vec3, reach: float):
+    """``(θp, c)``: the SSDF at unit direction ``d`` of the proxies that occlude the point ``P`` of
     triangle ``tri`` (module docstring), where it is below ``reach`` (an object whose bounding
-    sphere is ``reach`` or more from ``d`` is skipped); 4 (beyond any angle) where none is."""
+    sphere is ``reach`` or more from ``d`` is skipped), 4 (beyond any angle) where none is; and the
+    direction towards the proxy that gives it (a sphere's centre, a plane's side), zero for none."""
     th = float(_FAR)
+    c = wp.vec3(0.0, 0.0, 0.0)
     recv = px.tri_object[tri]
     for k in range(px.bounds.shape[0]):
         b = px.bounds[k]
@@ -112,27 +173,48 @@ def proxy_theta(px: Proxies, tri: int, P: wp.vec3, d: wp.vec3, reach: float) -> 
             if _sphere_theta(b, P, d) < reach:
                 s0 = px.sphere_start[k]
                 for i in range(s0, s0 + px.sphere_count[k]):
-                    th = wp.min(th, _sphere_theta(px.spheres[i], P, d))
+                    si = px.spheres[i]
+                    ti = _sphere_theta(si, P, d)
+                    if ti < th:
+                        th = ti
+                        c = wp.vec3(si[0], si[1], si[2]) - P
     for i in range(px.planes.shape[0]):
         if _pair(px, recv, px.plane_owner[i]) != 0:
-            sg = _plane_side(px, i, P)
-            if sg != 0.0:
-                pl = px.planes[i]
-                th = wp.min(th, fast_asin(wp.clamp(sg * wp.dot(d, wp.vec3(pl[0], pl[1], pl[2])), -1.0, 1.0)))
+            pl = px.planes[i]
+            m = wp.vec3(pl[0], pl[1], pl[2])
+            towards = m * wp.where(wp.dot(m, P) + pl[3] >= 0.0, -1.0, 1.0)
+            ti = float(_FAR)
+            if px.outline_count[i] >= 3:  # the flat object's outline (polygon_theta)
+                ti = polygon_theta(px.outline, px.outline_start[i], px.outline_count[i], m, pl[3], P, d)
+            else:
+                sg = _plane_side(px, i, P)
+                if sg != 0.0:  # no outline: the plane it lies in, where P projects inside its disk
+                    ti = fast_asin(wp.clamp(sg * wp.dot(d, m), -1.0, 1.0))
+            if ti < th:
+                th = ti
+                c = towards
+    return th, c
+
+
+@wp.func
+def proxy_theta(px: Proxies, tri: int, P: wp.vec3, d: wp.vec3, reach: float) -> float:
+    """``θp`` of :func:`proxy_theta_axis`."""
+    th, c = proxy_theta_axis(px, tri, P, d, reach)
     return th
 
 
 @wp.func
-def proxy_ratio(fh_mode: int, table: wp.array2d(dtype=float), px: Proxies, tri: int, P: wp.vec3, ng: wp.vec3,
-                d: wp.vec3, lam: float) -> float:
-    """``fh(θp, λ)/fh(θh, λ)`` clamped to [0, 1]: the visible fraction of the lobe (d, λ) the proxies
-    leave (1 in a static scene, or where they clear the lobe by θmax(λ))."""
+def proxy_cut(fh_mode: int, table: wp.array2d(dtype=float), px: Proxies, tri: int, P: wp.vec3, ng: wp.vec3,
+              d: wp.vec3, lam: float):
+    """``(r, θp, c)``: ``r = fh(θp, λ)/fh(θh, λ)`` clamped to [0, 1], the visible fraction of the lobe
+    (d, λ) the proxies leave (1 in a static scene, or where they clear the lobe by θmax(λ)), with
+    the SSDF θp and the direction c towards the proxy of :func:`proxy_theta_axis`."""
     if px.active == 0:
-        return 1.0
+        return 1.0, float(_FAR), wp.vec3(0.0, 0.0, 0.0)
     tmax = fh_theta_max_wp(lam)
-    th = proxy_theta(px, tri, P, d, tmax)
+    th, c = proxy_theta_axis(px, tri, P, d, tmax)
     if th >= tmax:
-        return 1.0
+        return 1.0, th, c
     th_h = fast_asin(wp.clamp(wp.dot(d, ng), -1.0, 1.0))
     a = float(0.0)
     b = float(0.0)
@@ -141,7 +223,34 @@ def proxy_ratio(fh_mode: int, table: wp.array2d(dtype=float), px: Proxies, tri: 
         b = sg_visibility_scale_sigmoid(th_h, lam)
     else:
         a, b = fh_ratio_table_pair(table, th, th_h, lam)
-    return wp.clamp(a / wp.max(b, 1.0e-8), 0.0, 1.0)
+    return wp.clamp(a / wp.max(b, 1.0e-8), 0.0, 1.0), th, c
+
+
+@wp.func
+def proxy_ratio(fh_mode: int, table: wp.array2d(dtype=float), px: Proxies, tri: int, P: wp.vec3, ng: wp.vec3,
+                d: wp.vec3, lam: float) -> float:
+    """The visible fraction ``r`` of :func:`proxy_cut`."""
+    r, th, c = proxy_cut(fh_mode, table, px, tri, P, ng, d, lam)
+    return r
+
+
+@wp.func
+def moving_lobe(fh_mode: int, vis: Visibility, q: SSDFPoint, px: Proxies, tri: int, P: wp.vec3, ng: wp.vec3,
+                p: wp.vec3, lam: float, vd: wp.vec2):
+    """``(V, p', λ')`` of a specular lobe (p, λ) in a scene with moving objects: the smaller of the
+    maps' visible fraction (``vd = vis_ratio_depth(...)``: fraction, θd) and the proxies'
+    (:func:`proxy_cut`), and the lobe's visible part cut by the occluder that gives it
+    (:func:`~warp_sg.shading.visibility_terms.visible_lobe` for the maps,
+    :func:`~warp_sg.shading.visibility_terms.cut_lobe` towards the proxy), where its mean radiance is read: a
+    glossy lobe that straddles a floor's horizon sees the sky above it, not the ground the floor hides."""
+    r, th, c = proxy_cut(fh_mode, vis.fh_table, px, tri, P, ng, p, lam)
+    if r < vd[0]:
+        pc, lc = cut_lobe(p, lam, th, c)
+        return r, pc, lc
+    if vd[0] < 1.0:
+        pv, lv = visible_lobe(vis, q, p, lam, vd[1])
+        return vd[0], pv, lv
+    return vd[0], p, lam
 
 
 @wp.func
@@ -258,5 +367,5 @@ def no_proxies(device) -> Proxies:
     return px
 
 
-__all__ = ["Proxies", "proxy_theta", "proxy_ratio", "proxy_diffuse", "cap_cosine_solid_angle", "polygon_cosine_solid_angle",
+__all__ = ["Proxies", "proxy_theta", "proxy_theta_axis", "proxy_cut", "moving_lobe", "polygon_theta", "proxy_ratio", "proxy_diffuse", "cap_cosine_solid_angle", "polygon_cosine_solid_angle",
            "no_proxies"]

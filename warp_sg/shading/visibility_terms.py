@@ -174,11 +174,19 @@ def visible_lobe(vis: Visibility, q: SSDFPoint, p: wp.vec3, lam: float, th: floa
     by the variance's inverse square root. The lobe's mean radiance is then read there
     (``gamma_mean``): a lobe that straddles the horizon of a floor sees the sky above it, not the
     average of the sky and the ground the floor hides. (p, λ) itself where nothing cuts it."""
+    return cut_lobe(p, lam, th, _occluder_axis(vis, q))
+
+
+@wp.func
+def cut_lobe(p: wp.vec3, lam: float, th: float, c: wp.vec3):
+    """:func:`visible_lobe` for an occluder in the direction ``c`` (any length; zero: none) whose
+    SSDF at ``p`` is ``th``: the truncated-normal shift of the lobe's axis away from ``c`` and its
+    sharpness (the moving objects' proxies use it with their own occluder,
+    :mod:`warp_sg.shading.motion_wp`)."""
     sig = 1.0 / wp.sqrt(wp.max(lam, 1.0e-6))
     t = th / sig
     if t >= 3.0:  # the cut is 3σ away: the shift would be < 0.005 σ
         return p, lam
-    c = _occluder_axis(vis, q)
     away = p * wp.dot(p, c) - c  # tangent at p pointing away from the occluders
     if wp.length_sq(away) < 1.0e-12:
         return p, lam
