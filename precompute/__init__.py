@@ -9,7 +9,7 @@ maps (:mod:`warp_sg.scene.envmap`).
 """
 from __future__ import annotations
 
-import importlib
+from warp_sg.core.public_names import lazy_getattr
 
 #: public name -> (module, attribute; None for the module itself)
 _PUBLIC = {
@@ -35,15 +35,7 @@ _PUBLIC = {
 }
 
 
-def __getattr__(name):
-    if name not in _PUBLIC:
-        raise AttributeError(f"module 'precompute' has no attribute {name!r}")
-    module, attr = _PUBLIC[name]
-    value = importlib.import_module(module)
-    if attr is not None:
-        value = getattr(value, attr)
-    globals()[name] = value
-    return value
+__getattr__ = lazy_getattr("precompute", _PUBLIC, globals())
 
 
 __all__ = list(_PUBLIC)

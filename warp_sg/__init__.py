@@ -19,11 +19,10 @@ would run inside their own import.
 """
 from __future__ import annotations
 
-import importlib
-
 from warp_sg import sg
 from warp_sg.core import errors
 from warp_sg.core.errors import InputError
+from warp_sg.core.public_names import lazy_getattr
 
 __version__ = "0.1.0"
 
@@ -40,15 +39,7 @@ _PUBLIC = {
 }
 
 
-def __getattr__(name):
-    if name not in _PUBLIC:
-        raise AttributeError(f"module 'warp_sg' has no attribute {name!r}")
-    module, attr = _PUBLIC[name]
-    value = importlib.import_module(module)
-    if attr is not None:
-        value = getattr(value, attr)
-    globals()[name] = value
-    return value
+__getattr__ = lazy_getattr("warp_sg", _PUBLIC, globals())
 
 
 __all__ = ["errors", "sg", "InputError", *_PUBLIC]
