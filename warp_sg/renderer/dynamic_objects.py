@@ -377,9 +377,9 @@ class DynamicObjects:
         return True
 
     def _visible(self, r, es, into) -> None:
-        """The moving vertices' rows of the environment's visible fraction, from their weights
-        kept since the rest pose and the sky turned into each object's frame
-        (:mod:`warp_sg.shading.sky_table`)."""
+        """The moving vertices' rows of the environment's visible fraction, from their transfer
+        vectors (or texel lists) kept since the rest pose and the sky turned into each object's
+        frame (:mod:`warp_sg.shading.sky_table`)."""
         from warp_sg.shading.sky_table import MovingSky
 
         env, cells = getattr(r, "env_light", None), getattr(r, "env_texel_radiance", None)
@@ -389,11 +389,6 @@ class DynamicObjects:
             slot, _, rest_n, _, rest_ft, rest_fb, rest_cone = self._device_rest(r)
             self._sky = MovingSky(r.vis, self.all_ids, slot.numpy(), (rest_n, rest_ft, rest_fb, rest_cone),
                                   len(self.ids), r.device)
-        if not self._sky.fits:  # (lists over the budget: every texel against the map, every frame)
-            from warp_sg.shading.vertex_visibility import env_vertex_visible
-
-            env_vertex_visible(r.vis, es, len(r.geometry.vertices), r.device, ids=self.all_ids, into=into)
-            return
         self._sky.visible(r.vis, es, cells, env.rotation_matrix(), [self._delta(k)[0] for k in self.ids], into)
 
     def patch_caches(self, r, es) -> None:

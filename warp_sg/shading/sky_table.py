@@ -39,10 +39,11 @@ the renderer is held to. The moving vertices use it at every pose, their first f
 so a frame stays a function of the transforms.
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the kernel annotations.
+import math
+
 import numpy as np
 import warp as wp
 
-from precompute.environment.cubemap import cube_face_of
 from precompute.environment.irradiance import irradiance_unscaled, texel_directions_with_border
 from precompute.visibility.ssdf_wp import concentric_to_dir_wp
 
@@ -53,34 +54,80 @@ from warp_sg.shading.visibility_terms import EnvSG, Visibility
 
 #: texels per cube face edge (without the border) of the turned sky
 FACE = 32
-#: bytes per listed texel (corner, fractions, weights)
-TEXEL_BYTES = 20
-
-
-def table_budget() -> int:
-    """Bytes the texel lists may take (``WARP_SG_SKY_TABLE_MB``, default 256 MiB: the turning
-    blob's take 2.7 MB, the 12.9 k moving vertices of the refined Stanford bunny 198 MB); beyond,
-    the moving vertices are integrated against the map itself, every texel, every frame."""
-    from precompute.visibility.ssdf import budget_mib
-
-    return budget_mib("WARP_SG_SKY_TABLE_MB", "256")
+#: the spherical-harmonic order of the transfer vectors ((ORDER + 1)² coefficients per vertex)
+ORDER = 8
+#: the largest bound on a vertex's visible-fraction error from the truncated sky that its
+#: transfer vectors are used with; a vertex over it is integrated against the map (module docstring)
+BOUND = 0.25
 _SQRT_2PI = wp.constant(float(np.sqrt(2.0 * np.pi)))
+
+
+def sh_norms(order: int) -> np.ndarray:
+    """``K[l·(order+1) + m] = √((2l+1)/4π · (l−m)!/(l+m)!)``, times √2 for m > 0: the factors of
+    the real orthonormal spherical harmonics in :func:`sh_accumulate`."""
+    k = np.zeros((order + 1) ** 2)
+    for l in range(order + 1):
+        for m in range(l + 1):
+            k[l * (order + 1) + m] = math.sqrt((2 * l + 1) / (4 * math.pi) * math.factorial(l - m)
+                                               / math.factorial(l + m)) * (math.sqrt(2.0) if m else 1.0)
+    return k
+
+
+@wp.func
+def sh_accumulate(out: wp.array2d(dtype=wp.vec2), row: int, order: int, norms: wp.array(dtype=float), d: wp.vec3,
+                  w: wp.vec2):
+    """``out[row, i] += w·Y_i(d)`` for the real orthonormal spherical harmonics up to ``order``
+    (``i = l² + l + m``, ``−l ≤ m ≤ l``): ``Y_l^0 = K_l^0 Q_l^0(z)``, ``Y_l^{±m} = √2 K_l^m
+    Q_l^m(z)·(Re, Im)(x + iy)^m``, with ``Q_l^m`` the associated Legendre function less its
+    ``sin^m θ`` (no Condon–Shortley phase): ``Q_m^m = (2m−1)!!``, ``Q_{m+1}^m = (2m+1) z Q_m^m``,
+    ``(l−m) Q_l^m = (2l−1) z Q_{l−1}^m − (l+m−1) Q_{l−2}^m`` (Sloan, "Efficient spherical
+    harmonic evaluation", JCGT 2013)."""
+    x = d[0]
+    y = d[1]
+    z = d[2]
+    c = float(1.0)
+    s = float(0.0)
+    qmm = float(1.0)
+    for m in range(order + 1):
+        if m > 0:
+            c1 = x * c - y * s
+            s = x * s + y * c
+            c = c1
+            qmm = qmm * float(2 * m - 1)
+        q1 = qmm
+        q2 = float(0.0)
+        for l in range(m, order + 1):
+            q = qmm
+            if l == m + 1:
+                q = float(2 * m + 1) * z * qmm
+            elif l > m + 1:
+                q = (float(2 * l - 1) * z * q1 - float(l + m - 1) * q2) / float(l - m)
+            if l > m:
+                q2 = q1
+                q1 = q
+            k = norms[l * (order + 1) + m] * q
+            if m == 0:
+                out[row, l * l + l] = out[row, l * l + l] + w * k
+            else:
+                out[row, l * l + l + m] = out[row, l * l + l + m] + w * (k * c)
+                out[row, l * l + l - m] = out[row, l * l + l - m] + w * (k * s)
 
 
 @wp.struct
 class SkyTable:
-    """Per listed vertex ``k`` (``vertices[k]``, of object ``slot[k]``): its texels inside the cone,
-    ``start[k]`` to ``start[k+1]`` — per texel ``corner`` (the cube texel below and left of its
-    direction, in its object's cube), ``frac`` (the bilinear fractions) and ``weight``
-    (``(1 − s) c``, ``s c``). ``sky``: the turned sky of every object, cubes of ``size`` (with
-    border) one after the other."""
+    """Per listed vertex ``k`` (``vertices[k]``, of object ``slot[k]``; ``exact[k] = 1``: left to
+    the map quadrature): its transfer vectors ``t^O``, ``t^S`` against the turned sky's coefficients, four at a time
+    (``groups`` of them, zero-padded): ``transfer[2(k·groups + j)]`` ``t^O_{4j…4j+3}``, ``+1``
+    ``t^S`` likewise, and ``coef[3(slot·groups + j) + c]`` channel c of the sky's (a layout the
+    CPU runs ≈ 3× faster than one coefficient at a time). ``sky``: the turned sky of every object,
+    cubes of ``size`` (with border) one after the other."""
 
     vertices: wp.array(dtype=int)
     slot: wp.array(dtype=int)
-    start: wp.array(dtype=int)
-    corner: wp.array(dtype=int)
-    frac: wp.array(dtype=wp.vec2)
-    weight: wp.array(dtype=wp.vec2)
+    exact: wp.array(dtype=int)
+    transfer: wp.array(dtype=wp.vec4)
+    coef: wp.array(dtype=wp.vec4)
+    groups: int
     sky: wp.array(dtype=wp.vec3)
     size: int
 
@@ -103,28 +150,14 @@ def _texel_local(R: int, q: int) -> wp.vec3:
 
 
 @wp.kernel(enable_backward=False)
-def count_texels_kernel(vis: Visibility, rest_n: wp.array(dtype=wp.vec3), rest_t: wp.array(dtype=wp.vec3),
-                        rest_b: wp.array(dtype=wp.vec3), rest_cone: wp.array(dtype=wp.vec4), count: wp.array(dtype=int)):
-    """``count[i]``: the texels inside listed vertex i's cone (its rest frame and cone)."""
-    i = wp.tid()
-    cone = rest_cone[i]
-    m = int(0)
-    if cone[3] >= 0.0:
-        R = vis.mean.shape[0]
-        c_min = wp.cos(wp.min(cone[3] + _SQRT_2PI / float(R), wp.pi))
-        for q in range(R * R):
-            m += _cone_texel(_texel_local(R, q), rest_t[i], rest_b[i], wp.normalize(rest_n[i]), cone, c_min)
-    count[i] = m
-
-
-@wp.kernel(enable_backward=False)
-def fill_texels_kernel(vis: Visibility, ids: wp.array(dtype=int), rest_n: wp.array(dtype=wp.vec3),
-                       rest_t: wp.array(dtype=wp.vec3), rest_b: wp.array(dtype=wp.vec3),
-                       rest_cone: wp.array(dtype=wp.vec4), start: wp.array(dtype=int), face: int,
-                       corner: wp.array(dtype=int), frac: wp.array(dtype=wp.vec2), weight: wp.array(dtype=wp.vec2)):
-    """Listed vertex i's texels inside its cone (:class:`SkyTable`): cube corner, fractions and
-    weights, from ``start[i]``."""
-    i = wp.tid()
+def transfer_kernel(base: int, vis: Visibility, ids: wp.array(dtype=int), rest_n: wp.array(dtype=wp.vec3),
+                    rest_t: wp.array(dtype=wp.vec3), rest_b: wp.array(dtype=wp.vec3),
+                    rest_cone: wp.array(dtype=wp.vec4), order: int, norms: wp.array(dtype=float),
+                    out: wp.array2d(dtype=wp.vec2), norm2: wp.array(dtype=wp.vec2)):
+    """Listed vertex ``i = base + tid``'s transfer vectors (module docstring), ``out[i, j] = Σ_t
+    ((1 − s_t) c_t, s_t c_t) Y_j(D_t)`` over its texels inside the cone (rest pose), and
+    ``norm2[i] = Σ_t ((1 − s_t) c_t, s_t c_t)² / Ω``."""
+    i = base + wp.tid()
     cone = rest_cone[i]
     if cone[3] < 0.0:
         return
@@ -134,23 +167,17 @@ def fill_texels_kernel(vis: Visibility, ids: wp.array(dtype=int), rest_n: wp.arr
     om = 2.0 * wp.pi / float(R * R)
     c_min = wp.cos(wp.min(cone[3] + h, wp.pi))
     n = wp.normalize(rest_n[i])
-    j = start[i]
-    stride = face + 2
+    acc = wp.vec2(0.0, 0.0)
     for q in range(R * R):
         dl = _texel_local(R, q)
         if _cone_texel(dl, rest_t[i], rest_b[i], n, cone, c_min) == 1:
             y = q / R
             s = wp.clamp(0.5 + texel_ssdf(vis, v, y, q - y * R) / h, 0.0, 1.0)
             c = dl[2] * om
-            fab = cube_face_of(local_to_world(dl, rest_t[i], rest_b[i], n))
-            fx = (fab[1] + 1.0) * 0.5 * float(face) + 0.5  # (as precompute.environment.cubemap.bordered_bilinear)
-            fy = (fab[2] + 1.0) * 0.5 * float(face) + 0.5
-            x0 = wp.clamp(int(wp.floor(fx)), 0, face)
-            y0 = wp.clamp(int(wp.floor(fy)), 0, face)
-            corner[j] = int(fab[0]) * stride * stride + y0 * stride + x0
-            frac[j] = wp.vec2(wp.clamp(fx - float(x0), 0.0, 1.0), wp.clamp(fy - float(y0), 0.0, 1.0))
-            weight[j] = wp.vec2((1.0 - s) * c, s * c)
-            j += 1
+            w = wp.vec2((1.0 - s) * c, s * c)
+            acc += wp.cw_mul(w, w) / om
+            sh_accumulate(out, i, order, norms, local_to_world(dl, rest_t[i], rest_b[i], n), w)
+    norm2[i] = acc
 
 
 @wp.kernel(enable_backward=False)
@@ -165,98 +192,229 @@ def turn_sky_kernel(base: int, dirs: wp.array(dtype=wp.vec3), radiance: wp.array
 
 
 @wp.kernel(enable_backward=False)
+def project_sky_kernel(base: int, basis: wp.array2d(dtype=wp.vec4), inner: wp.array(dtype=int),
+                       sky: wp.array(dtype=wp.vec3), size: int, out: wp.array(dtype=wp.vec4)):
+    """Coefficients ``4j…4j+3`` of object ``k`` (``p = base + tid = k·groups + j``): ``Σ_q Ω_q
+    Y_i(d_q) L'_k(d_q)`` over the cube's inner texels (``basis[j, q]`` = the four ``Ω_q Y_i(d_q)``,
+    ``inner[q]`` the texel in the bordered cube of ``size`` texels), channel by channel into
+    ``out[3p + c]`` (:class:`SkyTable`)."""
+    p = base + wp.tid()
+    ng = basis.shape[0]
+    k = p / ng
+    j = p - k * ng
+    o = k * size
+    r = wp.vec4(0.0, 0.0, 0.0, 0.0)
+    g = wp.vec4(0.0, 0.0, 0.0, 0.0)
+    b = wp.vec4(0.0, 0.0, 0.0, 0.0)
+    for q in range(basis.shape[1]):
+        e = sky[o + inner[q]]
+        y = basis[j, q]
+        r += y * e[0]
+        g += y * e[1]
+        b += y * e[2]
+    out[3 * p] = r
+    out[3 * p + 1] = g
+    out[3 * p + 2] = b
+
+
+@wp.kernel(enable_backward=False)
 def moving_visible_kernel(base: int, tab: SkyTable, vis: Visibility, env: EnvSG, out: wp.array(dtype=wp.vec3),
                           out_irr: wp.array(dtype=wp.vec3)):
     """Listed vertex ``k = base + tid`` (``v = tab.vertices[k]``): ``out[v]`` its visible fraction
-    and ``out_irr[v] = E ∘ F``, as ``env_vertex_visible_kernel`` with ``L̄(d_t)`` read from its
-    object's turned sky (module docstring)."""
+    and ``out_irr[v] = E ∘ F``, as ``env_vertex_visible_kernel`` with the cone's sums ``O = t^O·l``,
+    ``S = t^S·l`` from its transfer vectors and its object's turned sky's coefficients ``l``
+    (module docstring); a vertex left to the map quadrature (``tab.exact[k]``) is not written."""
     k = base + wp.tid()
+    if tab.exact[k] != 0:
+        return
     v = tab.vertices[k]
     n = wp.normalize(vis.normals[v])
     cone = vis.cones[v]
     f = wp.vec3(1.0, 1.0, 1.0)
     ex = irradiance_unscaled(env.exact, n)
     if cone[3] >= 0.0:
-        stride = tab.size
-        o = tab.slot[k] * 6 * stride * stride
-        occ_sum = wp.vec3(0.0, 0.0, 0.0)
-        seen_sum = wp.vec3(0.0, 0.0, 0.0)
-        for j in range(tab.start[k], tab.start[k + 1]):
-            c = o + tab.corner[j]
-            fr = tab.frac[j]
-            t0 = tab.sky[c] * (1.0 - fr[0]) + tab.sky[c + 1] * fr[0]
-            t1 = tab.sky[c + stride] * (1.0 - fr[0]) + tab.sky[c + stride + 1] * fr[0]
-            e = t0 * (1.0 - fr[1]) + t1 * fr[1]
-            w = tab.weight[j]
-            occ_sum += e * w[0]
-            seen_sum += e * w[1]
+        o = 3 * tab.slot[k] * tab.groups
+        t = 2 * k * tab.groups
+        o0 = wp.vec4(0.0, 0.0, 0.0, 0.0)
+        o1 = wp.vec4(0.0, 0.0, 0.0, 0.0)
+        o2 = wp.vec4(0.0, 0.0, 0.0, 0.0)
+        s0 = wp.vec4(0.0, 0.0, 0.0, 0.0)
+        s1 = wp.vec4(0.0, 0.0, 0.0, 0.0)
+        s2 = wp.vec4(0.0, 0.0, 0.0, 0.0)
+        for j in range(tab.groups):
+            wo = tab.transfer[t + 2 * j]
+            ws = tab.transfer[t + 2 * j + 1]
+            c0 = tab.coef[o + 3 * j]
+            c1 = tab.coef[o + 3 * j + 1]
+            c2 = tab.coef[o + 3 * j + 2]
+            o0 += wp.cw_mul(c0, wo)
+            o1 += wp.cw_mul(c1, wo)
+            o2 += wp.cw_mul(c2, wo)
+            s0 += wp.cw_mul(c0, ws)
+            s1 += wp.cw_mul(c1, ws)
+            s2 += wp.cw_mul(c2, ws)
+        one = wp.vec4(1.0, 1.0, 1.0, 1.0)
+        occ_sum = wp.vec3(wp.dot(o0, one), wp.dot(o1, one), wp.dot(o2, one))
+        seen_sum = wp.vec3(wp.dot(s0, one), wp.dot(s1, one), wp.dot(s2, one))
         f = visible_share(occ_sum, seen_sum, ex, cone, n, _SQRT_2PI / float(vis.mean.shape[0]))
     out[v] = f
     out_irr[v] = wp.cw_mul(ex, f)
+
+
+@wp.kernel(enable_backward=False)
+def basis_kernel(base: int, dirs: wp.array(dtype=wp.vec3), order: int, norms: wp.array(dtype=float),
+                 out: wp.array2d(dtype=wp.vec2)):
+    """``out[p, i] = (Y_i(dirs[p]), 0)`` for ``p = base + tid``."""
+    p = base + wp.tid()
+    sh_accumulate(out, p, order, norms, dirs[p], wp.vec2(1.0, 0.0))
+
+
+def sh_values(dirs: np.ndarray, order: int, device="cpu") -> np.ndarray:
+    """(M, (order+1)²) float64: the real spherical harmonics of :func:`sh_accumulate` at unit
+    directions ``dirs`` (M, 3)."""
+    d = wp.array(np.ascontiguousarray(dirs, np.float32).reshape(-1, 3), dtype=wp.vec3, device=device)
+    out = wp.zeros((max(int(d.shape[0]), 1), (order + 1) ** 2), dtype=wp.vec2, device=device)
+    nm = wp.array(sh_norms(order).astype(np.float32), dtype=float, device=device)
+    if d.shape[0]:
+        wp.launch(basis_kernel, dim=int(d.shape[0]), inputs=[0, d, int(order), nm, out], device=device)
+    return out.numpy()[:int(d.shape[0]), :, 0].astype(np.float64)
+
+
+def cube_quadrature(face: int):
+    """(inner, directions, Ω) of the cube's inner texels (the bordered cube of
+    :func:`~precompute.environment.irradiance.texel_directions_with_border`): their flat indices,
+    unit directions and solid angles ``Ω = (2/N)² / (1 + a² + b²)^{3/2}``."""
+    st = int(face) + 2
+    t = (np.arange(st) - 0.5) * 2.0 / face - 1.0
+    a, b = np.meshgrid(t, t)
+    om = (2.0 / face) ** 2 / (1.0 + a * a + b * b) ** 1.5
+    mask = np.zeros((6, st, st), bool)
+    mask[:, 1:-1, 1:-1] = True
+    dirs = texel_directions_with_border(int(face))
+    return np.flatnonzero(mask.ravel()), dirs[mask], np.broadcast_to(om, (6, st, st))[mask]
 
 
 class MovingSky:
     """The :class:`SkyTable` of the moving vertices of one installed visibility (module docstring).
 
     ``vertices`` (mesh ids), ``slot`` (their object's index among the moving objects) and their
-    rest rows on the device (normals, SSDF frames, cones): the lists are built once, here."""
+    rest rows on the device (normals, SSDF frames, cones): the transfer vectors are computed once,
+    here; which vertices keep texel lists instead is decided per sky (:meth:`prepare`)."""
 
     def __init__(self, vis: Visibility, vertices: wp.array, slot: np.ndarray, rest: tuple, n_objects: int, device,
-                 face: int = FACE):
+                 face: int = FACE, order: int | None = None):
         from raster import parallel
 
-        rest_n, rest_t, rest_b, rest_cone = rest
         n = int(vertices.shape[0])
-        self.device, self.count, self.n_objects = device, n, int(n_objects)
-        count = wp.zeros(max(n, 1), dtype=int, device=device)
-        if n:
-            wp.launch(count_texels_kernel, dim=n, inputs=[vis, rest_n, rest_t, rest_b, rest_cone, count], device=device)
-        start, total = parallel.exclusive_scan(count)
-        #: whether the lists fit :func:`table_budget` (else :meth:`visible` is not to be called)
-        self.fits = total * TEXEL_BYTES <= table_budget()
-        if not self.fits:
-            self.count = self.texels = 0
-            return
-        st = np.append(start.numpy()[:n], total).astype(np.int32)
+        order = ORDER if order is None else order
+        self.device, self.count, self.n_objects, self.face, self.order = device, n, int(n_objects), int(face), int(order)
+        self.vis, self.vertices, self.rest = vis, vertices, rest
+        nc = (self.order + 1) ** 2
+        self.norms = wp.array(sh_norms(self.order).astype(np.float32), dtype=float, device=device)
         tab = SkyTable()
         tab.vertices, tab.slot = vertices, wp.array(np.asarray(slot, np.int32), dtype=int, device=device)
-        tab.start = wp.array(st, dtype=int, device=device)
-        tab.corner = wp.empty(max(total, 1), dtype=int, device=device)
-        tab.frac = wp.empty(max(total, 1), dtype=wp.vec2, device=device)
-        tab.weight = wp.empty(max(total, 1), dtype=wp.vec2, device=device)
-        if total:
-            wp.launch(fill_texels_kernel, dim=n, inputs=[vis, vertices, rest_n, rest_t, rest_b, rest_cone, tab.start,
-                                                         int(face), tab.corner, tab.frac, tab.weight], device=device)
-        self.texels = int(total)
-        # ranges of about equal work for the CPU threads: a vertex costs its texels (and one more)
-        work = np.cumsum(np.diff(st) + 1)
+        transfer = wp.zeros((max(n, 1), nc), dtype=wp.vec2, device=device)
+        norm2 = wp.zeros(max(n, 1), dtype=wp.vec2, device=device)
+        if n:
+            parallel.launch(transfer_kernel, n, [vis, vertices, *rest, self.order, self.norms, transfer, norm2], device,
+                            min_chunk=64)
+        # (host copies for the bound, :meth:`prepare`; the kernels' layout of four coefficients a group)
+        self._transfer, self._norm2 = transfer.numpy()[:n].astype(np.float64), norm2.numpy()[:n].astype(np.float64)
+        ng = -(-nc // 4)
+        T = np.zeros((max(n, 1), 4 * ng, 2), np.float32)
+        T[:n, :nc] = self._transfer
+        tab.transfer = wp.array(T.reshape(-1, ng, 4, 2).transpose(0, 1, 3, 2).reshape(-1, 4), dtype=wp.vec4, device=device)
+        del transfer, norm2
+        inner, dirs, om = cube_quadrature(self.face)
+        self._omega = om
+        self._basis_np = (sh_values(dirs, self.order, device) * om[:, None]).T  # (nc, inner texels)
+        B = np.zeros((4 * ng, len(om)), np.float32)
+        B[:nc] = self._basis_np
+        self.basis = wp.array(np.ascontiguousarray(B.reshape(ng, 4, -1).transpose(0, 2, 1)), dtype=wp.vec4, device=device)
+        self.inner = wp.array(inner.astype(np.int32), dtype=int, device=device)
+        self.dirs = wp.array(texel_directions_with_border(self.face).reshape(-1, 3).astype(np.float32), dtype=wp.vec3,
+                             device=device)
+        tab.size, tab.groups = self.face + 2, ng
+        tab.sky = wp.zeros(max(self.n_objects, 1) * int(self.dirs.shape[0]), dtype=wp.vec3, device=device)
+        tab.coef = wp.zeros(max(self.n_objects, 1) * 3 * ng, dtype=wp.vec4, device=device)
+        self.table = tab
+        self._turned = None  # the key of the sky in tab.sky
+        self._prepared = None  # the key of the sky the lists were decided for
+        self.exact_count, self.bound, self.quadrature_ids, self.sky_residual = 0, np.zeros(n), None, np.zeros(3)
+
+    def transfer_bytes(self) -> int:
+        """Bytes of the transfer vectors (8 per coefficient and vertex, float32)."""
+        return int(self.table.transfer.shape[0]) * 16
+
+    def _turn(self, radiance, to_env: np.ndarray) -> None:
+        from raster import parallel
+
+        m = len(to_env) * int(self.dirs.shape[0])
+        parallel.launch(turn_sky_kernel, m, [self.dirs, radiance, wp.array(to_env.astype(np.float32), dtype=wp.mat33,
+                                                                           device=self.device), self.table.sky],
+                        self.device, chunks=parallel.cpu_workers())
+
+    def residual(self, radiance) -> np.ndarray:
+        """(3,) ``‖L' − L'_n‖₂`` per channel: the energy of the turned sky outside the basis (the
+        same at every rotation: each order's harmonics span a rotation-invariant space), on the
+        cube at the map's own frame."""
+        self._turn(radiance, np.eye(3)[None])
+        self._turned = None
+        L = self.table.sky.numpy()[:int(self.dirs.shape[0])].reshape(-1, 3)[self.inner.numpy()].astype(np.float64)
+        coef = self._basis_np @ L
+        return np.sqrt(np.maximum((self._omega[:, None] * L * L).sum(0) - (coef * coef).sum(0), 0.0))
+
+    def prepare(self, radiance, e_min) -> None:
+        """For the sky of map ``radiance`` (its irradiance at least ``e_min`` (3,) at every normal):
+        each vertex's bound on the error of its visible fraction from the truncated sky,
+        ``(‖ρ^O − ρ^O_n‖ + ‖ρ^S − ρ^S_n‖)·‖L' − L'_n‖ / E_min`` (module docstring); the vertices
+        over :data:`BOUND` are left to the map quadrature, every texel, every frame."""
+        from raster import parallel
+
+        n, tab, d = self.count, self.table, self.device
+        a = np.sqrt(np.maximum(self._norm2 - (self._transfer ** 2).sum(1), 0.0))
+        self.sky_residual = self.residual(radiance)
+        self.bound = (a.sum(1)[:, None] * self.sky_residual[None]
+                      / np.maximum(np.asarray(e_min, np.float64), 1e-30)).max(1)
+        exact = (self.bound > BOUND).astype(np.int32)
+        tab.exact = wp.array(exact if n else np.zeros(1, np.int32), dtype=int, device=d)
+        self.exact_count = int(exact.sum())
+        self.quadrature_ids = wp.array(self.vertices.numpy()[:n][exact == 1].astype(np.int32), dtype=int, device=d) \
+            if self.exact_count else None
+        # ranges of about equal work for the CPU threads (a vertex left to the quadrature costs nothing here)
+        work = np.cumsum(np.where(exact == 0, 4 * tab.groups, 0) + 1)
         w = parallel.cpu_workers()
         self.bounds = np.unique(np.concatenate([[0], np.searchsorted(work, work[-1] * np.arange(1, w) / w) if n else [],
                                                 [n]]).astype(np.int64))
-        self.dirs = wp.array(texel_directions_with_border(int(face)).reshape(-1, 3).astype(np.float32), dtype=wp.vec3,
-                             device=device)
-        tab.size = int(face) + 2
-        tab.sky = wp.zeros(max(self.n_objects, 1) * int(self.dirs.shape[0]), dtype=wp.vec3, device=device)
-        self.table = tab
-        self._turned = None  # the key of the sky in tab.sky
 
     def visible(self, vis: Visibility, env: EnvSG, radiance: wp.array, env_rotation, motions: list, into) -> None:
         """The listed vertices' rows of ``into = (F, E ∘ F)`` (``env_vertex_visible``'s), in place:
         the sky of map ``radiance`` (the box-filtered residual) turned by ``env_rotation`` and each
-        object's rotation ``motions[k]`` (from the rest pose), then the weighted sums."""
+        object's rotation ``motions[k]`` (from the rest pose), projected onto the basis, then each
+        vertex's sums."""
         from raster import parallel
 
         if not self.count:
             return
+        pkey = (id(radiance), id(env.exact.texels))
+        if self._prepared != pkey:
+            self.prepare(radiance, env.exact.texels.numpy().reshape(-1, 3).min(0))
+            self._prepared = pkey
         to_env = np.stack([np.asarray(env_rotation, np.float64).T @ np.asarray(M, np.float64) for M in motions])
         key = (id(radiance), to_env.tobytes())
-        if self._turned != key and self.texels:
-            m = len(motions) * int(self.dirs.shape[0])
-            parallel.launch(turn_sky_kernel, m, [self.dirs, radiance, wp.array(to_env.astype(np.float32),
-                                                                            dtype=wp.mat33, device=self.device),
-                                                 self.table.sky], self.device, chunks=parallel.cpu_workers())
+        tab = self.table
+        if self._turned != key:
+            self._turn(radiance, to_env)
+            parallel.launch(project_sky_kernel, len(motions) * tab.groups,
+                            [self.basis, self.inner, tab.sky, int(self.dirs.shape[0]), tab.coef], self.device,
+                            chunks=parallel.cpu_workers(), min_chunk=8)
             self._turned = key
-        parallel.launch_split(moving_visible_kernel, self.bounds, [self.table, vis, env, *into], self.device)
+        parallel.launch_split(moving_visible_kernel, self.bounds, [tab, vis, env, *into], self.device)
+        if self.quadrature_ids is not None:
+            from warp_sg.shading.vertex_visibility import env_vertex_visible
+
+            env_vertex_visible(vis, env, int(into[0].shape[0]), self.device, ids=self.quadrature_ids, into=into)
 
 
-__all__ = ["FACE", "MovingSky", "SkyTable", "moving_visible_kernel", "table_budget", "turn_sky_kernel"]
+__all__ = ["BOUND", "FACE", "MovingSky", "ORDER", "SkyTable", "cube_quadrature", "moving_visible_kernel",
+           "project_sky_kernel", "sh_accumulate", "sh_norms", "sh_values", "transfer_kernel", "turn_sky_kernel"]
