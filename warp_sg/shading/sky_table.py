@@ -1,4 +1,4 @@
-r"""The visible sky of a moving object's vertices: their weights kept, the sky turned into the object.
+r"""The visible sky of a moving object's vertices: their weights projected once, the sky turned into the object.
 
 The visible fraction of a vertex's diffuse environment irradiance
 (:func:`warp_sg.shading.vertex_visibility.env_vertex_visible_kernel`) is, with ``O`` and ``S``
@@ -17,26 +17,48 @@ only the sky does, and a rotation of the object is a rotation of the sky in the 
 
     L̄(d_t) = L̄(R·D_t) = L'(D_t),   L' = L̄ ∘ R    (the sky seen from the object's own frame).
 
-So, once per vertex (:class:`MovingSky`, in the rest pose): the texels inside the cone, each
-with its weights ``(1 − s_t) c_t``, ``s_t c_t`` and where ``D_t`` falls on a cube of :data:`FACE`
-texels per face edge (a one-texel border, as the irradiance table's,
-``precompute.environment.irradiance``). Once per frame and object (:func:`turn_sky_kernel`):
-``L'`` on that cube, each texel ``L̄`` read bilinearly at ``R·`` its direction — 6·34² = 6936
-reads instead of one per texel of every vertex. Then per vertex (:func:`moving_visible_kernel`):
-the two weighted sums of bilinear cube reads, and ``F`` as before. On the turning blob (384
-self-shadowed vertices, 352 of their 1024 texels in the cone on average) the frame's share drops
-from ≈ 21 ms of CPU (every texel, the map read by longitude and latitude) to ≈ 2 ms (0.4 ms of it
-turning the sky).
+Both sums are linear in ``L'``. So, once per vertex (:class:`MovingSky`, in the rest pose), its
+weights are projected onto the real spherical harmonics ``Y_i`` up to order :data:`ORDER`
+(precomputed radiance transfer, Sloan, Kautz & Snyder, SIGGRAPH 2002) — two transfer vectors::
 
-The cube's second interpolation smooths ``L̄`` by a fraction of its own cell (2.8° cube texels at
-the face centres against 2.8° cells). Against the map-read quadrature at the same pose
-(:func:`~warp_sg.shading.vertex_visibility.env_vertex_visible`, ``tests/test_moving_caches.py``,
-four poses each): the blob's visible fraction (32² maps, F ≥ 0.98) within 1.0e-4 (mean 2.4e-6);
-a torus whose inner side shadows itself deeply (16² maps, F down to 0.57, its texels straddling
-the sky's horizon step, where bilinear reads of a bilinear resampling differ most) within 2.0e-3
-(mean 2.6e-4) — a few tenths of a percent of the irradiance, well inside the per-region accuracy
-the renderer is held to. The moving vertices use it at every pose, their first frame included,
-so a frame stays a function of the transforms.
+    t^O_i = Σ_t (1 − s_t) c_t Y_i(D_t),   t^S_i = Σ_t s_t c_t Y_i(D_t)     (:func:`transfer_kernel`);
+
+once per frame and object, ``L'`` on a cube of :data:`FACE` texels per face edge (a one-texel
+border, as the irradiance table's, ``precompute.environment.irradiance``; each texel ``L̄`` read
+bilinearly at ``R·`` its direction, :func:`turn_sky_kernel`: 6·34² = 6936 reads) and its
+coefficients ``l_i = Σ_q Ω_q Y_i(d_q) L'(d_q)`` over the cube's 6144 inner texels
+(:func:`project_sky_kernel`); then per vertex ``O ≈ t^O·l``, ``S ≈ t^S·l`` — 81 products
+instead of a read per cone texel — and ``F`` as before (:func:`moving_visible_kernel`). The
+moving vertices use it at every pose, their first frame included, so a frame stays a function of
+the transforms.
+
+**The truncation, bounded.** With ``ρ`` the weights as a density (``w_t/Ω`` on texel t) and
+``ρ_n``, ``L'_n`` the projections, ``Σ_t w_t L'(D_t) − t·l = ⟨ρ − ρ_n, L' − L'_n⟩`` (the
+projection is orthogonal), so by Cauchy–Schwarz ``|ΔO| ≤ ‖ρ^O − ρ^O_n‖·‖L' − L'_n‖`` with
+``‖ρ − ρ_n‖² = Σ_t w_t²/Ω − Σ_i t_i²`` (per vertex, once) and ``‖L' − L'_n‖² = ‖L'‖² − Σ_i l_i²``,
+the sky's energy outside the basis (the same at every rotation: each order's harmonics span a
+rotation-invariant space; :meth:`MovingSky.residual`). As ``F = 1 − O/max(E, O + S)``,
+``|ΔF| ≤ (|ΔO| + |ΔS|)/E``, and ``E ≥ E_min``, the least irradiance of the map at any normal::
+
+    |ΔF| ≤ (‖ρ^O − ρ^O_n‖ + ‖ρ^S − ρ^S_n‖)·‖L' − L'_n‖ / E_min     (MovingSky.bound),
+
+against the exact sums over the same turned cube. A vertex whose bound exceeds :data:`BOUND`
+(0.25) is left to the map quadrature, every texel, every frame
+(:func:`~warp_sg.shading.vertex_visibility.env_vertex_visible`): the residual of a sky whose sun
+was extracted (``env_peaks``) is smooth, ``‖L' − L'_n‖`` ≈ 0.23 (the plain scenes' sky, order 8),
+bounds at most 0.09 (blob), 0.11 (torus), 0.20 (bunny), none over; with the sun left in the map
+(``env_peaks = 0``) ``‖L' − L'_n‖`` > 10 and every shadowed vertex goes to the map (bounds 7–10 on
+the torus). The bound is 30–60× the error it bounds (median), so it only catches a sharp sky.
+
+**Measured** against the map-read quadrature at the same pose (``tests/test_moving_caches.py``;
+four poses, ORDER 8): the blob (32² maps, F ≥ 0.98) within 1.0e-3 (mean 3.7e-5); a torus whose
+inner side shadows itself deeply (16² maps, F down to 0.57) within 1.3e-2 (mean 1.6e-3); the
+refined Stanford bunny (12 862 moving vertices, 12 032 shadowed, F down to 0.35) within 1.9e-2
+(mean 8.2e-4, 99 % within 7.7e-3) — the error is the sky's horizon step rung by the truncation,
+at the few vertices whose occluders' edges fall on it. Order 12 halves it (bunny 1.1e-2, mean
+3.8e-4) at twice the products; the texel lists this replaces (sums of bilinear reads of the cube
+per texel) were within 1.0e-4 / 2.0e-3 (blob / torus), but cost 83 ms a frame on the bunny (9.9 M
+texels, 198 MB) where the transfer vectors take 8.2 MB and ≈ 2 ms.
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the kernel annotations.
 import math
@@ -44,16 +66,13 @@ import math
 import numpy as np
 import warp as wp
 
-from precompute.environment.irradiance import irradiance_unscaled, texel_directions_with_border
+from precompute.environment.irradiance import irradiance_unscaled
 from precompute.visibility.ssdf_wp import concentric_to_dir_wp
 
 from warp_sg.numeric.onb import local_to_world
-from warp_sg.scene.envmap import env_lookup
 from warp_sg.shading.vertex_visibility import texel_ssdf, visible_share
 from warp_sg.shading.visibility_terms import EnvSG, Visibility
 
-#: texels per cube face edge (without the border) of the turned sky
-FACE = 32
 #: the spherical-harmonic order of the transfer vectors ((ORDER + 1)² coefficients per vertex)
 ORDER = 8
 #: the largest bound on a vertex's visible-fraction error from the truncated sky that its
@@ -119,8 +138,7 @@ class SkyTable:
     the map quadrature): its transfer vectors ``t^O``, ``t^S`` against the turned sky's coefficients, four at a time
     (``groups`` of them, zero-padded): ``transfer[2(k·groups + j)]`` ``t^O_{4j…4j+3}``, ``+1``
     ``t^S`` likewise, and ``coef[3(slot·groups + j) + c]`` channel c of the sky's (a layout the
-    CPU runs ≈ 3× faster than one coefficient at a time). ``sky``: the turned sky of every object,
-    cubes of ``size`` (with border) one after the other."""
+    CPU runs ≈ 3× faster than one coefficient at a time)."""
 
     vertices: wp.array(dtype=int)
     slot: wp.array(dtype=int)
@@ -128,8 +146,6 @@ class SkyTable:
     transfer: wp.array(dtype=wp.vec4)
     coef: wp.array(dtype=wp.vec4)
     groups: int
-    sky: wp.array(dtype=wp.vec3)
-    size: int
 
 
 @wp.func
@@ -178,43 +194,6 @@ def transfer_kernel(base: int, vis: Visibility, ids: wp.array(dtype=int), rest_n
             acc += wp.cw_mul(w, w) / om
             sh_accumulate(out, i, order, norms, local_to_world(dl, rest_t[i], rest_b[i], n), w)
     norm2[i] = acc
-
-
-@wp.kernel(enable_backward=False)
-def turn_sky_kernel(base: int, dirs: wp.array(dtype=wp.vec3), radiance: wp.array2d(dtype=wp.vec3),
-                    to_env: wp.array(dtype=wp.mat33), out: wp.array(dtype=wp.vec3)):
-    """Cube texel ``p = base + tid`` of object ``p / |dirs|``: ``L̄`` (bilinear) along that object's
-    motion times the texel's direction, in the map's frame (``to_env[k] = Rᵀ_env · R_k``)."""
-    p = base + wp.tid()
-    n = dirs.shape[0]
-    k = p / n
-    out[p] = env_lookup(radiance, to_env[k], dirs[p - k * n])
-
-
-@wp.kernel(enable_backward=False)
-def project_sky_kernel(base: int, basis: wp.array2d(dtype=wp.vec4), inner: wp.array(dtype=int),
-                       sky: wp.array(dtype=wp.vec3), size: int, out: wp.array(dtype=wp.vec4)):
-    """Coefficients ``4j…4j+3`` of object ``k`` (``p = base + tid = k·groups + j``): ``Σ_q Ω_q
-    Y_i(d_q) L'_k(d_q)`` over the cube's inner texels (``basis[j, q]`` = the four ``Ω_q Y_i(d_q)``,
-    ``inner[q]`` the texel in the bordered cube of ``size`` texels), channel by channel into
-    ``out[3p + c]`` (:class:`SkyTable`)."""
-    p = base + wp.tid()
-    ng = basis.shape[0]
-    k = p / ng
-    j = p - k * ng
-    o = k * size
-    r = wp.vec4(0.0, 0.0, 0.0, 0.0)
-    g = wp.vec4(0.0, 0.0, 0.0, 0.0)
-    b = wp.vec4(0.0, 0.0, 0.0, 0.0)
-    for q in range(basis.shape[1]):
-        e = sky[o + inner[q]]
-        y = basis[j, q]
-        r += y * e[0]
-        g += y * e[1]
-        b += y * e[2]
-    out[3 * p] = r
-    out[3 * p + 1] = g
-    out[3 * p + 2] = b
 
 
 @wp.kernel(enable_backward=False)
@@ -280,18 +259,19 @@ def sh_values(dirs: np.ndarray, order: int, device="cpu") -> np.ndarray:
     return out.numpy()[:int(d.shape[0]), :, 0].astype(np.float64)
 
 
-def cube_quadrature(face: int):
-    """(inner, directions, Ω) of the cube's inner texels (the bordered cube of
-    :func:`~precompute.environment.irradiance.texel_directions_with_border`): their flat indices,
-    unit directions and solid angles ``Ω = (2/N)² / (1 + a² + b²)^{3/2}``."""
-    st = int(face) + 2
-    t = (np.arange(st) - 0.5) * 2.0 / face - 1.0
-    a, b = np.meshgrid(t, t)
-    om = (2.0 / face) ** 2 / (1.0 + a * a + b * b) ** 1.5
-    mask = np.zeros((6, st, st), bool)
-    mask[:, 1:-1, 1:-1] = True
-    dirs = texel_directions_with_border(int(face))
-    return np.flatnonzero(mask.ravel()), dirs[mask], np.broadcast_to(om, (6, st, st))[mask]
+def rotation_quadrature(order: int) -> tuple:
+    """(points (P, 3), weights (P,)): Gauss–Legendre in z × uniform in φ, ``order + 1`` by
+    ``2·order + 1`` nodes — exact for products of two harmonics up to ``order`` (polynomials of
+    degree 2·order), so ``l'_j = Σ_p w_p Y_j(x_p) Σ_i l_i Y_i(M x_p)`` gives a band-limited sky's
+    coefficients after a rotation ``M`` exactly (each order's harmonics span a rotation-invariant
+    space)."""
+    z, wz = np.polynomial.legendre.leggauss(order + 1)
+    m = 2 * order + 1
+    phi = (np.arange(m) + 0.5) * 2.0 * np.pi / m
+    Z, P = np.meshgrid(z, phi, indexing="ij")
+    S = np.sqrt(np.maximum(1.0 - Z * Z, 0.0))
+    return (np.stack([S * np.cos(P), S * np.sin(P), Z], -1).reshape(-1, 3),
+            np.repeat(wz, m) * 2.0 * np.pi / m)
 
 
 class MovingSky:
@@ -299,15 +279,15 @@ class MovingSky:
 
     ``vertices`` (mesh ids), ``slot`` (their object's index among the moving objects) and their
     rest rows on the device (normals, SSDF frames, cones): the transfer vectors are computed once,
-    here; which vertices keep texel lists instead is decided per sky (:meth:`prepare`)."""
+    here; which vertices are left to the map quadrature instead is decided per sky (:meth:`prepare`)."""
 
     def __init__(self, vis: Visibility, vertices: wp.array, slot: np.ndarray, rest: tuple, n_objects: int, device,
-                 face: int = FACE, order: int | None = None):
+                 order: int | None = None):
         from raster import parallel
 
         n = int(vertices.shape[0])
         order = ORDER if order is None else order
-        self.device, self.count, self.n_objects, self.face, self.order = device, n, int(n_objects), int(face), int(order)
+        self.device, self.count, self.n_objects, self.order = device, n, int(n_objects), int(order)
         self.vis, self.vertices, self.rest = vis, vertices, rest
         nc = (self.order + 1) ** 2
         self.norms = wp.array(sh_norms(self.order).astype(np.float32), dtype=float, device=device)
@@ -325,44 +305,41 @@ class MovingSky:
         T[:n, :nc] = self._transfer
         tab.transfer = wp.array(T.reshape(-1, ng, 4, 2).transpose(0, 1, 3, 2).reshape(-1, 4), dtype=wp.vec4, device=device)
         del transfer, norm2
-        inner, dirs, om = cube_quadrature(self.face)
-        self._omega = om
-        self._basis_np = (sh_values(dirs, self.order, device) * om[:, None]).T  # (nc, inner texels)
-        B = np.zeros((4 * ng, len(om)), np.float32)
-        B[:nc] = self._basis_np
-        self.basis = wp.array(np.ascontiguousarray(B.reshape(ng, 4, -1).transpose(0, 2, 1)), dtype=wp.vec4, device=device)
-        self.inner = wp.array(inner.astype(np.int32), dtype=int, device=device)
-        self.dirs = wp.array(texel_directions_with_border(self.face).reshape(-1, 3).astype(np.float32), dtype=wp.vec3,
-                             device=device)
-        tab.size, tab.groups = self.face + 2, ng
-        tab.sky = wp.zeros(max(self.n_objects, 1) * int(self.dirs.shape[0]), dtype=wp.vec3, device=device)
-        tab.coef = wp.zeros(max(self.n_objects, 1) * 3 * ng, dtype=wp.vec4, device=device)
+        self._x, self._xw = rotation_quadrature(self.order)
+        self._yx = sh_values(self._x, self.order, device) * self._xw[:, None]  # (P, nc): w_p Y(x_p)
+        self._map_coef = None  # the map's coefficients (nc, 3), its frame (:meth:`prepare`)
+        self._ng = tab.groups = ng
         self.table = tab
-        self._turned = None  # the key of the sky in tab.sky
-        self._prepared = None  # the key of the sky the lists were decided for
+        self._turned = None  # the key of the coefficients in tab.coef
+        self._prepared = None  # the key of the sky the bounds were computed for
         self.exact_count, self.bound, self.quadrature_ids, self.sky_residual = 0, np.zeros(n), None, np.zeros(3)
 
     def transfer_bytes(self) -> int:
         """Bytes of the transfer vectors (8 per coefficient and vertex, float32)."""
         return int(self.table.transfer.shape[0]) * 16
 
-    def _turn(self, radiance, to_env: np.ndarray) -> None:
-        from raster import parallel
+    def project(self, radiance) -> tuple:
+        """``(l (nc, 3), ‖L̄ − L̄_n‖₂ (3,))``: the map's coefficients in its own frame,
+        ``l_i = Σ_q Ω_q Y_i(d_q) L̄_q`` over its cells (centres ``d_q``, solid angles ``Ω_q``), and
+        the energy outside the basis, ``‖L̄‖² − Σ_i l_i²`` (the same at every rotation)."""
+        from warp_sg.scene.envmap import texel_directions, texel_solid_angles
 
-        m = len(to_env) * int(self.dirs.shape[0])
-        parallel.launch(turn_sky_kernel, m, [self.dirs, radiance, wp.array(to_env.astype(np.float32), dtype=wp.mat33,
-                                                                           device=self.device), self.table.sky],
-                        self.device, chunks=parallel.cpu_workers())
+        L = np.asarray(radiance.numpy(), np.float64)
+        h, w = L.shape[:2]
+        om = texel_solid_angles(h, w).reshape(-1)
+        L = L.reshape(-1, 3)
+        Y = sh_values(texel_directions(h, w).reshape(-1, 3), self.order, self.device)
+        coef = (Y * om[:, None]).T @ L
+        return coef, np.sqrt(np.maximum((om[:, None] * L * L).sum(0) - (coef * coef).sum(0), 0.0))
 
-    def residual(self, radiance) -> np.ndarray:
-        """(3,) ``‖L' − L'_n‖₂`` per channel: the energy of the turned sky outside the basis (the
-        same at every rotation: each order's harmonics span a rotation-invariant space), on the
-        cube at the map's own frame."""
-        self._turn(radiance, np.eye(3)[None])
-        self._turned = None
-        L = self.table.sky.numpy()[:int(self.dirs.shape[0])].reshape(-1, 3)[self.inner.numpy()].astype(np.float64)
-        coef = self._basis_np @ L
-        return np.sqrt(np.maximum((self._omega[:, None] * L * L).sum(0) - (coef * coef).sum(0), 0.0))
+    def turned(self, to_env: np.ndarray) -> np.ndarray:
+        """(objects, nc, 3): the coefficients of the map's projection seen from each object's frame,
+        ``L'(D) = L̄_n(M_k D)`` (``to_env[k] = M_k = Rᵀ_env·R_k``), by :func:`rotation_quadrature`."""
+        out = np.empty((len(to_env), self._yx.shape[1], 3))
+        for k, M in enumerate(to_env):
+            out[k] = self._yx.T @ (sh_values(self._x @ np.asarray(M, np.float64).T, self.order, self.device)
+                                   @ self._map_coef)
+        return out
 
     def prepare(self, radiance, e_min) -> None:
         """For the sky of map ``radiance`` (its irradiance at least ``e_min`` (3,) at every normal):
@@ -373,7 +350,7 @@ class MovingSky:
 
         n, tab, d = self.count, self.table, self.device
         a = np.sqrt(np.maximum(self._norm2 - (self._transfer ** 2).sum(1), 0.0))
-        self.sky_residual = self.residual(radiance)
+        self._map_coef, self.sky_residual = self.project(radiance)
         self.bound = (a.sum(1)[:, None] * self.sky_residual[None]
                       / np.maximum(np.asarray(e_min, np.float64), 1e-30)).max(1)
         exact = (self.bound > BOUND).astype(np.int32)
@@ -390,8 +367,8 @@ class MovingSky:
     def visible(self, vis: Visibility, env: EnvSG, radiance: wp.array, env_rotation, motions: list, into) -> None:
         """The listed vertices' rows of ``into = (F, E ∘ F)`` (``env_vertex_visible``'s), in place:
         the sky of map ``radiance`` (the box-filtered residual) turned by ``env_rotation`` and each
-        object's rotation ``motions[k]`` (from the rest pose), projected onto the basis, then each
-        vertex's sums."""
+        object's rotation ``motions[k]`` (from the rest pose) in the harmonics, then each vertex's
+        sums."""
         from raster import parallel
 
         if not self.count:
@@ -401,13 +378,13 @@ class MovingSky:
             self.prepare(radiance, env.exact.texels.numpy().reshape(-1, 3).min(0))
             self._prepared = pkey
         to_env = np.stack([np.asarray(env_rotation, np.float64).T @ np.asarray(M, np.float64) for M in motions])
-        key = (id(radiance), to_env.tobytes())
+        key = (pkey, to_env.tobytes())
         tab = self.table
         if self._turned != key:
-            self._turn(radiance, to_env)
-            parallel.launch(project_sky_kernel, len(motions) * tab.groups,
-                            [self.basis, self.inner, tab.sky, int(self.dirs.shape[0]), tab.coef], self.device,
-                            chunks=parallel.cpu_workers(), min_chunk=8)
+            c = np.zeros((len(motions), 4 * self._ng, 3), np.float32)
+            c[:, :self._yx.shape[1]] = self.turned(to_env)
+            tab.coef = wp.array(c.reshape(len(motions), self._ng, 4, 3).transpose(0, 1, 3, 2).reshape(-1, 4),
+                                dtype=wp.vec4, device=self.device)
             self._turned = key
         parallel.launch_split(moving_visible_kernel, self.bounds, [tab, vis, env, *into], self.device)
         if self.quadrature_ids is not None:
@@ -416,5 +393,5 @@ class MovingSky:
             env_vertex_visible(vis, env, int(into[0].shape[0]), self.device, ids=self.quadrature_ids, into=into)
 
 
-__all__ = ["BOUND", "FACE", "MovingSky", "ORDER", "SkyTable", "cube_quadrature", "moving_visible_kernel",
-           "project_sky_kernel", "sh_accumulate", "sh_norms", "sh_values", "transfer_kernel", "turn_sky_kernel"]
+__all__ = ["BOUND", "MovingSky", "ORDER", "SkyTable", "moving_visible_kernel", "rotation_quadrature", "sh_accumulate",
+           "sh_norms", "sh_values", "transfer_kernel"]
