@@ -196,48 +196,59 @@ def transfer_kernel(base: int, vis: Visibility, ids: wp.array(dtype=int), rest_n
     norm2[i] = acc
 
 
+#: vertices one CPU thread computes in :func:`moving_visible_kernel` (Warp copies the kernel's
+#: struct arguments at each thread's entry; ``raster.parallel.launch(per_thread=...)``)
+VERTICES_PER_THREAD = 16
+
+
 @wp.kernel(enable_backward=False)
-def moving_visible_kernel(base: int, tab: SkyTable, vis: Visibility, env: EnvSG, out: wp.array(dtype=wp.vec3),
-                          out_irr: wp.array(dtype=wp.vec3)):
-    """Listed vertex ``k = base + tid`` (``v = tab.vertices[k]``): ``out[v]`` its visible fraction
-    and ``out_irr[v] = E ∘ F``, as ``env_vertex_visible_kernel`` with the cone's sums ``O = t^O·l``,
-    ``S = t^S·l`` from its transfer vectors and its object's turned sky's coefficients ``l``
-    (module docstring); a vertex left to the map quadrature (``tab.exact[k]``) is not written."""
-    k = base + wp.tid()
-    if tab.exact[k] != 0:
-        return
-    v = tab.vertices[k]
-    n = wp.normalize(vis.normals[v])
-    cone = vis.cones[v]
-    f = wp.vec3(1.0, 1.0, 1.0)
-    ex = irradiance_unscaled(env.exact, n)
-    if cone[3] >= 0.0:
-        o = 3 * tab.slot[k] * tab.groups
-        t = 2 * k * tab.groups
-        o0 = wp.vec4(0.0, 0.0, 0.0, 0.0)
-        o1 = wp.vec4(0.0, 0.0, 0.0, 0.0)
-        o2 = wp.vec4(0.0, 0.0, 0.0, 0.0)
-        s0 = wp.vec4(0.0, 0.0, 0.0, 0.0)
-        s1 = wp.vec4(0.0, 0.0, 0.0, 0.0)
-        s2 = wp.vec4(0.0, 0.0, 0.0, 0.0)
-        for j in range(tab.groups):
-            wo = tab.transfer[t + 2 * j]
-            ws = tab.transfer[t + 2 * j + 1]
-            c0 = tab.coef[o + 3 * j]
-            c1 = tab.coef[o + 3 * j + 1]
-            c2 = tab.coef[o + 3 * j + 2]
-            o0 += wp.cw_mul(c0, wo)
-            o1 += wp.cw_mul(c1, wo)
-            o2 += wp.cw_mul(c2, wo)
-            s0 += wp.cw_mul(c0, ws)
-            s1 += wp.cw_mul(c1, ws)
-            s2 += wp.cw_mul(c2, ws)
-        one = wp.vec4(1.0, 1.0, 1.0, 1.0)
-        occ_sum = wp.vec3(wp.dot(o0, one), wp.dot(o1, one), wp.dot(o2, one))
-        seen_sum = wp.vec3(wp.dot(s0, one), wp.dot(s1, one), wp.dot(s2, one))
-        f = visible_share(occ_sum, seen_sum, ex, cone, n, _SQRT_2PI / float(vis.mean.shape[0]))
-    out[v] = f
-    out_irr[v] = wp.cw_mul(ex, f)
+def moving_visible_kernel(base: int, per: int, tab: SkyTable, vis: Visibility, env: EnvSG,
+                          out: wp.array(dtype=wp.vec3), out_irr: wp.array(dtype=wp.vec3)):
+    """Listed vertices ``k = base + tid·per + s`` (``s < per``; ``v = tab.vertices[k]``): ``out[v]``
+    the visible fraction and ``out_irr[v] = E ∘ F``, as ``env_vertex_visible_kernel`` with the
+    cone's sums ``O = t^O·l``, ``S = t^S·l`` from the vertex's transfer vectors and its object's
+    turned sky's coefficients ``l`` (module docstring); a vertex left to the map quadrature
+    (``tab.exact[k]``) is not written."""
+    k0 = base + wp.tid() * per
+    h = _SQRT_2PI / float(vis.mean.shape[0])
+    one = wp.vec4(1.0, 1.0, 1.0, 1.0)
+    for s in range(per):
+        k = k0 + s
+        if k >= tab.vertices.shape[0]:
+            break
+        if tab.exact[k] != 0:
+            continue
+        v = tab.vertices[k]
+        n = wp.normalize(vis.normals[v])
+        cone = vis.cones[v]
+        f = wp.vec3(1.0, 1.0, 1.0)
+        ex = irradiance_unscaled(env.exact, n)
+        if cone[3] >= 0.0:
+            o = 3 * tab.slot[k] * tab.groups
+            t = 2 * k * tab.groups
+            o0 = wp.vec4(0.0, 0.0, 0.0, 0.0)
+            o1 = wp.vec4(0.0, 0.0, 0.0, 0.0)
+            o2 = wp.vec4(0.0, 0.0, 0.0, 0.0)
+            s0 = wp.vec4(0.0, 0.0, 0.0, 0.0)
+            s1 = wp.vec4(0.0, 0.0, 0.0, 0.0)
+            s2 = wp.vec4(0.0, 0.0, 0.0, 0.0)
+            for j in range(tab.groups):
+                wo = tab.transfer[t + 2 * j]
+                ws = tab.transfer[t + 2 * j + 1]
+                c0 = tab.coef[o + 3 * j]
+                c1 = tab.coef[o + 3 * j + 1]
+                c2 = tab.coef[o + 3 * j + 2]
+                o0 += wp.cw_mul(c0, wo)
+                o1 += wp.cw_mul(c1, wo)
+                o2 += wp.cw_mul(c2, wo)
+                s0 += wp.cw_mul(c0, ws)
+                s1 += wp.cw_mul(c1, ws)
+                s2 += wp.cw_mul(c2, ws)
+            occ_sum = wp.vec3(wp.dot(o0, one), wp.dot(o1, one), wp.dot(o2, one))
+            seen_sum = wp.vec3(wp.dot(s0, one), wp.dot(s1, one), wp.dot(s2, one))
+            f = visible_share(occ_sum, seen_sum, ex, cone, n, h)
+        out[v] = f
+        out_irr[v] = wp.cw_mul(ex, f)
 
 
 @wp.kernel(enable_backward=False)
@@ -346,8 +357,6 @@ class MovingSky:
         each vertex's bound on the error of its visible fraction from the truncated sky,
         ``(‖ρ^O − ρ^O_n‖ + ‖ρ^S − ρ^S_n‖)·‖L' − L'_n‖ / E_min`` (module docstring); the vertices
         over :data:`BOUND` are left to the map quadrature, every texel, every frame."""
-        from raster import parallel
-
         n, tab, d = self.count, self.table, self.device
         a = np.sqrt(np.maximum(self._norm2 - (self._transfer ** 2).sum(1), 0.0))
         self._map_coef, self.sky_residual = self.project(radiance)
@@ -358,11 +367,6 @@ class MovingSky:
         self.exact_count = int(exact.sum())
         self.quadrature_ids = wp.array(self.vertices.numpy()[:n][exact == 1].astype(np.int32), dtype=int, device=d) \
             if self.exact_count else None
-        # ranges of about equal work for the CPU threads (a vertex left to the quadrature costs nothing here)
-        work = np.cumsum(np.where(exact == 0, 4 * tab.groups, 0) + 1)
-        w = parallel.cpu_workers()
-        self.bounds = np.unique(np.concatenate([[0], np.searchsorted(work, work[-1] * np.arange(1, w) / w) if n else [],
-                                                [n]]).astype(np.int64))
 
     def visible(self, vis: Visibility, env: EnvSG, radiance: wp.array, env_rotation, motions: list, into) -> None:
         """The listed vertices' rows of ``into = (F, E ∘ F)`` (``env_vertex_visible``'s), in place:
@@ -386,12 +390,13 @@ class MovingSky:
             tab.coef = wp.array(c.reshape(len(motions), self._ng, 4, 3).transpose(0, 1, 3, 2).reshape(-1, 4),
                                 dtype=wp.vec4, device=self.device)
             self._turned = key
-        parallel.launch_split(moving_visible_kernel, self.bounds, [tab, vis, env, *into], self.device)
+        parallel.launch(moving_visible_kernel, self.count, [tab, vis, env, *into], self.device, min_chunk=512,
+                        per_thread=VERTICES_PER_THREAD)
         if self.quadrature_ids is not None:
             from warp_sg.shading.vertex_visibility import env_vertex_visible
 
             env_vertex_visible(vis, env, int(into[0].shape[0]), self.device, ids=self.quadrature_ids, into=into)
 
 
-__all__ = ["BOUND", "MovingSky", "ORDER", "SkyTable", "moving_visible_kernel", "rotation_quadrature", "sh_accumulate",
+__all__ = ["BOUND", "MovingSky", "ORDER", "SkyTable", "VERTICES_PER_THREAD", "moving_visible_kernel", "rotation_quadrature", "sh_accumulate",
            "sh_norms", "sh_values", "transfer_kernel"]
