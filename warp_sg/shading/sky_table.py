@@ -23,42 +23,44 @@ weights are projected onto the real spherical harmonics ``Y_i`` up to order :dat
 
     t^O_i = Σ_t (1 − s_t) c_t Y_i(D_t),   t^S_i = Σ_t s_t c_t Y_i(D_t)     (:func:`transfer_kernel`);
 
-once per frame and object, ``L'`` on a cube of :data:`FACE` texels per face edge (a one-texel
-border, as the irradiance table's, ``precompute.environment.irradiance``; each texel ``L̄`` read
-bilinearly at ``R·`` its direction, :func:`turn_sky_kernel`: 6·34² = 6936 reads) and its
-coefficients ``l_i = Σ_q Ω_q Y_i(d_q) L'(d_q)`` over the cube's 6144 inner texels
-(:func:`project_sky_kernel`); then per vertex ``O ≈ t^O·l``, ``S ≈ t^S·l`` — 81 products
-instead of a read per cone texel — and ``F`` as before (:func:`moving_visible_kernel`). The
-moving vertices use it at every pose, their first frame included, so a frame stays a function of
-the transforms.
+once per sky, the map's own coefficients ``l_i = Σ_q Ω_q Y_i(d_q) L̄_q`` over its 64 × 128 cells
+(:meth:`MovingSky.project`); once per frame and object, those of ``L' = L̄ ∘ M`` (``M = Rᵀ_env R``)
+— the harmonics of each order span a rotation-invariant space, so a quadrature exact for
+products of two of them turns them exactly, ``l'_j = Σ_p w_p Y_j(x_p) Σ_i l_i Y_i(M x_p)`` on
+(ORDER+1)·(2·ORDER+1) = 153 Gauss–Legendre × uniform-φ nodes (:func:`rotation_quadrature`, host
+work of ≈ 0.1 ms); then per vertex ``O ≈ t^O·l'``, ``S ≈ t^S·l'`` — 81 products instead of a
+read per cone texel — and ``F`` as before (:func:`moving_visible_kernel`). The moving vertices
+use it at every pose, their first frame included, so a frame stays a function of the transforms.
 
 **The truncation, bounded.** With ``ρ`` the weights as a density (``w_t/Ω`` on texel t) and
 ``ρ_n``, ``L'_n`` the projections, ``Σ_t w_t L'(D_t) − t·l = ⟨ρ − ρ_n, L' − L'_n⟩`` (the
 projection is orthogonal), so by Cauchy–Schwarz ``|ΔO| ≤ ‖ρ^O − ρ^O_n‖·‖L' − L'_n‖`` with
-``‖ρ − ρ_n‖² = Σ_t w_t²/Ω − Σ_i t_i²`` (per vertex, once) and ``‖L' − L'_n‖² = ‖L'‖² − Σ_i l_i²``,
-the sky's energy outside the basis (the same at every rotation: each order's harmonics span a
-rotation-invariant space; :meth:`MovingSky.residual`). As ``F = 1 − O/max(E, O + S)``,
-``|ΔF| ≤ (|ΔO| + |ΔS|)/E``, and ``E ≥ E_min``, the least irradiance of the map at any normal::
+``‖ρ − ρ_n‖² = Σ_t w_t²/Ω − Σ_i t_i²`` (per vertex, once) and ``‖L' − L'_n‖² = ‖L̄‖² − Σ_i l_i²``,
+the sky's energy outside the basis (the same at every rotation; :meth:`MovingSky.project`). As
+``F = 1 − O/max(E, O + S)``, ``|ΔF| ≤ (|ΔO| + |ΔS|)/E``, and ``E ≥ E_min``, the least irradiance
+of the map at any normal::
 
     |ΔF| ≤ (‖ρ^O − ρ^O_n‖ + ‖ρ^S − ρ^S_n‖)·‖L' − L'_n‖ / E_min     (MovingSky.bound),
 
-against the exact sums over the same turned cube. A vertex whose bound exceeds :data:`BOUND`
-(0.25) is left to the map quadrature, every texel, every frame
+against the exact sums ``Σ_t w_t L'(D_t)`` (up to the quadratures' own sampling of ``L̄``: the
+texel sums point-sample it where the norms integrate it). A vertex whose bound exceeds
+:data:`BOUND` (0.25) is left to the map quadrature, every texel, every frame
 (:func:`~warp_sg.shading.vertex_visibility.env_vertex_visible`): the residual of a sky whose sun
 was extracted (``env_peaks``) is smooth, ``‖L' − L'_n‖`` ≈ 0.23 (the plain scenes' sky, order 8),
-bounds at most 0.09 (blob), 0.11 (torus), 0.20 (bunny), none over; with the sun left in the map
-(``env_peaks = 0``) ``‖L' − L'_n‖`` > 10 and every shadowed vertex goes to the map (bounds 7–10 on
-the torus). The bound is 30–60× the error it bounds (median), so it only catches a sharp sky.
+bounds at most 0.09 (blob), 0.11 (torus), 0.21 (bunny), none over; with the sun left in the map
+(``env_peaks = 0``) ``‖L' − L'_n‖`` > 10 and every shadowed vertex goes to the map (bounds 7–14 on
+the torus; the per-texel lists that read the sky from a cube erred there by up to 0.27 too). The
+bound is 30–60× the error it bounds (median), so it only catches a sharp sky.
 
 **Measured** against the map-read quadrature at the same pose (``tests/test_moving_caches.py``;
 four poses, ORDER 8): the blob (32² maps, F ≥ 0.98) within 1.0e-3 (mean 3.7e-5); a torus whose
 inner side shadows itself deeply (16² maps, F down to 0.57) within 1.3e-2 (mean 1.6e-3); the
 refined Stanford bunny (12 862 moving vertices, 12 032 shadowed, F down to 0.35) within 1.9e-2
-(mean 8.2e-4, 99 % within 7.7e-3) — the error is the sky's horizon step rung by the truncation,
-at the few vertices whose occluders' edges fall on it. Order 12 halves it (bunny 1.1e-2, mean
-3.8e-4) at twice the products; the texel lists this replaces (sums of bilinear reads of the cube
-per texel) were within 1.0e-4 / 2.0e-3 (blob / torus), but cost 83 ms a frame on the bunny (9.9 M
-texels, 198 MB) where the transfer vectors take 8.2 MB and ≈ 2 ms.
+(mean 8.2e-4, 99 % within 7.7e-3) — the error is the sky's horizon step rung by the truncation, at
+the few vertices whose occluders' edges fall on it. Order 12 halves it (bunny 1.1e-2, mean 3.8e-4)
+at twice the products; the texel lists this replaces (per texel a bilinear read of the sky turned
+on a cube) were within 1.0e-4 / 2.0e-3 (blob / torus), but cost 83 ms a frame on the bunny (9.9 M
+texels, 198 MB) where the transfer vectors take 8.6 MB and ≈ 3 ms of CPU.
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the kernel annotations.
 import math
@@ -314,7 +316,8 @@ class MovingSky:
         ng = -(-nc // 4)
         T = np.zeros((max(n, 1), 4 * ng, 2), np.float32)
         T[:n, :nc] = self._transfer
-        tab.transfer = wp.array(T.reshape(-1, ng, 4, 2).transpose(0, 1, 3, 2).reshape(-1, 4), dtype=wp.vec4, device=device)
+        tab.transfer = wp.array(T.reshape(-1, ng, 4, 2).transpose(0, 1, 3, 2).reshape(-1, 4), dtype=wp.vec4,
+                                device=device)
         del transfer, norm2
         self._x, self._xw = rotation_quadrature(self.order)
         self._yx = sh_values(self._x, self.order, device) * self._xw[:, None]  # (P, nc): w_p Y(x_p)
@@ -398,5 +401,5 @@ class MovingSky:
             env_vertex_visible(vis, env, int(into[0].shape[0]), self.device, ids=self.quadrature_ids, into=into)
 
 
-__all__ = ["BOUND", "MovingSky", "ORDER", "SkyTable", "VERTICES_PER_THREAD", "moving_visible_kernel", "rotation_quadrature", "sh_accumulate",
-           "sh_norms", "sh_values", "transfer_kernel"]
+__all__ = ["BOUND", "MovingSky", "ORDER", "SkyTable", "VERTICES_PER_THREAD", "moving_visible_kernel",
+           "rotation_quadrature", "sh_accumulate", "sh_norms", "sh_values", "transfer_kernel"]

@@ -116,7 +116,8 @@ def motion_section(device="cpu", quick=False, frames=None):
     rows = []
     for case in (("ball",) if quick else ("ball", "blob", "bunny")):
         if case == "bunny" and not _bunny_available():
-            rows.append({"case": "bunny", "note": "skipped: no bunny.usd in warp-lang or no USD reader (pip install warp-sg[usd])"})
+            rows.append({"case": "bunny", "note": "skipped: no bunny.usd in warp-lang or no USD reader "
+                                                  "(pip install warp-sg[usd])"})
             continue
         rows += _case(case, size, n, render, device)
     return rows + [{"case": "setup", "note": f"{n} poses per scene; load average {load0:.1f} → "
