@@ -196,6 +196,7 @@ class DynamicObjects:
         self._sky = None  # the moving vertices' sky table (_visible)
         self._rest_dev = None  # the moving vertices' rest rows on the device (_device_rest)
         self._host = None  # the host copy of the moving geometry (apply)
+        self._rest_rows = None  # per moving object its vertices' rest positions, normals, tangents (apply)
         self._xf = None  # the moving objects' transforms on the device (apply)
         self._decomp = {}  # (object, matrix bytes) -> check_motion (_decomposed)
         self._behind_key = None
@@ -342,12 +343,15 @@ class DynamicObjects:
             r.geometry = replace(r.geometry, vertices=self._host[0], normals=self._host[1], tangents=self._host[2])
         V, N, Tg = self._host
         xf = np.zeros((len(self.ids), 7, 3), np.float32)  # per object: the rows of sR, of R, and t
+        if self._rest_rows is None:  # (each object's rest rows, gathered once)
+            self._rest_rows = {k: (self.rest_v[ids], self.rest_n[ids], self.rest_t[ids]) for k, ids in self.ids.items()}
         for j, (k, ids) in enumerate(self.ids.items()):
             R, s, t = self._delta(k)
             xf[j] = np.vstack([s * R, R, t])
-            V[ids] = self.rest_v[ids] @ (s * R).T + t
-            N[ids] = self.rest_n[ids] @ R.T
-            Tg[ids] = self.rest_t[ids] @ R.T
+            rv, rn, rt = self._rest_rows[k]
+            V[ids] = rv @ (s * R).T + t
+            N[ids] = rn @ R.T
+            Tg[ids] = rt @ R.T
             own = self.sphere_owner == k
             S[own, :3] = self.rest_spheres[own, :3] @ (s * R).T + t
             S[own, 3] = self.rest_spheres[own, 3] * s
@@ -377,9 +381,9 @@ class DynamicObjects:
         return True
 
     def _visible(self, r, es, into) -> None:
-        """The moving vertices' rows of the environment's visible fraction, from their weights
-        kept since the rest pose and the sky turned into each object's frame
-        (:mod:`warp_sg.shading.sky_table`)."""
+        """The moving vertices' rows of the environment's visible fraction, from their transfer
+        vectors (or texel lists) kept since the rest pose and the sky turned into each object's
+        frame (:mod:`warp_sg.shading.sky_table`)."""
         from warp_sg.shading.sky_table import MovingSky
 
         env, cells = getattr(r, "env_light", None), getattr(r, "env_texel_radiance", None)
@@ -389,11 +393,6 @@ class DynamicObjects:
             slot, _, rest_n, _, rest_ft, rest_fb, rest_cone = self._device_rest(r)
             self._sky = MovingSky(r.vis, self.all_ids, slot.numpy(), (rest_n, rest_ft, rest_fb, rest_cone),
                                   len(self.ids), r.device)
-        if not self._sky.fits:  # (lists over the budget: every texel against the map, every frame)
-            from warp_sg.shading.vertex_visibility import env_vertex_visible
-
-            env_vertex_visible(r.vis, es, len(r.geometry.vertices), r.device, ids=self.all_ids, into=into)
-            return
         self._sky.visible(r.vis, es, cells, env.rotation_matrix(), [self._delta(k)[0] for k in self.ids], into)
 
     def patch_caches(self, r, es) -> None:

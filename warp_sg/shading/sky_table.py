@@ -1,4 +1,4 @@
-r"""The visible sky of a moving object's vertices: their weights kept, the sky turned into the object.
+r"""The visible sky of a moving object's vertices: their weights projected once, the sky turned into the object.
 
 The visible fraction of a vertex's diffuse environment irradiance
 (:func:`warp_sg.shading.vertex_visibility.env_vertex_visible_kernel`) is, with ``O`` and ``S``
@@ -17,72 +17,137 @@ only the sky does, and a rotation of the object is a rotation of the sky in the 
 
     L̄(d_t) = L̄(R·D_t) = L'(D_t),   L' = L̄ ∘ R    (the sky seen from the object's own frame).
 
-So, once per vertex (:class:`MovingSky`, in the rest pose): the texels inside the cone, each
-with its weights ``(1 − s_t) c_t``, ``s_t c_t`` and where ``D_t`` falls on a cube of :data:`FACE`
-texels per face edge (a one-texel border, as the irradiance table's,
-``precompute.environment.irradiance``). Once per frame and object (:func:`turn_sky_kernel`):
-``L'`` on that cube, each texel ``L̄`` read bilinearly at ``R·`` its direction — 6·34² = 6936
-reads instead of one per texel of every vertex. Then per vertex (:func:`moving_visible_kernel`):
-the two weighted sums of bilinear cube reads, and ``F`` as before. On the turning blob (384
-self-shadowed vertices, 352 of their 1024 texels in the cone on average) the frame's share drops
-from ≈ 21 ms of CPU (every texel, the map read by longitude and latitude) to ≈ 2 ms (0.4 ms of it
-turning the sky).
+Both sums are linear in ``L'``. So, once per vertex (:class:`MovingSky`, in the rest pose), its
+weights are projected onto the real spherical harmonics ``Y_i`` up to order :data:`ORDER`
+(precomputed radiance transfer, Sloan, Kautz & Snyder, SIGGRAPH 2002) — two transfer vectors::
 
-The cube's second interpolation smooths ``L̄`` by a fraction of its own cell (2.8° cube texels at
-the face centres against 2.8° cells). Against the map-read quadrature at the same pose
-(:func:`~warp_sg.shading.vertex_visibility.env_vertex_visible`, ``tests/test_moving_caches.py``,
-four poses each): the blob's visible fraction (32² maps, F ≥ 0.98) within 1.0e-4 (mean 2.4e-6);
-a torus whose inner side shadows itself deeply (16² maps, F down to 0.57, its texels straddling
-the sky's horizon step, where bilinear reads of a bilinear resampling differ most) within 2.0e-3
-(mean 2.6e-4) — a few tenths of a percent of the irradiance, well inside the per-region accuracy
-the renderer is held to. The moving vertices use it at every pose, their first frame included,
-so a frame stays a function of the transforms.
+    t^O_i = Σ_t (1 − s_t) c_t Y_i(D_t),   t^S_i = Σ_t s_t c_t Y_i(D_t)     (:func:`transfer_kernel`);
+
+once per sky, the map's own coefficients ``l_i = Σ_q Ω_q Y_i(d_q) L̄_q`` over its 64 × 128 cells
+(:meth:`MovingSky.project`); once per frame and object, those of ``L' = L̄ ∘ M`` (``M = Rᵀ_env R``)
+— the harmonics of each order span a rotation-invariant space, so a quadrature exact for
+products of two of them turns them exactly, ``l'_j = Σ_p w_p Y_j(x_p) Σ_i l_i Y_i(M x_p)`` on
+(ORDER+1)·(2·ORDER+1) = 153 Gauss–Legendre × uniform-φ nodes (:func:`rotation_quadrature`, host
+work of ≈ 0.1 ms); then per vertex ``O ≈ t^O·l'``, ``S ≈ t^S·l'`` — 81 products instead of a
+read per cone texel — and ``F`` as before (:func:`moving_visible_kernel`). The moving vertices
+use it at every pose, their first frame included, so a frame stays a function of the transforms.
+
+**The truncation, bounded.** With ``ρ`` the weights as a density (``w_t/Ω`` on texel t) and
+``ρ_n``, ``L'_n`` the projections, ``Σ_t w_t L'(D_t) − t·l = ⟨ρ − ρ_n, L' − L'_n⟩`` (the
+projection is orthogonal), so by Cauchy–Schwarz ``|ΔO| ≤ ‖ρ^O − ρ^O_n‖·‖L' − L'_n‖`` with
+``‖ρ − ρ_n‖² = Σ_t w_t²/Ω − Σ_i t_i²`` (per vertex, once) and ``‖L' − L'_n‖² = ‖L̄‖² − Σ_i l_i²``,
+the sky's energy outside the basis (the same at every rotation; :meth:`MovingSky.project`). As
+``F = 1 − O/max(E, O + S)``, ``|ΔF| ≤ (|ΔO| + |ΔS|)/E``, and ``E ≥ E_min``, the least irradiance
+of the map at any normal::
+
+    |ΔF| ≤ (‖ρ^O − ρ^O_n‖ + ‖ρ^S − ρ^S_n‖)·‖L' − L'_n‖ / E_min     (MovingSky.bound),
+
+against the exact sums ``Σ_t w_t L'(D_t)`` (up to the quadratures' own sampling of ``L̄``: the
+texel sums point-sample it where the norms integrate it). A vertex whose bound exceeds
+:data:`BOUND` (0.25) is left to the map quadrature, every texel, every frame
+(:func:`~warp_sg.shading.vertex_visibility.env_vertex_visible`): the residual of a sky whose sun
+was extracted (``env_peaks``) is smooth, ``‖L' − L'_n‖`` ≈ 0.23 (the plain scenes' sky, order 8),
+bounds at most 0.09 (blob), 0.11 (torus), 0.21 (bunny), none over; with the sun left in the map
+(``env_peaks = 0``) ``‖L' − L'_n‖`` > 10 and every shadowed vertex goes to the map (bounds 7–14 on
+the torus; the per-texel lists that read the sky from a cube erred there by up to 0.27 too). The
+bound is 30–60× the error it bounds (median), so it only catches a sharp sky.
+
+**Measured** against the map-read quadrature at the same pose (``tests/test_moving_caches.py``;
+four poses, ORDER 8): the blob (32² maps, F ≥ 0.98) within 1.0e-3 (mean 3.7e-5); a torus whose
+inner side shadows itself deeply (16² maps, F down to 0.57) within 1.3e-2 (mean 1.6e-3); the
+refined Stanford bunny (12 862 moving vertices, 12 032 shadowed, F down to 0.35) within 1.9e-2
+(mean 8.2e-4, 99 % within 7.7e-3) — the error is the sky's horizon step rung by the truncation, at
+the few vertices whose occluders' edges fall on it. Order 12 halves it (bunny 1.1e-2, mean 3.8e-4)
+at twice the products; the texel lists this replaces (per texel a bilinear read of the sky turned
+on a cube) were within 1.0e-4 / 2.0e-3 (blob / torus), but cost 83 ms a frame on the bunny (9.9 M
+texels, 198 MB) where the transfer vectors take 8.6 MB and ≈ 3 ms of CPU.
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the kernel annotations.
+import math
+
 import numpy as np
 import warp as wp
 
-from precompute.environment.cubemap import cube_face_of
-from precompute.environment.irradiance import irradiance_unscaled, texel_directions_with_border
+from precompute.environment.irradiance import irradiance_unscaled
 from precompute.visibility.ssdf_wp import concentric_to_dir_wp
 
 from warp_sg.numeric.onb import local_to_world
-from warp_sg.scene.envmap import env_lookup
 from warp_sg.shading.vertex_visibility import texel_ssdf, visible_share
 from warp_sg.shading.visibility_terms import EnvSG, Visibility
 
-#: texels per cube face edge (without the border) of the turned sky
-FACE = 32
-#: bytes per listed texel (corner, fractions, weights)
-TEXEL_BYTES = 20
-
-
-def table_budget() -> int:
-    """Bytes the texel lists may take (``WARP_SG_SKY_TABLE_MB``, default 256 MiB: the turning
-    blob's take 2.7 MB, the 12.9 k moving vertices of the refined Stanford bunny 198 MB); beyond,
-    the moving vertices are integrated against the map itself, every texel, every frame."""
-    from precompute.visibility.ssdf import budget_mib
-
-    return budget_mib("WARP_SG_SKY_TABLE_MB", "256")
+#: the spherical-harmonic order of the transfer vectors ((ORDER + 1)² coefficients per vertex)
+ORDER = 8
+#: the largest bound on a vertex's visible-fraction error from the truncated sky that its
+#: transfer vectors are used with; a vertex over it is integrated against the map (module docstring)
+BOUND = 0.25
 _SQRT_2PI = wp.constant(float(np.sqrt(2.0 * np.pi)))
+
+
+def sh_norms(order: int) -> np.ndarray:
+    """``K[l·(order+1) + m] = √((2l+1)/4π · (l−m)!/(l+m)!)``, times √2 for m > 0: the factors of
+    the real orthonormal spherical harmonics in :func:`sh_accumulate`."""
+    k = np.zeros((order + 1) ** 2)
+    for l in range(order + 1):
+        for m in range(l + 1):
+            k[l * (order + 1) + m] = math.sqrt((2 * l + 1) / (4 * math.pi) * math.factorial(l - m)
+                                               / math.factorial(l + m)) * (math.sqrt(2.0) if m else 1.0)
+    return k
+
+
+@wp.func
+def sh_accumulate(out: wp.array2d(dtype=wp.vec2), row: int, order: int, norms: wp.array(dtype=float), d: wp.vec3,
+                  w: wp.vec2):
+    """``out[row, i] += w·Y_i(d)`` for the real orthonormal spherical harmonics up to ``order``
+    (``i = l² + l + m``, ``−l ≤ m ≤ l``): ``Y_l^0 = K_l^0 Q_l^0(z)``, ``Y_l^{±m} = √2 K_l^m
+    Q_l^m(z)·(Re, Im)(x + iy)^m``, with ``Q_l^m`` the associated Legendre function less its
+    ``sin^m θ`` (no Condon–Shortley phase): ``Q_m^m = (2m−1)!!``, ``Q_{m+1}^m = (2m+1) z Q_m^m``,
+    ``(l−m) Q_l^m = (2l−1) z Q_{l−1}^m − (l+m−1) Q_{l−2}^m`` (Sloan, "Efficient spherical
+    harmonic evaluation", JCGT 2013)."""
+    x = d[0]
+    y = d[1]
+    z = d[2]
+    c = float(1.0)
+    s = float(0.0)
+    qmm = float(1.0)
+    for m in range(order + 1):
+        if m > 0:
+            c1 = x * c - y * s
+            s = x * s + y * c
+            c = c1
+            qmm = qmm * float(2 * m - 1)
+        q1 = qmm
+        q2 = float(0.0)
+        for l in range(m, order + 1):
+            q = qmm
+            if l == m + 1:
+                q = float(2 * m + 1) * z * qmm
+            elif l > m + 1:
+                q = (float(2 * l - 1) * z * q1 - float(l + m - 1) * q2) / float(l - m)
+            if l > m:
+                q2 = q1
+                q1 = q
+            k = norms[l * (order + 1) + m] * q
+            if m == 0:
+                out[row, l * l + l] = out[row, l * l + l] + w * k
+            else:
+                out[row, l * l + l + m] = out[row, l * l + l + m] + w * (k * c)
+                out[row, l * l + l - m] = out[row, l * l + l - m] + w * (k * s)
 
 
 @wp.struct
 class SkyTable:
-    """Per listed vertex ``k`` (``vertices[k]``, of object ``slot[k]``): its texels inside the cone,
-    ``start[k]`` to ``start[k+1]`` — per texel ``corner`` (the cube texel below and left of its
-    direction, in its object's cube), ``frac`` (the bilinear fractions) and ``weight``
-    (``(1 − s) c``, ``s c``). ``sky``: the turned sky of every object, cubes of ``size`` (with
-    border) one after the other."""
+    """Per listed vertex ``k`` (``vertices[k]``, of object ``slot[k]``; ``exact[k] = 1``: left to
+    the map quadrature): its transfer vectors ``t^O``, ``t^S`` against the turned sky's coefficients, four at a time
+    (``groups`` of them, zero-padded): ``transfer[2(k·groups + j)]`` ``t^O_{4j…4j+3}``, ``+1``
+    ``t^S`` likewise, and ``coef[3(slot·groups + j) + c]`` channel c of the sky's (a layout the
+    CPU runs ≈ 3× faster than one coefficient at a time)."""
 
     vertices: wp.array(dtype=int)
     slot: wp.array(dtype=int)
-    start: wp.array(dtype=int)
-    corner: wp.array(dtype=int)
-    frac: wp.array(dtype=wp.vec2)
-    weight: wp.array(dtype=wp.vec2)
-    sky: wp.array(dtype=wp.vec3)
-    size: int
+    exact: wp.array(dtype=int)
+    transfer: wp.array(dtype=wp.vec4)
+    coef: wp.array(dtype=wp.vec4)
+    groups: int
 
 
 @wp.func
@@ -103,28 +168,14 @@ def _texel_local(R: int, q: int) -> wp.vec3:
 
 
 @wp.kernel(enable_backward=False)
-def count_texels_kernel(vis: Visibility, rest_n: wp.array(dtype=wp.vec3), rest_t: wp.array(dtype=wp.vec3),
-                        rest_b: wp.array(dtype=wp.vec3), rest_cone: wp.array(dtype=wp.vec4), count: wp.array(dtype=int)):
-    """``count[i]``: the texels inside listed vertex i's cone (its rest frame and cone)."""
-    i = wp.tid()
-    cone = rest_cone[i]
-    m = int(0)
-    if cone[3] >= 0.0:
-        R = vis.mean.shape[0]
-        c_min = wp.cos(wp.min(cone[3] + _SQRT_2PI / float(R), wp.pi))
-        for q in range(R * R):
-            m += _cone_texel(_texel_local(R, q), rest_t[i], rest_b[i], wp.normalize(rest_n[i]), cone, c_min)
-    count[i] = m
-
-
-@wp.kernel(enable_backward=False)
-def fill_texels_kernel(vis: Visibility, ids: wp.array(dtype=int), rest_n: wp.array(dtype=wp.vec3),
-                       rest_t: wp.array(dtype=wp.vec3), rest_b: wp.array(dtype=wp.vec3),
-                       rest_cone: wp.array(dtype=wp.vec4), start: wp.array(dtype=int), face: int,
-                       corner: wp.array(dtype=int), frac: wp.array(dtype=wp.vec2), weight: wp.array(dtype=wp.vec2)):
-    """Listed vertex i's texels inside its cone (:class:`SkyTable`): cube corner, fractions and
-    weights, from ``start[i]``."""
-    i = wp.tid()
+def transfer_kernel(base: int, vis: Visibility, ids: wp.array(dtype=int), rest_n: wp.array(dtype=wp.vec3),
+                    rest_t: wp.array(dtype=wp.vec3), rest_b: wp.array(dtype=wp.vec3),
+                    rest_cone: wp.array(dtype=wp.vec4), order: int, norms: wp.array(dtype=float),
+                    out: wp.array2d(dtype=wp.vec2), norm2: wp.array(dtype=wp.vec2)):
+    """Listed vertex ``i = base + tid``'s transfer vectors (module docstring), ``out[i, j] = Σ_t
+    ((1 − s_t) c_t, s_t c_t) Y_j(D_t)`` over its texels inside the cone (rest pose), and
+    ``norm2[i] = Σ_t ((1 − s_t) c_t, s_t c_t)² / Ω``."""
+    i = base + wp.tid()
     cone = rest_cone[i]
     if cone[3] < 0.0:
         return
@@ -134,129 +185,221 @@ def fill_texels_kernel(vis: Visibility, ids: wp.array(dtype=int), rest_n: wp.arr
     om = 2.0 * wp.pi / float(R * R)
     c_min = wp.cos(wp.min(cone[3] + h, wp.pi))
     n = wp.normalize(rest_n[i])
-    j = start[i]
-    stride = face + 2
+    acc = wp.vec2(0.0, 0.0)
     for q in range(R * R):
         dl = _texel_local(R, q)
         if _cone_texel(dl, rest_t[i], rest_b[i], n, cone, c_min) == 1:
             y = q / R
             s = wp.clamp(0.5 + texel_ssdf(vis, v, y, q - y * R) / h, 0.0, 1.0)
             c = dl[2] * om
-            fab = cube_face_of(local_to_world(dl, rest_t[i], rest_b[i], n))
-            fx = (fab[1] + 1.0) * 0.5 * float(face) + 0.5  # (as precompute.environment.cubemap.bordered_bilinear)
-            fy = (fab[2] + 1.0) * 0.5 * float(face) + 0.5
-            x0 = wp.clamp(int(wp.floor(fx)), 0, face)
-            y0 = wp.clamp(int(wp.floor(fy)), 0, face)
-            corner[j] = int(fab[0]) * stride * stride + y0 * stride + x0
-            frac[j] = wp.vec2(wp.clamp(fx - float(x0), 0.0, 1.0), wp.clamp(fy - float(y0), 0.0, 1.0))
-            weight[j] = wp.vec2((1.0 - s) * c, s * c)
-            j += 1
+            w = wp.vec2((1.0 - s) * c, s * c)
+            acc += wp.cw_mul(w, w) / om
+            sh_accumulate(out, i, order, norms, local_to_world(dl, rest_t[i], rest_b[i], n), w)
+    norm2[i] = acc
+
+
+#: vertices one CPU thread computes in :func:`moving_visible_kernel` (Warp copies the kernel's
+#: struct arguments at each thread's entry; ``raster.parallel.launch(per_thread=...)``)
+VERTICES_PER_THREAD = 16
 
 
 @wp.kernel(enable_backward=False)
-def turn_sky_kernel(base: int, dirs: wp.array(dtype=wp.vec3), radiance: wp.array2d(dtype=wp.vec3),
-                    to_env: wp.array(dtype=wp.mat33), out: wp.array(dtype=wp.vec3)):
-    """Cube texel ``p = base + tid`` of object ``p / |dirs|``: ``L̄`` (bilinear) along that object's
-    motion times the texel's direction, in the map's frame (``to_env[k] = Rᵀ_env · R_k``)."""
+def moving_visible_kernel(base: int, per: int, tab: SkyTable, vis: Visibility, env: EnvSG,
+                          out: wp.array(dtype=wp.vec3), out_irr: wp.array(dtype=wp.vec3)):
+    """Listed vertices ``k = base + tid·per + s`` (``s < per``; ``v = tab.vertices[k]``): ``out[v]``
+    the visible fraction and ``out_irr[v] = E ∘ F``, as ``env_vertex_visible_kernel`` with the
+    cone's sums ``O = t^O·l``, ``S = t^S·l`` from the vertex's transfer vectors and its object's
+    turned sky's coefficients ``l`` (module docstring); a vertex left to the map quadrature
+    (``tab.exact[k]``) is not written."""
+    k0 = base + wp.tid() * per
+    h = _SQRT_2PI / float(vis.mean.shape[0])
+    one = wp.vec4(1.0, 1.0, 1.0, 1.0)
+    for s in range(per):
+        k = k0 + s
+        if k >= tab.vertices.shape[0]:
+            break
+        if tab.exact[k] != 0:
+            continue
+        v = tab.vertices[k]
+        n = wp.normalize(vis.normals[v])
+        cone = vis.cones[v]
+        f = wp.vec3(1.0, 1.0, 1.0)
+        ex = irradiance_unscaled(env.exact, n)
+        if cone[3] >= 0.0:
+            o = 3 * tab.slot[k] * tab.groups
+            t = 2 * k * tab.groups
+            o0 = wp.vec4(0.0, 0.0, 0.0, 0.0)
+            o1 = wp.vec4(0.0, 0.0, 0.0, 0.0)
+            o2 = wp.vec4(0.0, 0.0, 0.0, 0.0)
+            s0 = wp.vec4(0.0, 0.0, 0.0, 0.0)
+            s1 = wp.vec4(0.0, 0.0, 0.0, 0.0)
+            s2 = wp.vec4(0.0, 0.0, 0.0, 0.0)
+            for j in range(tab.groups):
+                wo = tab.transfer[t + 2 * j]
+                ws = tab.transfer[t + 2 * j + 1]
+                c0 = tab.coef[o + 3 * j]
+                c1 = tab.coef[o + 3 * j + 1]
+                c2 = tab.coef[o + 3 * j + 2]
+                o0 += wp.cw_mul(c0, wo)
+                o1 += wp.cw_mul(c1, wo)
+                o2 += wp.cw_mul(c2, wo)
+                s0 += wp.cw_mul(c0, ws)
+                s1 += wp.cw_mul(c1, ws)
+                s2 += wp.cw_mul(c2, ws)
+            occ_sum = wp.vec3(wp.dot(o0, one), wp.dot(o1, one), wp.dot(o2, one))
+            seen_sum = wp.vec3(wp.dot(s0, one), wp.dot(s1, one), wp.dot(s2, one))
+            f = visible_share(occ_sum, seen_sum, ex, cone, n, h)
+        out[v] = f
+        out_irr[v] = wp.cw_mul(ex, f)
+
+
+@wp.kernel(enable_backward=False)
+def basis_kernel(base: int, dirs: wp.array(dtype=wp.vec3), order: int, norms: wp.array(dtype=float),
+                 out: wp.array2d(dtype=wp.vec2)):
+    """``out[p, i] = (Y_i(dirs[p]), 0)`` for ``p = base + tid``."""
     p = base + wp.tid()
-    n = dirs.shape[0]
-    k = p / n
-    out[p] = env_lookup(radiance, to_env[k], dirs[p - k * n])
+    sh_accumulate(out, p, order, norms, dirs[p], wp.vec2(1.0, 0.0))
 
 
-@wp.kernel(enable_backward=False)
-def moving_visible_kernel(base: int, tab: SkyTable, vis: Visibility, env: EnvSG, out: wp.array(dtype=wp.vec3),
-                          out_irr: wp.array(dtype=wp.vec3)):
-    """Listed vertex ``k = base + tid`` (``v = tab.vertices[k]``): ``out[v]`` its visible fraction
-    and ``out_irr[v] = E ∘ F``, as ``env_vertex_visible_kernel`` with ``L̄(d_t)`` read from its
-    object's turned sky (module docstring)."""
-    k = base + wp.tid()
-    v = tab.vertices[k]
-    n = wp.normalize(vis.normals[v])
-    cone = vis.cones[v]
-    f = wp.vec3(1.0, 1.0, 1.0)
-    ex = irradiance_unscaled(env.exact, n)
-    if cone[3] >= 0.0:
-        stride = tab.size
-        o = tab.slot[k] * 6 * stride * stride
-        occ_sum = wp.vec3(0.0, 0.0, 0.0)
-        seen_sum = wp.vec3(0.0, 0.0, 0.0)
-        for j in range(tab.start[k], tab.start[k + 1]):
-            c = o + tab.corner[j]
-            fr = tab.frac[j]
-            t0 = tab.sky[c] * (1.0 - fr[0]) + tab.sky[c + 1] * fr[0]
-            t1 = tab.sky[c + stride] * (1.0 - fr[0]) + tab.sky[c + stride + 1] * fr[0]
-            e = t0 * (1.0 - fr[1]) + t1 * fr[1]
-            w = tab.weight[j]
-            occ_sum += e * w[0]
-            seen_sum += e * w[1]
-        f = visible_share(occ_sum, seen_sum, ex, cone, n, _SQRT_2PI / float(vis.mean.shape[0]))
-    out[v] = f
-    out_irr[v] = wp.cw_mul(ex, f)
+def sh_values(dirs: np.ndarray, order: int, device="cpu") -> np.ndarray:
+    """(M, (order+1)²) float64: the real spherical harmonics of :func:`sh_accumulate` at unit
+    directions ``dirs`` (M, 3)."""
+    d = wp.array(np.ascontiguousarray(dirs, np.float32).reshape(-1, 3), dtype=wp.vec3, device=device)
+    out = wp.zeros((max(int(d.shape[0]), 1), (order + 1) ** 2), dtype=wp.vec2, device=device)
+    nm = wp.array(sh_norms(order).astype(np.float32), dtype=float, device=device)
+    if d.shape[0]:
+        wp.launch(basis_kernel, dim=int(d.shape[0]), inputs=[0, d, int(order), nm, out], device=device)
+    return out.numpy()[:int(d.shape[0]), :, 0].astype(np.float64)
+
+
+def rotation_quadrature(order: int) -> tuple:
+    """(points (P, 3), weights (P,)): Gauss–Legendre in z × uniform in φ, ``order + 1`` by
+    ``2·order + 1`` nodes — exact for products of two harmonics up to ``order`` (polynomials of
+    degree 2·order), so ``l'_j = Σ_p w_p Y_j(x_p) Σ_i l_i Y_i(M x_p)`` gives a band-limited sky's
+    coefficients after a rotation ``M`` exactly (each order's harmonics span a rotation-invariant
+    space)."""
+    z, wz = np.polynomial.legendre.leggauss(order + 1)
+    m = 2 * order + 1
+    phi = (np.arange(m) + 0.5) * 2.0 * np.pi / m
+    Z, P = np.meshgrid(z, phi, indexing="ij")
+    S = np.sqrt(np.maximum(1.0 - Z * Z, 0.0))
+    return (np.stack([S * np.cos(P), S * np.sin(P), Z], -1).reshape(-1, 3),
+            np.repeat(wz, m) * 2.0 * np.pi / m)
 
 
 class MovingSky:
     """The :class:`SkyTable` of the moving vertices of one installed visibility (module docstring).
 
     ``vertices`` (mesh ids), ``slot`` (their object's index among the moving objects) and their
-    rest rows on the device (normals, SSDF frames, cones): the lists are built once, here."""
+    rest rows on the device (normals, SSDF frames, cones): the transfer vectors are computed once,
+    here; which vertices are left to the map quadrature instead is decided per sky (:meth:`prepare`)."""
 
     def __init__(self, vis: Visibility, vertices: wp.array, slot: np.ndarray, rest: tuple, n_objects: int, device,
-                 face: int = FACE):
+                 order: int | None = None):
         from raster import parallel
 
-        rest_n, rest_t, rest_b, rest_cone = rest
         n = int(vertices.shape[0])
-        self.device, self.count, self.n_objects = device, n, int(n_objects)
-        count = wp.zeros(max(n, 1), dtype=int, device=device)
-        if n:
-            wp.launch(count_texels_kernel, dim=n, inputs=[vis, rest_n, rest_t, rest_b, rest_cone, count], device=device)
-        start, total = parallel.exclusive_scan(count)
-        #: whether the lists fit :func:`table_budget` (else :meth:`visible` is not to be called)
-        self.fits = total * TEXEL_BYTES <= table_budget()
-        if not self.fits:
-            self.count = self.texels = 0
-            return
-        st = np.append(start.numpy()[:n], total).astype(np.int32)
+        order = ORDER if order is None else order
+        self.device, self.count, self.n_objects, self.order = device, n, int(n_objects), int(order)
+        self.vis, self.vertices, self.rest = vis, vertices, rest
+        nc = (self.order + 1) ** 2
+        self.norms = wp.array(sh_norms(self.order).astype(np.float32), dtype=float, device=device)
         tab = SkyTable()
         tab.vertices, tab.slot = vertices, wp.array(np.asarray(slot, np.int32), dtype=int, device=device)
-        tab.start = wp.array(st, dtype=int, device=device)
-        tab.corner = wp.empty(max(total, 1), dtype=int, device=device)
-        tab.frac = wp.empty(max(total, 1), dtype=wp.vec2, device=device)
-        tab.weight = wp.empty(max(total, 1), dtype=wp.vec2, device=device)
-        if total:
-            wp.launch(fill_texels_kernel, dim=n, inputs=[vis, vertices, rest_n, rest_t, rest_b, rest_cone, tab.start,
-                                                         int(face), tab.corner, tab.frac, tab.weight], device=device)
-        self.texels = int(total)
-        # ranges of about equal work for the CPU threads: a vertex costs its texels (and one more)
-        work = np.cumsum(np.diff(st) + 1)
-        w = parallel.cpu_workers()
-        self.bounds = np.unique(np.concatenate([[0], np.searchsorted(work, work[-1] * np.arange(1, w) / w) if n else [],
-                                                [n]]).astype(np.int64))
-        self.dirs = wp.array(texel_directions_with_border(int(face)).reshape(-1, 3).astype(np.float32), dtype=wp.vec3,
-                             device=device)
-        tab.size = int(face) + 2
-        tab.sky = wp.zeros(max(self.n_objects, 1) * int(self.dirs.shape[0]), dtype=wp.vec3, device=device)
+        transfer = wp.zeros((max(n, 1), nc), dtype=wp.vec2, device=device)
+        norm2 = wp.zeros(max(n, 1), dtype=wp.vec2, device=device)
+        if n:
+            parallel.launch(transfer_kernel, n, [vis, vertices, *rest, self.order, self.norms, transfer, norm2], device,
+                            min_chunk=64)
+        # (host copies for the bound, :meth:`prepare`; the kernels' layout of four coefficients a group)
+        self._transfer, self._norm2 = transfer.numpy()[:n].astype(np.float64), norm2.numpy()[:n].astype(np.float64)
+        ng = -(-nc // 4)
+        T = np.zeros((max(n, 1), 4 * ng, 2), np.float32)
+        T[:n, :nc] = self._transfer
+        tab.transfer = wp.array(T.reshape(-1, ng, 4, 2).transpose(0, 1, 3, 2).reshape(-1, 4), dtype=wp.vec4,
+                                device=device)
+        del transfer, norm2
+        self._x, self._xw = rotation_quadrature(self.order)
+        self._yx = sh_values(self._x, self.order, device) * self._xw[:, None]  # (P, nc): w_p Y(x_p)
+        self._map_coef = None  # the map's coefficients (nc, 3), its frame (:meth:`prepare`)
+        self._ng = tab.groups = ng
         self.table = tab
-        self._turned = None  # the key of the sky in tab.sky
+        self._turned = None  # the key of the coefficients in tab.coef
+        self._prepared = None  # the key of the sky the bounds were computed for
+        self.exact_count, self.bound, self.quadrature_ids, self.sky_residual = 0, np.zeros(n), None, np.zeros(3)
+
+    def transfer_bytes(self) -> int:
+        """Bytes of the transfer vectors (8 per coefficient and vertex, float32)."""
+        return int(self.table.transfer.shape[0]) * 16
+
+    def project(self, radiance) -> tuple:
+        """``(l (nc, 3), ‖L̄ − L̄_n‖₂ (3,))``: the map's coefficients in its own frame,
+        ``l_i = Σ_q Ω_q Y_i(d_q) L̄_q`` over its cells (centres ``d_q``, solid angles ``Ω_q``), and
+        the energy outside the basis, ``‖L̄‖² − Σ_i l_i²`` (the same at every rotation)."""
+        from warp_sg.scene.envmap import texel_directions, texel_solid_angles
+
+        L = np.asarray(radiance.numpy(), np.float64)
+        h, w = L.shape[:2]
+        om = texel_solid_angles(h, w).reshape(-1)
+        L = L.reshape(-1, 3)
+        Y = sh_values(texel_directions(h, w).reshape(-1, 3), self.order, self.device)
+        coef = (Y * om[:, None]).T @ L
+        return coef, np.sqrt(np.maximum((om[:, None] * L * L).sum(0) - (coef * coef).sum(0), 0.0))
+
+    def turned(self, to_env: np.ndarray) -> np.ndarray:
+        """(objects, nc, 3): the coefficients of the map's projection seen from each object's frame,
+        ``L'(D) = L̄_n(M_k D)`` (``to_env[k] = M_k = Rᵀ_env·R_k``), by :func:`rotation_quadrature`."""
+        out = np.empty((len(to_env), self._yx.shape[1], 3))
+        for k, M in enumerate(to_env):
+            out[k] = self._yx.T @ (sh_values(self._x @ np.asarray(M, np.float64).T, self.order, self.device)
+                                   @ self._map_coef)
+        return out
+
+    def prepare(self, radiance, e_min) -> None:
+        """For the sky of map ``radiance`` (its irradiance at least ``e_min`` (3,) at every normal):
+        each vertex's bound on the error of its visible fraction from the truncated sky,
+        ``(‖ρ^O − ρ^O_n‖ + ‖ρ^S − ρ^S_n‖)·‖L' − L'_n‖ / E_min`` (module docstring); the vertices
+        over :data:`BOUND` are left to the map quadrature, every texel, every frame."""
+        n, tab, d = self.count, self.table, self.device
+        a = np.sqrt(np.maximum(self._norm2 - (self._transfer ** 2).sum(1), 0.0))
+        self._map_coef, self.sky_residual = self.project(radiance)
+        self.bound = (a.sum(1)[:, None] * self.sky_residual[None]
+                      / np.maximum(np.asarray(e_min, np.float64), 1e-30)).max(1)
+        exact = (self.bound > BOUND).astype(np.int32)
+        tab.exact = wp.array(exact if n else np.zeros(1, np.int32), dtype=int, device=d)
+        self.exact_count = int(exact.sum())
+        self.quadrature_ids = wp.array(self.vertices.numpy()[:n][exact == 1].astype(np.int32), dtype=int, device=d) \
+            if self.exact_count else None
 
     def visible(self, vis: Visibility, env: EnvSG, radiance: wp.array, env_rotation, motions: list, into) -> None:
         """The listed vertices' rows of ``into = (F, E ∘ F)`` (``env_vertex_visible``'s), in place:
         the sky of map ``radiance`` (the box-filtered residual) turned by ``env_rotation`` and each
-        object's rotation ``motions[k]`` (from the rest pose), then the weighted sums."""
+        object's rotation ``motions[k]`` (from the rest pose) in the harmonics, then each vertex's
+        sums."""
         from raster import parallel
 
         if not self.count:
             return
+        pkey = (id(radiance), id(env.exact.texels))
+        if self._prepared != pkey:
+            self.prepare(radiance, env.exact.texels.numpy().reshape(-1, 3).min(0))
+            self._prepared = pkey
         to_env = np.stack([np.asarray(env_rotation, np.float64).T @ np.asarray(M, np.float64) for M in motions])
-        key = (id(radiance), to_env.tobytes())
-        if self._turned != key and self.texels:
-            m = len(motions) * int(self.dirs.shape[0])
-            parallel.launch(turn_sky_kernel, m, [self.dirs, radiance, wp.array(to_env.astype(np.float32),
-                                                                            dtype=wp.mat33, device=self.device),
-                                                 self.table.sky], self.device, chunks=parallel.cpu_workers())
+        key = (pkey, to_env.tobytes())
+        tab = self.table
+        if self._turned != key:
+            c = np.zeros((len(motions), 4 * self._ng, 3), np.float32)
+            c[:, :self._yx.shape[1]] = self.turned(to_env)
+            tab.coef = wp.array(c.reshape(len(motions), self._ng, 4, 3).transpose(0, 1, 3, 2).reshape(-1, 4),
+                                dtype=wp.vec4, device=self.device)
             self._turned = key
-        parallel.launch_split(moving_visible_kernel, self.bounds, [self.table, vis, env, *into], self.device)
+        parallel.launch(moving_visible_kernel, self.count, [tab, vis, env, *into], self.device, min_chunk=512,
+                        per_thread=VERTICES_PER_THREAD)
+        if self.quadrature_ids is not None:
+            from warp_sg.shading.vertex_visibility import env_vertex_visible
+
+            env_vertex_visible(vis, env, int(into[0].shape[0]), self.device, ids=self.quadrature_ids, into=into)
 
 
-__all__ = ["FACE", "MovingSky", "SkyTable", "moving_visible_kernel", "table_budget", "turn_sky_kernel"]
+__all__ = ["BOUND", "MovingSky", "ORDER", "SkyTable", "VERTICES_PER_THREAD", "moving_visible_kernel",
+           "rotation_quadrature", "sh_accumulate", "sh_norms", "sh_values", "transfer_kernel"]
