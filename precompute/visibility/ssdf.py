@@ -376,6 +376,24 @@ def _ssdf_params(resolution, ray_resolution, pca_terms, rays=None, cutouts=None)
     return params
 
 
+def _pca_and_cones(X, normals, R: int, pca_terms: int, clock):
+    """``(pca(X, pca_terms), occluder_cones(X, normals, R))``, the cones on a second thread while
+    the PCA runs on this one (both only read ``X``; the PCA's BLAS is one thread): stages ``pca``
+    and ``cones`` of ``clock``, each with its own thread's CPU."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    def timed(name, fn):
+        w0, c0 = time.perf_counter(), thread_cpu()
+        out = fn()
+        clock.add(name, time.perf_counter() - w0, thread_cpu() - c0)
+        return out
+
+    with ThreadPoolExecutor(1, thread_name_prefix="ssdf-cones") as ex:
+        cones = ex.submit(timed, "cones", lambda: occluder_cones(X, normals, R))
+        p = timed("pca", lambda: pca(X, pca_terms))
+        return p, cones.result()
+
+
 def ssdf_key(vertices, triangles, normals, *, resolution: int = DEFAULT_RESOLUTION, ray_resolution: int | None = None,
              pca_terms: int = DEFAULT_PCA_TERMS, rays: str | None = None, cutouts=None) -> str:
     """The cache key of :func:`ssdf_for_mesh` for these arguments (a content hash; no SSDF is computed)."""
@@ -426,10 +444,7 @@ def ssdf_for_mesh(vertices, triangles, normals, *, resolution: int = DEFAULT_RES
             with clock.stage("ssdf_total"):
                 X = compute(v, f, n, resolution=resolution, ray_resolution=ray_resolution, device=device,
                             progress=progress, **kw).reshape(len(v), -1)
-            with clock.stage("pca"):
-                p = pca(X, int(pca_terms))
-            with clock.stage("cones"):
-                cones = occluder_cones(X, n, R)
+            p, cones = _pca_and_cones(X, n, R, int(pca_terms), clock)
             del X
         return {"mean": p.mean.reshape(R, R), "basis": p.basis.reshape(-1, R, R), "weights": p.weights,
                 "pca_rms_error": p.rms_error, "cones": cones}
