@@ -8,10 +8,12 @@ level by level, on grids of ``s × s`` cells of ``f = Rr / s`` texels each (``s 
 1. **coarse level** (``s₀ = Rr / 4`` by default): one ray per cell, at texel
    ``(j f + f/2, i f + f/2)``, with its **hit distance** (:func:`precompute.visibility.rays.ray_hit_distance`);
 2. **the horizon ring**: the texels of the map's outermost row and column (the directions just
-   above the horizon, ``4 (Rr − 1)`` texels, any-hit). A vertex on a curved surface sees a strip one
+   above the horizon, ``4 (Rr − 1)`` texels; the grid's visibility test reads them, not their hit
+   distances). A vertex on a curved surface sees a strip one
    texel wide there that no coarse sample meets; it is a visibility boundary the SSDF needs. The
    ring is a 1-D map of its own, sampled like the grid: every ``RING_STEP``-th texel (4: one per
-   coarse cell side, closest hit) first, then its segments are halved down to single texels where
+   coarse cell side, closest hit) first, then its segments are halved (any hit for the last
+   halving) down to single texels where
    the samples around them (the segment's two ends and the next sample on either side) disagree
    in visibility or their hit distances differ by more than ``depth_ratio`` (as in step 3); a
    texel of a segment that is not halved takes the segment's value (not counted as known: a
