@@ -91,6 +91,36 @@ def test_the_horizon_ring_keeps_a_one_texel_band_just_above_the_horizon():
     assert np.array_equal(vis_a, vis_f)
 
 
+def test_the_sparse_ring_finds_where_the_horizon_band_is_cut_with_fewer_ring_rays():
+    """The low plate of the test above and a wall standing on the floor that hides part of the
+    band: the ring, sampled every RING_STEP-th texel and halved where its samples disagree, gives
+    the full-ray map exactly (band, wall edges) with fewer rays than a ray per ring texel."""
+    import trimesh
+
+    from precompute.visibility.adaptive_rays import RING_STEP
+
+    plate = trimesh.creation.box(extents=[12.0, 0.02, 12.0])
+    plate.apply_translation([0.0, 0.37, 0.0])
+    wall = trimesh.creation.box(extents=[0.2, 0.3, 9.0])  # x = 3 ± 0.1, under the plate: hides ≈ 110° of azimuth
+    wall.apply_translation([3.0, 0.15, 1.5])
+    V = np.concatenate([np.zeros((1, 3)), plate.vertices, wall.vertices])
+    F = np.concatenate([plate.faces + 1, wall.faces + 1 + len(plate.vertices)])
+    N = np.tile([0.0, 1.0, 0.0], (len(V), 1))
+    _, vis_f, _ = _maps(V, F, N, [0], "full")
+    edge = np.zeros((64, 64), bool)
+    edge[0] = edge[-1] = True
+    edge[:, 0] = edge[:, -1] = True
+    band = vis_f[0][edge]
+    assert 0.3 < band.mean() < 0.9 and vis_f[0][~edge].sum() == 0  # the band, cut by the wall
+    _, vis_a, rays_a = _maps(V, F, N, [0], "adaptive")
+    _, vis_d, rays_d = _maps(V, F, N, [0], "adaptive", adaptive={"ring_step": 1})
+    assert RING_STEP > 1
+    assert np.array_equal(vis_a, vis_f) and np.array_equal(vis_d, vis_f)
+    assert rays_a < rays_d
+    with pytest.raises(ValueError, match="ring step"):
+        _maps(V, F, N, [0], "adaptive", adaptive={"ring_step": 3})
+
+
 @pytest.mark.slow
 def test_adaptive_ssdf_error_against_a_256_ray_truth_is_that_of_full_rays():
     V, F, N = plane_box_scene(30)

@@ -316,3 +316,32 @@ def test_interpolated_shadow_covers_the_true_shadow_disk(floor_sphere):
     coarse = refine_for_visibility(V, F, N, base_edge=float("inf"), levels=0)
     assert len(coarse.vertices) == len(V)
     assert _interpolated_shadow_area(V, F, coarse) == 0.0
+
+
+def test_signatures_are_cast_only_for_vertices_that_are_compared(monkeypatch):
+    """The signatures (12² rays a vertex) of the vertices the last step adds are never compared,
+    neither after the last level nor once the budget is full: none are cast for them, and the
+    refinement is that of levels + 1 levels cut at the same budget (the step after finds no room)."""
+    import precompute.visibility.refine as rf
+
+    cast = []
+    real = rf.hemisphere_visibility
+
+    def counting(*a, vertex_ids=None, **k):
+        cast.append(len(vertex_ids))
+        return real(*a, vertex_ids=vertex_ids, **k)
+
+    monkeypatch.setattr(rf, "hemisphere_visibility", counting)
+    V, F, N = _merge(_floor(), _sphere(subdivisions=2))
+    full = refine_for_visibility(V, F, N, budget=100000, levels=2)  # stops after its last level
+    lv = full.stats["level_vertices"]
+    assert len(lv) == 2 and lv[-1] > 0
+    assert sum(cast) == full.stats["vertices"] - lv[-1]  # the last level's vertices: no rays
+    cast.clear()
+    budget = full.stats["presplit_vertices"] + lv[0] + lv[1] // 2  # full during the second level
+    cut = refine_for_visibility(V, F, N, budget=budget, levels=4)
+    assert cut.stats["vertices"] == budget and len(cut.stats["level_vertices"]) == 2
+    assert sum(cast) == budget - cut.stats["level_vertices"][-1]
+    monkeypatch.setattr(rf, "hemisphere_visibility", real)
+    more = refine_for_visibility(V, F, N, budget=budget, levels=5)
+    assert np.array_equal(more.vertices, cut.vertices) and np.array_equal(more.triangles, cut.triangles)

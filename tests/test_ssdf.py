@@ -54,6 +54,28 @@ def test_coarse_to_fine_search_matches_brute_force_eq23(device):
     assert errs.max() < 0.5 * spacing
 
 
+def test_fused_fine_pass_gives_the_maps_of_the_separate_kernels(device):
+    """``fine_signed_kernel`` (fine seed pass + signed distance + box filter in one kernel, the
+    default at 64² → 32²) gives the three separate kernels' maps bit for bit, also in a batch
+    with uniform maps (no seed anywhere: the fine pass never reads an empty index); a uniform map
+    is −π/2 (all hidden) or its horizon bound (all visible) everywhere: eq. 23 closed form."""
+    V, F, N = SCENE
+    ids = np.concatenate([FLOOR_IDS, np.arange(0, 144, 7)])
+    _, vis = S.compute_ssdf(V, F, N, resolution=32, ray_resolution=64, device=device, vertex_ids=ids,
+                            progress=False, return_visibility=True)
+    maps = np.concatenate([vis.reshape(len(ids), -1), np.zeros((1, 64 * 64), np.uint8),
+                           np.ones((1, 64 * 64), np.uint8)])
+    dirs = wp.array(ssdf_wp.texel_directions(64).reshape(-1, 3).astype(np.float32), dtype=wp.vec3, device=device)
+    m = wp.array(maps, dtype=wp.uint8, device=device)
+    fused = S._fit_maps(m, dirs, 64, 32, device, fused=True)
+    apart = S._fit_maps(m, dirs, 64, 32, device, fused=False)
+    assert np.array_equal(fused, apart)
+    assert 0 < (maps[:-2].min(axis=1) != maps[:-2].max(axis=1)).sum()  # mixed maps are among them
+    np.testing.assert_array_equal(fused[-2], np.float32(-np.pi / 2))
+    z = ssdf_wp.texel_directions(64)[..., 2].reshape(32, 2, 32, 2)
+    np.testing.assert_allclose(fused[-1], np.arcsin(z).mean(axis=(1, 3)).ravel(), atol=2e-6)
+
+
 def test_ssdf_sign_and_horizon_conventions(device):
     V, F, N = SCENE
     center = int(np.argmin(np.linalg.norm(V[:144], axis=1)))  # under the cube

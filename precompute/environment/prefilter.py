@@ -318,9 +318,9 @@ def _build_tables(env, lambdas, sizes, device, samples_per_sigma, max_sub, progr
 
             if n_threads > 1 and cnt >= 4096:
                 bounds = np.linspace(0, cnt, n_threads * 4 + 1).astype(int)
-                launch(bounds[0], bounds[1])  # first chunk on this thread: the module loads once
+                wp.load_module(_prefilter_level_kernel.module, device=device)  # once, before the threads
                 with ThreadPoolExecutor(n_threads) as ex:
-                    list(ex.map(lambda ab: launch(*ab), zip(bounds[1:-1], bounds[2:])))
+                    list(ex.map(lambda ab: launch(*ab), zip(bounds[:-1], bounds[1:])))
             else:
                 launch(0, cnt)
             if bar is not None:

@@ -34,6 +34,9 @@ NO_SEED = wp.constant(wp.vec3(0.0, 0.0, -1.0e4))
 
 
 
+_ivec9 = wp.types.vector(length=9, dtype=int)
+
+
 @wp.func
 def _consider(d: wp.vec3, da: wp.vec3, best: wp.vec3, best_dot: float):
     m = wp.normalize(d + da)
@@ -70,20 +73,24 @@ def seed_kernel(vis: wp.array2d(dtype=wp.uint8), dirs: wp.array(dtype=wp.vec3), 
     seeds[k, tex] = best
 
 
+@wp.func
+def _signed(visible: wp.uint8, d: wp.vec3, s: wp.vec3) -> float:
+    """Signed angular distance (eq. 23) of a texel of direction ``d`` whose nearest boundary point
+    is ``s``, the horizon included, clamped to [−π/2, π/2]."""
+    dist = _HALF_PI
+    if wp.length_sq(s) > 0.25:
+        dist = wp.acos(wp.clamp(wp.dot(d, s), -1.0, 1.0))
+    if visible != wp.uint8(0):
+        return wp.min(wp.min(dist, wp.asin(wp.clamp(d[2], 0.0, 1.0))), _HALF_PI)
+    return -wp.min(dist, _HALF_PI)
+
+
 @wp.kernel
 def signed_kernel(vis: wp.array2d(dtype=wp.uint8), seeds: wp.array2d(dtype=wp.vec3),
                    dirs: wp.array(dtype=wp.vec3), out: wp.array2d(dtype=float)):
     """Signed angular distance (eq. 23), horizon included, clamped to [−π/2, π/2]."""
     k, tex = wp.tid()
-    d = dirs[tex]
-    s = seeds[k, tex]
-    dist = _HALF_PI
-    if wp.length_sq(s) > 0.25:
-        dist = wp.acos(wp.clamp(wp.dot(d, s), -1.0, 1.0))
-    if vis[k, tex] != wp.uint8(0):
-        out[k, tex] = wp.min(wp.min(dist, wp.asin(wp.clamp(d[2], 0.0, 1.0))), _HALF_PI)
-    else:
-        out[k, tex] = -wp.min(dist, _HALF_PI)
+    out[k, tex] = _signed(vis[k, tex], dirs[tex], seeds[k, tex])
 
 
 @wp.kernel
@@ -174,6 +181,54 @@ def fine_seed_kernel(seeds: wp.array2d(dtype=wp.vec3), coarse: wp.array2d(dtype=
     """Fine texel ``t``'s nearest boundary point: the best of its own seed, the seeds the 3×3 coarse
     cells around its cell hold, and the fine seeds within ``f/2`` texels of the best of those."""
     k, t = wp.tid()
+    out[k, t] = _fine_seed(seeds, coarse, dirs, k, t, Rf, f)
+
+
+@wp.kernel
+def fine_signed_kernel(seeds: wp.array2d(dtype=wp.vec3), coarse: wp.array2d(dtype=int), vis: wp.array2d(dtype=wp.uint8),
+                       dirs: wp.array(dtype=wp.vec3), Rf: int, f: int, out: wp.array2d(dtype=float)):
+    """:func:`fine_seed_kernel`, :func:`signed_kernel` and :func:`downsample_kernel` in one pass:
+    stored cell ``c`` (of the ``Rf/f`` grid) is the mean of the signed distances of its ``f × f``
+    ray texels, each to its nearest boundary point — the same values, summed in the same order,
+    without the two ``(B, Rf²)`` arrays in between."""
+    k, c = wp.tid()
+    Rc = Rf / f
+    cj = c // Rc
+    ci = c - cj * Rc
+    # the seed indices of the 3×3 coarse cells around c (−1: outside the grid, or none), read once
+    # for the f×f texels (in fine_seed_kernel's order, so each texel compares the same candidates)
+    nb = _ivec9()
+    for q in range(9):
+        jj = cj + q / 3 - 1
+        ii = ci + q - (q / 3) * 3 - 1
+        st = int(-1)
+        if jj >= 0 and jj < Rc and ii >= 0 and ii < Rc:
+            st = coarse[k, jj * Rc + ii]
+        nb[q] = st
+    acc = float(0.0)
+    for dj in range(f):
+        for di in range(f):
+            t = (cj * f + dj) * Rf + ci * f + di
+            d = dirs[t]
+            best = seeds[k, t]
+            best_dot = wp.dot(d, best)
+            src = int(-1)
+            for q in range(9):
+                st = nb[q]
+                if st >= 0:
+                    x = wp.dot(d, seeds[k, st])
+                    if x > best_dot:
+                        best_dot = x
+                        best = seeds[k, st]
+                        src = st
+            acc += _signed(vis[k, t], d, _fine_window(seeds, k, d, src, best, best_dot, Rf, f))
+    out[k, c] = acc / float(f * f)
+
+
+@wp.func
+def _fine_seed(seeds: wp.array2d(dtype=wp.vec3), coarse: wp.array2d(dtype=int), dirs: wp.array(dtype=wp.vec3),
+               k: int, t: int, Rf: int, f: int) -> wp.vec3:
+    """The nearest boundary point of fine texel ``t`` of vertex ``k`` (:func:`fine_seed_kernel`)."""
     j = t // Rf
     i = t - j * Rf
     Rc = Rf / f
@@ -190,11 +245,19 @@ def fine_seed_kernel(seeds: wp.array2d(dtype=wp.vec3), coarse: wp.array2d(dtype=
                 ii = ci + di
                 if ii >= 0 and ii < Rc:
                     st = coarse[k, jj * Rc + ii]
-                    x = _seed_dot(seeds, k, st, d)
-                    if x > best_dot:
-                        best_dot = x
-                        best = seeds[k, st]
-                        src = st
+                    if st >= 0:  # (−1: no seed anywhere, a uniform map; never read seeds[k, −1])
+                        x = wp.dot(d, seeds[k, st])
+                        if x > best_dot:
+                            best_dot = x
+                            best = seeds[k, st]
+                            src = st
+    return _fine_window(seeds, k, d, src, best, best_dot, Rf, f)
+
+
+@wp.func
+def _fine_window(seeds: wp.array2d(dtype=wp.vec3), k: int, d: wp.vec3, src: int, best: wp.vec3, best_dot: float,
+                 Rf: int, f: int) -> wp.vec3:
+    """``best`` or a nearer fine seed within ``f/2`` texels of fine texel ``src`` (−1: none)."""
     if src >= 0:
         r = wp.max(f / 2, 1)
         sj = src // Rf
@@ -210,7 +273,7 @@ def fine_seed_kernel(seeds: wp.array2d(dtype=wp.vec3), coarse: wp.array2d(dtype=
                         if x > best_dot:
                             best_dot = x
                             best = s
-    out[k, t] = best
+    return best
 
 
 def jfa_steps(R: int) -> list[int]:
@@ -225,4 +288,5 @@ def jfa_steps(R: int) -> list[int]:
 
 
 __all__ = ["seed_kernel", "signed_kernel", "downsample_kernel", "jfa_steps", "NO_SEED",
-           "coarse_seed_kernel", "jfa_texel_kernel", "seed_at_kernel", "fine_seed_kernel"]
+           "coarse_seed_kernel", "jfa_texel_kernel", "seed_at_kernel", "fine_seed_kernel",
+           "fine_signed_kernel"]

@@ -414,7 +414,9 @@ def refine_for_visibility(vertices, triangles, normals, *, budget: int = 20000, 
                     lsig[ids] = _light_signatures(st.V, f, st.V[ids], st.N[ids], lights, device, cutouts)
 
         signatures(np.flatnonzero(used))
-        for _ in range(levels):
+        for level in range(levels):
+            if st.nv >= budget:  # (no room: no edge could be split, so compare none)
+                break
             edges = st.edges()
             ikey, geid, glen = edges
             uk, first = np.unique(ikey.ravel(), return_index=True)
@@ -438,6 +440,8 @@ def refine_for_visibility(vertices, triangles, normals, *, budget: int = 20000, 
             level_counts.append(int(added))
             if not added:
                 break
+            if level + 1 == levels or st.nv >= budget:
+                break  # the new vertices' signatures would never be compared
             sig = np.concatenate([sig, np.ones((added, R * R), bool)])
             lsig = np.concatenate([lsig, np.full((added, len(lights)), 2, np.int8)])
             signatures(np.arange(n0, st.nv))

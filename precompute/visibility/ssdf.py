@@ -46,8 +46,9 @@ from warp_sg.numeric.pca import pca
 from warp_sg.core.stage_clock import StageClock, thread_cpu
 
 from precompute.visibility.adaptive_rays import adaptive_visibility, levels
-from precompute.visibility.jump_flood import (coarse_seed_kernel, downsample_kernel, fine_seed_kernel, jfa_steps,
-                                             jfa_texel_kernel, seed_at_kernel, seed_kernel, signed_kernel)
+from precompute.visibility.jump_flood import (coarse_seed_kernel, downsample_kernel, fine_seed_kernel,
+                                             fine_signed_kernel, jfa_steps, jfa_texel_kernel, seed_at_kernel,
+                                             seed_kernel, signed_kernel)
 from precompute.visibility.occluder_cone import occluder_cones
 from precompute.visibility.ssdf_wp import texel_directions
 from precompute.visibility.rays import OFFSET_SCALE, _MeshContext, _tqdm, launch_visibility, run_batches, validate_mesh
@@ -98,12 +99,12 @@ def _coarse_dirs(R, device):
     return _COARSE_DIRS[key]
 
 
-def _nearest_seeds(a, dirs, Rr, R, device):
-    """The nearest boundary point of every ray texel, from the seeds ``a`` (B, Rr²): jump flooding of
-    seed-texel indices on the ``R²`` grid (:mod:`precompute.visibility.jump_flood`); when ``Rr = f·R``
-    with f ≥ 2 each cell starts from the best of its f×f texels' seeds and a local fine pass follows
-    ("Coarse-to-fine"), at f = 1 each texel starts from its own seed."""
-    B, N = int(a.shape[0]), Rr * Rr
+def _flood(a, dirs, Rr, R, device):
+    """Jump flooding of seed-texel indices on the ``R²`` grid (:mod:`precompute.visibility.jump_flood`)
+    from the seeds ``a`` (B, Rr²): ``(B, R²)`` indices of the flooded seed texels. When ``Rr = f·R``
+    with f ≥ 2 each cell starts from the best of its f×f texels' seeds ("Coarse-to-fine"), at f = 1
+    each texel from its own seed."""
+    B = int(a.shape[0])
     f, M = Rr // R, R * R
     cdirs = dirs if f == 1 else _coarse_dirs(R, device)
     ca = wp.empty((B, M), dtype=int, device=device)
@@ -112,6 +113,17 @@ def _nearest_seeds(a, dirs, Rr, R, device):
     for step in jfa_steps(R):
         wp.launch(jfa_texel_kernel, dim=(B, M), device=device, inputs=[ca, a, cdirs, R, step, cb])
         ca, cb = cb, ca
+    return ca
+
+
+def _nearest_seeds(a, dirs, Rr, R, device):
+    """The nearest boundary point of every ray texel, from the seeds ``a`` (B, Rr²): :func:`_flood`,
+    then at f = Rr/R ≥ 2 the local fine pass (``fine_seed_kernel``), at f = 1 the seed each
+    flooded index points at. (:func:`_fit_maps` fuses the fine pass with the signed distance and
+    the downsampling instead: ``fine_signed_kernel``, the same values.)"""
+    B, N = int(a.shape[0]), Rr * Rr
+    f = Rr // R
+    ca = _flood(a, dirs, Rr, R, device)
     b = wp.empty((B, N), dtype=wp.vec3, device=device)
     if f == 1:
         wp.launch(seed_at_kernel, dim=(B, N), device=device, inputs=[a, ca, b])
@@ -120,11 +132,18 @@ def _nearest_seeds(a, dirs, Rr, R, device):
     return b
 
 
-def _fit_maps(vis, dirs, Rr, R, device):
-    """(B, R²) SSDFs of the (B, Rr²) visibility maps ``vis`` (steps 2–5 of the module docstring)."""
+def _fit_maps(vis, dirs, Rr, R, device, fused: bool = True):
+    """(B, R²) SSDFs of the (B, Rr²) visibility maps ``vis`` (steps 2–5 of the module docstring).
+    ``fused`` (Rr > R): the fine seed pass, the signed distance and the box filter in one kernel
+    (``fine_signed_kernel``); False: one kernel each (the same values)."""
     B, N = int(vis.shape[0]), Rr * Rr
     a = wp.empty((B, N), dtype=wp.vec3, device=device)
     wp.launch(seed_kernel, dim=(B, N), device=device, inputs=[vis, dirs, Rr, a])
+    if Rr != R and fused:
+        ds = wp.empty((B, R * R), dtype=float, device=device)
+        wp.launch(fine_signed_kernel, dim=(B, R * R), device=device,
+                  inputs=[a, _flood(a, dirs, Rr, R, device), vis, dirs, Rr, Rr // R, ds])
+        return ds.numpy()
     a = _nearest_seeds(a, dirs, Rr, R, device)
     sd = wp.empty((B, N), dtype=float, device=device)
     wp.launch(signed_kernel, dim=(B, N), device=device, inputs=[vis, a, dirs, sd])
@@ -357,6 +376,24 @@ def _ssdf_params(resolution, ray_resolution, pca_terms, rays=None, cutouts=None)
     return params
 
 
+def _pca_and_cones(X, normals, R: int, pca_terms: int, clock):
+    """``(pca(X, pca_terms), occluder_cones(X, normals, R))``, the cones on a second thread while
+    the PCA runs on this one (both only read ``X``; the PCA's BLAS is one thread): stages ``pca``
+    and ``cones`` of ``clock``, each with its own thread's CPU."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    def timed(name, fn):
+        w0, c0 = time.perf_counter(), thread_cpu()
+        out = fn()
+        clock.add(name, time.perf_counter() - w0, thread_cpu() - c0)
+        return out
+
+    with ThreadPoolExecutor(1, thread_name_prefix="ssdf-cones") as ex:
+        cones = ex.submit(timed, "cones", lambda: occluder_cones(X, normals, R))
+        p = timed("pca", lambda: pca(X, pca_terms))
+        return p, cones.result()
+
+
 def ssdf_key(vertices, triangles, normals, *, resolution: int = DEFAULT_RESOLUTION, ray_resolution: int | None = None,
              pca_terms: int = DEFAULT_PCA_TERMS, rays: str | None = None, cutouts=None) -> str:
     """The cache key of :func:`ssdf_for_mesh` for these arguments (a content hash; no SSDF is computed)."""
@@ -407,10 +444,7 @@ def ssdf_for_mesh(vertices, triangles, normals, *, resolution: int = DEFAULT_RES
             with clock.stage("ssdf_total"):
                 X = compute(v, f, n, resolution=resolution, ray_resolution=ray_resolution, device=device,
                             progress=progress, **kw).reshape(len(v), -1)
-            with clock.stage("pca"):
-                p = pca(X, int(pca_terms))
-            with clock.stage("cones"):
-                cones = occluder_cones(X, n, R)
+            p, cones = _pca_and_cones(X, n, R, int(pca_terms), clock)
             del X
         return {"mean": p.mean.reshape(R, R), "basis": p.basis.reshape(-1, R, R), "weights": p.weights,
                 "pca_rms_error": p.rms_error, "cones": cones}

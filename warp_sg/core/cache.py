@@ -16,6 +16,9 @@ fit; the precompute facade names it ``precompute.cache``.
   ``os.replace``) and carry a SHA-256 checksum of their own contents (``__checksum__``); a file
   that is truncated, corrupt, or whose checksum does not match is never trusted: it is deleted,
   a warning is issued, and the entry is rebuilt.
+* :func:`cached_table` — a constant table that depends on no input, only on the code computing it
+  (the SG irradiance and ``fh`` tables): kind ``tables``, keyed by that code's :func:`code_key`,
+  so a cold start on a new asset reads it instead of recomputing it.
 * :func:`record_builds` — a :class:`BuildLedger` of the builds and hits of a ``with`` block, with
   the wall and CPU seconds of every build: what an entry found in the cache would have cost
   (``warp-sg report`` reuses entries across its settings and still reports fresh-cache times).
@@ -252,6 +255,16 @@ def load_or_build(
     except OSError as e:  # read-only cache folder etc.: still return the result
         warnings.warn(f"warp-sg cache: cannot write {entry_path(kind, key)} ({e})", RuntimeWarning, stacklevel=2)
     return arrays
+
+
+def cached_table(name: str, producers: tuple, build: Callable[[], np.ndarray], **params) -> np.ndarray:
+    """The array ``build()`` returns, cached as entry ``tables/<key>`` with ``key`` the
+    :func:`content_key` of ``name``, the :func:`code_key` of ``producers`` (the modules whose code
+    computes it) and ``params``: for tables that depend on no input (every cold start of every
+    scene would compute them again), e.g. :func:`warp_sg.sg.irradiance.irradiance_table`. A change
+    of that code changes the key, so an old table is never served."""
+    key = content_key("table", str(name), code_key(*producers), params)
+    return load_or_build("tables", key, lambda: {"table": np.asarray(build())})["table"]
 
 
 # --------------------------------------------------------------------------------------------

@@ -109,7 +109,16 @@ def fh_theta_max(lam):
 
 @functools.lru_cache(maxsize=1)
 def fh_table() -> np.ndarray:
-    """The exact ratio table ``(FH_N_LAM, FH_N_THETA)`` float32 (rows: log λ, columns: c = θd/θmax(λ))."""
+    """The exact ratio table ``(FH_N_LAM, FH_N_THETA)`` float32 (rows: log λ, columns: c = θd/θmax(λ)),
+    kept on disk (:func:`warp_sg.core.cache.cached_table`, keyed by this module's code): it depends
+    on nothing else."""
+    from warp_sg.core.cache import cached_table
+
+    return cached_table("fh_ratio", (__name__,), build_fh_table)
+
+
+def build_fh_table() -> np.ndarray:
+    """:func:`fh_table` computed (:func:`fh_ratio_exact` at every node, clipped to [0, 1])."""
     lam = 10.0 ** np.linspace(FH_LOG10_LAM_MIN, FH_LOG10_LAM_MAX, FH_N_LAM)
     c = np.linspace(-1.0, 1.0, FH_N_THETA)
     th = c[None, :] * fh_theta_max(lam)[:, None]

@@ -166,7 +166,16 @@ def e_sharp_np(c, lam):
 def irradiance_table() -> np.ndarray:
     """Exact ``ln e(c, λ)`` table ``(IRR_N_LAM, IRR_N_C)`` float32, clamped at ``IRR_LOG_E_MIN``
     (161 rows: log10 λ ∈ [−2, 3], 513 columns: c ∈ [−1, 1]); the lookups return ``exp`` of its
-    bilinear interpolant."""
+    bilinear interpolant. It depends on nothing but this module's code, so it is kept on disk
+    (:func:`warp_sg.core.cache.cached_table`, keyed by that code; 1.2 CPU-s to build) and every
+    cold start after the first reads it."""
+    from warp_sg.core.cache import cached_table
+
+    return cached_table("sg_irradiance", (__name__,), build_irradiance_table)
+
+
+def build_irradiance_table() -> np.ndarray:
+    """:func:`irradiance_table` computed (``e_exact`` at every node, float64, then ``ln``)."""
     lam = 10.0 ** np.linspace(IRR_LOG10_LAM_MIN, IRR_LOG10_LAM_MAX, IRR_N_LAM)
     c = np.linspace(-1.0, 1.0, IRR_N_C)
     tab = np.clip(e_exact(c[None, :], lam[:, None], IRR_TABLE_NODES), 0.0, 1.0)
