@@ -23,10 +23,15 @@ sphere per object instead, of the object's mean projected area (:func:`diffuse_s
 
 Fitting (:func:`object_proxies`): a flat object (every vertex within 10⁻⁴ of the bounding diagonal
 from its least-squares plane) gets a plane; an object whose vertices lie within 2 % of one sphere
-(least squares, algebraic fit) gets that sphere; any other object a **sphere set**: the voxels
-inside it (``trimesh`` voxelisation, filled) clustered by k-means into ``max_spheres`` groups,
-each group a sphere at its centroid with the group's volume (``r = (3 N p³ / 4π)^{1/3}``, pitch
-``p``), so the set holds the object's volume and mass distribution.
+(least squares, algebraic fit) gets that sphere; any other object a **sphere set** whose union fits
+the object's signed distance (:mod:`precompute.visibility.sphere_fit`: least squares on samples of the
+surface, of a band ±1 % of the extent about it and of a grid around it, from the k-means of its filled
+voxels, with swaps towards inscribed spheres; 16 spheres, grown by 8 up to 32 while the fit's RMS
+residual exceeds 1 % of the extent), so that its shadow has the object's outline from any direction,
+thin parts included. Against a ray cast of the mesh, the silhouettes' IoU over 26 directions
+(minimum / mean): the Stanford bunny 0.75 / 0.80 with the former k-means set (16 spheres, each of its
+cluster's volume: 18 % of the silhouette over-covered, the ears missed), 0.90 / 0.93 now (24
+spheres); the blob 0.81 / 0.84 → 0.98 / 0.98 (16 spheres).
 """
 from __future__ import annotations
 
@@ -34,12 +39,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from precompute.visibility.sphere_fit import MAX_SPHERES, sphere_set
+
 #: a sphere fit is taken when the RMS radial residual is below this fraction of the radius
 SPHERE_TOL = 0.02
 #: an object is flat when its vertices are within this fraction of its diagonal from one plane
 PLANE_TOL = 1e-4
-#: default size of a sphere set
-MAX_SPHERES = 16
 
 
 @dataclass
@@ -78,26 +83,6 @@ def fit_plane(points, normals=None):
     if normals is not None and float(np.mean(np.asarray(normals, np.float64), 0) @ m) < 0.0:
         m = -m
     return m, float(-m @ c), float(np.max(np.abs((X - c) @ m)))
-
-
-def sphere_set(vertices, triangles, max_spheres: int = MAX_SPHERES, resolution: int = 24) -> np.ndarray:
-    """(K, 4) float32 spheres ``(c, r)`` holding the volume of a closed-ish mesh (module docstring)."""
-    import trimesh
-    from scipy.cluster.vq import kmeans2
-
-    V = np.asarray(vertices, np.float64)
-    mesh = trimesh.Trimesh(V, np.asarray(triangles), process=True)
-    pitch = float(np.max(np.ptp(V, axis=0))) / float(resolution)
-    pts = np.asarray(mesh.voxelized(pitch).fill().points, np.float64)
-    if len(pts) < 2:  # a sliver: one sphere around its vertices
-        c = V.mean(0)
-        return np.array([[*c, max(float(np.max(np.linalg.norm(V - c, axis=1))), 1e-6)]], np.float32)
-    k = int(min(max_spheres, len(pts)))
-    cent, lab = kmeans2(pts, k, minit="++", seed=np.random.default_rng(0), missing="raise")
-    cnt = np.bincount(lab, minlength=k)
-    keep = cnt > 0
-    r = (3.0 * cnt[keep] * pitch ** 3 / (4.0 * np.pi)) ** (1.0 / 3.0)
-    return np.hstack([cent[keep], r[:, None]]).astype(np.float32)
 
 
 def diffuse_sphere(vertices, triangles) -> np.ndarray:
