@@ -19,7 +19,9 @@ precomputed SSDF by ``min`` before the SSDF × SG product (eq. 30).
 
 The diffuse environment term integrates what a proxy hides, and the caps of a sphere set overlap
 (counted once each, a compact object would hide several times its solid angle): it sees one
-sphere per object instead, of the object's mean projected area (:func:`diffuse_sphere`).
+sphere per object instead, of the object's mean projected area (:func:`diffuse_sphere`; the area
+ray-cast, :func:`mean_projected_area`, not Cauchy's quarter of the surface area, which holds only
+for convex bodies).
 
 Fitting (:func:`object_proxies`): a flat object (every vertex within 10⁻⁴ of the bounding diagonal
 from its least-squares plane) gets a plane; an object whose vertices lie within 2 % of one sphere
@@ -85,16 +87,46 @@ def fit_plane(points, normals=None):
     return m, float(-m @ c), float(np.max(np.abs((X - c) @ m)))
 
 
+def mean_projected_area(vertices, triangles, n_directions: int = 64, n: int = 96) -> float:
+    """The object's silhouette area averaged over directions: per direction of a Fibonacci lattice on
+    the sphere (antipodes give the same area), the fraction of an ``n × n`` grid of parallel rays over
+    its bounding disk that hit the mesh (:func:`precompute.visibility.rays.ray_visibility`) times the
+    grid's area. For a convex body it is Cauchy's quarter of the surface area."""
+    from precompute.visibility.rays import ray_visibility
+
+    V = np.asarray(vertices, np.float64)
+    i = np.arange(n_directions) + 0.5
+    phi, th = np.arccos(1.0 - 2.0 * i / n_directions), np.pi * (1.0 + 5.0 ** 0.5) * i
+    D = np.stack([np.cos(th) * np.sin(phi), np.cos(phi), np.sin(th) * np.sin(phi)], 1)
+    e1 = np.cross(D, np.where(np.abs(D[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]]))
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e2 = np.cross(D, e1)
+    c = V.mean(0)
+    R = 1.01 * float(np.max(np.linalg.norm(V - c, axis=1)))
+    u = ((np.arange(n) + 0.5) / n * 2.0 - 1.0) * R
+    U, W = (g.ravel()[None, :, None] for g in np.meshgrid(u, u, indexing="ij"))
+    O = (c + U * e1[:, None] + W * e2[:, None] - 2.0 * R * D[:, None]).reshape(-1, 3)
+    d = np.ascontiguousarray(np.broadcast_to(D[:, None], (n_directions, n * n, 3)).reshape(-1, 3))
+    return float(np.mean(ray_visibility(V, triangles, O, d, d) == 0)) * (2.0 * R) ** 2
+
+
 def diffuse_sphere(vertices, triangles) -> np.ndarray:
-    """(4,) float32: the sphere of the same mean projected area as the object (Cauchy: a convex
-    body's mean shadow area is a quarter of its surface area, so ``r = √(A/4π)``) at its area
-    centroid. The diffuse environment term integrates the occluder's solid angle, which a union of
-    overlapping spheres would count once per sphere; this one sphere holds it (exact for a sphere)."""
+    """(4,) float32: the sphere of the same mean projected area ``Ā`` as the object,
+    ``r = √(Ā/π)`` (:func:`mean_projected_area`), at its area centroid. The diffuse environment term
+    integrates the occluder's solid angle, which a union of overlapping spheres would count once per
+    sphere; this one sphere holds it (exact for a sphere). Cauchy's ``Ā = A/4`` (surface area ``A``)
+    holds for convex bodies only: a non-convex one hides part of its surface behind itself (the
+    Stanford bunny: r = 0.406 against √(A/4π) = 0.426 at its benchmark size), and the floor around it
+    would be too dark. Cached (kind ``diffuse_spheres``)."""
+    from warp_sg.core import cache
+
     V = np.asarray(vertices, np.float64)
     F = np.asarray(triangles, np.int64)
     a = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
     c = (a[:, None] * V[F].mean(1)).sum(0) / max(a.sum(), 1e-30)
-    return np.array([*c, np.sqrt(a.sum() / (4.0 * np.pi))], np.float32)
+    key = cache.content_key(V.astype(np.float32), F.astype(np.int32), {"code": cache.code_key(__name__)})
+    area = cache.load_or_build("diffuse_spheres", key, lambda: {"area": np.array(mean_projected_area(V, F))})["area"]
+    return np.array([*c, np.sqrt(float(area) / np.pi)], np.float32)
 
 
 def plane_outline(points, m) -> np.ndarray:
@@ -145,4 +177,5 @@ def sphere_ssdf(P, d, spheres) -> np.ndarray:
 
 
 __all__ = ["ObjectProxies", "object_proxies", "fit_sphere", "fit_plane", "sphere_set", "sphere_ssdf", "diffuse_sphere",
+           "mean_projected_area",
            "SPHERE_TOL", "PLANE_TOL", "MAX_SPHERES"]
