@@ -32,8 +32,14 @@ voxels, with swaps towards inscribed spheres; 16 spheres, grown by 8 up to 32 wh
 residual exceeds 1 % of the extent), so that its shadow has the object's outline from any direction,
 thin parts included. Against a ray cast of the mesh, the silhouettes' IoU over 26 directions
 (minimum / mean): the Stanford bunny 0.75 / 0.80 with the former k-means set (16 spheres, each of its
-cluster's volume: 18 % of the silhouette over-covered, the ears missed), 0.90 / 0.93 now (24
-spheres); the blob 0.81 / 0.84 → 0.98 / 0.98 (16 spheres).
+cluster's volume: 18 % of the silhouette over-covered, spheres 8 cm below its base), 0.90 / 0.93
+now (24 spheres); the blob 0.81 / 0.84 → 0.98 / 0.98 (16 spheres). The bunny's hard sun shadow in
+the benchmark's view (``scripts/moving_accuracy.py``, 256², turned 45° / 120° / 250°): its centroid
+2.3 / 2.8 / 5.3 px from the mesh's with the former set, 0.6 / 0.6 / 0.8 px now. Against the
+Monte-Carlo reference (docs/benchmarks.md "Objects that move", 2026-12-02): the bunny's shadow
+centroid 2.51 / 5.49 / 0.36 → 1.21 / 3.26 / 1.38 px, shadow bias −6.4 / −7.6 / −9.9 → +4.0 / +10.1 /
+−1.3 %, lit floor −0.9 → −0.4 %; the blob's lit floor −0.6 → −0.0 %, shadow −5.8 → +2.4 % at 120°
+(what is left at 120° is the diffuse term's one sphere near the bunny's base).
 """
 from __future__ import annotations
 
