@@ -196,7 +196,8 @@ class DynamicObjects:
         self._sky = None  # the moving vertices' sky table (_visible)
         self._rest_dev = None  # the moving vertices' rest rows on the device (_device_rest)
         self._host = None  # the host copy of the moving geometry (apply)
-        self._rest_rows = None  # per moving object its vertices' rest positions, normals, tangents (apply)
+        self._rest_rows = None  # per moving object its vertices' rest positions, normals, tangents (a host copy)
+        self._rest_box = None  # per moving object the corners of its rest-pose box (place_culling)
         self._xf = None  # the moving objects' transforms on the device (apply)
         self._decomp = {}  # (object, matrix bytes) -> check_motion (_decomposed)
         self._behind_key = None
@@ -337,21 +338,16 @@ class DynamicObjects:
         if self._applied == self.version:
             return False
         S, B, Bd = self.rest_spheres.copy(), self.rest_blobs.copy(), self.rest_bounds.copy()
-        if self._host is None:  # the host copy of the geometry, updated in place from now on
-            self._host = tuple(np.array(a, np.float32) for a in (r.geometry.vertices, r.geometry.normals,
-                                                                 r.geometry.tangents))
-            r.geometry = replace(r.geometry, vertices=self._host[0], normals=self._host[1], tangents=self._host[2])
-        V, N, Tg = self._host
+        host = self._host_geometry(r)
         xf = np.zeros((len(self.ids), 7, 3), np.float32)  # per object: the rows of sR, of R, and t
-        if self._rest_rows is None:  # (each object's rest rows, gathered once)
-            self._rest_rows = {k: (self.rest_v[ids], self.rest_n[ids], self.rest_t[ids]) for k, ids in self.ids.items()}
         for j, (k, ids) in enumerate(self.ids.items()):
             R, s, t = self._delta(k)
             xf[j] = np.vstack([s * R, R, t])
-            rv, rn, rt = self._rest_rows[k]
-            V[ids] = rv @ (s * R).T + t
-            N[ids] = rn @ R.T
-            Tg[ids] = rt @ R.T
+            if host is not None:
+                rv, rn, rt = self._rest_rows[k]
+                host[0][ids] = rv @ (s * R).T + t
+                host[1][ids] = rn @ R.T
+                host[2][ids] = rt @ R.T
             own = self.sphere_owner == k
             S[own, :3] = self.rest_spheres[own, :3] @ (s * R).T + t
             S[own, 3] = self.rest_spheres[own, 3] * s
@@ -374,11 +370,41 @@ class DynamicObjects:
         _write(self.px.bounds, Bd)
         r._vb_key = None  # the visibility buffer
         if r._culling is not None:
-            r._culling.moved(r.geometry, list(self.ids))
+            self.place_culling(r._culling)
         if r._aa is not None:
             r._aa.forget_frame()
         self._applied = self.version
         return True
+
+    def _host_geometry(self, r):
+        """The host copy of the geometry (``r.geometry``'s vertices, normals and tangents), from
+        the first move on. On the CPU it is the device arrays' own memory (numpy views, written by
+        :func:`move_vertices_kernel`: nothing to do, returns None); elsewhere float32 copies, which
+        :meth:`apply` updates in place (returned)."""
+        if self._host is None:
+            ga = r.geo_arrays
+            if str(r.device).startswith("cpu"):
+                self._host = (ga.positions.numpy(), ga.normals.numpy(), ga.tangents.numpy())
+            else:
+                self._host = tuple(np.array(a, np.float32) for a in (r.geometry.vertices, r.geometry.normals,
+                                                                     r.geometry.tangents))
+                self._rest_rows = {k: (self.rest_v[ids], self.rest_n[ids], self.rest_t[ids])
+                                   for k, ids in self.ids.items()}
+            r.geometry = replace(r.geometry, vertices=self._host[0], normals=self._host[1], tangents=self._host[2])
+        return self._host if self._rest_rows is not None else None
+
+    def place_culling(self, culling) -> None:
+        """The moving objects' boxes for back-face culling (``warp_sg.scene.culling``): each one's
+        rest-pose box carried by its motion — a function of the transform, not of the moved
+        vertices (no pass over them)."""
+        if self._rest_box is None:
+            from warp_sg.scene.culling import box_corners
+
+            self._rest_box = {k: box_corners(self.rest_v[ids].min(0), self.rest_v[ids].max(0))
+                              for k, ids in self.ids.items() if len(ids)}
+        for k, corners in self._rest_box.items():
+            R, s, t = self._delta(k)
+            culling.place(k, corners @ (s * R).T + t)
 
     def _visible(self, r, es, into) -> None:
         """The moving vertices' rows of the environment's visible fraction, from their transfer

@@ -161,6 +161,8 @@ class FramePaths:
 
         if self._culling is None:
             self._culling = BackfaceCulling(self.geometry, self.device)
+            if self.dynamic is not None:  # (the moving objects' boxes: a function of their transforms)
+                self.dynamic.place_culling(self._culling)
         return self._culling.flags(self.scene.camera)
 
     def shade_vertices(self, eye=None) -> np.ndarray:
