@@ -394,7 +394,7 @@ class MovingSky:
                                 dtype=wp.vec4, device=self.device)
             self._turned = key
         parallel.launch(moving_visible_kernel, self.count, [tab, vis, env, *into], self.device, min_chunk=512,
-                        per_thread=VERTICES_PER_THREAD)
+                        per_thread=VERTICES_PER_THREAD, chunks=2 * parallel.cpu_workers())  # (each range: a dispatch)
         if self.quadrature_ids is not None:
             from warp_sg.shading.vertex_visibility import env_vertex_visible
 
