@@ -192,7 +192,11 @@ class DynamicObjects:
         self.outlines = outlines
         self.version = 0 if previous is None else previous.version  # bumped by set_transform
         self._applied = self.version if previous is None else -1  # the version in the device arrays
-        self._patched = {}  # cache name -> (array identity, version) of the last row patch
+        from warp_sg.renderer.moving_rows import FrameRows
+
+        self.rows = FrameRows(self.all_ids.numpy(), len(g.vertices), d)  # the moving rows a frame reads
+        #: the moving part's buffer of this frame (its queue: the rows it reads), None: every row
+        self.reads = None
         self._sky = None  # the moving vertices' sky table (_visible)
         self._rest_dev = None  # the moving vertices' rest rows on the device (_device_rest)
         self._host = None  # the host copy of the moving geometry (apply)
@@ -406,10 +410,10 @@ class DynamicObjects:
             R, s, t = self._delta(k)
             culling.place(k, corners @ (s * R).T + t)
 
-    def _visible(self, r, es, into) -> None:
-        """The moving vertices' rows of the environment's visible fraction, from their transfer
-        vectors (or texel lists) kept since the rest pose and the sky turned into each object's
-        frame (:mod:`warp_sg.shading.sky_table`)."""
+    def _visible(self, r, es, into, rows=None) -> None:
+        """The moving vertices' rows of the environment's visible fraction (``rows``: those of these
+        slots, default all), from their transfer vectors (or texel lists) kept since the rest pose
+        and the sky turned into each object's frame (:mod:`warp_sg.shading.sky_table`)."""
         from warp_sg.shading.sky_table import MovingSky
 
         env, cells = getattr(r, "env_light", None), getattr(r, "env_texel_radiance", None)
@@ -419,32 +423,37 @@ class DynamicObjects:
             slot, _, rest_n, _, rest_ft, rest_fb, rest_cone = self._device_rest(r)
             self._sky = MovingSky(r.vis, self.all_ids, slot.numpy(), (rest_n, rest_ft, rest_fb, rest_cone),
                                   len(self.ids), r.device)
-        self._sky.visible(r.vis, es, cells, env.rotation_matrix(), [self._delta(k)[0] for k in self.ids], into)
+        self._sky.visible(r.vis, es, cells, env.rotation_matrix(), [self._delta(k)[0] for k in self.ids], into,
+                          rows=rows)
 
     def patch_caches(self, r, es) -> None:
-        """Recompute the per-vertex caches' rows of the moved vertices: the lights' deficits and the
-        environment lobes' visible fractions (a cache rebuilt this frame already holds them), and
-        the visible fraction of the environment's irradiance, which the moving vertices always
-        take from the sky table (:meth:`_visible`; after a rebuild too, so that a frame is a function
-        of the transforms)."""
+        """Recompute the per-vertex caches' rows of the moved vertices that this frame reads
+        (:mod:`warp_sg.renderer.moving_rows`: those of the moving triangles the raster queued,
+        :attr:`reads`; all without a kept queue) and that do not hold the current transforms: the
+        lights' deficits and the environment lobes' visible fractions (a cache rebuilt this frame
+        already holds them), and the visible fraction of the environment's irradiance, which the
+        moving vertices always take from the sky table (:meth:`_visible`; after a rebuild too, so
+        that a frame is a function of the transforms)."""
         from warp_sg.shading.vertex_visibility import env_vertex_visibility, light_vertex_deficit
 
-        d, nv, ids = r.device, len(r.geometry.vertices), self.all_ids
-        jobs = (("light", r.light_vis_cache, False,
-                 lambda v: light_vertex_deficit(r.vis, r.geo_arrays.positions, r.light_arrays, nv,
-                                                r.scene.render.fh == "sigmoid", d, ids=ids, into=v)),
-                ("visible", r.env_visible_cache, True, lambda v: self._visible(r, es, v)),
-                ("lobes", r.env_vis_cache, False,
-                 lambda v: env_vertex_visibility(r.irr_table, r.vis, es, nv, d, ids=ids, into=v)))
-        for name, cache, always, run in jobs:
+        d, nv, rows = r.device, len(r.geometry.vertices), self.rows
+        needed = rows.needed(self.reads, r.geo_arrays.tris)
+        jobs = (("light", r.light_vis_cache, True,
+                 lambda v, s, ids: light_vertex_deficit(r.vis, r.geo_arrays.positions, r.light_arrays, nv,
+                                                        r.scene.render.fh == "sigmoid", d, ids=ids, into=v)),
+                ("visible", r.env_visible_cache, False, lambda v, s, ids: self._visible(r, es, v, s)),
+                ("lobes", r.env_vis_cache, True,
+                 lambda v, s, ids: env_vertex_visibility(r.irr_table, r.vis, es, nv, d, ids=ids, into=v)))
+        for name, cache, fresh, run in jobs:
             if cache.key is None:
                 continue
-            ident = id(cache.value[0] if isinstance(cache.value, tuple) else cache.value)
-            last = self._patched.get(name)
-            rebuilt = last is None or last[0] != ident  # (re)built with the current pose
-            if (rebuilt and always) or (not rebuilt and last[1] != self.version):
-                run(cache.value)
-            self._patched[name] = (ident, self.version)
+            ident = (id(cache.value[0] if isinstance(cache.value, tuple) else cache.value), cache.builds)
+            slots = rows.stale(name, ident, fresh, self.version, needed)
+            if len(slots):
+                every = len(slots) == len(rows.ids)
+                ids = self.all_ids if every else rows.arrays(slots, False)[1]
+                run(cache.value, None if every else slots, ids)
+                rows.done(name, slots, self.version)
 
 
 __all__ = ["DynamicObjects", "object_index", "scene_with_transforms", "parse_transform_argument"]
