@@ -451,9 +451,8 @@ class DynamicObjects:
             slots = rows.stale(name, ident, fresh, self.version, needed)
             if len(slots):
                 every = len(slots) == len(rows.ids)
-                ids = self.all_ids if every else rows.arrays(slots, False)[1]
-                run(cache.value, None if every else slots, ids)
-                rows.done(name, slots, self.version)
+                run(cache.value, None if every else slots, self.all_ids if every else rows.mesh_ids(slots))
+                rows.done(name, slots, self.version, needed)
 
 
 __all__ = ["DynamicObjects", "object_index", "scene_with_transforms", "parse_transform_argument"]

@@ -53,6 +53,7 @@ class FrameRows:
         self._needed = wp.zeros(max(len(self.ids), 1), dtype=int, device=device)
         self._memo = (None, None)  # (the moving part's buffer, its mask)
         self._stamps = {}  # cache name -> (the cache array's identity, per slot the version its row holds)
+        self._ids_memo = None  # (slots, their mesh ids on the device): mesh_ids
         #: rows computed (all caches together), for tests and the bench
         self.computed = 0
 
@@ -81,24 +82,37 @@ class FrameRows:
         from elsewhere). :meth:`done` stamps them once computed."""
         st = self._stamps.get(name)
         if st is None or st[0] != ident:
-            st = (ident, np.full(len(self.ids), version if fresh_when_rebuilt else -1, np.int64))
+            st = (ident, np.full(len(self.ids), version if fresh_when_rebuilt else -1, np.int64), None)
             self._stamps[name] = st
+        # (the needed mask of a frame is one array, memoised per buffer: compared by identity)
+        if st[2] is not None and st[2][0] == version and st[2][1] is needed:
+            return _NONE  # every row it reads was found fresh, or computed, since
         todo = st[1] != version
         if needed is not None:
             todo &= needed
-        return np.flatnonzero(todo)
+        slots = np.flatnonzero(todo)
+        if not len(slots):
+            self._stamps[name] = (st[0], st[1], (version, needed))
+        return slots
 
-    def done(self, name: str, slots: np.ndarray, version: int) -> None:
-        self._stamps[name][1][slots] = version
+    def done(self, name: str, slots: np.ndarray, version: int, needed) -> None:
+        """Stamp cache ``name``'s rows ``slots`` as computed for ``version`` (every row of
+        ``needed`` now is)."""
+        ident, stamp, _ = self._stamps[name]
+        stamp[slots] = version
+        self._stamps[name] = (ident, stamp, (version, needed))
         self.computed += len(slots)
 
-    def arrays(self, slots: np.ndarray, everything: bool) -> tuple:
-        """``(slots, mesh ids)`` as device int arrays; ``everything`` (all slots, in order): the
-        full lists (``None`` for the slots: the kernels' own "all rows")."""
-        if everything:
-            return None, None
-        return (wp.array(slots.astype(np.int32), dtype=int, device=self.device),
-                wp.array(self.ids[slots], dtype=int, device=self.device))
+    def mesh_ids(self, slots: np.ndarray) -> wp.array:
+        """The mesh ids of ``slots`` as a device int array (the last list's kept: the caches of a
+        frame usually ask for the same)."""
+        last = self._ids_memo
+        if last is None or not np.array_equal(last[0], slots):
+            self._ids_memo = last = (slots.copy(), wp.array(self.ids[slots], dtype=int, device=self.device))
+        return last[1]
+
+
+_NONE = np.zeros(0, np.int64)
 
 
 def _last(a: wp.array) -> int:
