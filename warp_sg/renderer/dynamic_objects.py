@@ -97,7 +97,7 @@ def _write(dst: wp.array, values: np.ndarray) -> None:
 
 
 @wp.kernel(enable_backward=False)
-def move_vertices_kernel(ids: wp.array(dtype=int), slot: wp.array(dtype=int), rest_p: wp.array(dtype=wp.vec3),
+def move_vertices_kernel(base: int, ids: wp.array(dtype=int), slot: wp.array(dtype=int), rest_p: wp.array(dtype=wp.vec3),
                          rest_n: wp.array(dtype=wp.vec3), rest_t: wp.array(dtype=wp.vec3),
                          rest_ft: wp.array(dtype=wp.vec3), rest_fb: wp.array(dtype=wp.vec3),
                          rest_cone: wp.array(dtype=wp.vec4), xf: wp.array(dtype=wp.vec3), frames: int,
@@ -106,8 +106,8 @@ def move_vertices_kernel(ids: wp.array(dtype=int), slot: wp.array(dtype=int), re
                          frame_b: wp.array(dtype=wp.vec3), cones: wp.array(dtype=wp.vec4)):
     """Moving vertex ``ids[i]`` (its object's motion ``slot[i] = k``: ``P' = sR P + t``, directions
     turned by ``R``; ``xf[7k:7k+7]`` the rows of sR, of R, and t): position, normal, tangent and,
-    with ``frames``, its SSDF frame and cone axis."""
-    i = wp.tid()
+    with ``frames``, its SSDF frame and cone axis (``i = base + tid``)."""
+    i = base + wp.tid()
     v = ids[i]
     o = 7 * slot[i]
     A = wp.matrix_from_rows(xf[o], xf[o + 1], xf[o + 2])
@@ -366,8 +366,11 @@ class DynamicObjects:
         if self._xf is None or self._xf.shape[0] != xf.shape[0] * 7:
             self._xf = wp.empty(xf.shape[0] * 7, dtype=wp.vec3, device=d)
         _write(self._xf, xf.reshape(-1, 3))
-        wp.launch(move_vertices_kernel, dim=int(self.all_ids.shape[0]),
-                  inputs=[self.all_ids, *self._device_rest(r), self._xf, int(frames), *out], device=d)
+        from raster import parallel
+
+        parallel.launch(move_vertices_kernel, int(self.all_ids.shape[0]),
+                        [self.all_ids, *self._device_rest(r), self._xf, int(frames), *out], d,
+                        chunks=parallel.cpu_workers())  # (uniform work: a range per thread)
         if len(S):
             _write(self.px.spheres, S)
         _write(self.px.blobs, B)

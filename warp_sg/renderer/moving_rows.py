@@ -70,7 +70,7 @@ class FrameRows:
         self._needed.zero_()
         if total > 0:
             parallel.launch(mark_queued_kernel, total, [vb._queue, tris, self.slot_of, self._needed], self.device,
-                            min_chunk=16384)
+                            min_chunk=4096, chunks=parallel.cpu_workers())
         mask = self._needed.numpy()[:len(self.ids)] != 0  # (a view on the CPU)
         self._memo = (vb, mask)
         return mask
