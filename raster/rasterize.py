@@ -136,6 +136,10 @@ class VisibilityBuffer:
     #: ``rasterize(over=...)``: the buffer this one was drawn over (its queues hold the rest of
     #: the triangles, which ``raster.subsample`` walks too)
     _over: "VisibilityBuffer | None" = None
+    #: drawn over ``_over`` with kept queues: the rows (y0, y1) outside which it equals ``_over``
+    #: (a later draw over the same buffer that reuses this one's arrays copies only those back)
+    _drawn_rows: tuple | None = None
+    _bounds: tuple | None = None  # (queue_bounds, computed once)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -147,6 +151,11 @@ class VisibilityBuffer:
         or None when nothing was queued."""
         if self._offsets is None:
             return None
+        if self._bounds is None:
+            self._bounds = (self._queue_bounds(),)
+        return self._bounds[0]
+
+    def _queue_bounds(self):
         o = self._offsets.numpy()
         n_tiles = (len(o) - 1) // self._rows
         full = np.flatnonzero(o[self._rows::self._rows][:n_tiles] > o[:-1:self._rows][:n_tiles])
@@ -269,9 +278,13 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
                                                                                             int(subsamples), device):
             raise InputError("over= needs a buffer of the same size, supersampling, subsamples and device",
                              where="over")
-        wp.copy(best_invw, over.inv_depth)
-        wp.copy(tri_id, over.tri_id)
-        wp.copy(bary, over.bary)
+        rows = (0, H)  # the rows to copy: all, or those the buffer's last draw over `over` changed
+        if reuse is not None and reuse._over is over and reuse.tri_id is tri_id and reuse._drawn_rows is not None:
+            rows = reuse._drawn_rows
+        if rows[1] > rows[0]:
+            o, c = rows[0] * W, (rows[1] - rows[0]) * W
+            for dst, src in ((best_invw, over.inv_depth), (tri_id, over.tri_id), (bary, over.bary)):
+                wp.copy(dst, src, dest_offset=o, src_offset=o, count=c)
     else:
         best_invw.zero_()  # (memsets: on the CPU faster than clearing in the fine kernel's tiles)
         tri_id.fill_(-1)
@@ -294,7 +307,7 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
         vcode = ws.get("vcode", n_v, wp.int32)
         mvp = wp.mat44d(*camera.view_projection().reshape(-1))
         parallel.launch(vertex_kernel, n_v, [verts, mvp, W, H, near, far, gx, gy, clip, vsnap, vcode], device,
-                        min_chunk=4096)
+                        min_chunk=4096, chunks=parallel.cpu_workers())  # (uniform work: a range per thread)
         clock.lap("vertex")
 
         # triangle setup: slot i = first piece of triangle i; clipped triangles' further pieces after M
@@ -335,6 +348,9 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
         vb._subsamples, vb._queue, vb._offsets, vb._rows = int(subsamples), keep["queue"], keep["offsets"], keep["rows"]
         vb._inv_far = 1.0 / float(camera.far)
     vb._over = over
+    if over is not None and keep is not None:  # (the tiles its queue holds: every pixel it drew lies in them)
+        box = vb.queue_bounds()
+        vb._drawn_rows = (0, 0) if box is None else (box[1], box[3])
     if profile:
         vb.depth
         clock.lap("resolve")

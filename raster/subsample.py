@@ -283,7 +283,7 @@ class KeptSubsamples:
         unknown = wp.empty(max(n, 1), dtype=int, device=self.vb.device)
         if n:
             parallel.launch(_begin_kernel, n, [pixels, self.vb.width, self.row, *self.store, *out, unknown],
-                            self.vb.device, min_chunk=4096)
+                            self.vb.device, min_chunk=1024, chunks=parallel.cpu_workers())
         return (*out, unknown)
 
     def finish(self, pixels: wp.array, unknown: wp.array, out: tuple) -> None:

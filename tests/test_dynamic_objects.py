@@ -185,6 +185,31 @@ def test_self_shadows_turn_with_the_object_against_a_ray_cast():
     assert rest < ours - 0.1
 
 
+def test_a_turned_vertexs_light_deficit_is_its_rest_deficit_towards_the_light_turned_back():
+    """A rigid turn R of the object under a light towards ``la`` is, in the object's frame, the
+    object at rest under the light towards ``Rᵀ la``: each vertex's SSDF deficit (read in the
+    frame its map is stored in, turned with it) is the same in both, up to float rounding —
+    every vertex, the self-shadowed ones included."""
+    from warp_sg.scene.model import SceneObject
+
+    la = np.array([0.5, 0.6, 0.62]) / np.linalg.norm([0.5, 0.6, 0.62])
+    c, R = np.array([0.0, 0.6, 0.0]), rotation_about([0.3, 0.2, 1.0], 70.0)
+
+    def ring():
+        return SceneObject(material="m", primitive="torus", name="ring", dynamic=True,
+                           params={"center": tuple(c), "major_radius": 0.45, "minor_radius": 0.18,
+                                   "resolution": (48, 24)})
+
+    turned = ws.Renderer(_one_object_scene(ring(), la))
+    turned.set_object_transform("ring", motion_matrix(R, c - R @ c))
+    turned.render()
+    rest = ws.Renderer(_one_object_scene(ring(), R.T @ la))
+    rest.render()
+    a, b = turned.vis.light_deficit.numpy()[:, 0], rest.vis.light_deficit.numpy()[:, 0]
+    assert np.count_nonzero(b < -0.05) > 0.05 * len(b)  # (it shadows itself)
+    assert np.abs(a - b).max() < 2e-3 and np.median(np.abs(a - b)) < 1e-5
+
+
 def test_bunny_self_shadows_turn_with_it_on_the_turntable_against_a_ray_cast():
     """The Stanford bunny (warp-lang's USD file, 12 200 triangles, placed as in
     ``examples/rolling.py``'s turntable) turned 150° about the vertical axis under a sun 25° high:

@@ -97,7 +97,7 @@ def _write(dst: wp.array, values: np.ndarray) -> None:
 
 
 @wp.kernel(enable_backward=False)
-def move_vertices_kernel(ids: wp.array(dtype=int), slot: wp.array(dtype=int), rest_p: wp.array(dtype=wp.vec3),
+def move_vertices_kernel(base: int, ids: wp.array(dtype=int), slot: wp.array(dtype=int), rest_p: wp.array(dtype=wp.vec3),
                          rest_n: wp.array(dtype=wp.vec3), rest_t: wp.array(dtype=wp.vec3),
                          rest_ft: wp.array(dtype=wp.vec3), rest_fb: wp.array(dtype=wp.vec3),
                          rest_cone: wp.array(dtype=wp.vec4), xf: wp.array(dtype=wp.vec3), frames: int,
@@ -106,8 +106,8 @@ def move_vertices_kernel(ids: wp.array(dtype=int), slot: wp.array(dtype=int), re
                          frame_b: wp.array(dtype=wp.vec3), cones: wp.array(dtype=wp.vec4)):
     """Moving vertex ``ids[i]`` (its object's motion ``slot[i] = k``: ``P' = sR P + t``, directions
     turned by ``R``; ``xf[7k:7k+7]`` the rows of sR, of R, and t): position, normal, tangent and,
-    with ``frames``, its SSDF frame and cone axis."""
-    i = wp.tid()
+    with ``frames``, its SSDF frame and cone axis (``i = base + tid``)."""
+    i = base + wp.tid()
     v = ids[i]
     o = 7 * slot[i]
     A = wp.matrix_from_rows(xf[o], xf[o + 1], xf[o + 2])
@@ -192,11 +192,16 @@ class DynamicObjects:
         self.outlines = outlines
         self.version = 0 if previous is None else previous.version  # bumped by set_transform
         self._applied = self.version if previous is None else -1  # the version in the device arrays
-        self._patched = {}  # cache name -> (array identity, version) of the last row patch
+        from warp_sg.renderer.moving_rows import FrameRows
+
+        self.rows = FrameRows(self.all_ids.numpy(), len(g.vertices), d)  # the moving rows a frame reads
+        #: the moving part's buffer of this frame (its queue: the rows it reads), None: every row
+        self.reads = None
         self._sky = None  # the moving vertices' sky table (_visible)
         self._rest_dev = None  # the moving vertices' rest rows on the device (_device_rest)
         self._host = None  # the host copy of the moving geometry (apply)
-        self._rest_rows = None  # per moving object its vertices' rest positions, normals, tangents (apply)
+        self._rest_rows = None  # per moving object its vertices' rest positions, normals, tangents (a host copy)
+        self._rest_box = None  # per moving object the corners of its rest-pose box (place_culling)
         self._xf = None  # the moving objects' transforms on the device (apply)
         self._decomp = {}  # (object, matrix bytes) -> check_motion (_decomposed)
         self._behind_key = None
@@ -337,21 +342,16 @@ class DynamicObjects:
         if self._applied == self.version:
             return False
         S, B, Bd = self.rest_spheres.copy(), self.rest_blobs.copy(), self.rest_bounds.copy()
-        if self._host is None:  # the host copy of the geometry, updated in place from now on
-            self._host = tuple(np.array(a, np.float32) for a in (r.geometry.vertices, r.geometry.normals,
-                                                                 r.geometry.tangents))
-            r.geometry = replace(r.geometry, vertices=self._host[0], normals=self._host[1], tangents=self._host[2])
-        V, N, Tg = self._host
+        host = self._host_geometry(r)
         xf = np.zeros((len(self.ids), 7, 3), np.float32)  # per object: the rows of sR, of R, and t
-        if self._rest_rows is None:  # (each object's rest rows, gathered once)
-            self._rest_rows = {k: (self.rest_v[ids], self.rest_n[ids], self.rest_t[ids]) for k, ids in self.ids.items()}
         for j, (k, ids) in enumerate(self.ids.items()):
             R, s, t = self._delta(k)
             xf[j] = np.vstack([s * R, R, t])
-            rv, rn, rt = self._rest_rows[k]
-            V[ids] = rv @ (s * R).T + t
-            N[ids] = rn @ R.T
-            Tg[ids] = rt @ R.T
+            if host is not None:
+                rv, rn, rt = self._rest_rows[k]
+                host[0][ids] = rv @ (s * R).T + t
+                host[1][ids] = rn @ R.T
+                host[2][ids] = rt @ R.T
             own = self.sphere_owner == k
             S[own, :3] = self.rest_spheres[own, :3] @ (s * R).T + t
             S[own, 3] = self.rest_spheres[own, 3] * s
@@ -366,24 +366,57 @@ class DynamicObjects:
         if self._xf is None or self._xf.shape[0] != xf.shape[0] * 7:
             self._xf = wp.empty(xf.shape[0] * 7, dtype=wp.vec3, device=d)
         _write(self._xf, xf.reshape(-1, 3))
-        wp.launch(move_vertices_kernel, dim=int(self.all_ids.shape[0]),
-                  inputs=[self.all_ids, *self._device_rest(r), self._xf, int(frames), *out], device=d)
+        from raster import parallel
+
+        parallel.launch(move_vertices_kernel, int(self.all_ids.shape[0]),
+                        [self.all_ids, *self._device_rest(r), self._xf, int(frames), *out], d,
+                        chunks=parallel.cpu_workers())  # (uniform work: a range per thread)
         if len(S):
             _write(self.px.spheres, S)
         _write(self.px.blobs, B)
         _write(self.px.bounds, Bd)
         r._vb_key = None  # the visibility buffer
         if r._culling is not None:
-            r._culling.moved(r.geometry, list(self.ids))
+            self.place_culling(r._culling)
         if r._aa is not None:
             r._aa.forget_frame()
         self._applied = self.version
         return True
 
-    def _visible(self, r, es, into) -> None:
-        """The moving vertices' rows of the environment's visible fraction, from their transfer
-        vectors (or texel lists) kept since the rest pose and the sky turned into each object's
-        frame (:mod:`warp_sg.shading.sky_table`)."""
+    def _host_geometry(self, r):
+        """The host copy of the geometry (``r.geometry``'s vertices, normals and tangents), from
+        the first move on. On the CPU it is the device arrays' own memory (numpy views, written by
+        :func:`move_vertices_kernel`: nothing to do, returns None); elsewhere float32 copies, which
+        :meth:`apply` updates in place (returned)."""
+        if self._host is None:
+            ga = r.geo_arrays
+            if str(r.device).startswith("cpu"):
+                self._host = (ga.positions.numpy(), ga.normals.numpy(), ga.tangents.numpy())
+            else:
+                self._host = tuple(np.array(a, np.float32) for a in (r.geometry.vertices, r.geometry.normals,
+                                                                     r.geometry.tangents))
+                self._rest_rows = {k: (self.rest_v[ids], self.rest_n[ids], self.rest_t[ids])
+                                   for k, ids in self.ids.items()}
+            r.geometry = replace(r.geometry, vertices=self._host[0], normals=self._host[1], tangents=self._host[2])
+        return self._host if self._rest_rows is not None else None
+
+    def place_culling(self, culling) -> None:
+        """The moving objects' boxes for back-face culling (``warp_sg.scene.culling``): each one's
+        rest-pose box carried by its motion — a function of the transform, not of the moved
+        vertices (no pass over them)."""
+        if self._rest_box is None:
+            from warp_sg.scene.culling import box_corners
+
+            self._rest_box = {k: box_corners(self.rest_v[ids].min(0), self.rest_v[ids].max(0))
+                              for k, ids in self.ids.items() if len(ids)}
+        for k, corners in self._rest_box.items():
+            R, s, t = self._delta(k)
+            culling.place(k, corners @ (s * R).T + t)
+
+    def _visible(self, r, es, into, rows=None) -> None:
+        """The moving vertices' rows of the environment's visible fraction (``rows``: those of these
+        slots, default all), from their transfer vectors (or texel lists) kept since the rest pose
+        and the sky turned into each object's frame (:mod:`warp_sg.shading.sky_table`)."""
         from warp_sg.shading.sky_table import MovingSky
 
         env, cells = getattr(r, "env_light", None), getattr(r, "env_texel_radiance", None)
@@ -393,32 +426,36 @@ class DynamicObjects:
             slot, _, rest_n, _, rest_ft, rest_fb, rest_cone = self._device_rest(r)
             self._sky = MovingSky(r.vis, self.all_ids, slot.numpy(), (rest_n, rest_ft, rest_fb, rest_cone),
                                   len(self.ids), r.device)
-        self._sky.visible(r.vis, es, cells, env.rotation_matrix(), [self._delta(k)[0] for k in self.ids], into)
+        self._sky.visible(r.vis, es, cells, env.rotation_matrix(), [self._delta(k)[0] for k in self.ids], into,
+                          rows=rows)
 
     def patch_caches(self, r, es) -> None:
-        """Recompute the per-vertex caches' rows of the moved vertices: the lights' deficits and the
-        environment lobes' visible fractions (a cache rebuilt this frame already holds them), and
-        the visible fraction of the environment's irradiance, which the moving vertices always
-        take from the sky table (:meth:`_visible`; after a rebuild too, so that a frame is a function
-        of the transforms)."""
+        """Recompute the per-vertex caches' rows of the moved vertices that this frame reads
+        (:mod:`warp_sg.renderer.moving_rows`: those of the moving triangles the raster queued,
+        :attr:`reads`; all without a kept queue) and that do not hold the current transforms: the
+        lights' deficits and the environment lobes' visible fractions (a cache rebuilt this frame
+        already holds them), and the visible fraction of the environment's irradiance, which the
+        moving vertices always take from the sky table (:meth:`_visible`; after a rebuild too, so
+        that a frame is a function of the transforms)."""
         from warp_sg.shading.vertex_visibility import env_vertex_visibility, light_vertex_deficit
 
-        d, nv, ids = r.device, len(r.geometry.vertices), self.all_ids
-        jobs = (("light", r.light_vis_cache, False,
-                 lambda v: light_vertex_deficit(r.vis, r.geo_arrays.positions, r.light_arrays, nv,
-                                                r.scene.render.fh == "sigmoid", d, ids=ids, into=v)),
-                ("visible", r.env_visible_cache, True, lambda v: self._visible(r, es, v)),
-                ("lobes", r.env_vis_cache, False,
-                 lambda v: env_vertex_visibility(r.irr_table, r.vis, es, nv, d, ids=ids, into=v)))
-        for name, cache, always, run in jobs:
+        d, nv, rows = r.device, len(r.geometry.vertices), self.rows
+        needed = rows.needed(self.reads, r.geo_arrays.tris)
+        jobs = (("light", r.light_vis_cache, True,
+                 lambda v, s, ids: light_vertex_deficit(r.vis, r.geo_arrays.positions, r.light_arrays, nv,
+                                                        r.scene.render.fh == "sigmoid", d, ids=ids, into=v)),
+                ("visible", r.env_visible_cache, False, lambda v, s, ids: self._visible(r, es, v, s)),
+                ("lobes", r.env_vis_cache, True,
+                 lambda v, s, ids: env_vertex_visibility(r.irr_table, r.vis, es, nv, d, ids=ids, into=v)))
+        for name, cache, fresh, run in jobs:
             if cache.key is None:
                 continue
-            ident = id(cache.value[0] if isinstance(cache.value, tuple) else cache.value)
-            last = self._patched.get(name)
-            rebuilt = last is None or last[0] != ident  # (re)built with the current pose
-            if (rebuilt and always) or (not rebuilt and last[1] != self.version):
-                run(cache.value)
-            self._patched[name] = (ident, self.version)
+            ident = (id(cache.value[0] if isinstance(cache.value, tuple) else cache.value), cache.builds)
+            slots = rows.stale(name, ident, fresh, self.version, needed)
+            if len(slots):
+                every = len(slots) == len(rows.ids)
+                run(cache.value, None if every else slots, self.all_ids if every else rows.mesh_ids(slots))
+                rows.done(name, slots, self.version, needed)
 
 
 __all__ = ["DynamicObjects", "object_index", "scene_with_transforms", "parse_transform_argument"]

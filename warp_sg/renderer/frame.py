@@ -79,7 +79,11 @@ class FramePaths:
                                                      self._cull_flags(), self.dynamic.version)
             self._vb_key = key
             self.timings["raster_reused"] = False
+            # (the moving vertices' cache rows this frame reads: those of the triangles its queue holds)
+            self.dynamic.reads = self.dynamic.raster.moving.vb if subsamples > 1 else None
         elif self._vb_key != key:  # the old buffer's arrays are overwritten when the size matches
+            if self.dynamic is not None:
+                self.dynamic.reads = None
             old, self._vb = self._vb, None
             self._vb = raster.rasterize(self.geo_arrays.positions, self.geo_arrays.tris, self.scene.camera,
                                         device=self.device, supersample=k, validate=False, reuse=old,
@@ -161,6 +165,8 @@ class FramePaths:
 
         if self._culling is None:
             self._culling = BackfaceCulling(self.geometry, self.device)
+            if self.dynamic is not None:  # (the moving objects' boxes: a function of their transforms)
+                self.dynamic.place_culling(self._culling)
         return self._culling.flags(self.scene.camera)
 
     def shade_vertices(self, eye=None) -> np.ndarray:
@@ -179,7 +185,14 @@ class FramePaths:
         bg = wp.zeros((1, nv), dtype=wp.vec3, device=d)
         eye = np.asarray(self.scene.camera.origin if eye is None else eye, np.float32)
         out = wp.empty((1, nv), dtype=wp.vec3, device=d)
-        self._launch_shade(tri_id, bary_w, bg, eye, out)
+        reads = None if self.dynamic is None else self.dynamic.reads
+        if self.dynamic is not None:  # (every vertex is read: every moving row)
+            self.dynamic.reads = None
+        try:
+            self._launch_shade(tri_id, bary_w, bg, eye, out)
+        finally:
+            if self.dynamic is not None:
+                self.dynamic.reads = reads
         return out.numpy().reshape(nv, 3)
 
     def _launch_shade(self, tri_id, bary, bg, eye, out):

@@ -19,6 +19,14 @@ from __future__ import annotations
 import numpy as np
 
 
+def box_corners(lo, hi) -> np.ndarray:
+    """(8, 3): the corners of the axis-aligned box ``lo``–``hi`` (corner i takes bit 2, 1, 0 of i
+    for x, y, z: 0 the low side, 1 the high one)."""
+    lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+    bits = (np.arange(8)[:, None] >> np.array([2, 1, 0])) & 1
+    return np.where(bits == 1, hi, lo)
+
+
 class BackfaceCulling:
     """Per-object culling decisions for a flattened scene mesh (``warp_sg.scene.geometry.Geometry``):
     which objects are closed (once), and per camera which triangles may drop their back face
@@ -39,13 +47,12 @@ class BackfaceCulling:
             if len(F) < 4:
                 continue
             used = V[np.unique(F)]
-            lo, hi = used.min(0), used.max(0)
-            self.corners[k] = [[(lo, hi)[i >> 2 & 1][0], (lo, hi)[i >> 1 & 1][1], (lo, hi)[i & 1][2]] for i in range(8)]
+            self.corners[k] = box_corners(used.min(0), used.max(0))
             self.closed[k] = bool(trimesh.Trimesh(V, F, process=True).is_volume)
 
     def moved(self, geometry, objects=None) -> None:
-        """Objects moved rigidly (``warp_sg.renderer.dynamic_objects``; ``objects``: their indices, default
-        all): new bounding boxes; closedness stays."""
+        """Objects moved rigidly (``objects``: their indices, default all): new bounding boxes from
+        the vertices of ``geometry``; closedness stays."""
         V, T = np.asarray(geometry.vertices, np.float64), np.asarray(geometry.triangles)
         for k in np.flatnonzero(self.closed):
             if objects is not None and k not in objects:
@@ -53,9 +60,14 @@ class BackfaceCulling:
             if k not in self._used:
                 self._used[k] = np.unique(T[self.tri_object == k])
             used = V[self._used[k]]
-            lo, hi = used.min(0), used.max(0)
-            self.corners[k] = [[(lo, hi)[i >> 2 & 1][0], (lo, hi)[i >> 1 & 1][1], (lo, hi)[i & 1][2]] for i in range(8)]
-        self._cached = (None, False)
+            self.corners[k] = box_corners(used.min(0), used.max(0))
+
+    def place(self, k: int, corners: np.ndarray) -> None:
+        """Object k lies inside the convex hull of ``corners`` (8, 3) — e.g. its rest-pose box
+        carried by a rigid motion (``warp_sg.renderer.dynamic_objects``): the depth test of
+        :meth:`objects` reads their nearest, a bound of the object's. (The flags depend only on
+        which objects cull, compared in :meth:`flags`: nothing else to invalidate.)"""
+        self.corners[k] = corners
 
     def objects(self, camera) -> np.ndarray:
         """(objects,) bool: closed and entirely at view depth ≥ the near plane of ``camera``."""
@@ -78,4 +90,4 @@ class BackfaceCulling:
         return flags
 
 
-__all__ = ["BackfaceCulling"]
+__all__ = ["BackfaceCulling", "box_corners"]

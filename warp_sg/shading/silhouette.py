@@ -250,7 +250,8 @@ def _sides(positions: wp.array, tris: wp.array, cam: ContourCamera, device, face
     side = wp.empty(max(int(tris.shape[0]), 1), dtype=wp.int8, device=device)
     n = int(tris.shape[0]) if faces is None else int(faces.shape[0])
     ids = wp.zeros(0, dtype=int, device=device) if faces is None else faces
-    parallel.launch(facing_kernel, n, [positions, tris, cam.eye, ids, side], device, min_chunk=4096)
+    parallel.launch(facing_kernel, n, [positions, tris, cam.eye, ids, side], device, min_chunk=4096,
+                    chunks=parallel.cpu_workers())  # (uniform work: a range per thread)
     return side
 
 
@@ -270,7 +271,8 @@ def mark_contours(positions: wp.array, tris: wp.array, edge_v: wp.array, edge_f:
     occ = inv_depth if inv_depth is not None else wp.zeros((1, 1), dtype=float, device=device)
     parallel.launch(mark_contours_kernel, int(edge_v.shape[0]),
                     [positions, side, edge_v, edge_f, cam, occ, int(inv_depth is not None), mark, 1,
-                     wp.zeros((1, 1, 1), dtype=float, device=device)], device, min_chunk=4096)
+                     wp.zeros((1, 1, 1), dtype=float, device=device)], device, min_chunk=4096,
+                    chunks=2 * parallel.cpu_workers())
     return mark
 
 

@@ -204,9 +204,10 @@ VERTICES_PER_THREAD = 16
 
 
 @wp.kernel(enable_backward=False)
-def moving_visible_kernel(base: int, per: int, tab: SkyTable, vis: Visibility, env: EnvSG,
+def moving_visible_kernel(base: int, per: int, tab: SkyTable, rows: wp.array(dtype=int), vis: Visibility, env: EnvSG,
                           out: wp.array(dtype=wp.vec3), out_irr: wp.array(dtype=wp.vec3)):
-    """Listed vertices ``k = base + tid·per + s`` (``s < per``; ``v = tab.vertices[k]``): ``out[v]``
+    """Listed vertices ``k = base + tid·per + s`` (``s < per``; ``v = tab.vertices[k]``; with
+    ``rows`` not empty, the table's rows ``rows[base + tid·per + s]`` instead): ``out[v]``
     the visible fraction and ``out_irr[v] = E ∘ F``, as ``env_vertex_visible_kernel`` with the
     cone's sums ``O = t^O·l``, ``S = t^S·l`` from the vertex's transfer vectors and its object's
     turned sky's coefficients ``l`` (module docstring); a vertex left to the map quadrature
@@ -214,9 +215,14 @@ def moving_visible_kernel(base: int, per: int, tab: SkyTable, vis: Visibility, e
     k0 = base + wp.tid() * per
     h = _SQRT_2PI / float(vis.mean.shape[0])
     one = wp.vec4(1.0, 1.0, 1.0, 1.0)
+    n_rows = rows.shape[0]
     for s in range(per):
         k = k0 + s
-        if k >= tab.vertices.shape[0]:
+        if n_rows > 0:
+            if k >= n_rows:
+                break
+            k = rows[k]
+        elif k >= tab.vertices.shape[0]:
             break
         if tab.exact[k] != 0:
             continue
@@ -327,6 +333,9 @@ class MovingSky:
         self._turned = None  # the key of the coefficients in tab.coef
         self._prepared = None  # the key of the sky the bounds were computed for
         self.exact_count, self.bound, self.quadrature_ids, self.sky_residual = 0, np.zeros(n), None, np.zeros(3)
+        self._exact = np.zeros(n, np.int32)
+        self._vertices_np = vertices.numpy()[:n].astype(np.int32)
+        self._all_rows = wp.zeros(0, dtype=int, device=device)  # (moving_visible_kernel's "every row")
 
     def transfer_bytes(self) -> int:
         """Bytes of the transfer vectors (8 per coefficient and vertex, float32)."""
@@ -366,16 +375,18 @@ class MovingSky:
         self.bound = (a.sum(1)[:, None] * self.sky_residual[None]
                       / np.maximum(np.asarray(e_min, np.float64), 1e-30)).max(1)
         exact = (self.bound > BOUND).astype(np.int32)
+        self._exact = exact
         tab.exact = wp.array(exact if n else np.zeros(1, np.int32), dtype=int, device=d)
         self.exact_count = int(exact.sum())
         self.quadrature_ids = wp.array(self.vertices.numpy()[:n][exact == 1].astype(np.int32), dtype=int, device=d) \
             if self.exact_count else None
 
-    def visible(self, vis: Visibility, env: EnvSG, radiance: wp.array, env_rotation, motions: list, into) -> None:
+    def visible(self, vis: Visibility, env: EnvSG, radiance: wp.array, env_rotation, motions: list, into,
+                rows: np.ndarray | None = None) -> None:
         """The listed vertices' rows of ``into = (F, E ∘ F)`` (``env_vertex_visible``'s), in place:
         the sky of map ``radiance`` (the box-filtered residual) turned by ``env_rotation`` and each
         object's rotation ``motions[k]`` (from the rest pose) in the harmonics, then each vertex's
-        sums."""
+        sums. ``rows``: only those of the table (ascending; default all)."""
         from raster import parallel
 
         if not self.count:
@@ -393,12 +404,22 @@ class MovingSky:
             tab.coef = wp.array(c.reshape(len(motions), self._ng, 4, 3).transpose(0, 1, 3, 2).reshape(-1, 4),
                                 dtype=wp.vec4, device=self.device)
             self._turned = key
-        parallel.launch(moving_visible_kernel, self.count, [tab, vis, env, *into], self.device, min_chunk=512,
-                        per_thread=VERTICES_PER_THREAD)
-        if self.quadrature_ids is not None:
+        if rows is None:
+            n, rows_w, quad = self.count, self._all_rows, self.quadrature_ids
+        else:
+            n = len(rows)
+            rows_w = wp.array(np.asarray(rows, np.int32), dtype=int, device=self.device) if n else self._all_rows
+            quad = None
+            if self.exact_count and n:
+                sel = np.asarray(rows)[self._exact[np.asarray(rows)] != 0]
+                quad = wp.array(self._vertices_np[sel], dtype=int, device=self.device) if len(sel) else None
+        if n:
+            parallel.launch(moving_visible_kernel, n, [tab, rows_w, vis, env, *into], self.device, min_chunk=512,
+                            per_thread=VERTICES_PER_THREAD, chunks=2 * parallel.cpu_workers())  # (each range: a dispatch)
+        if quad is not None:
             from warp_sg.shading.vertex_visibility import env_vertex_visible
 
-            env_vertex_visible(vis, env, int(into[0].shape[0]), self.device, ids=self.quadrature_ids, into=into)
+            env_vertex_visible(vis, env, int(into[0].shape[0]), self.device, ids=quad, into=into)
 
 
 __all__ = ["BOUND", "MovingSky", "ORDER", "SkyTable", "VERTICES_PER_THREAD", "moving_visible_kernel",

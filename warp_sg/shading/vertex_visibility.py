@@ -60,7 +60,7 @@ import numpy as np
 import warp as wp
 
 from precompute.environment.irradiance import irradiance_unscaled
-from precompute.visibility.ssdf_wp import concentric_to_dir_wp, ssdf_at, ssdf_point_framed
+from precompute.visibility.ssdf_wp import SSDFPoint, concentric_to_dir_wp, ssdf_eval_vertex, world_to_local
 
 from warp_sg.numeric.fastmath import fast_asin
 from warp_sg.numeric.onb import frame_bitangent, frame_tangent, local_to_world
@@ -154,8 +154,10 @@ def env_vertex_visibility_kernel(base: int, ids: wp.array(dtype=int), irr: wp.ar
 def light_vertex_deficit_kernel(base: int, ids: wp.array(dtype=int), fh_mode: int, vis: Visibility,
                                 positions: wp.array(dtype=wp.vec3), lights: LightArrays, out: wp.array2d(dtype=float)):
     """``out[v, j] = min(θd_v(l_v) − θh_v(l_v), 0)``: vertex v's SSDF towards light j (direction
-    ``l_v`` from the vertex, its own frame) less its horizon value ``asin(l_v·n_v)`` — 0 where no
-    occluder is closer than the horizon (and where the occluder cone is clear: no lookup)."""
+    ``l_v`` from the vertex) less its horizon value ``asin(l_v·n_v)`` — 0 where no occluder is
+    closer than the horizon (and where the occluder cone is clear: no lookup). θd is read in the
+    frame the vertex's map is stored in (:func:`vertex_frame`: a moving vertex's turned frame), one
+    lookup of its own weights (``ssdf_eval_vertex``, with the below-horizon rule)."""
     e = base + wp.tid()
     nl = out.shape[1]
     v = e // nl
@@ -164,12 +166,19 @@ def light_vertex_deficit_kernel(base: int, ids: wp.array(dtype=int), fh_mode: in
         v = ids[v]
     n = wp.normalize(vis.normals[v])
     la, ll, E = light_irradiance(lights, j, positions[v])
-    q = ssdf_point_framed(vis.normals, vis.frame_t, vis.frame_b, v, v, v, 1.0, 0.0, 0.0, n)
+    q = SSDFPoint()  # the vertex alone, for the cone test
+    q.i0 = v
+    q.i1 = v
+    q.i2 = v
+    q.c0 = 1.0
+    q.n0 = n
     th_h = fast_asin(wp.clamp(wp.dot(la, n), -1.0, 1.0))
     s = lookup_skip(fh_mode, vis, q, la, th_h, ll)
     d = float(0.0)
     if s < 1.0:
-        d = (1.0 - s) * wp.min(ssdf_at(vis.mean, vis.basis, vis.weights, q, la) - th_h, 0.0)
+        t, b = vertex_frame(vis, v, n)
+        th = ssdf_eval_vertex(vis.mean, vis.basis, vis.weights, v, world_to_local(la, t, b, n))
+        d = (1.0 - s) * wp.min(th - th_h, 0.0)
     out[v, j] = d
 
 
@@ -286,7 +295,8 @@ def light_vertex_deficit(vis: Visibility, positions, lights: LightArrays, n_vert
     n = int(n_vertices) if n is None else n
     if lights.count > 0 and n > 0:
         parallel.launch(light_vertex_deficit_kernel, n * int(lights.count),
-                        [ida, 1 if fh_sigmoid else 0, vis, positions, lights, out], device, min_chunk=1024)
+                        [ida, 1 if fh_sigmoid else 0, vis, positions, lights, out], device, min_chunk=1024,
+                        chunks=2 * parallel.cpu_workers())  # (each range costs a dispatch and its arguments' packing)
     return out
 
 
