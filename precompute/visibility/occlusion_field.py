@@ -175,8 +175,19 @@ def build_field(vertices, triangles, centre, device="cpu") -> OcclusionField:
     radii = ring_radii(r_in)  # (cells, rings), units of ρ
     X = c + (D[:, None, :] * radii[..., None] * rho).reshape(-1, 3)
     mom = mesh_moments(V, triangles, X, c, rho, device=device).reshape(len(D), RINGS, 4)
-    return OcclusionField(centre=c, radius=rho, r_in=r_in.astype(np.float32),
-                          table=(mom * radii[..., None] ** 2).astype(np.float32))
+    return OcclusionField(centre=c, radius=rho, r_in=r_in.astype(np.float32), table=scaled(mom, D, radii))
+
+
+def scaled(mom, dirs, radii) -> np.ndarray:
+    """(cells, rings, 4) float32: the table's form of the moments ``mom`` (cells, rings, 4) at the nodes
+    ``c + r ω`` (``dirs`` (cells, 3) the cells' ω, ``radii`` (cells, rings) r in units of ρ): with
+    ``u = −ω`` and ``M = m∥ u + M⊥``, ``(r² m∥ u + r³ M⊥, r² Ω)`` (module docstring)."""
+    u = -np.asarray(dirs, np.float64)[:, None, :]
+    M = np.asarray(mom, np.float64)[..., :3]
+    par = np.sum(M * u, -1, keepdims=True)
+    r = np.asarray(radii, np.float64)[..., None]
+    out = np.concatenate([r ** 2 * par * u + r ** 3 * (M - par * u), r ** 2 * mom[..., 3:]], -1)
+    return out.astype(np.float32)
 
 
 def occlusion_field(vertices, triangles, centre) -> OcclusionField:
@@ -202,16 +213,26 @@ def _arrays(f: OcclusionField) -> dict:
 # --------------------------------------------------------------------------------------------
 @wp.func
 def _cell_value(table: wp.array(dtype=wp.vec4), r_in: wp.array(dtype=float), cell: int, r: float) -> wp.vec4:
-    """Cell ``cell``'s ``(M, Ω)`` at distance ``r`` (units of ρ): its rings linear in ``log r``,
-    divided by ``max(r, r_in)²`` (the table holds them times ``(r_j/ρ)²``)."""
+    """Cell ``cell``'s ``(M, Ω)`` at distance ``r`` (units of ρ): its rings linear in ``log r``
+    (clamped to ``[r_in, R_FAR]``), ``m∥`` and ``Ω`` divided by ``max(r, r_in)²``, ``M⊥`` by its cube
+    (the table holds ``(r_j² m∥ u + r_j³ M⊥, r_j² Ω)``, :func:`scaled`; ``u = −ω`` of the cell's centre)."""
+    iz = cell / NPHI
+    ip = cell - iz * NPHI
+    th = wp.pi * (float(iz % NTH) + 0.5) / float(NTH)
+    ph = 2.0 * wp.pi * (float(ip) + 0.5) / float(NPHI)
+    u = -wp.vec3(wp.sin(th) * wp.cos(ph), wp.sin(th) * wp.sin(ph), wp.cos(th))
     r0 = r_in[cell]
     rr = wp.max(r, r0)
-    u = wp.clamp(wp.log(rr / r0) / wp.log(R_FAR / r0), 0.0, 1.0)
-    s = wp.pow(u, 1.0 / RING_POW) * float(RINGS - 1)
+    x = wp.clamp(wp.log(rr / r0) / wp.log(R_FAR / r0), 0.0, 1.0)
+    s = wp.pow(x, 1.0 / RING_POW) * float(RINGS - 1)
     j0 = wp.min(int(s), RINGS - 2)
     f = s - float(j0)
     base = cell * RINGS + j0
-    return (table[base] * (1.0 - f) + table[base + 1] * f) / (rr * rr)
+    v = table[base] * (1.0 - f) + table[base + 1] * f
+    m = wp.vec3(v[0], v[1], v[2])
+    par = wp.dot(m, u)
+    mm = (u * par + (m - u * par) / rr) / (rr * rr)
+    return wp.vec4(mm[0], mm[1], mm[2], v[3] / (rr * rr))
 
 
 @wp.func
