@@ -18,10 +18,14 @@ The SSDF of a union of occluders is the minimum of theirs, so a proxy set combin
 precomputed SSDF by ``min`` before the SSDF × SG product (eq. 30).
 
 The diffuse environment term integrates what a proxy hides, and the caps of a sphere set overlap
-(counted once each, a compact object would hide several times its solid angle): it sees one
-sphere per object instead, of the object's mean projected area (:func:`diffuse_sphere`; the area
-ray-cast, :func:`mean_projected_area`, not Cauchy's quarter of the surface area, which holds only
-for convex bodies).
+(counted once each, a compact object would hide several times its solid angle): it reads instead
+the object's **occlusion field** (:mod:`precompute.visibility.occlusion_field`: the solid angle and
+first moment of what the mesh hides, ray-cast in the rest pose by direction and distance around
+its centre, kept in its frame; Kontkanen & Laine 2005), whose cap of the same first moment holds
+the object's own shape from every side. The one sphere of the object's mean projected area
+(:func:`diffuse_sphere`; the area ray-cast, :func:`mean_projected_area`, not Cauchy's quarter of
+the surface area, which holds only for convex bodies) gives the field's centre, and is the
+diffuse term's occluder for an object with one sphere (exact) or without a field.
 
 Fitting (:func:`object_proxies`): a flat object (every vertex within 10⁻⁴ of the bounding diagonal
 from its least-squares plane) gets a plane; an object whose vertices lie within 2 % of one sphere
@@ -39,7 +43,8 @@ the benchmark's view (``scripts/moving_accuracy.py``, 256², turned 45° / 120°
 Monte-Carlo reference (docs/benchmarks.md "Objects that move", 2026-12-02): the bunny's shadow
 centroid 2.51 / 5.49 / 0.36 → 1.21 / 3.26 / 1.38 px, shadow bias −6.4 / −7.6 / −9.9 → +4.0 / +10.1 /
 −1.3 %, lit floor −0.9 → −0.4 %; the blob's lit floor −0.6 → −0.0 %, shadow −5.8 → +2.4 % at 120°
-(what is left at 120° is the diffuse term's one sphere near the bunny's base).
+(what was left at 120° was the diffuse term's one sphere near the bunny's base; with the occlusion
+field the centroid is 0.95 / 0.98 / 0.48 px).
 """
 from __future__ import annotations
 
@@ -67,6 +72,9 @@ class ObjectProxies:
     disk: np.ndarray | None = None
     #: (P, 3) the flat object's outline: its vertices' convex hull in the plane, in order
     polygon: np.ndarray | None = None
+    #: the occlusion field the diffuse term reads instead of ``diffuse`` (a sphere set's object;
+    #: :mod:`precompute.visibility.occlusion_field`, about ``diffuse``'s centre); None: the sphere
+    field: object = None
 
 
 def fit_sphere(points) -> tuple[np.ndarray, float, float]:
@@ -149,9 +157,10 @@ def plane_outline(points, m) -> np.ndarray:
 
 
 def object_proxies(vertices, triangles, normals=None, max_spheres: int = MAX_SPHERES,
-                   allow_plane: bool = True) -> ObjectProxies:
+                   allow_plane: bool = True, with_field: bool = True) -> ObjectProxies:
     """The proxies of one object (module docstring); ``allow_plane`` False: a flat object gets
-    spheres too (a moving card is not an infinite plane)."""
+    spheres too (a moving card is not an infinite plane); ``with_field`` False: a sphere set's
+    object without its occlusion field (the diffuse term then sees its diffuse sphere)."""
     V = np.asarray(vertices, np.float64)
     diag = float(np.linalg.norm(np.ptp(V, axis=0)))
     m, h, dev = fit_plane(V, normals)
@@ -164,7 +173,11 @@ def object_proxies(vertices, triangles, normals=None, max_spheres: int = MAX_SPH
     if rms <= SPHERE_TOL * r and np.all(np.linalg.norm(V - c, axis=1) <= 1.5 * r):
         one = np.array([*c, r], np.float32)
         return ObjectProxies(spheres=one[None], diffuse=one)
-    return ObjectProxies(spheres=sphere_set(V, triangles, max_spheres), diffuse=diffuse_sphere(V, triangles))
+    from precompute.visibility.occlusion_field import occlusion_field
+
+    ds = diffuse_sphere(V, triangles)
+    return ObjectProxies(spheres=sphere_set(V, triangles, max_spheres), diffuse=ds,
+                         field=occlusion_field(V, triangles, ds[:3]) if with_field else None)
 
 
 def sphere_ssdf(P, d, spheres) -> np.ndarray:

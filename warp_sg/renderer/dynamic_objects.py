@@ -158,6 +158,7 @@ class DynamicObjects:
                        for k, m in self.rest_motion.items()}
         spheres, sowner, planes, disks, powner, outlines = [], [], [], [], [], []
         self.rest_blobs = np.zeros((max(self.n_objects, 1), 4))
+        self.fields = {}  # object -> its occlusion field (precompute.visibility.occlusion_field)
         self.blob_owner = np.full(max(self.n_objects, 1), -1, np.int64)
         for k in range(self.n_objects):
             sel = to == k
@@ -170,6 +171,8 @@ class DynamicObjects:
             sowner += [k] * len(p.spheres)
             if p.diffuse is not None:
                 self.rest_blobs[k], self.blob_owner[k] = p.diffuse, k
+            if p.field is not None:
+                self.fields[k] = p.field
             if p.plane is not None:
                 planes.append(p.plane)
                 disks.append(p.disk)
@@ -247,6 +250,19 @@ class DynamicObjects:
         px.sphere_start = wp.array(self.sphere_start.astype(np.int32), dtype=int, device=d)
         px.sphere_count = wp.array(self.sphere_count.astype(np.int32), dtype=int, device=d)
         px.blob_owner = wp.array(self.blob_owner.astype(np.int32), dtype=int, device=d)
+        # the occlusion fields, one object after the other; field_inv = (sRρ)⁻¹, the rest pose's I/ρ
+        cells = [self.fields[k].table.shape[0] for k in sorted(self.fields)]
+        cell0 = dict(zip(sorted(self.fields), np.concatenate([[0], np.cumsum(cells)[:-1]]).astype(int)))
+        n = max(self.n_objects, 1)
+        self.rest_field_inv = np.zeros((n, 3, 3))
+        for k, f in self.fields.items():
+            self.rest_field_inv[k] = np.eye(3) / f.radius
+        tabs = [self.fields[k].table.reshape(-1, 4) for k in sorted(self.fields)] or [np.zeros((1, 4), np.float32)]
+        rins = [self.fields[k].r_in for k in sorted(self.fields)] or [np.ones(1, np.float32)]
+        px.field = wp.array(np.concatenate(tabs).astype(np.float32), dtype=wp.vec4, device=d)
+        px.field_rin = wp.array(np.concatenate(rins).astype(np.float32), dtype=float, device=d)
+        px.field_cell = wp.array(np.array([cell0.get(k, -1) for k in range(n)], np.int32), dtype=int, device=d)
+        px.field_inv = wp.array(self.rest_field_inv.astype(np.float32), dtype=wp.mat33, device=d)
         n_pl = len(self.planes)
         px.planes = wp.array(self.planes if n_pl else np.zeros((1, 4), np.float32), dtype=wp.vec4, device=d)
         px.disks = wp.array(self.disks if n_pl else np.zeros((1, 4), np.float32), dtype=wp.vec4, device=d)
@@ -343,6 +359,7 @@ class DynamicObjects:
             return False
         S, B, Bd = self.rest_spheres.copy(), self.rest_blobs.copy(), self.rest_bounds.copy()
         host = self._host_geometry(r)
+        Fi = self.rest_field_inv.copy()
         xf = np.zeros((len(self.ids), 7, 3), np.float32)  # per object: the rows of sR, of R, and t
         for j, (k, ids) in enumerate(self.ids.items()):
             R, s, t = self._delta(k)
@@ -357,6 +374,7 @@ class DynamicObjects:
             S[own, 3] = self.rest_spheres[own, 3] * s
             B[k, :3] = self.rest_blobs[k, :3] @ (s * R).T + t
             B[k, 3] = self.rest_blobs[k, 3] * s
+            Fi[k] = R.T @ self.rest_field_inv[k] / s
             Bd[k, :3] = self.rest_bounds[k, :3] @ (s * R).T + t
             Bd[k, 3] = self.rest_bounds[k, 3] * s if self.rest_bounds[k, 3] > 0 else -1.0
         d = r.device
@@ -374,6 +392,7 @@ class DynamicObjects:
         if len(S):
             _write(self.px.spheres, S)
         _write(self.px.blobs, B)
+        _write(self.px.field_inv, Fi)
         _write(self.px.bounds, Bd)
         r._vb_key = None  # the visibility buffer
         if r._culling is not None:

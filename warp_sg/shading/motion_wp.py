@@ -20,8 +20,13 @@ object only itself). Per shading point ``P`` (normal ``n``):
   Monte-Carlo reference; now −0.2 %).
 * **Diffuse environment** (:func:`proxy_diffuse`): the visible fraction ``F`` of the irradiance is
   multiplied by ``Π_j (1 − O_j/E(n))`` over the objects (occlusions combined as independent, Ren
-  et al. 2006's product of visibilities), each object seen as its one diffuse sphere
-  (``precompute.visibility.proxies.diffuse_sphere``). A sphere's occluded irradiance is ``O = L(a) · Ω⊥(θ, α)``: the
+  et al. 2006's product of visibilities). An object with an occlusion field
+  (:mod:`precompute.visibility.occlusion_field`: a curved object other than one sphere) is seen as
+  the cap of the first moment ``M`` of what it hides from ``P``, looked up in the object's frame
+  (``Proxies.field_inv``: ``(sRρ)⁻¹`` of its current motion, about its moved centre ``blobs[k]``): axis
+  ``a = R M/|M|``, ``π sin²α = |M|`` — ``Ω⊥ = n·M`` exactly where the object is above the receiver's
+  horizon; any other object as its one diffuse sphere (``precompute.visibility.proxies.diffuse_sphere``:
+  ``a`` towards its centre, ``sin α = r/dist``). A cap's occluded irradiance is ``O = L(a) · Ω⊥(θ, α)``: the
   residual map's radiance at the cap's axis times the cap's cosine-weighted solid angle, exact
   also where the cap straddles the horizon (Snyder 1996, "Area light sources for real-time
   graphics", in the form of Lagarde & de Rousiers 2014, "Moving Frostbite to PBR", eq. 18)::
@@ -40,6 +45,7 @@ object only itself). Per shading point ``P`` (normal ``n``):
 import warp as wp
 
 from precompute.environment.irradiance import IrradianceTable, irradiance_unscaled
+from precompute.visibility.occlusion_field import field_moments
 
 from warp_sg.scene.envmap import env_lookup
 from warp_sg.numeric.fastmath import fast_asin
@@ -65,6 +71,11 @@ class Proxies:
     sphere_count: wp.array(dtype=int)  # (objects,) and how many
     blobs: wp.array(dtype=wp.vec4)  # (objects,) the one sphere the diffuse term sees (proxies.diffuse_sphere)
     blob_owner: wp.array(dtype=int)  # (objects,) object; -1: none (a plane, or no such object)
+    #: the occlusion fields (precompute.visibility.occlusion_field), RINGS vec4 per cell, one object after the other
+    field: wp.array(dtype=wp.vec4)
+    field_rin: wp.array(dtype=float)  # their cells' first rings
+    field_cell: wp.array(dtype=int)  # (objects,) the object's first cell; -1: none (its blob instead)
+    field_inv: wp.array(dtype=wp.mat33)  # (objects,) (sRρ)⁻¹: world offsets from blobs[k]'s centre → field frame
     planes: wp.array(dtype=wp.vec4)  # (L,) unit normal m, offset h (m·x + h = 0)
     disks: wp.array(dtype=wp.vec4)  # (L,) the plane's bounding disk: centre, radius
     plane_owner: wp.array(dtype=int)  # (L,) object; -1: none
@@ -323,7 +334,17 @@ def proxy_diffuse(px: Proxies, tri: int, P: wp.vec3, n: wp.vec3, radiance: wp.ar
             v = wp.vec3(s[0], s[1], s[2]) - P
             dist = wp.max(wp.length(v), 1.0e-12)
             a = v / dist
-            om = cap_cosine_solid_angle(wp.dot(n, a), (s[3] / dist) * (s[3] / dist))
+            sin2 = (s[3] / dist) * (s[3] / dist)
+            cell = px.field_cell[i]
+            if cell >= 0:  # the object's occlusion field: the cap of its first moment M, π sin²α = |M|
+                A = px.field_inv[i]
+                mo = field_moments(px.field, px.field_rin, cell, A * (-v))
+                mv = wp.vec3(mo[0], mo[1], mo[2])
+                sin2 = wp.length(mv) / wp.pi
+                a = wp.normalize(wp.transpose(A) * mv)  # R M (Aᵀ = R/(sρ))
+            om = float(0.0)
+            if sin2 > 1.0e-12:
+                om = cap_cosine_solid_angle(wp.dot(n, a), sin2)
             if om > 0.0:
                 L = env_lookup(radiance, exact.to_env, a)
                 for c in range(3):
@@ -358,7 +379,10 @@ def no_proxies(device) -> Proxies:
     px.active = 0
     px.tri_object = px.dynamic = px.sphere_owner = px.plane_owner = px.blob_owner = wp.full(1, -1, dtype=int,
                                                                                            device=device)
-    px.spheres = px.planes = px.disks = px.blobs = px.bounds = wp.zeros(1, dtype=wp.vec4, device=device)
+    px.spheres = px.planes = px.disks = px.blobs = px.bounds = px.field = wp.zeros(1, dtype=wp.vec4, device=device)
+    px.field_rin = wp.ones(1, dtype=float, device=device)
+    px.field_cell = wp.full(1, -1, dtype=int, device=device)
+    px.field_inv = wp.zeros(1, dtype=wp.mat33, device=device)
     px.sphere_start = px.sphere_count = wp.zeros(1, dtype=int, device=device)
     px.outline = wp.zeros(1, dtype=wp.vec3, device=device)
     px.outline_start = px.outline_count = wp.zeros(1, dtype=int, device=device)
