@@ -140,3 +140,31 @@ def test_representatives_error_at_other_vertices_is_bounded():
         e_own = ssdf_error(V, F, N, k, own.reconstruct(ids), truth)
         e_rep = ssdf_error(V, F, N, k, rep.reconstruct(ids), truth)
         assert e_rep < bound and e_rep < 1.25 * e_own, (e_rep, e_own)
+
+
+def test_blend_rows_kernel_matches_numpy():
+    import warp as wp
+
+    from raster import parallel
+    from warp_sg.shading.vertex_visibility import blend_rows_kernel
+
+    rng = np.random.default_rng(5)
+    V, k, J = 500, 6, 7
+    reps = np.sort(rng.choice(V, 60, replace=False))
+    isrep = np.zeros(V, bool)
+    isrep[reps] = True
+    idx = np.repeat(np.arange(V)[:, None], k, 1).astype(np.int32)
+    w = np.zeros((V, k), np.float32)
+    w[:, 0] = 1
+    o = np.flatnonzero(~isrep)
+    idx[o] = rng.choice(reps, (len(o), k))
+    w[o] = rng.random((len(o), k))
+    w[o] /= w[o].sum(1, keepdims=True)
+    rows = np.zeros((V, J), np.float32)
+    rows[reps] = rng.random((len(reps), J))
+    want = rows.copy()
+    want[o] = np.einsum("ik,ikj->ij", w[o], rows[idx[o]])
+    a = wp.array(rows, dtype=float, device="cpu")
+    parallel.launch(blend_rows_kernel, V, [wp.array(idx, dtype=int, device="cpu"), wp.array(w, dtype=float, device="cpu"),
+                                           a], "cpu", min_chunk=64)
+    np.testing.assert_allclose(a.numpy(), want, rtol=1e-5, atol=1e-6)

@@ -216,6 +216,8 @@ def transfer_maps(rep_maps, rep_normals, src, normals, resolution: int, device="
 
 #: neighbouring representatives a vertex's map is blended from (its own and the nearest others)
 BLEND_NEIGHBOURS = 6
+#: the blend radius ρ in cell diagonals √3 h (> 1: the own representative is within √3 h)
+BLEND_RADIUS = 2.0
 
 
 def _blend_table(P, nr, cell: float, max_angle: float, k: int = BLEND_NEIGHBOURS):
@@ -236,7 +238,7 @@ def _blend_table(P, nr, cell: float, max_angle: float, k: int = BLEND_NEIGHBOURS
     d2 = np.concatenate([np.zeros((K, 1)), np.take_along_axis(dn, order, 1)[:, : kk - 1]], 1)
     oth = np.concatenate([np.ones((K, 1), bool), np.take_along_axis(others, order, 1)[:, : kk - 1]], 1)
     cos = np.sum(nr[nb2] * nr[:, None, :], -1)
-    ok = oth & (cos >= math.cos(math.radians(max_angle))) & (d2 < 2.0 * math.sqrt(3.0) * cell)
+    ok = oth & (cos >= math.cos(math.radians(max_angle))) & (d2 < BLEND_RADIUS * math.sqrt(3.0) * cell)
     ok[:, 0] = True
     return nb2, ok
 
@@ -246,7 +248,7 @@ def blend_weights(x, P, nb, ok, cell: float) -> np.ndarray:
     table row, positions ``P``) at the vertex positions ``x``: ``a_j ∝ (1 − d_j/ρ)₊² / (d_j² + ε²)``,
     ``ρ = 2√3 h``, ``ε = h/10`` (inverse-distance weights that fall to 0 at the blend radius: a
     vertex at a representative takes its map, one between two takes both), normalised."""
-    rho, eps = 2.0 * math.sqrt(3.0) * cell, 0.1 * cell
+    rho, eps = BLEND_RADIUS * math.sqrt(3.0) * cell, 0.1 * cell
     d = np.linalg.norm(x[:, None, :] - P[nb], axis=-1)
     a = np.where(ok, np.maximum(1.0 - d / rho, 0.0) ** 2 / (d * d + eps * eps), 0.0)
     a[:, 0] = np.maximum(a[:, 0], 1e-12)  # (the own representative is within √3 h < ρ: never 0)
@@ -264,7 +266,10 @@ def build_at_representatives(v, f, n, compute, *, resolution, ray_resolution, pc
     (``(X − mean) 𝕍ᵀ``) and occluder cone. Stages of ``clock``: ``cluster``, the compute's,
     ``pca``, ``cones`` (the representatives'), ``blend table`` and ``transfer`` (the other
     vertices': blend, transfer, projection, cones; batches of ``batch`` on the CPU threads).
-    Entry ``representative`` (V,) int32: each vertex's own representative vertex."""
+    Entries ``representative`` (V,) int32: each vertex's own representative vertex;
+    ``blend_index``, ``blend_weight`` (V, k): the representatives (vertex ids) and weights of each
+    vertex's blend (a representative: itself, weight 1), which the renderer's per-vertex caches
+    reuse (:mod:`warp_sg.shading.vertex_visibility`)."""
     from precompute.visibility.occluder_cone import occluder_cones
     from precompute.visibility.rays import run_batches
     from threadpoolctl import threadpool_limits
@@ -298,6 +303,10 @@ def build_at_representatives(v, f, n, compute, *, resolution, ray_resolution, pc
     cones = np.empty((V, 4), np.float32)
     weights[reps], cones[reps] = p.weights, cones_r
     others = np.setdiff1d(np.arange(V), reps)
+    k = nb.shape[1]
+    blend_index = np.repeat(np.arange(V, dtype=np.int32)[:, None], k, 1)  # representatives: themselves
+    blend_weight = np.zeros((V, k), np.float32)
+    blend_weight[:, 0] = 1.0
     x = np.asarray(v, np.float64)
     clock.count("representatives", K)
 
@@ -306,6 +315,7 @@ def build_at_representatives(v, f, n, compute, *, resolution, ray_resolution, pc
         idx = others[s:e]
         c = cl.cluster[idx]
         a = blend_weights(x[idx], P, nb[c], ok[c], cl.cell).astype(np.float32)
+        blend_index[idx], blend_weight[idx] = reps[nb[c]], a
         Y = mean + np.einsum("ij,ijk->ik", a, W[c]) @ basis  # the blend in r_c's frame
         Y = transfer_maps(Y, nr[c], np.arange(len(idx)), n[idx], R, device)
         weights[idx] = (Y - mean) @ basis.T
@@ -315,7 +325,8 @@ def build_at_representatives(v, f, n, compute, *, resolution, ray_resolution, pc
     with threadpool_limits(limits=1, user_api="blas"):  # (one BLAS thread per batch thread)
         run_batches(len(others), batch, work, device)
     return {"mean": p.mean.reshape(R, R), "basis": p.basis.reshape(-1, R, R), "weights": weights,
-            "pca_rms_error": p.rms_error, "cones": cones, "representative": reps[cl.cluster].astype(np.int32)}
+            "pca_rms_error": p.rms_error, "cones": cones, "representative": reps[cl.cluster].astype(np.int32),
+            "blend_index": blend_index, "blend_weight": blend_weight}
 
 
 #: the hash of this module's code (clustering and transfer), part of the SSDF cache key

@@ -290,6 +290,22 @@ class SSDFData:
     #: (V,) int32: the vertex whose ray-cast map each vertex's map was transferred from
     #: (:mod:`precompute.visibility.representatives`); empty: every vertex has its own
     representative: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
+    #: (V, k) int32 / float32: the representatives each vertex's map is blended from and their
+    #: weights (``build_at_representatives``; a representative: itself, 1); empty without
+    blend_index: np.ndarray = field(default_factory=lambda: np.zeros((0, 1), np.int32))
+    blend_weight: np.ndarray = field(default_factory=lambda: np.zeros((0, 1), np.float32))
+
+    def blend_arrays(self, device):
+        """``(representative ids, blend_index, blend_weight)`` as device arrays (kept per device), or
+        None when every vertex has its own map."""
+        if not len(self.blend_index):
+            return None
+        memo = self.__dict__.setdefault("_blend_memo", {})
+        if str(device) not in memo:
+            memo[str(device)] = (wp.array(np.unique(self.representative).astype(np.int32), dtype=int, device=device),
+                                 wp.array(self.blend_index, dtype=int, device=device),
+                                 wp.array(self.blend_weight, dtype=float, device=device))
+        return memo[str(device)]
 
     @property
     def pca_terms(self) -> int:
@@ -471,4 +487,6 @@ def ssdf_for_mesh(vertices, triangles, normals, *, resolution: int = DEFAULT_RES
                     basis=data["basis"].astype(np.float32), weights=data["weights"].astype(np.float32),
                     ray_resolution=int(ray_resolution), pca_rms_error=np.asarray(data["pca_rms_error"]), key=key,
                     cones=np.asarray(data["cones"], np.float32), stats={**clock.as_dict(), **clock.counts},
-                    representative=np.asarray(data.get("representative", np.zeros(0)), np.int32))
+                    representative=np.asarray(data.get("representative", np.zeros(0)), np.int32),
+                    blend_index=np.asarray(data.get("blend_index", np.zeros((0, 1))), np.int32),
+                    blend_weight=np.asarray(data.get("blend_weight", np.zeros((0, 1))), np.float32))
