@@ -9,7 +9,7 @@ Renders the asset's scene twice in one process, every vertex with its own ray-ca
 first, image-wide and per region (:mod:`warp_sg.groundtruth.region_error`), with each render's
 precompute CPU seconds. ``--reference SPP``: also both against the Monte-Carlo reference
 (``box_reference``, SPP paths per pixel). Uses ``WARP_SG_CACHE_DIR`` as it is (a second run reuses
-the SSDFs). Writes ``own.exr``, ``reps.exr`` (and ``reference.exr``) to ``--out``.
+the SSDFs; ``--own EXR`` takes the first image from an earlier run). Writes ``own.exr``, ``reps.exr`` (and ``reference.exr``) to ``--out``.
 """
 from __future__ import annotations
 
@@ -29,6 +29,9 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=None)
     ap.add_argument("--reference", type=int, default=0, metavar="SPP")
     ap.add_argument("--json", default=None)
+    ap.add_argument("--angle", type=float, default=None, help="rep_max_angle (default the module's)")
+    ap.add_argument("--own", default=None, metavar="EXR",
+                    help="an earlier run's own.exr (the same asset and size): not rendered again")
     a = ap.parse_args(argv)
     out = Path(a.out or tempfile.mkdtemp(prefix="wsg-reps-"))
     out.mkdir(parents=True, exist_ok=True)
@@ -48,8 +51,16 @@ def main(argv=None) -> int:
         asset = str(textured_helmet(out / "helmet.glb"))
     scene, _ = asset_scene(asset, width=a.size[0], height=a.size[1])
     imgs, info = {}, {}
-    for name, budget in (("own", 0), ("reps", a.budget)):
+    runs = (("own", 0), ("reps", a.budget))
+    if a.own:
+        from warp_sg.core.image_io import load_image
+
+        imgs["own"] = load_image(a.own)[..., :3]
+        runs = runs[1:]
+    for name, budget in runs:
         S.ssdf_for_mesh.__kwdefaults__["representatives"] = budget  # what the renderer's call gets
+        if a.angle is not None:
+            S.ssdf_for_mesh.__kwdefaults__["rep_max_angle"] = a.angle
         w0, c0 = time.perf_counter(), time.process_time()
         r = Renderer(scene, device="cpu")
         img = r.render()

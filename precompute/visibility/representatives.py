@@ -114,33 +114,51 @@ class Clustering:
         return int(len(self.reps))
 
 
-def _cluster_ids(p, lo, h, nbin, nb):
-    """(inverse, count) of the keys ``(cell, normal bin)`` at cell side ``h``."""
+def _cluster_ids(p, lo, h, nbin, nb, spacing=None):
+    """(inverse, count) of the keys ``(cell, normal bin)`` at cell side ``h``; a vertex whose
+    ``spacing`` exceeds ``h`` has a key of its own."""
     ijk = np.floor((p - lo) / h).astype(np.int64)
     dims = ijk.max(axis=0) + 1
     key = ((ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]) * nb + nbin
+    if spacing is not None:
+        key = np.where(spacing > h, int(dims.prod()) * nb + np.arange(len(p)), key)
     u, inv = np.unique(key, return_inverse=True)
     return inv.reshape(-1), len(u)
 
 
+def vertex_spacing(vertices, triangles) -> np.ndarray:
+    """(V,) the longest edge at each vertex (0 for a vertex of no triangle)."""
+    p = np.asarray(vertices, np.float64)
+    t = np.asarray(triangles, np.int64).reshape(-1, 3)
+    e = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
+    L = np.linalg.norm(p[e[:, 0]] - p[e[:, 1]], axis=1)
+    out = np.zeros(len(p))
+    np.maximum.at(out, e[:, 0], L)
+    np.maximum.at(out, e[:, 1], L)
+    return out
+
+
 def cluster_vertices(vertices, normals, budget: int = DEFAULT_BUDGET,
-                     max_angle: float = DEFAULT_MAX_ANGLE) -> Clustering:
+                     max_angle: float = DEFAULT_MAX_ANGLE, spacing=None) -> Clustering:
     """At most ``budget`` clusters of the vertices (module docstring), unless the normal bins alone
-    need more (then one per occupied bin and cell at the coarsest grid: a bounded scene extent)."""
+    need more (then one per occupied bin and cell at the coarsest grid: a bounded scene extent).
+    ``spacing`` (V,) (:func:`vertex_spacing`): a vertex whose edges are longer than the cell side
+    (a coarse part of the mesh, e.g. a floor under a detailed object) is a cluster of its own."""
     p = np.asarray(vertices, np.float64)
     nbin, N = normal_bins(normals, max_angle)
     nb = 6 * N * N
+    sp = None if spacing is None else np.asarray(spacing, np.float64)
     lo = p.min(axis=0)
     ext = float(np.max(p.max(axis=0) - lo))
     ext = ext if ext > 0 else 1.0
     hi_h, lo_h = 2.0 * ext, ext / 2.0 ** 14  # (≤ 2^15 cells a side: the key stays in int64)
-    inv, cnt = _cluster_ids(p, lo, hi_h, nbin, nb)
+    inv, cnt = _cluster_ids(p, lo, hi_h, nbin, nb, sp)
     best = (inv, cnt, hi_h)
     if cnt < budget:
         a, b = math.log(lo_h), math.log(hi_h)
         for _ in range(24):
             mid = math.exp(0.5 * (a + b))
-            inv_m, cnt_m = _cluster_ids(p, lo, mid, nbin, nb)
+            inv_m, cnt_m = _cluster_ids(p, lo, mid, nbin, nb, sp)
             if cnt_m <= budget:
                 b = math.log(mid)
                 if cnt_m > best[1]:
@@ -278,7 +296,7 @@ def build_at_representatives(v, f, n, compute, *, resolution, ray_resolution, pc
 
     R = int(resolution)
     with clock.stage("cluster"):
-        cl = cluster_vertices(v, n, budget, max_angle)
+        cl = cluster_vertices(v, n, budget, max_angle, vertex_spacing(v, f))
     reps = cl.reps
     with clock.stage("ssdf_total"):
         Xr = compute(v, f, n, resolution=resolution, ray_resolution=ray_resolution, device=device,
@@ -342,4 +360,4 @@ def representative_params(n_vertices: int, budget, max_angle) -> dict:
 
 
 __all__ = ["Clustering", "cluster_vertices", "normal_bins", "transfer_maps", "transfer_kernel",
-           "representative_params", "build_at_representatives", "blend_weights", "BLEND_NEIGHBOURS", "DEFAULT_BUDGET", "DEFAULT_MAX_ANGLE", "REPRESENTATIVES_VERSION"]
+           "representative_params", "build_at_representatives", "vertex_spacing", "blend_weights", "BLEND_NEIGHBOURS", "DEFAULT_BUDGET", "DEFAULT_MAX_ANGLE", "REPRESENTATIVES_VERSION"]
