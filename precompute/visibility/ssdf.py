@@ -50,6 +50,8 @@ from precompute.visibility.jump_flood import (coarse_seed_kernel, downsample_ker
                                              fine_signed_kernel, jfa_steps, jfa_texel_kernel, seed_at_kernel,
                                              seed_kernel, signed_kernel)
 from precompute.visibility.occluder_cone import occluder_cones
+from precompute.visibility.representatives import (DEFAULT_BUDGET, DEFAULT_MAX_ANGLE, build_at_representatives,
+                                                   representative_params)
 from precompute.visibility.ssdf_wp import texel_directions
 from precompute.visibility.rays import OFFSET_SCALE, _MeshContext, _tqdm, launch_visibility, run_batches, validate_mesh
 
@@ -285,6 +287,25 @@ class SSDFData:
     #: :class:`warp_sg.core.stage_clock.StageClock`) and counts (``rays_cast``, ``uniform_vertices``: ints);
     #: empty when the data came from the cache
     stats: dict = field(default_factory=dict)
+    #: (V,) int32: the vertex whose ray-cast map each vertex's map was transferred from
+    #: (:mod:`precompute.visibility.representatives`); empty: every vertex has its own
+    representative: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
+    #: (V, k) int32 / float32: the representatives each vertex's map is blended from and their
+    #: weights (``build_at_representatives``; a representative: itself, 1); empty without
+    blend_index: np.ndarray = field(default_factory=lambda: np.zeros((0, 1), np.int32))
+    blend_weight: np.ndarray = field(default_factory=lambda: np.zeros((0, 1), np.float32))
+
+    def blend_arrays(self, device):
+        """``(representative ids, blend_index, blend_weight)`` as device arrays (kept per device), or
+        None when every vertex has its own map."""
+        if not len(self.blend_index):
+            return None
+        memo = self.__dict__.setdefault("_blend_memo", {})
+        if str(device) not in memo:
+            memo[str(device)] = (wp.array(np.unique(self.representative).astype(np.int32), dtype=int, device=device),
+                                 wp.array(self.blend_index, dtype=int, device=device),
+                                 wp.array(self.blend_weight, dtype=float, device=device))
+        return memo[str(device)]
 
     @property
     def pca_terms(self) -> int:
@@ -359,7 +380,7 @@ def _disk_rows(n: int, d: int):
             del mm
 
 
-def _ssdf_params(resolution, ray_resolution, pca_terms, rays=None, cutouts=None):
+def _ssdf_params(resolution, ray_resolution, pca_terms, rays=None, cutouts=None, reps=None):
     if ray_resolution is None:
         ray_resolution = 2 * int(resolution)
     _check_resolutions(resolution, ray_resolution)
@@ -373,6 +394,7 @@ def _ssdf_params(resolution, ray_resolution, pca_terms, rays=None, cutouts=None)
               "rays": rays if rays == "full" else f"adaptive-{ADAPTIVE_VERSION}"}
     if cutouts is not None:  # (the key of a mesh without cut-outs is unchanged)
         params.update(cutouts.key())
+    params.update(representative_params(*reps) if reps is not None else {})  # (none within the budget)
     return params
 
 
@@ -395,10 +417,11 @@ def _pca_and_cones(X, normals, R: int, pca_terms: int, clock):
 
 
 def ssdf_key(vertices, triangles, normals, *, resolution: int = DEFAULT_RESOLUTION, ray_resolution: int | None = None,
-             pca_terms: int = DEFAULT_PCA_TERMS, rays: str | None = None, cutouts=None) -> str:
+             pca_terms: int = DEFAULT_PCA_TERMS, rays: str | None = None, cutouts=None,
+             representatives: int | None = DEFAULT_BUDGET, rep_max_angle: float = DEFAULT_MAX_ANGLE) -> str:
     """The cache key of :func:`ssdf_for_mesh` for these arguments (a content hash; no SSDF is computed)."""
-    params = _ssdf_params(resolution, ray_resolution, pca_terms, rays, cutouts)
     v, f, n = validate_mesh(vertices, triangles, normals)
+    params = _ssdf_params(resolution, ray_resolution, pca_terms, rays, cutouts, (len(v), representatives, rep_max_angle))
     if n is None:
         raise InputError("ssdf_for_mesh needs per-vertex normals")
     return _cache.content_key(v.astype(np.float32), f.astype(np.int32), n.astype(np.float32), params)
@@ -407,7 +430,8 @@ def ssdf_key(vertices, triangles, normals, *, resolution: int = DEFAULT_RESOLUTI
 def ssdf_for_mesh(vertices, triangles, normals, *, resolution: int = DEFAULT_RESOLUTION,
                   ray_resolution: int | None = None, pca_terms: int = DEFAULT_PCA_TERMS,
                   device="cpu", progress: bool = True, use_cache: bool = True, compute=None,
-                  rays: str | None = None, cutouts=None) -> SSDFData:
+                  rays: str | None = None, cutouts=None, representatives: int | None = DEFAULT_BUDGET,
+                  rep_max_angle: float = DEFAULT_MAX_ANGLE) -> SSDFData:
     """Per-vertex SSDFs of a (merged) mesh, PCA-compressed (eq. 23–24), cached on disk.
 
     ``ray_resolution`` defaults to ``2 × resolution`` (paper: 4×, 512 → 128). The cache key is a
@@ -419,11 +443,15 @@ def ssdf_for_mesh(vertices, triangles, normals, *, resolution: int = DEFAULT_RES
     (:data:`DEFAULT_RAYS`). PCA and the cache write run here. ``stats`` of the result: the build's
     stages and counts (:meth:`compute_ssdf`'s ``clock``; empty on a cache hit). ``cutouts``: the
     mesh's alpha cut-outs (:class:`warp_sg.shading.cutout.CutoutData`; the SSDF's rays pass through holes;
-    passed on to ``compute`` as ``cutouts=`` when given).
+    passed on to ``compute`` as ``cutouts=`` when given). A mesh of more than ``representatives``
+    vertices (default :data:`~precompute.visibility.representatives.DEFAULT_BUDGET`; 0 or None: no
+    limit) gets its maps at that many representative vertices at most, clustered with normals at
+    most ``rep_max_angle`` degrees apart, and transferred to the others
+    (:mod:`precompute.visibility.representatives`; ``compute`` is called with ``vertex_ids``).
     """
-    params = _ssdf_params(resolution, ray_resolution, pca_terms, rays, cutouts)
-    ray_resolution = params["ray_resolution"]
     v, f, n = validate_mesh(vertices, triangles, normals)
+    params = _ssdf_params(resolution, ray_resolution, pca_terms, rays, cutouts, (len(v), representatives, rep_max_angle))
+    ray_resolution = params["ray_resolution"]
     if n is None:
         raise InputError("ssdf_for_mesh needs per-vertex normals")
     key = _cache.content_key(v.astype(np.float32), f.astype(np.int32), n.astype(np.float32), params)
@@ -438,6 +466,11 @@ def ssdf_for_mesh(vertices, triangles, normals, *, resolution: int = DEFAULT_RES
             kw["cutouts"] = cutouts
         if compute is not compute_ssdf and _check_rays(rays) != DEFAULT_RAYS:
             raise InputError(f"rays={rays!r} needs the local compute_ssdf", where="rays")
+        if "representatives" in params:
+            return build_at_representatives(v, f, n, compute, resolution=resolution, ray_resolution=ray_resolution,
+                                            pca_terms=pca_terms, budget=representatives, max_angle=rep_max_angle,
+                                            device=device, progress=progress, kw=kw, clock=clock,
+                                            pca_and_cones=_pca_and_cones)
         with contextlib.ExitStack() as stack:
             if compute is compute_ssdf and len(v) * R * R * 4 > memory_budget():
                 kw["out"] = stack.enter_context(_disk_rows(len(v), R * R))
@@ -453,4 +486,7 @@ def ssdf_for_mesh(vertices, triangles, normals, *, resolution: int = DEFAULT_RES
     return SSDFData(resolution=int(resolution), mean=data["mean"].astype(np.float32),
                     basis=data["basis"].astype(np.float32), weights=data["weights"].astype(np.float32),
                     ray_resolution=int(ray_resolution), pca_rms_error=np.asarray(data["pca_rms_error"]), key=key,
-                    cones=np.asarray(data["cones"], np.float32), stats={**clock.as_dict(), **clock.counts})
+                    cones=np.asarray(data["cones"], np.float32), stats={**clock.as_dict(), **clock.counts},
+                    representative=np.asarray(data.get("representative", np.zeros(0)), np.int32),
+                    blend_index=np.asarray(data.get("blend_index", np.zeros((0, 1))), np.int32),
+                    blend_weight=np.asarray(data.get("blend_weight", np.zeros((0, 1))), np.float32))

@@ -240,6 +240,52 @@ def env_vertex_visible_kernel(base: int, ids: wp.array(dtype=int), vis: Visibili
     out_irr[v] = wp.cw_mul(ex, f)
 
 
+@wp.kernel(enable_backward=False)
+def blend_rows_kernel(base: int, index: wp.array2d(dtype=int), weight: wp.array2d(dtype=float),
+                      rows: wp.array2d(dtype=float)):
+    """``rows[v] = Σ_k weight[v, k] rows[index[v, k]]`` for every vertex ``v = base + tid`` that is
+    not a representative (``index[v, 0] ≠ v``): the representatives' rows, blended as the vertex's
+    SSDF was (``precompute.visibility.representatives``); a representative's row is kept."""
+    v = base + wp.tid()
+    if index[v, 0] != v:
+        for j in range(rows.shape[1]):
+            s = float(0.0)
+            for k in range(index.shape[1]):
+                s += weight[v, k] * rows[index[v, k], j]
+            rows[v, j] = s
+
+
+@wp.kernel(enable_backward=False)
+def blend_visible_kernel(base: int, index: wp.array2d(dtype=int), weight: wp.array2d(dtype=float), vis: Visibility,
+                         env: EnvSG, out: wp.array(dtype=wp.vec3), out_irr: wp.array(dtype=wp.vec3)):
+    """:func:`blend_rows_kernel` for the visible fraction ``F`` of the diffuse irradiance
+    (:func:`env_vertex_visible_kernel`), then ``out_irr[v] = E(n_v) ∘ F[v]`` at the vertex's own
+    normal."""
+    v = base + wp.tid()
+    if index[v, 0] != v:
+        f = wp.vec3(0.0, 0.0, 0.0)
+        for k in range(index.shape[1]):
+            f += weight[v, k] * out[index[v, k]]
+        out[v] = f
+        out_irr[v] = wp.cw_mul(irradiance_unscaled(env.exact, wp.normalize(vis.normals[v])), f)
+
+
+def _blend(ssdf, n_vertices: int, device):
+    """``SSDFData.blend_arrays`` when the SSDFs of these vertices were computed at representatives
+    (the caches are then computed there and blended), else None."""
+    b = ssdf.blend_arrays(device) if hasattr(ssdf, "blend_arrays") else None
+    return b if b is not None and int(b[1].shape[0]) == int(n_vertices) else None
+
+
+def _blended(bl, build, blend_kernel, inputs, n_vertices, device):
+    """``build(ids)`` at the representatives, then ``blend_kernel`` over every vertex (``bl``: :func:`_blend`)."""
+    from raster import parallel
+
+    out = build(bl[0])
+    parallel.launch(blend_kernel, int(n_vertices), [bl[1], bl[2], *inputs(out)], device, min_chunk=4096)
+    return out
+
+
 def _ids(ids, device):
     """(the id array, its length) for the kernels' ``ids`` argument (empty: every vertex)."""
     if ids is None:
@@ -393,24 +439,50 @@ def update_caches(caches: tuple, inputs: CacheInputs, f, es: EnvSG) -> tuple[Env
       environment irradiance and that visible irradiance at unit scale: rebuilt on environment
       rotation or with the visibility data (``es.irr_scale`` is the scale).
 
+    SSDFs computed at representative vertices (``precompute.visibility.representatives``:
+    ``SSDFData.blend_arrays``): each array is computed at the representatives only and the other
+    vertices' rows are their blend weights' combination of those rows (:func:`blend_rows_kernel`,
+    :func:`blend_visible_kernel`; the irradiance ``E`` at the vertex's own normal), as their maps
+    were blended.
+
     Camera and material edits reuse all three. Returns ``es`` and this call's rebuild seconds."""
     env_vis, light_vis, env_visible = caches
     r = inputs
     d, nv, fh = r.device, r.n_vertices, r.fh
+    bl = _blend(r.ssdf, nv, d)  # SSDFs at representatives: each cache there, then blended
+
+    def env_lobes():
+        if bl is None:
+            return env_vertex_visibility(r.irr_table, r.vis, es, nv, d)
+        return _blended(bl, lambda ids: env_vertex_visibility(r.irr_table, r.vis, es, nv, d, ids=ids),
+                        blend_rows_kernel, lambda o: [o], nv, d)
+
+    def deficit():
+        if bl is None or r.light_arrays.count == 0:
+            return light_vertex_deficit(r.vis, r.positions, r.light_arrays, nv, fh == "sigmoid", d)
+        return _blended(bl, lambda ids: light_vertex_deficit(r.vis, r.positions, r.light_arrays, nv,
+                                                             fh == "sigmoid", d, ids=ids),
+                        blend_rows_kernel, lambda o: [o], nv, d)
+
+    def visible():
+        if bl is None:
+            return env_vertex_visible(r.vis, es, nv, d)
+        return _blended(bl, lambda ids: env_vertex_visible(r.vis, es, nv, d, ids=ids), blend_visible_kernel,
+                        lambda o: [r.vis, es, *o], nv, d)
+
     key = (r.env_key[:2], r.ssdf, r.vis.cones) if f.env_vis_vertex else None
-    es.vis = env_vis.array(key, lambda: env_vertex_visibility(r.irr_table, r.vis, es, nv, d), d)
+    es.vis = env_vis.array(key, env_lobes, d)
     where = tuple((li.type, *np.ravel(getattr(li, "position", getattr(li, "direction", ()))).tolist(),
                    float(li.radius)) for li in r.shading_lights)
     key = (where, r.ssdf, r.vis.cones, fh) if f.light_vis_vertex else None
-    r.vis.light_deficit = light_vis.array(
-        key, lambda: light_vertex_deficit(r.vis, r.positions, r.light_arrays, nv, fh == "sigmoid", d), d)
+    r.vis.light_deficit = light_vis.array(key, deficit, d)
     key = (r.env_key[:2], r.ssdf, r.vis.cones) if f.env_visible_vertex else None
-    es.visible, es.irr_vertex = env_visible.array(key, lambda: env_vertex_visible(r.vis, es, nv, d), d)
+    es.visible, es.irr_vertex = env_visible.array(key, visible, d)
     es.irr_scale = r.env_scale
     return es, sum(c.seconds for c in caches)
 
 
-__all__ = ["VertexCache", "CacheInputs", "caches", "update_caches", "env_vertex_visible", "env_vertex_visible_kernel",
+__all__ = ["blend_rows_kernel", "blend_visible_kernel", "VertexCache", "CacheInputs", "caches", "update_caches", "env_vertex_visible", "env_vertex_visible_kernel",
            "smooth_triangles", "SMOOTH_TRIANGLE_DEG",
            "env_vertex_visibility", "env_vertex_visibility_kernel", "light_vertex_deficit",
            "light_vertex_deficit_kernel"]
