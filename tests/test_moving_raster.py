@@ -11,6 +11,7 @@ import pytest
 import warp as wp
 
 import warp_sg as ws
+from motion_helpers import apply_step
 from warp_sg.scene.plain_scenes import write_plain_scene
 from warp_sg.numeric.rigid_motion import motion_matrix, rotation_about
 
@@ -140,10 +141,7 @@ def test_frames_that_rasterise_only_the_moving_objects_equal_full_rasters(tmp_pa
              ("move", _roll(1.2, -0.5)), ("move", away), ("move", _roll(0.1))]
     for kind, value in [("none", None)] + steps:
         for r in (a, b):
-            if kind == "move":
-                r.set_object_transform("object", value)
-            elif kind == "camera":
-                r.set_camera(origin=value)
+            apply_step(r, kind, value)
         ia, ib = a.render().copy(), b.render().copy()
         assert np.array_equal(ia, ib), kind
         for name in ("tri_id", "bary", "inv_depth"):

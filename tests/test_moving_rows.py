@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 import warp_sg as ws
+from motion_helpers import apply_step
 from warp_sg.numeric.rigid_motion import motion_about, rotation_about
 from warp_sg.scene.plain_scenes import write_plain_scene
 
@@ -33,10 +34,7 @@ def test_frames_that_compute_only_the_rows_they_read_equal_frames_that_compute_a
     first = None
     for kind, value in [("none", None)] + steps:
         for r in (a, b):
-            if kind == "move":
-                r.set_object_transform("object", value)
-            elif kind == "camera":
-                r.set_camera(origin=value)
+            apply_step(r, kind, value)
         ia, ib = a.render().copy(), b.render().copy()
         assert np.array_equal(ia, ib), kind
         first = ia if first is None else first

@@ -12,6 +12,7 @@ field looked up in the object's frame against a ray cast of the turned mesh.
 """
 import numpy as np
 import pytest
+from motion_helpers import bunny_mesh
 import warp as wp
 
 trimesh = pytest.importorskip("trimesh")
@@ -30,17 +31,6 @@ def _u_shape():
     parts[2].apply_translation([0.4, 0.5, 0.0])
     m = trimesh.util.concatenate(parts)
     return np.asarray(m.vertices, np.float64), np.asarray(m.faces, np.int64)
-
-
-def _bunny(folder):
-    pytest.importorskip("pxr", reason="usd-core is not installed (pip install warp-sg[usd])")
-    import warp_sg as ws
-    from warp_sg.scene.plain_scenes import write_plain_scene
-
-    g = ws.load_scene(write_plain_scene(folder, obj="bunny", size=8, dynamic=True)).geometry()
-    T = np.asarray(g.triangles, np.int64)[np.asarray(g.tri_object) == 0]
-    ids = np.unique(T)
-    return np.asarray(g.vertices, np.float64)[ids], np.searchsorted(ids, T)
 
 
 def _reference(V, F, P, c, rho, n=None, k=40000, seed=1):
@@ -90,7 +80,7 @@ def shape(request, tmp_path_factory):
     tmp = tmp_path_factory.mktemp(request.param)
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("WARP_SG_CACHE_DIR", str(tmp / "cache"))
-        V, F = _u_shape() if request.param == "u" else _bunny(tmp / "scene")
+        V, F = _u_shape() if request.param == "u" else bunny_mesh(tmp / "scene")
         ds = diffuse_sphere(V, F)
         yield request.param, V, F, ds, build_field(V, F, ds[:3])
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from motion_helpers import bunny_mesh
 
 
 def _directions(n: int) -> np.ndarray:
@@ -76,18 +77,6 @@ def _former(V, F, k=16, resolution=24):
     return kmeans_spheres(pts, k, pitch)
 
 
-def _bunny(folder):
-    """The bunny of the benchmark scene (``write_plain_scene(obj="bunny")``): vertices, triangles."""
-    pytest.importorskip("pxr", reason="usd-core is not installed (pip install warp-sg[usd])")
-    import warp_sg as ws
-    from warp_sg.scene.plain_scenes import write_plain_scene
-
-    g = ws.load_scene(write_plain_scene(folder, obj="bunny", size=8, dynamic=True)).geometry()
-    T = np.asarray(g.triangles, np.int64)[np.asarray(g.tri_object) == 0]
-    ids = np.unique(T)
-    return np.asarray(g.vertices, np.float64)[ids], np.searchsorted(ids, T)
-
-
 def test_thin_ear_is_in_the_shadow_from_every_direction(tmp_path, monkeypatch):
     monkeypatch.setenv("WARP_SG_CACHE_DIR", str(tmp_path))
     from precompute.visibility.sphere_fit import sphere_set
@@ -132,7 +121,7 @@ def test_bunny_silhouettes_and_sun_shadow_against_a_ray_cast(tmp_path, monkeypat
     from warp_sg.scene.camera import Camera
     from warp_sg.scene.plain_scenes import sun_direction
 
-    V, F = _bunny(tmp_path / "scene")
+    V, F = bunny_mesh(tmp_path / "scene")
     S = sphere_set(V, F).astype(np.float64)
     got, old = silhouette_scores(V, F, S), silhouette_scores(V, F, _former(V, F))
     assert old[:, 0].min() < 0.8 and old[:, 0].mean() < 0.85
