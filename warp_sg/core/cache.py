@@ -25,12 +25,12 @@ fit; the precompute facade names it ``precompute.cache``.
 """
 from __future__ import annotations
 
-import ast
 import contextlib
 import functools
 import hashlib
 import importlib.util
 import sys
+import tokenize
 import io
 import json
 import os
@@ -119,11 +119,21 @@ def content_key(*parts) -> str:
     return h.hexdigest()[:40]
 
 
+#: tokens that are layout only
+_LAYOUT_TOKENS = frozenset({tokenize.COMMENT, tokenize.NL, tokenize.ENCODING})
+
+
 @functools.lru_cache(maxsize=256)
 def _source_digest(path: str, mtime_ns: int, size: int) -> str:
-    """SHA-256 of a Python file's syntax tree (``ast.dump``: comments and formatting don't count)."""
-    source = Path(path).read_text(encoding="utf-8")
-    return hashlib.sha256(ast.dump(ast.parse(source, filename=path)).encode()).hexdigest()
+    """SHA-256 of a Python file's tokens: comments, blank lines, line breaks inside brackets and
+    spacing don't count (``tokenize``, not ``ast.parse``: CPython 3.11.7's parser can raise
+    ``SystemError: AST constructor recursion depth mismatch`` when called from deep stacks)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for tok in tokenize.tokenize(f.readline):
+            if tok.type not in _LAYOUT_TOKENS:
+                h.update(f"{tok.type}:{tok.string}\0".encode())
+    return h.hexdigest()
 
 
 def _source_file(producer) -> Path:
@@ -146,13 +156,13 @@ def _source_file(producer) -> Path:
 
 
 def code_key(*producers) -> str:
-    """Hex hash of the code that produces a cache entry: the syntax trees of the source files of
+    """Hex hash of the code that produces a cache entry: the tokens of the source files of
     ``producers`` (modules, dotted module names, or functions / classes / Warp kernels, which stand
     for the module that defines them), in order.
 
     A producer passes ``code_key(__name__, helper, ...)`` as one of its :func:`content_key` parts:
     any change of that code (not of its comments or layout) changes the key, so the old entries
-    miss and are rebuilt. The trees are hashed once per file version (path, mtime, size)."""
+    miss and are rebuilt. The tokens are hashed once per file version (path, mtime, size)."""
     h = hashlib.sha256(b"warp-sg-code")
     for p in producers:
         path = _source_file(p)
