@@ -13,9 +13,16 @@ import warp as wp
 
 from precompute.environment.irradiance import placeholder_table
 
+from warp_sg.renderer.progressive import ShadowJob
 from warp_sg.shading import kernel as S
 from warp_sg.shading.visibility_terms import lobe_constants
 from warp_sg.scene.lights import DirectionalLight, PointLight
+
+
+#: the sharpest ΓL level of a progressive renderer's first frames (σ = 1/√λ ≈ 3.6°); sharper lobes
+#: read the prefilter's blend towards the map's own Gaussian-filtered texels until the scene's
+#: ladder arrives (``EnvironmentSetup._ensure_gamma``)
+PREVIEW_GAMMA_LAMBDA = 256.0
 
 
 class EnvironmentSetup:
@@ -101,30 +108,68 @@ class EnvironmentSetup:
         """Prefilter the environment (ΓL pyramid, eq. 35) when the scene needs it: a specular
         material. Done lazily so diffuse-only scenes skip it. The default λ ladder ends at the
         first level at or above the scene's sharpest NDF lobe (:mod:`warp_sg.scene.lobe_extent`); a
-        material edit that needs a sharper level rebuilds it."""
+        material edit that needs a sharper level rebuilds it.
+
+        A progressive renderer whose shadows are still to come builds only the levels up to
+        :data:`PREVIEW_GAMMA_LAMBDA` for its first frames (the sharpest four or five levels are
+        most of the prefilter's cost: the full map with sub-cells) and prefilters the scene's
+        ladder on a background thread beside the shadows (:meth:`_start_gamma_job`, installed by
+        :meth:`poll`): its later frames are those of a renderer built without ``progressive``."""
         env = self.env_light
-        if env is None or not self.has_specular:
-            return
+        if env is None or not self.has_specular or getattr(self, "_gamma_job", None) is not None:
+            return  # (a full ladder on its way: the preview's serves until poll() installs it)
         if self.gamma is not None and (not self._gamma_capped or self._gamma_need <= self._gamma_reach):
             return
-        import precompute
+        t = self._tick()
+        kw, capped, reach = self._gamma_request()
+        if self.progressive and self._job is not None and reach > PREVIEW_GAMMA_LAMBDA:
+            lams = kw.get("lambdas", self._gamma_ladder())
+            preview = lams[:max(int(np.searchsorted(lams, PREVIEW_GAMMA_LAMBDA, side="right")), 2)]
+            self._install_gamma(self._prefilter(lambdas=preview), True, float(preview[-1]))
+            self._gamma_job = lambda: ShadowJob(lambda: (self._prefilter(**kw), capped, reach), name="warp-sg-gamma")
+        else:
+            self._install_gamma(self._prefilter(**kw), capped, reach)
+        self._tock("env_prefilter", t)
+
+    def _gamma_ladder(self) -> np.ndarray:
         from precompute.environment.prefilter import default_ladder
 
+        return default_ladder(self.env_residual.shape[0], base_face=self.scene.render.gamma_resolution)[0]
+
+    def _gamma_request(self) -> tuple:
+        """``(keyword arguments of prefilter_environment, capped, reach)``: the ladder the scene
+        needs (``[render] gamma_levels`` levels, or the default ladder up to the sharpest lobe),
+        whether it stops short of the default ladder's top, and its last λ."""
         rs = self.scene.render
-        base = self.env_residual
-        t = self._tick()
-        lams, _, _ = default_ladder(base.shape[0], base_face=rs.gamma_resolution)
+        lams = self._gamma_ladder()
         kw = {}
         if rs.gamma_levels > 0:
             kw["lambdas"] = np.geomspace(lams[0], lams[-1], rs.gamma_levels)
         elif 0.0 < self._gamma_need < lams[-2]:
             kw["lambdas"] = lams[:max(int(np.searchsorted(lams, self._gamma_need)) + 1, 2)]
-        self._gamma_capped = "lambdas" in kw and rs.gamma_levels == 0
-        self._gamma_reach = float(kw.get("lambdas", lams)[-1])
-        self.gamma = precompute.prefilter_environment(base, device=self.device, base_face=rs.gamma_resolution,
-                                                      progress=self.progress, **kw)
+        return kw, "lambdas" in kw and rs.gamma_levels == 0, float(kw.get("lambdas", lams)[-1])
+
+    def _prefilter(self, **kw):
+        import precompute
+
+        return precompute.prefilter_environment(self.env_residual, device=self.device,
+                                                base_face=self.scene.render.gamma_resolution,
+                                                progress=self.progress, **kw)
+
+    def _install_gamma(self, gamma, capped: bool, reach: float) -> None:
+        self.gamma, self._gamma_capped, self._gamma_reach = gamma, bool(capped), float(reach)
         self.env_specular_mode = S.ENV_PREFILTERED
-        self._tock("env_prefilter", t)
+
+    def _poll_gamma(self) -> bool:
+        """Install the background prefilter's ladder if it has finished (``progressive``): whether
+        this call did."""
+        job = getattr(self, "_gamma_job", None)
+        if not isinstance(job, ShadowJob) or not job.done():  # (None, or not started yet: __init__)
+            return False
+        self._gamma_job = None
+        self._install_gamma(*job.result())
+        self.timings["precompute_parts"]["env_prefilter_full"] = job.seconds
+        return True
 
     @staticmethod
     def _fit_env(base, n_lobes):
@@ -183,4 +228,4 @@ class EnvironmentSetup:
                 for p in self.env_peaks]
 
 
-__all__ = ["EnvironmentSetup"]
+__all__ = ["EnvironmentSetup", "PREVIEW_GAMMA_LAMBDA"]

@@ -88,6 +88,7 @@ class Renderer(FramePaths, VariantChoice, ResourceSetup, EnvironmentSetup):
         self.progress = progress
         self.progressive = bool(progressive)
         self._job = None  # the background shadow precompute (progressive)
+        self._gamma_job = None  # the background ΓL prefilter (progressive: _ensure_gamma)
         self.timings: dict = {"precompute_parts": {}, "precompute_cpu": {}}
         self._env_arrays_key = ()  # (see _env_arrays; () = not built yet)
         self._env_sg_arrays = None
@@ -110,6 +111,8 @@ class Renderer(FramePaths, VariantChoice, ResourceSetup, EnvironmentSetup):
             self._setup_lights()
         if self.progressive and self._job is not None:  # the shadows now get the cores the setup had
             self._job = self._job()
+            if self._gamma_job is not None:  # (and the scene's ΓL ladder: _ensure_gamma)
+                self._gamma_job = self._gamma_job()
         elif self._job is not None:  # computed beside the environment setup: install them now
             self.wait()
         wp.synchronize_device(self.device)

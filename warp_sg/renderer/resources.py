@@ -128,14 +128,17 @@ class ResourceSetup:
         return self._job is not None
 
     def shadows_ready(self) -> bool:
-        """Whether nothing is left to wait for: no background precompute, or one that has finished
-        (installed by the next :meth:`poll`)."""
-        return self._job is None or self._job.done()
+        """Whether nothing is left to wait for: no background precompute (the shadows, a
+        progressive renderer's ΓL ladder), or ones that have finished (installed by the next
+        :meth:`poll`)."""
+        return all(j is None or j.done() for j in (self._job, self._gamma_job))
 
     def poll(self) -> bool:
         """Install the background shadow precompute's result if it has finished (``progressive``):
         True when this call switched the renderer to shadowed frames. Never waits; an error of
-        the precompute is raised here. ``render()`` calls it first."""
+        the precompute is raised here. ``render()`` calls it first. A progressive renderer's
+        ΓL ladder is installed likewise when it is ready (:meth:`_poll_gamma`)."""
+        self._poll_gamma()  # (each frame reads self.gamma's table: nothing else to rebuild)
         job = self._job
         if job is None or not job.done():
             return False
@@ -153,9 +156,13 @@ class ResourceSetup:
     def wait(self, timeout: float | None = None) -> bool:
         """Block until the shadows are installed (``progressive``; at most ``timeout`` seconds):
         whether they are. A renderer built without ``progressive`` has them already."""
-        job = self._job
-        if job is not None and not job.wait(timeout):
-            return False
+        import time
+
+        end = None if timeout is None else time.perf_counter() + timeout
+        for job in (self._job, self._gamma_job):
+            left = None if end is None else max(end - time.perf_counter(), 0.0)
+            if job is not None and not job.wait(left):
+                return False
         self.poll()
         return True
 
