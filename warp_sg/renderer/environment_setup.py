@@ -160,6 +160,13 @@ class EnvironmentSetup:
         self.gamma, self._gamma_capped, self._gamma_reach = gamma, bool(capped), float(reach)
         self.env_specular_mode = S.ENV_PREFILTERED
 
+    def _start_gamma_job(self) -> None:
+        """Start the background prefilter of the scene's ladder (``progressive``), once: after the
+        first frame, which so has the cores to itself but for the shadows' thread (``render()``,
+        ``wait()``)."""
+        if callable(getattr(self, "_gamma_job", None)) and not isinstance(self._gamma_job, ShadowJob):
+            self._gamma_job = self._gamma_job()
+
     def _poll_gamma(self) -> bool:
         """Install the background prefilter's ladder if it has finished (``progressive``): whether
         this call did."""

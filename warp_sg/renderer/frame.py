@@ -107,6 +107,12 @@ class FramePaths:
         its shadows if they have become ready (:meth:`poll`)."""
         self.poll()
         self._move()
+        try:
+            return self._render()
+        finally:
+            self._start_gamma_job()  # (a progressive renderer's ΓL ladder: after its first frame)
+
+    def _render(self) -> np.ndarray:
         rs = self.scene.render
         if rs.supersampling == 1 and rs.antialias > 1:
             return self._render_adaptive(int(rs.antialias))
@@ -193,6 +199,7 @@ class FramePaths:
         finally:
             if self.dynamic is not None:
                 self.dynamic.reads = reads
+            self._start_gamma_job()
         return out.numpy().reshape(nv, 3)
 
     def _launch_shade(self, tri_id, bary, bg, eye, out):

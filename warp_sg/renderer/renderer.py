@@ -110,9 +110,7 @@ class Renderer(FramePaths, VariantChoice, ResourceSetup, EnvironmentSetup):
             self._ensure_gamma()
             self._setup_lights()
         if self.progressive and self._job is not None:  # the shadows now get the cores the setup had
-            self._job = self._job()
-            if self._gamma_job is not None:  # (and the scene's ΓL ladder: _ensure_gamma)
-                self._gamma_job = self._gamma_job()
+            self._job = self._job()  # (the scene's ΓL ladder starts after the first frame: _start_gamma_job)
         elif self._job is not None:  # computed beside the environment setup: install them now
             self.wait()
         wp.synchronize_device(self.device)

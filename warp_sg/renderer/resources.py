@@ -131,7 +131,7 @@ class ResourceSetup:
         """Whether nothing is left to wait for: no background precompute (the shadows, a
         progressive renderer's ΓL ladder), or ones that have finished (installed by the next
         :meth:`poll`)."""
-        return all(j is None or j.done() for j in (self._job, self._gamma_job))
+        return all(j is None or isinstance(j, ShadowJob) and j.done() for j in (self._job, self._gamma_job))
 
     def poll(self) -> bool:
         """Install the background shadow precompute's result if it has finished (``progressive``):
@@ -158,6 +158,7 @@ class ResourceSetup:
         whether they are. A renderer built without ``progressive`` has them already."""
         import time
 
+        self._start_gamma_job()
         end = None if timeout is None else time.perf_counter() + timeout
         for job in (self._job, self._gamma_job):
             left = None if end is None else max(end - time.perf_counter(), 0.0)
