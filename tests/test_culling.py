@@ -81,3 +81,45 @@ def test_open_inward_wound_entered_and_near_clipped_objects_keep_their_back_face
     assert _objects(ws.Renderer(_scene(camera=clipped)))["ball"] is False
     away = Camera(origin=(0.6, 0.4, 0.75), target=(0.6, 0.4, -1.0), fov=60.0, width=16, height=16, near=0.3)
     assert _objects(ws.Renderer(_scene(camera=away)))["ball"] is True
+
+
+def test_closedness_of_all_objects_at_once_matches_trimesh_per_object():
+    """``closed_parts`` (one pass over every object's directed edges) against trimesh's
+    ``is_volume``-style checks object by object (watertight and winding-consistent on merged
+    vertices): closed spheres and a box, one with a face removed (open), one with a flipped face,
+    one with a face twice, and two objects that share vertex positions."""
+    from warp_sg.core.meshcheck import closed_parts, weld_ids
+
+    parts = []
+    ico = trimesh.creation.icosphere(subdivisions=2)
+    box = trimesh.creation.box()
+    parts.append((np.asarray(ico.vertices), np.asarray(ico.faces)))                       # closed
+    parts.append((np.asarray(box.vertices) + 3.0, np.asarray(box.faces)))                 # closed
+    parts.append((np.asarray(ico.vertices) + 6.0, np.asarray(ico.faces)[1:]))             # a hole
+    flipped = np.asarray(ico.faces).copy()
+    flipped[5] = flipped[5, ::-1]
+    parts.append((np.asarray(ico.vertices) - 6.0, flipped))                              # a flipped face
+    parts.append((np.asarray(box.vertices) - 3.0, np.r_[np.asarray(box.faces), np.asarray(box.faces)[:1]]))
+    parts.append((np.asarray(box.vertices) + 3.0, np.asarray(box.faces)))                 # the 2nd box's positions
+    V, T, part, base = [], [], [], 0
+    for k, (v, f) in enumerate(parts):
+        # split every vertex per face (as exporters do for normals/UVs): closedness must weld them
+        V.append(v[f].reshape(-1, 3))
+        T.append(base + np.arange(3 * len(f)).reshape(-1, 3))
+        part.append(np.full(len(f), k))
+        base += 3 * len(f)
+    V, T, part = np.concatenate(V), np.concatenate(T), np.concatenate(part)
+    got = closed_parts(T, weld_ids(V), part, len(parts))
+    want = [bool(trimesh.Trimesh(V, T[part == k], process=True).is_watertight
+                 and trimesh.Trimesh(V, T[part == k], process=True).is_winding_consistent) for k in range(len(parts))]
+    assert want == [True, True, False, False, False, True]
+    assert got.tolist() == want
+
+
+def test_weld_ids_number_positions_as_numpy_unique_does():
+    from warp_sg.core.meshcheck import weld_ids
+
+    rng = np.random.default_rng(3)
+    v = rng.integers(-2, 3, (5000, 3)).astype(np.float32) * 0.25
+    v[::7] *= -1.0  # −0.0 and 0.0 are one position
+    assert np.array_equal(weld_ids(v), np.unique(v + 0.0, axis=0, return_inverse=True)[1].reshape(-1))

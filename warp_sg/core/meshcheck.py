@@ -102,8 +102,19 @@ def check_mesh(vertices, triangles, normals=None, *, where: str | None = None, d
 def weld_ids(vertices) -> np.ndarray:
     """(N,) int64: the same id for vertices at exactly the same position (−0.0 counts as 0.0), so
     that edges split by an exporter for normals or UVs are found as one geometric edge."""
-    v = np.asarray(vertices)
-    return np.unique(v + 0.0, axis=0, return_inverse=True)[1].reshape(-1).astype(np.int64)
+    v = np.asarray(vertices) + 0.0
+    if v.ndim != 2 or len(v) == 0:
+        return np.unique(v, axis=0, return_inverse=True)[1].reshape(-1).astype(np.int64)
+    # np.unique(v, axis=0, return_inverse=True)[1], from a lexicographic sort of the columns (the
+    # same order of the same rows, ids the ranks of the distinct rows) at a fraction of its cost
+    order = np.lexsort(v.T[::-1])
+    s = v[order]
+    new_row = np.empty(len(v), bool)
+    new_row[0] = True
+    np.any(s[1:] != s[:-1], axis=1, out=new_row[1:])
+    ids = np.empty(len(v), np.int64)
+    ids[order] = np.cumsum(new_row) - 1
+    return ids
 
 
 def closed_and_oriented(triangles, ids) -> bool:
@@ -123,6 +134,34 @@ def closed_and_oriented(triangles, ids) -> bool:
     if np.any(fwd[1:] == fwd[:-1]):
         return False
     return bool(np.array_equal(fwd, np.sort(b * n + a)))
+
+
+def closed_parts(triangles, ids, part, n_parts: int) -> np.ndarray:
+    """(n_parts,) bool: :func:`closed_and_oriented` of each part's triangles (``part``: the part of
+    each triangle, ``0 ≤ part < n_parts``), all parts in one pass: a directed edge of part k is the
+    key ``(k·n + a)·n + b`` (n the number of welded ids; per part when that would overflow)."""
+    t = np.asarray(ids, np.int64)[np.asarray(triangles, np.int64).reshape(-1, 3)]
+    part = np.asarray(part, np.int64)
+    ok = np.zeros(int(n_parts), bool)
+    if len(t) == 0:
+        return ok
+    n = int(t.max()) + 1
+    if float(n_parts) * n * n >= 2.0 ** 62:  # keys would overflow int64: one part at a time
+        for k in np.unique(part):
+            ok[k] = closed_and_oriented(t[part == k], np.arange(n))
+        return ok
+    a = t.reshape(-1)
+    b = t[:, [1, 2, 0]].reshape(-1)
+    o = np.repeat(part, 3)
+    keep = a != b  # an edge collapsed by welding belongs to a degenerate triangle
+    a, b, o = a[keep], b[keep], o[keep]
+    ok[np.unique(o)] = True  # parts with an edge; those that fail a test below are cleared
+    fwd = np.sort((o * n + a) * n + b)
+    ok[fwd[1:][fwd[1:] == fwd[:-1]] // (n * n)] = False  # a directed edge twice
+    rev = (o * n + b) * n + a
+    at = np.minimum(np.searchsorted(fwd, rev), len(fwd) - 1)
+    ok[o[fwd[at] != rev]] = False  # a directed edge without its reverse
+    return ok
 
 
 def signed_volume(vertices, triangles) -> float:
@@ -150,5 +189,5 @@ def winding_number(vertices, triangles, point) -> float:
     return float(2.0 * np.arctan2(num, den).sum() / (4.0 * np.pi))
 
 
-__all__ = ["check_mesh", "weld_ids", "closed_and_oriented", "signed_volume", "winding_number"]
+__all__ = ["check_mesh", "weld_ids", "closed_and_oriented", "closed_parts", "signed_volume", "winding_number"]
 

@@ -1,7 +1,8 @@
 """Back faces a raster may drop: those of the closed objects the camera sees from outside.
 
-A closed, consistently wound, outward-facing mesh (``trimesh.Trimesh.is_volume``, on the vertices
-merged by position) seen from outside never shows a back face: along every ray the first surface
+A closed, consistently wound, outward-facing mesh (every directed edge of the position-welded
+mesh once and its reverse once, ``warp_sg.core.meshcheck.closed_parts``, and a positive volume:
+trimesh's ``is_volume``) seen from outside never shows a back face: along every ray the first surface
 it meets faces the eye. Its back faces only cost raster work — about half the (triangle, tile)
 pairs of a torus, and half the queue the antialiasing's sub-pixel coverage walks. Three cases
 where a back face can be seen keep every triangle of the object:
@@ -33,22 +34,30 @@ class BackfaceCulling:
     (:meth:`flags`)."""
 
     def __init__(self, geometry, device: str = "cpu"):
-        import trimesh
+        from warp_sg.core.meshcheck import closed_parts, weld_ids
 
         n_objects = len(geometry.object_names)
         self.device, self._cached = device, (None, False)
         self._used = {}  # object -> its vertex ids (moved)
         self.tri_object = np.asarray(geometry.tri_object, np.int64)
-        self.closed = np.zeros(n_objects, bool)
-        self.corners = np.zeros((n_objects, 8, 3))
         V = np.asarray(geometry.vertices, np.float64)
-        for k in range(n_objects):
-            F = np.asarray(geometry.triangles)[self.tri_object == k]
-            if len(F) < 4:
-                continue
-            used = V[np.unique(F)]
-            self.corners[k] = box_corners(used.min(0), used.max(0))
-            self.closed[k] = bool(trimesh.Trimesh(V, F, process=True).is_volume)
+        T = np.asarray(geometry.triangles, np.int64).reshape(-1, 3)
+        counts = np.bincount(self.tri_object, minlength=n_objects)[:n_objects]
+        self.corners = np.zeros((n_objects, 8, 3))
+        has = np.flatnonzero(counts)
+        if len(has):  # each object's box: of its triangles' corners, grouped by object
+            order = np.argsort(self.tri_object, kind="stable")
+            P = V[T[order]].reshape(-1, 3)
+            start = 3 * np.concatenate([[0], np.cumsum(counts)[:-1]])[has]
+            lo, hi = np.minimum.reduceat(P, start, axis=0), np.maximum.reduceat(P, start, axis=0)
+            self.corners[has] = [box_corners(a, b) for a, b in zip(lo, hi)]  # (per object, not per vertex)
+        # closed and consistently wound (the directed edges of the position-welded mesh), with a
+        # positive volume (outward): trimesh's ``is_volume`` on merged vertices, every object at once
+        c = self.corners.mean(axis=1)[self.tri_object]
+        a, b, d = V[T[:, 0]] - c, V[T[:, 1]] - c, V[T[:, 2]] - c
+        volume = np.bincount(self.tri_object, weights=np.einsum("ij,ij->i", a, np.cross(b, d)),
+                             minlength=n_objects)[:n_objects]
+        self.closed = (counts >= 4) & (volume > 0.0) & closed_parts(T, weld_ids(V), self.tri_object, n_objects)
 
     def moved(self, geometry, objects=None) -> None:
         """Objects moved rigidly (``objects``: their indices, default all): new bounding boxes from

@@ -57,7 +57,9 @@ def edge_adjacency(vertices, triangles) -> tuple:
     keep = w[:, 0] != w[:, 1]
     corners, faces, w = corners[keep], faces[keep], w[keep]
     lo, hi = np.minimum(w[:, 0], w[:, 1]), np.maximum(w[:, 0], w[:, 1])
-    order = np.lexsort((hi, lo))
+    n = int(hi.max()) + 1 if len(hi) else 1
+    # by (lo, hi), stably: np.lexsort((hi, lo)), as one int64 key where it fits (faster)
+    order = np.argsort(lo * n + hi, kind="stable") if n < 3_000_000_000 else np.lexsort((hi, lo))
     lo, hi, corners, faces = lo[order], hi[order], corners[order], faces[order]
     start = np.flatnonzero(np.r_[True, (lo[1:] != lo[:-1]) | (hi[1:] != hi[:-1])])
     count = np.diff(np.r_[start, len(lo)])
