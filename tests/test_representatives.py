@@ -69,25 +69,6 @@ def test_clusters_respect_normal_angle_and_cell(angle):
     assert np.array_equal(again.cluster, cl.cluster) and np.array_equal(again.reps, cl.reps)
 
 
-def test_representative_is_nearest_the_area_weighted_centroid():
-    """With ``weights``, each cluster's representative is its member nearest the weighted centroid
-    (brute force); ``vertex_area`` sums to the mesh's area (a closed form: the plane and box)."""
-    V, F, N = plane_box_scene(20)
-    A = RP.vertex_area(V, F)
-    tri = np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1) / 2
-    assert abs(A.sum() - tri.sum()) < 1e-9 * tri.sum()
-    pts, nn = _cloud()
-    w = np.random.default_rng(4).random(len(pts)) ** 4
-    cl = RP.cluster_vertices(pts, nn, 800, 20.0, weights=w)
-    plain = RP.cluster_vertices(pts, nn, 800, 20.0)
-    assert np.array_equal(cl.cluster, plain.cluster) and not np.array_equal(cl.reps, plain.reps)
-    for k in range(0, cl.count, max(cl.count // 40, 1)):
-        m = np.flatnonzero(cl.cluster == k)
-        c = (w[m, None] * pts[m]).sum(0) / w[m].sum()
-        d = np.linalg.norm(pts[m] - c, axis=1)
-        assert d[m == cl.reps[k]][0] <= d.min() + 1e-12
-
-
 def _cap_sample(axis, radius_deg, n, rng):
     """``n`` unit vectors uniform in the cap of angular radius ``radius_deg`` about ``axis``."""
     from warp_sg.numeric.onb import frame_from_normal

@@ -19,9 +19,7 @@ cell's normals are few directions (a panel, a rim) it has as many clusters, not 
 bin they straddle: on the ferrari 24.4 k clusters at ``h`` = 0.3 m where 20° cube-map bins gave
 41.6 k. ``h`` is the smallest cell side whose cluster count is at most the budget (bisection on
 ``log h`` until the bracket is within :data:`CELL_TOLERANCE`). The representative of a cluster
-is its vertex nearest the cluster's centroid weighted by the vertices' areas (:func:`vertex_area`:
-what a render sees is area, and a dense detail — a grille, a vent, mostly occluded — would pull a
-plain centroid onto itself; ties: the lowest index). Everything is a function
+is its vertex nearest the cluster's centroid (ties: the lowest index). Everything is a function
 of the arrays alone (sorted cells, in-order greedy, on the CPU), so deterministic.
 
 **Transfer** (:func:`transfer_maps`, eq. 23 in the other frame). A map is stored in its vertex's
@@ -193,22 +191,12 @@ def vertex_spacing(vertices, triangles) -> np.ndarray:
 CELL_TOLERANCE = 1.02
 
 
-def vertex_area(vertices, triangles) -> np.ndarray:
-    """(V,) a third of the area of the triangles at each vertex (0 for a vertex of none)."""
-    p = np.asarray(vertices, np.float64)
-    t = np.asarray(triangles, np.int64).reshape(-1, 3)
-    a = 0.5 * np.linalg.norm(np.cross(p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]]), axis=1)
-    return np.bincount(t.ravel(), np.repeat(a / 3.0, 3), minlength=len(p))
-
-
 def cluster_vertices(vertices, normals, budget: int = DEFAULT_BUDGET,
-                     max_angle: float = DEFAULT_MAX_ANGLE, spacing=None, weights=None) -> Clustering:
+                     max_angle: float = DEFAULT_MAX_ANGLE, spacing=None) -> Clustering:
     """At most ``budget`` clusters of the vertices (module docstring), unless the normals alone
     need more (then the caps of the coarsest grid, two cells a side: a bounded scene extent).
     ``spacing`` (V,) (:func:`vertex_spacing`): a vertex whose edges are longer than the cell side
-    (a coarse part of the mesh, e.g. a floor under a detailed object) is a cluster of its own.
-    ``weights`` (V,) (:func:`vertex_area`): the representative is the vertex nearest the cluster's
-    centroid weighted by them (default: each vertex 1)."""
+    (a coarse part of the mesh, e.g. a floor under a detailed object) is a cluster of its own."""
     p = np.asarray(vertices, np.float64)
     nrm = np.asarray(normals, np.float64)
     nrm = nrm / np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
@@ -237,11 +225,8 @@ def cluster_vertices(vertices, normals, budget: int = DEFAULT_BUDGET,
     if best is None:
         best = ids(hi_h) + (hi_h,)
     inv, cnt, h = best
-    w = np.ones(len(p)) if weights is None else np.maximum(np.asarray(weights, np.float64), 0.0)
-    counts = np.bincount(inv, w, minlength=cnt)
-    w = np.where((counts > 0)[inv], w, 1.0)  # (a cluster of zero weight: its plain centroid)
-    counts = np.bincount(inv, w, minlength=cnt)
-    cen = np.stack([np.bincount(inv, w * p[:, k], minlength=cnt) for k in range(3)], -1) / counts[:, None]
+    counts = np.bincount(inv, minlength=cnt).astype(np.float64)
+    cen = np.stack([np.bincount(inv, p[:, k], minlength=cnt) for k in range(3)], -1) / counts[:, None]
     d2 = np.sum((p - cen[inv]) ** 2, axis=1)
     order = np.lexsort((np.arange(len(p)), d2, inv))
     first = np.r_[0, np.flatnonzero(np.diff(inv[order])) + 1]
@@ -370,7 +355,7 @@ def build_at_representatives(v, f, n, compute, *, resolution, ray_resolution, pc
 
     R = int(resolution)
     with clock.stage("cluster"):
-        cl = cluster_vertices(v, n, budget, max_angle, vertex_spacing(v, f), vertex_area(v, f))
+        cl = cluster_vertices(v, n, budget, max_angle, vertex_spacing(v, f))
     reps = cl.reps
     with clock.stage("ssdf_total"):
         Xr = compute(v, f, n, resolution=resolution, ray_resolution=ray_resolution, device=device,
@@ -434,4 +419,4 @@ def representative_params(n_vertices: int, budget, max_angle) -> dict:
 
 
 __all__ = ["Clustering", "cluster_vertices", "normal_caps", "normal_caps_kernel", "transfer_maps", "transfer_kernel",
-           "representative_params", "build_at_representatives", "vertex_spacing", "vertex_area", "blend_weights", "BLEND_NEIGHBOURS", "DEFAULT_BUDGET", "DEFAULT_MAX_ANGLE", "REPRESENTATIVES_VERSION"]
+           "representative_params", "build_at_representatives", "vertex_spacing", "blend_weights", "BLEND_NEIGHBOURS", "DEFAULT_BUDGET", "DEFAULT_MAX_ANGLE", "REPRESENTATIVES_VERSION"]
