@@ -135,12 +135,13 @@ def normal_caps(cell, normals, max_angle: float = DEFAULT_MAX_ANGLE) -> tuple[np
     cnt = np.bincount(cid).astype(np.int32)
     st = (np.cumsum(cnt) - cnt).astype(np.int32)
     th = math.radians(float(max_angle))
+    cos_half, cos_shift = math.cos(0.5 * th), math.cos(min(CAP_SHIFT_RADIUS * th, math.pi))
     d = "cpu"  # (the same clusters on every machine)
     label = wp.empty(V, dtype=int, device=d)
     caps = wp.empty(len(cnt), dtype=int, device=d)
     wp.launch(normal_caps_kernel, dim=len(cnt), device=d,
               inputs=[wp.array(st, dtype=int, device=d), wp.array(cnt, dtype=int, device=d),
-                      wp.float64(math.cos(0.5 * th)), wp.float64(math.cos(min(CAP_SHIFT_RADIUS * th, math.pi))), int(CAP_SHIFTS),
+                      wp.float64(cos_half), wp.float64(cos_shift), int(CAP_SHIFTS),
                       wp.array(order, dtype=int, device=d),
                       wp.array(np.ascontiguousarray(np.asarray(normals, np.float64)[order]), dtype=wp.vec3d, device=d),
                       label, caps])
