@@ -100,6 +100,28 @@ def test_region_errors_give_bias_per_channel_and_count_pixels_off_by_three_times
     np.testing.assert_allclose(e["rel_mse"], np.sum((img[m] - 1) ** 2) / 15)
 
 
+def test_scene_regions_take_the_floor_by_name():
+    """A plane named "ground" under a sphere lit from above: by default no floor (its pixels are
+    ``object``); named as the floor, those pixels split into a lit floor and the sphere's shadow
+    (a directional light 45° off the vertical: the shadow beside the sphere, seen from above)."""
+    from warp_sg.groundtruth.region_error import scene_regions
+    from warp_sg.scene.camera import Camera
+    from warp_sg.scene.lights import DirectionalLight
+    from warp_sg.scene.model import Material, Scene, SceneObject
+
+    cam = Camera(origin=(0.0, 3.0, 0.01), target=(0.0, 0.0, 0.0), fov=50.0, width=32, height=32)
+    objs = [SceneObject(material="m", primitive="sphere", params={"radius": 0.3, "center": (0.0, 0.8, 0.0)}),
+            SceneObject(material="m", primitive="plane", name="ground", params={"size": (8.0, 8.0)})]
+    sc = Scene(camera=cam, objects=objs, materials={"m": Material("lambert", {"kd": [0.5, 0.5, 0.5]})},
+               lights=[DirectionalLight(direction=(1.0, 1.0, 0.0), radius=0.01, intensity=(1.0, 1.0, 1.0))])
+    plain, named = scene_regions(sc), scene_regions(sc, floor=("Ground",))
+    assert not plain["lit_floor"].any() and not plain["shadow"].any()
+    assert np.array_equal(plain["object"], named["object"] | named["lit_floor"] | named["shadow"])
+    assert named["lit_floor"].sum() > named["shadow"].sum() > 0
+    assert named["object"].sum() > 0 and not (named["shadow"] & named["object"]).any()
+    assert np.array_equal(plain["silhouette"], named["silhouette"])
+
+
 def test_reused_precompute_gives_the_rows_of_a_fresh_cache_per_setting(tmp_path, cache_dir):
     """The sweep's settings share one cache (each stage built once per distinct input): the
     images, hence the error columns, are those of the slow path that rebuilds everything per

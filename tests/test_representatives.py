@@ -69,6 +69,52 @@ def test_clusters_respect_normal_angle_and_cell(angle):
     assert np.array_equal(again.cluster, cl.cluster) and np.array_equal(again.reps, cl.reps)
 
 
+def _cap_sample(axis, radius_deg, n, rng):
+    """``n`` unit vectors uniform in the cap of angular radius ``radius_deg`` about ``axis``."""
+    from warp_sg.numeric.onb import frame_from_normal
+
+    a = np.asarray(axis, np.float64) / np.linalg.norm(axis)
+    z = 1.0 - rng.random(n) * (1.0 - math.cos(math.radians(radius_deg)))
+    phi = rng.random(n) * 2 * math.pi
+    r = np.sqrt(1 - z * z)
+    t, b = frame_from_normal(a[None])
+    return (r * np.cos(phi))[:, None] * t + (r * np.sin(phi))[:, None] * b + z[:, None] * a[None]
+
+
+def test_normal_caps_of_a_full_sphere_in_one_cell():
+    """20 000 normals over the whole sphere in one cell: every pair of a cluster within 20° (brute
+    force), and the clusters fewer than 0.7× the 6·8² = 384 bins of a 20° cube map, yet at least
+    the sphere's area over a 10°-radius cap's (each cluster lies in one)."""
+    rng = np.random.default_rng(1)
+    n = rng.normal(size=(20000, 3))
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    cl, k = RP.normal_caps(np.zeros(len(n), np.int64), n, 20.0)
+    assert np.array_equal(np.unique(cl), np.arange(k))
+    i, j = _members(cl)
+    assert np.degrees(np.arccos(np.clip(np.sum(n[i] * n[j], 1).min(), -1, 1))) <= 20.0 + 1e-9
+    cap = 2 * math.pi * (1 - math.cos(math.radians(10.0)))
+    assert 4 * math.pi / cap <= k < 0.7 * 384, k
+
+
+def test_a_narrow_cone_of_normals_is_one_cluster_in_any_orientation():
+    """A cell's normals within 7° of one direction — about a cube-map face's centre, an edge's
+    middle or a corner, where fixed bins split them — are one cluster; two such groups 60° apart
+    in one cell are two; the same normals in two cells are two clusters each."""
+    rng = np.random.default_rng(2)
+    for axis in ([0, 0, 1.0], [1, 1, 0.1], [1, 1, 1.0], [-1, 0.02, -1]):
+        n = _cap_sample(axis, 7.0, 500, rng)
+        cl, k = RP.normal_caps(np.zeros(len(n), np.int64), n, 20.0)
+        assert k == 1, (axis, k)
+    a = _cap_sample([0, 0, 1.0], 7.0, 400, rng)
+    b = _cap_sample([math.sin(math.radians(60)), 0, math.cos(math.radians(60))], 7.0, 400, rng)
+    n = np.concatenate([a, b])
+    mix = rng.permutation(len(n))
+    cl, k = RP.normal_caps(np.zeros(len(n), np.int64), n[mix], 20.0)
+    assert k == 2 and len(np.unique(cl[np.argsort(mix)][:400])) == 1
+    cl, k = RP.normal_caps(np.tile([9, 5], 400), n, 20.0)  # (each cell: half of each group)
+    assert k == 4 and len(np.unique(cl[:400])) == 2 and not set(cl[:400]) & set(cl[400:])
+
+
 def test_transfer_of_a_half_space_matches_closed_form():
     """Occluded: the world directions with d·w < 0 (a plane through the vertex). The SSDF of
     such a set is ``min(asin(d·w), asin(d·n))`` at visible directions, ``asin(d·w)`` (< 0) at
@@ -168,3 +214,48 @@ def test_blend_rows_kernel_matches_numpy():
     parallel.launch(blend_rows_kernel, V, [wp.array(idx, dtype=int, device="cpu"), wp.array(w, dtype=float, device="cpu"),
                                            a], "cpu", min_chunk=64)
     np.testing.assert_allclose(a.numpy(), want, rtol=1e-5, atol=1e-6)
+
+
+def _budget_scene(budget):
+    from warp_sg.scene.camera import Camera
+    from warp_sg.scene.lights import EnvironmentLight
+    from warp_sg.scene.model import Material, Scene, SceneObject
+    from warp_sg.scene.render_settings import RenderSettings
+
+    cam = Camera(origin=(0.0, 1.6, 2.6), target=(0.0, 0.25, 0.0), fov=45.0, width=24, height=20)
+    objects = [SceneObject(material="m", primitive="sphere", params={"radius": 0.4, "resolution": (12, 24),
+                                                                      "center": (0.0, 0.42, 0.0)}),
+               SceneObject(material="m", primitive="plane", params={"size": (3.0, 3.0), "resolution": (20, 20)})]
+    rs = RenderSettings(shadows=True, ssdf_resolution=16, pca_terms=8, visibility_budget=budget, env_lobes=2,
+                        env_peaks=0, antialias=1)
+    env = EnvironmentLight(procedural="sky", options={"width": 32, "height": 16})
+    return Scene(camera=cam, objects=objects, materials={"m": Material("lambert", {"kd": [0.5, 0.5, 0.5]})},
+                 lights=[env], render=rs)
+
+
+def test_visibility_budget_is_the_representatives_budget():
+    """``[render] visibility_budget`` of a mesh with more vertices (no refinement) is the number of
+    representatives; a mesh within it keeps the key and the maps of every vertex's own (bit for
+    bit); the renderer's ``precomputed`` check follows the budget."""
+    from warp_sg.core.errors import InputError
+    from warp_sg.renderer.renderer import Renderer
+
+    own = Renderer(_budget_scene(0), device="cpu")
+    g = own.geometry
+    n = len(g.vertices)
+    assert len(own.ssdf.representative) == 0
+    within = Renderer(_budget_scene(n), device="cpu")
+    assert within.ssdf.key == own.ssdf.key == S.ssdf_key(g.vertices, g.triangles, g.normals, resolution=16,
+                                                          pca_terms=8, representatives=0)
+    for k in ("mean", "basis", "weights", "cones", "pca_rms_error"):
+        assert np.array_equal(getattr(within.ssdf, k), getattr(own.ssdf, k)), k
+    budget = n // 3
+    over = Renderer(_budget_scene(budget), device="cpu")
+    reps = np.unique(over.ssdf.representative)
+    assert len(over.ssdf.representative) == n and budget // 2 < len(reps) <= budget
+    assert over.ssdf.key == S.ssdf_key(g.vertices, g.triangles, g.normals, resolution=16, pca_terms=8,
+                                       representatives=budget) != own.ssdf.key
+    again = Renderer(_budget_scene(budget), device="cpu", precomputed=over.precomputed())
+    assert again.ssdf is over.ssdf or again.ssdf.key == over.ssdf.key
+    with pytest.raises(InputError):
+        Renderer(_budget_scene(n), device="cpu", precomputed=over.precomputed())

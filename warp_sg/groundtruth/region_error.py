@@ -13,7 +13,8 @@ splits a scene's pixels into
 
 from a 4×4-supersampled rasterisation of the scene's own geometry (samples that see the hole of an
 alpha cut-out see what is behind it, :func:`warp_sg.shading.cutout.see_through`). "The floor" is the object
-named ``floor`` (else none: every object pixel is ``object``).
+named ``floor`` (else none: every object pixel is ``object``; ``scene_regions(floor=...)`` names
+others, e.g. ``("ground",)`` for the ground plane an asset scene adds).
 
 :func:`image_errors` gives the image-wide errors (relative MSE, PSNR of the tone-mapped images,
 max error); :func:`region_errors` then gives, per region: ``rel_mse`` = Σ(x − r)²/Σr², ``bias`` = the
@@ -61,8 +62,9 @@ def _key_light(scene):
     return best
 
 
-def scene_regions(scene, supersample: int = 4, device: str = "cpu") -> dict[str, np.ndarray]:
-    """Boolean (H, W) masks of :data:`REGIONS` for ``scene``'s camera (see the module docstring)."""
+def scene_regions(scene, supersample: int = 4, device: str = "cpu", floor=("floor",)) -> dict[str, np.ndarray]:
+    """Boolean (H, W) masks of :data:`REGIONS` for ``scene``'s camera (see the module docstring);
+    ``floor``: the names (any case) of the objects that are the floor."""
     import raster
     from precompute.visibility.rays import ray_visibility
 
@@ -77,7 +79,8 @@ def scene_regions(scene, supersample: int = 4, device: str = "cpu") -> dict[str,
         see_through(vb, g.vertices, g.triangles, cut, cam.origin, device)
     tri = vb.tri_id.numpy()
     H, W = cam.height, cam.width
-    floor_ids = [i for i, n in enumerate(g.object_names) if str(n).lower() == "floor"]
+    names = {str(x).lower() for x in ((floor,) if isinstance(floor, str) else floor)}
+    floor_ids = [i for i, n in enumerate(g.object_names) if str(n).lower() in names]
     obj = np.where(tri >= 0, g.tri_object[np.maximum(tri, 0)], -1)
     blocks = obj.reshape(H, k, W, k).transpose(0, 2, 1, 3).reshape(H, W, k * k)
     same = np.all(blocks == blocks[..., :1], axis=-1)

@@ -2,7 +2,9 @@ r"""The renderer's visibility precompute as functions of the scene (render layer
 
 :class:`warp_sg.renderer.renderer.Renderer` needs, when the scene has shadows, the mesh refined where its
 visibility changes (``precompute.refine_cached``, ``[render] visibility_budget`` vertices at most)
-and the per-vertex SSDFs of the refined mesh (``precompute.ssdf_for_mesh``). :func:`compute_visibility`
+and the per-vertex SSDFs of the refined mesh (``precompute.ssdf_for_mesh``; a mesh over the same
+budget has its maps computed at that many representative vertices,
+:mod:`precompute.visibility.representatives`; 0: every vertex its own). :func:`compute_visibility`
 computes both from the flattened input mesh and touches no renderer state, so the renderer runs it
 either in its constructor or, with ``progressive=True``, on a background thread
 (:mod:`warp_sg.renderer.progressive`) while it shows unshadowed frames; either way the renderer installs
@@ -92,7 +94,8 @@ def compute_visibility(scene, g, device, *, progress=False, compute=None, precom
 
                 data = precomputed["ssdf"]
                 want = ssdf_key(gr.vertices, gr.triangles, gr.normals, resolution=rs.ssdf_resolution,
-                                ray_resolution=data.ray_resolution, pca_terms=rs.pca_terms, cutouts=cut) \
+                                ray_resolution=data.ray_resolution, pca_terms=rs.pca_terms, cutouts=cut,
+                                representatives=rs.visibility_budget) \
                     if groups is None else ssdf_groups_key(gr.vertices, gr.triangles, gr.normals, groups,
                                                            resolution=rs.ssdf_resolution,
                                                            ray_resolution=data.ray_resolution, pca_terms=rs.pca_terms)
@@ -106,7 +109,7 @@ def compute_visibility(scene, g, device, *, progress=False, compute=None, precom
                                        pca_terms=rs.pca_terms, device=device, progress=progress, compute=compute)
             return precompute.ssdf_for_mesh(gr.vertices, gr.triangles, gr.normals, resolution=rs.ssdf_resolution,
                                             pca_terms=rs.pca_terms, device=device, progress=progress, compute=compute,
-                                            cutouts=cut)
+                                            cutouts=cut, representatives=rs.visibility_budget)
 
         data = _timed(parts, "ssdf", ssdf)
     return ref, gr, data, parts

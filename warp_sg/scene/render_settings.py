@@ -30,7 +30,9 @@ RENDER_DOC = {
     "env_peaks": "at most this many sharp environment peaks (a sun) separated from the map and shaded as "
                  "directional lights (precompute.environment.peaks; 0 = off)",
     "visibility_budget": "with shadows: refine the mesh where visibility changes, up to this many vertices "
-                         "(precompute.refine_for_visibility; 0 = the mesh as given)",
+                         "(precompute.refine_for_visibility); a mesh with more casts its SSDF rays at this many "
+                         "representative vertices (precompute.visibility.representatives); 0 = the mesh as "
+                         "given, every vertex its own SSDF",
     "pca_terms": "SSDF PCA terms (NV)",
     "ssdf_resolution": "SSDF map resolution",
     "gamma_levels": "λ levels of the ΓL pyramid (0 = default ladder: λ0 = 0.5 growing by √2 up to the map's "
