@@ -201,8 +201,6 @@ def cluster_vertices(vertices, normals, budget: int = DEFAULT_BUDGET,
     p = np.asarray(vertices, np.float64)
     nrm = np.asarray(normals, np.float64)
     nrm = nrm / np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
-    if not 0.0 < float(max_angle) <= 180.0:
-        raise InputError(f"max_angle must be in (0, 180] degrees, got {max_angle}", where="max_angle")
     sp = None if spacing is None else np.asarray(spacing, np.float64)
     lo = p.min(axis=0)
     ext = float(np.max(p.max(axis=0) - lo))

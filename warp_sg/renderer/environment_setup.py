@@ -116,7 +116,7 @@ class EnvironmentSetup:
         ladder on a background thread beside the shadows (:meth:`_start_gamma_job`, installed by
         :meth:`poll`): its later frames are those of a renderer built without ``progressive``."""
         env = self.env_light
-        if env is None or not self.has_specular or getattr(self, "_gamma_job", None) is not None:
+        if env is None or not self.has_specular or self._gamma_job is not None:
             return  # (a full ladder on its way: the preview's serves until poll() installs it)
         if self.gamma is not None and (not self._gamma_capped or self._gamma_need <= self._gamma_reach):
             return
@@ -164,14 +164,14 @@ class EnvironmentSetup:
         """Start the background prefilter of the scene's ladder (``progressive``), once: after the
         first frame, which so has the cores to itself but for the shadows' thread (``render()``,
         ``wait()``)."""
-        if callable(getattr(self, "_gamma_job", None)) and not isinstance(self._gamma_job, ShadowJob):
+        if callable(self._gamma_job):  # (not started yet: a ShadowJob's factory)
             self._gamma_job = self._gamma_job()
 
     def _poll_gamma(self) -> bool:
         """Install the background prefilter's ladder if it has finished (``progressive``): whether
         this call did."""
-        job = getattr(self, "_gamma_job", None)
-        if not isinstance(job, ShadowJob) or not job.done():  # (None, or not started yet: __init__)
+        job = self._gamma_job
+        if not isinstance(job, ShadowJob) or not job.done():  # (None, or not started yet)
             return False
         self._gamma_job = None
         self._install_gamma(*job.result())
