@@ -18,9 +18,21 @@ opposite normals are 180° apart) and two positions at most the cell diagonal ``
 cell's normals are few directions (a panel, a rim) it has as many clusters, not one per fixed
 bin they straddle: on the ferrari 24.4 k clusters at ``h`` = 0.3 m where 20° cube-map bins gave
 41.6 k. ``h`` is the smallest cell side whose cluster count is at most the budget (bisection on
-``log h`` until the bracket is within :data:`CELL_TOLERANCE`). The representative of a cluster
-is its vertex nearest the cluster's centroid (ties: the lowest index). Everything is a function
-of the arrays alone (sorted cells, in-order greedy, on the CPU), so deterministic.
+``log h`` until the bracket is within :data:`CELL_TOLERANCE`). Everything is a function of the
+arrays alone (sorted cells, in-order greedy, on the CPU), so deterministic.
+
+**Probe** (:mod:`precompute.visibility.probe`). Position and normal do not tell an outer panel
+from the shadowed detail or second layer just behind it, and the vertex nearest a cluster's
+centroid lies in whichever is denser (on the ferrari in the detail: the representatives' maps
+were on average more occluded than those of the vertices they stood for). So every vertex first
+casts 16 stratified rays, its open fraction ``o`` (:func:`precompute.visibility.probe.probe_open_fraction`),
+and (1) a cell is split by the band ``⌊o · PROBE_BANDS⌋`` of its vertices' ``o``
+(:func:`probe_band`, 4 bands) before its normal caps; (2) the representative of a cluster is its
+member whose ``o`` is nearest the cluster's mean ``o`` (ties: nearest the centroid, then the
+lowest index); (3) the blend weights (:func:`blend_weights`) are multiplied by ``exp(−((o_v − o_r)/σ)²)``
+(σ = :data:`PROBE_SIGMA`): a vertex takes the maps of the representatives as open as itself
+among those around it. Without a probe (``probe=None``) the cells are not split and the
+representative is the vertex nearest the centroid.
 
 **Transfer** (:func:`transfer_maps`, eq. 23 in the other frame). A map is stored in its vertex's
 frame ``F = (t, b, n)`` (:mod:`warp_sg.numeric.onb`). For texel direction ``d_l`` of vertex ``v``
@@ -210,7 +222,11 @@ def cluster_vertices(vertices, normals, budget: int = DEFAULT_BUDGET,
     """At most ``budget`` clusters of the vertices (module docstring), unless the normals alone
     need more (then the caps of the coarsest grid, two cells a side: a bounded scene extent).
     ``spacing`` (V,) (:func:`vertex_spacing`): a vertex whose edges are longer than the cell side
-    (a coarse part of the mesh, e.g. a floor under a detailed object) is a cluster of its own."""
+    (a coarse part of the mesh, e.g. a floor under a detailed object) is a cluster of its own.
+    ``probe`` (V,) (:func:`precompute.visibility.probe.probe_open_fraction`): cells split by its
+    band (:func:`probe_band`), the representative the member whose probe is nearest its
+    cluster's mean (ties: nearest the centroid, then the lowest index); without it the
+    representative is the member nearest the centroid (ties: the lowest index)."""
     p = np.asarray(vertices, np.float64)
     nrm = np.asarray(normals, np.float64)
     nrm = nrm / np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
@@ -343,7 +359,9 @@ def blend_weights(x, P, nb, ok, cell: float, probe=None, rep_probe=None) -> np.n
     """``(n, k)`` weights of the representatives ``nb`` (rows: each vertex's own representative's
     table row, positions ``P``) at the vertex positions ``x``: ``a_j ∝ (1 − d_j/ρ)₊² / (d_j² + ε²)``,
     ``ρ = 2√3 h``, ``ε = h/10`` (inverse-distance weights that fall to 0 at the blend radius: a
-    vertex at a representative takes its map, one between two takes both), normalised."""
+    vertex at a representative takes its map, one between two takes both), normalised. With
+    ``probe`` (n,) (the vertices' open fractions) and ``rep_probe`` (K,) (the representatives'),
+    ``a_j`` is multiplied by ``exp(−((probe − rep_probe_j)/σ)²)`` (σ = :data:`PROBE_SIGMA`) before."""
     rho, eps = BLEND_RADIUS * math.sqrt(3.0) * cell, 0.1 * cell
     d = np.linalg.norm(x[:, None, :] - P[nb], axis=-1)
     a = np.where(ok, np.maximum(1.0 - d / rho, 0.0) ** 2 / (d * d + eps * eps), 0.0)
@@ -357,11 +375,12 @@ def build_at_representatives(v, f, n, compute, *, resolution, ray_resolution, pc
                              device, progress, kw, clock, pca_and_cones, batch: int = 8192) -> dict:
     """The cache entry of :func:`precompute.visibility.ssdf.ssdf_for_mesh` with the maps computed
     at the representatives of :func:`cluster_vertices` only (``compute(..., vertex_ids=reps)``) and
-    the PCA (eq. 24) fitted to them. Every other vertex ``v`` of cluster ``c`` (representative
-    ``r_c``) gets the blend ``Σ_j a_j T_{r_c←r_j}(m_j)`` (:func:`blend_weights`) of its
+    the PCA (eq. 24) fitted to them, the clusters and blend weights using every vertex's probe
+    (:func:`precompute.visibility.probe.probe_open_fraction`, the compute's ``cutouts``). Every
+    other vertex ``v`` of cluster ``c`` (representative ``r_c``) gets the blend ``Σ_j a_j T_{r_c←r_j}(m_j)`` (:func:`blend_weights`) of its
     representative's neighbours' maps, each transferred to ``r_c``'s frame (:func:`transfer_maps`;
     blended as PCA weights), then transferred to its own frame; from that map its weights
-    (``(X − mean) 𝕍ᵀ``) and occluder cone. Stages of ``clock``: ``cluster``, the compute's,
+    (``(X − mean) 𝕍ᵀ``) and occluder cone. Stages of ``clock``: ``probe``, ``cluster``, the compute's,
     ``pca``, ``cones`` (the representatives'), ``blend table`` and ``transfer`` (the other
     vertices': blend, transfer, projection, cones; batches of ``batch`` on the CPU threads).
     Entries ``representative`` (V,) int32: each vertex's own representative vertex;
@@ -442,4 +461,6 @@ def representative_params(n_vertices: int, budget, max_angle) -> dict:
 
 
 __all__ = ["Clustering", "cluster_vertices", "normal_caps", "normal_caps_kernel", "transfer_maps", "transfer_kernel",
-           "representative_params", "build_at_representatives", "vertex_spacing", "blend_weights", "BLEND_NEIGHBOURS", "DEFAULT_BUDGET", "DEFAULT_MAX_ANGLE", "REPRESENTATIVES_VERSION"]
+           "representative_params", "build_at_representatives", "vertex_spacing", "blend_weights", "probe_band",
+           "BLEND_NEIGHBOURS", "PROBE_BANDS", "PROBE_SIGMA", "DEFAULT_BUDGET", "DEFAULT_MAX_ANGLE",
+           "REPRESENTATIVES_VERSION"]
