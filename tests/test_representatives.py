@@ -165,8 +165,8 @@ def test_representatives_error_at_other_vertices_is_bounded():
     """Plane and box (a sharp shadow boundary on the floor around the box): the SSDFs of vertices
     that are not representatives (6.4 k vertices, at most 1000 representatives) against their own
     256² ray-cast maps, next to the error of their own 64²-ray maps (both PCA-compressed). Measured
-    2026-12-02: own 0.0172 / representatives 0.0189 rad near the box, 0.0173 / 0.0190 at random
-    vertices."""
+    2026-12-02 with the probe: own 0.0159 / representatives 0.0174 rad near the box, 0.0170 / 0.0206
+    at random vertices (the vertex nearest the centroid, distance weights: 0.0173 and 0.0191)."""
     from warp_sg.tools.bench_precompute import _near_box_floor_ids, ssdf_error
 
     V, F, N = plane_box_scene(80)
