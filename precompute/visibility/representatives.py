@@ -32,7 +32,8 @@ member whose ``o`` is nearest the cluster's mean ``o`` (ties: nearest the centro
 lowest index); (3) the blend weights (:func:`blend_weights`) are multiplied by ``exp(−((o_v − o_r)/σ)²)``
 (σ = :data:`PROBE_SIGMA`): a vertex takes the maps of the representatives as open as itself
 among those around it. Without a probe (``probe=None``) the cells are not split and the
-representative is the vertex nearest the centroid.
+representative is the vertex nearest the centroid. The probe's rays are cast on the device (the
+clusters are deterministic per device; a GPU's rounding could flip a ray where the CPU's does not).
 
 **Transfer** (:func:`transfer_maps`, eq. 23 in the other frame). A map is stored in its vertex's
 frame ``F = (t, b, n)`` (:mod:`warp_sg.numeric.onb`). For texel direction ``d_l`` of vertex ``v``
@@ -377,12 +378,13 @@ def build_at_representatives(v, f, n, compute, *, resolution, ray_resolution, pc
     at the representatives of :func:`cluster_vertices` only (``compute(..., vertex_ids=reps)``) and
     the PCA (eq. 24) fitted to them, the clusters and blend weights using every vertex's probe
     (:func:`precompute.visibility.probe.probe_open_fraction`, the compute's ``cutouts``). Every
-    other vertex ``v`` of cluster ``c`` (representative ``r_c``) gets the blend ``Σ_j a_j T_{r_c←r_j}(m_j)`` (:func:`blend_weights`) of its
-    representative's neighbours' maps, each transferred to ``r_c``'s frame (:func:`transfer_maps`;
-    blended as PCA weights), then transferred to its own frame; from that map its weights
-    (``(X − mean) 𝕍ᵀ``) and occluder cone. Stages of ``clock``: ``probe``, ``cluster``, the compute's,
-    ``pca``, ``cones`` (the representatives'), ``blend table`` and ``transfer`` (the other
-    vertices': blend, transfer, projection, cones; batches of ``batch`` on the CPU threads).
+    other vertex ``v`` of cluster ``c`` (representative ``r_c``) gets the blend
+    ``Σ_j a_j T_{r_c←r_j}(m_j)`` (:func:`blend_weights`) of its representative's neighbours' maps,
+    each transferred to ``r_c``'s frame (:func:`transfer_maps`; blended as PCA weights), then
+    transferred to its own frame; from that map its weights (``(X − mean) 𝕍ᵀ``) and occluder cone.
+    Stages of ``clock``: ``probe``, ``cluster``, the compute's, ``pca``, ``cones`` (the
+    representatives'), ``blend table`` and ``transfer`` (the other vertices': blend, transfer,
+    projection, cones; batches of ``batch`` on the CPU threads).
     Entries ``representative`` (V,) int32: each vertex's own representative vertex;
     ``blend_index``, ``blend_weight`` (V, k): the representatives (vertex ids) and weights of each
     vertex's blend (a representative: itself, weight 1), which the renderer's per-vertex caches
