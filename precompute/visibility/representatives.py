@@ -18,9 +18,22 @@ opposite normals are 180° apart) and two positions at most the cell diagonal ``
 cell's normals are few directions (a panel, a rim) it has as many clusters, not one per fixed
 bin they straddle: on the ferrari 24.4 k clusters at ``h`` = 0.3 m where 20° cube-map bins gave
 41.6 k. ``h`` is the smallest cell side whose cluster count is at most the budget (bisection on
-``log h`` until the bracket is within :data:`CELL_TOLERANCE`). The representative of a cluster
-is its vertex nearest the cluster's centroid (ties: the lowest index). Everything is a function
-of the arrays alone (sorted cells, in-order greedy, on the CPU), so deterministic.
+``log h`` until the bracket is within :data:`CELL_TOLERANCE`). Everything is a function of the
+arrays alone (sorted cells, in-order greedy, on the CPU), so deterministic.
+
+**Probe** (:mod:`precompute.visibility.probe`). Position and normal do not tell an outer panel
+from the shadowed detail or second layer just behind it, and the vertex nearest a cluster's
+centroid lies in whichever is denser (on the ferrari in the detail: the representatives' maps
+were on average more occluded than those of the vertices they stood for). So every vertex first
+casts 16 stratified rays, its open fraction ``o`` (:func:`precompute.visibility.probe.probe_open_fraction`),
+and (1) a cell is split by the band ``⌊o · PROBE_BANDS⌋`` of its vertices' ``o``
+(:func:`probe_band`, 4 bands) before its normal caps; (2) the representative of a cluster is its
+member whose ``o`` is nearest the cluster's mean ``o`` (ties: nearest the centroid, then the
+lowest index); (3) the blend weights (:func:`blend_weights`) are multiplied by ``exp(−((o_v − o_r)/σ)²)``
+(σ = :data:`PROBE_SIGMA`): a vertex takes the maps of the representatives as open as itself
+among those around it. Without a probe (``probe=None``) the cells are not split and the
+representative is the vertex nearest the centroid. The probe's rays are cast on the device (the
+clusters are deterministic per device; a GPU's rounding could flip a ray where the CPU's does not).
 
 **Transfer** (:func:`transfer_maps`, eq. 23 in the other frame). A map is stored in its vertex's
 frame ``F = (t, b, n)`` (:mod:`warp_sg.numeric.onb`). For texel direction ``d_l`` of vertex ``v``
@@ -53,6 +66,8 @@ from warp_sg.core.errors import InputError
 from warp_sg.numeric.fastmath import fast_asin
 from warp_sg.numeric.onb import frame_bitangent, frame_tangent, local_to_world, world_to_local
 
+from precompute.visibility import probe as _probe
+from precompute.visibility.probe import probe_open_fraction
 from precompute.visibility.ssdf_wp import _texel_coords, texel_directions
 
 #: SSDF vertices beyond which the maps are computed at representatives only (the default
@@ -190,14 +205,29 @@ def vertex_spacing(vertices, triangles) -> np.ndarray:
 
 #: the bisection on ``log h`` stops when the bracket's sides are within this ratio
 CELL_TOLERANCE = 1.02
+#: the bands of the probe's open fraction ``o`` that split a cell: ``⌊o · PROBE_BANDS⌋``
+PROBE_BANDS = 4
+#: the width σ of the probe similarity of the blend weights, ``exp(−(Δo/σ)²)``
+PROBE_SIGMA = 0.125
+
+
+def probe_band(probe) -> np.ndarray:
+    """(V,) int64: the band ``min(⌊o · PROBE_BANDS⌋, PROBE_BANDS − 1)`` of each vertex's open
+    fraction ``o`` (:func:`precompute.visibility.probe.probe_open_fraction`)."""
+    o = np.asarray(probe, np.float64)
+    return np.clip(np.floor(o * PROBE_BANDS), 0, PROBE_BANDS - 1).astype(np.int64)
 
 
 def cluster_vertices(vertices, normals, budget: int = DEFAULT_BUDGET,
-                     max_angle: float = DEFAULT_MAX_ANGLE, spacing=None) -> Clustering:
+                     max_angle: float = DEFAULT_MAX_ANGLE, spacing=None, probe=None) -> Clustering:
     """At most ``budget`` clusters of the vertices (module docstring), unless the normals alone
     need more (then the caps of the coarsest grid, two cells a side: a bounded scene extent).
     ``spacing`` (V,) (:func:`vertex_spacing`): a vertex whose edges are longer than the cell side
-    (a coarse part of the mesh, e.g. a floor under a detailed object) is a cluster of its own."""
+    (a coarse part of the mesh, e.g. a floor under a detailed object) is a cluster of its own.
+    ``probe`` (V,) (:func:`precompute.visibility.probe.probe_open_fraction`): cells split by its
+    band (:func:`probe_band`), the representative the member whose probe is nearest its
+    cluster's mean (ties: nearest the centroid, then the lowest index); without it the
+    representative is the member nearest the centroid (ties: the lowest index)."""
     p = np.asarray(vertices, np.float64)
     nrm = np.asarray(normals, np.float64)
     nrm = nrm / np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
@@ -207,8 +237,11 @@ def cluster_vertices(vertices, normals, budget: int = DEFAULT_BUDGET,
     ext = ext if ext > 0 else 1.0
     hi_h, lo_h = 2.0 * ext, ext / 2.0 ** 14  # (≤ 2^15 cells a side: the key stays in int64)
 
+    band = None if probe is None else probe_band(probe)
+
     def ids(h):
-        return normal_caps(_cells(p, lo, h, sp), nrm, max_angle)
+        c = _cells(p, lo, h, sp)
+        return normal_caps(c if band is None else c * PROBE_BANDS + band, nrm, max_angle)
 
     best = None
     a, b = math.log(lo_h), math.log(hi_h)
@@ -227,7 +260,11 @@ def cluster_vertices(vertices, normals, budget: int = DEFAULT_BUDGET,
     counts = np.bincount(inv, minlength=cnt).astype(np.float64)
     cen = np.stack([np.bincount(inv, p[:, k], minlength=cnt) for k in range(3)], -1) / counts[:, None]
     d2 = np.sum((p - cen[inv]) ** 2, axis=1)
-    order = np.lexsort((np.arange(len(p)), d2, inv))
+    keys = (np.arange(len(p)), d2, inv)
+    if probe is not None:  # the member whose probe is nearest the cluster's mean first
+        o = np.asarray(probe, np.float64)
+        keys = (np.arange(len(p)), d2, np.abs(o - np.bincount(inv, o, minlength=cnt)[inv] / counts[inv]), inv)
+    order = np.lexsort(keys)
     first = np.r_[0, np.flatnonzero(np.diff(inv[order])) + 1]
     return Clustering(cluster=inv.astype(np.int64), reps=order[first].astype(np.int64), cell=float(h),
                       max_angle=float(max_angle))
@@ -319,14 +356,18 @@ def _blend_table(P, nr, cell: float, max_angle: float, k: int = BLEND_NEIGHBOURS
     return nb2, ok
 
 
-def blend_weights(x, P, nb, ok, cell: float) -> np.ndarray:
+def blend_weights(x, P, nb, ok, cell: float, probe=None, rep_probe=None) -> np.ndarray:
     """``(n, k)`` weights of the representatives ``nb`` (rows: each vertex's own representative's
     table row, positions ``P``) at the vertex positions ``x``: ``a_j ∝ (1 − d_j/ρ)₊² / (d_j² + ε²)``,
     ``ρ = 2√3 h``, ``ε = h/10`` (inverse-distance weights that fall to 0 at the blend radius: a
-    vertex at a representative takes its map, one between two takes both), normalised."""
+    vertex at a representative takes its map, one between two takes both), normalised. With
+    ``probe`` (n,) (the vertices' open fractions) and ``rep_probe`` (K,) (the representatives'),
+    ``a_j`` is multiplied by ``exp(−((probe − rep_probe_j)/σ)²)`` (σ = :data:`PROBE_SIGMA`) before."""
     rho, eps = BLEND_RADIUS * math.sqrt(3.0) * cell, 0.1 * cell
     d = np.linalg.norm(x[:, None, :] - P[nb], axis=-1)
     a = np.where(ok, np.maximum(1.0 - d / rho, 0.0) ** 2 / (d * d + eps * eps), 0.0)
+    if probe is not None:
+        a = a * np.exp(-((np.asarray(probe, np.float64)[:, None] - rep_probe[nb]) / PROBE_SIGMA) ** 2)
     a[:, 0] = np.maximum(a[:, 0], 1e-12)  # (the own representative is within √3 h < ρ: never 0)
     return a / a.sum(1, keepdims=True)
 
@@ -335,13 +376,15 @@ def build_at_representatives(v, f, n, compute, *, resolution, ray_resolution, pc
                              device, progress, kw, clock, pca_and_cones, batch: int = 8192) -> dict:
     """The cache entry of :func:`precompute.visibility.ssdf.ssdf_for_mesh` with the maps computed
     at the representatives of :func:`cluster_vertices` only (``compute(..., vertex_ids=reps)``) and
-    the PCA (eq. 24) fitted to them. Every other vertex ``v`` of cluster ``c`` (representative
-    ``r_c``) gets the blend ``Σ_j a_j T_{r_c←r_j}(m_j)`` (:func:`blend_weights`) of its
-    representative's neighbours' maps, each transferred to ``r_c``'s frame (:func:`transfer_maps`;
-    blended as PCA weights), then transferred to its own frame; from that map its weights
-    (``(X − mean) 𝕍ᵀ``) and occluder cone. Stages of ``clock``: ``cluster``, the compute's,
-    ``pca``, ``cones`` (the representatives'), ``blend table`` and ``transfer`` (the other
-    vertices': blend, transfer, projection, cones; batches of ``batch`` on the CPU threads).
+    the PCA (eq. 24) fitted to them, the clusters and blend weights using every vertex's probe
+    (:func:`precompute.visibility.probe.probe_open_fraction`, the compute's ``cutouts``). Every
+    other vertex ``v`` of cluster ``c`` (representative ``r_c``) gets the blend
+    ``Σ_j a_j T_{r_c←r_j}(m_j)`` (:func:`blend_weights`) of its representative's neighbours' maps,
+    each transferred to ``r_c``'s frame (:func:`transfer_maps`; blended as PCA weights), then
+    transferred to its own frame; from that map its weights (``(X − mean) 𝕍ᵀ``) and occluder cone.
+    Stages of ``clock``: ``probe``, ``cluster``, the compute's, ``pca``, ``cones`` (the
+    representatives'), ``blend table`` and ``transfer`` (the other vertices': blend, transfer,
+    projection, cones; batches of ``batch`` on the CPU threads).
     Entries ``representative`` (V,) int32: each vertex's own representative vertex;
     ``blend_index``, ``blend_weight`` (V, k): the representatives (vertex ids) and weights of each
     vertex's blend (a representative: itself, weight 1), which the renderer's per-vertex caches
@@ -353,8 +396,10 @@ def build_at_representatives(v, f, n, compute, *, resolution, ray_resolution, pc
     import time
 
     R = int(resolution)
+    with clock.stage("probe"):
+        probe = probe_open_fraction(v, f, n, device=device, cutouts=kw.get("cutouts"))
     with clock.stage("cluster"):
-        cl = cluster_vertices(v, n, budget, max_angle, vertex_spacing(v, f))
+        cl = cluster_vertices(v, n, budget, max_angle, vertex_spacing(v, f), probe)
     reps = cl.reps
     with clock.stage("ssdf_total"):
         Xr = compute(v, f, n, resolution=resolution, ray_resolution=ray_resolution, device=device,
@@ -390,7 +435,7 @@ def build_at_representatives(v, f, n, compute, *, resolution, ray_resolution, pc
         w0, c0 = time.perf_counter(), thread_cpu()
         idx = others[s:e]
         c = cl.cluster[idx]
-        a = blend_weights(x[idx], P, nb[c], ok[c], cl.cell).astype(np.float32)
+        a = blend_weights(x[idx], P, nb[c], ok[c], cl.cell, probe[idx], probe[reps]).astype(np.float32)
         blend_index[idx], blend_weight[idx] = reps[nb[c]], a
         Y = mean + np.einsum("ij,ijk->ik", a, W[c]) @ basis  # the blend in r_c's frame
         Y = transfer_maps(Y, nr[c], np.arange(len(idx)), n[idx], R, device)
@@ -405,8 +450,8 @@ def build_at_representatives(v, f, n, compute, *, resolution, ray_resolution, pc
             "blend_index": blend_index, "blend_weight": blend_weight}
 
 
-#: the hash of this module's code (clustering and transfer), part of the SSDF cache key
-REPRESENTATIVES_VERSION = code_key(__name__)
+#: the hash of this module's code (clustering and transfer) and the probe's, part of the SSDF cache key
+REPRESENTATIVES_VERSION = code_key(__name__, _probe)
 
 
 def representative_params(n_vertices: int, budget, max_angle) -> dict:
@@ -418,4 +463,6 @@ def representative_params(n_vertices: int, budget, max_angle) -> dict:
 
 
 __all__ = ["Clustering", "cluster_vertices", "normal_caps", "normal_caps_kernel", "transfer_maps", "transfer_kernel",
-           "representative_params", "build_at_representatives", "vertex_spacing", "blend_weights", "BLEND_NEIGHBOURS", "DEFAULT_BUDGET", "DEFAULT_MAX_ANGLE", "REPRESENTATIVES_VERSION"]
+           "representative_params", "build_at_representatives", "vertex_spacing", "blend_weights", "probe_band",
+           "BLEND_NEIGHBOURS", "PROBE_BANDS", "PROBE_SIGMA", "DEFAULT_BUDGET", "DEFAULT_MAX_ANGLE",
+           "REPRESENTATIVES_VERSION"]

@@ -440,16 +440,18 @@ def update_caches(caches: tuple, inputs: CacheInputs, f, es: EnvSG) -> tuple[Env
       rotation or with the visibility data (``es.irr_scale`` is the scale).
 
     SSDFs computed at representative vertices (``precompute.visibility.representatives``:
-    ``SSDFData.blend_arrays``): each array is computed at the representatives only and the other
-    vertices' rows are their blend weights' combination of those rows (:func:`blend_rows_kernel`,
-    :func:`blend_visible_kernel`; the irradiance ``E`` at the vertex's own normal), as their maps
-    were blended.
+    ``SSDFData.blend_arrays``): the lobes' and the diffuse visible fractions are computed at the
+    representatives only and the other vertices' rows are their blend weights' combination of
+    those rows (:func:`blend_rows_kernel`, :func:`blend_visible_kernel`; the irradiance ``E`` at
+    the vertex's own normal), as their maps were blended; the light deficits (one lookup per
+    vertex and light) are read at every vertex from its own, transferred map: a blend of the
+    representatives' deficits moves a small light's shadow edge (a glint on its edge darkened).
 
     Camera and material edits reuse all three. Returns ``es`` and this call's rebuild seconds."""
     env_vis, light_vis, env_visible = caches
     r = inputs
     d, nv, fh = r.device, r.n_vertices, r.fh
-    bl = _blend(r.ssdf, nv, d)  # SSDFs at representatives: each cache there, then blended
+    bl = _blend(r.ssdf, nv, d)  # SSDFs at representatives: the quadratures there, then blended
 
     def env_lobes():
         if bl is None:
@@ -457,12 +459,8 @@ def update_caches(caches: tuple, inputs: CacheInputs, f, es: EnvSG) -> tuple[Env
         return _blended(bl, lambda ids: env_vertex_visibility(r.irr_table, r.vis, es, nv, d, ids=ids),
                         blend_rows_kernel, lambda o: [o], nv, d)
 
-    def deficit():
-        if bl is None or r.light_arrays.count == 0:
-            return light_vertex_deficit(r.vis, r.positions, r.light_arrays, nv, fh == "sigmoid", d)
-        return _blended(bl, lambda ids: light_vertex_deficit(r.vis, r.positions, r.light_arrays, nv,
-                                                             fh == "sigmoid", d, ids=ids),
-                        blend_rows_kernel, lambda o: [o], nv, d)
+    def deficit():  # (every vertex from its own map, transferred or not: one lookup per light)
+        return light_vertex_deficit(r.vis, r.positions, r.light_arrays, nv, fh == "sigmoid", d)
 
     def visible():
         if bl is None:
