@@ -123,3 +123,21 @@ def test_weld_ids_number_positions_as_numpy_unique_does():
     v = rng.integers(-2, 3, (5000, 3)).astype(np.float32) * 0.25
     v[::7] *= -1.0  # −0.0 and 0.0 are one position
     assert np.array_equal(weld_ids(v), np.unique(v + 0.0, axis=0, return_inverse=True)[1].reshape(-1))
+
+
+def test_part_volumes_are_each_closed_parts_own_volume():
+    """Boxes of 1 × 2 × 3 and 2 × 2 × 2 (volumes 6 and 8, closed form), the second turned inside
+    out (−8), and a box with a face removed, each about its own box centre, in one call."""
+    from warp_sg.core.meshcheck import part_volumes
+
+    parts = [(trimesh.creation.box(extents=(1.0, 2.0, 3.0)), 5.0), (trimesh.creation.box(extents=(2, 2, 2)), -4.0)]
+    V, T, part = [], [], []
+    for k, (b, shift) in enumerate(parts):
+        V.append(np.asarray(b.vertices) + shift)
+        T.append(np.asarray(b.faces) + sum(len(v) for v in V[:-1]))
+        part.append(np.full(len(b.faces), k))
+    T[1] = T[1][:, ::-1]  # inside out
+    V, T, part = np.concatenate(V), np.concatenate(T), np.concatenate(part)
+    origin = np.stack([V[np.unique(T[part == k])].mean(0) for k in range(2)])
+    assert np.allclose(part_volumes(V, T, part, 2, origin), [6.0, -8.0])
+    assert np.allclose(part_volumes(V, T, part, 3, origin=np.r_[origin, [[0.0, 0.0, 0.0]]]), [6.0, -8.0, 0.0])

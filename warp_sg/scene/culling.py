@@ -34,7 +34,7 @@ class BackfaceCulling:
     (:meth:`flags`)."""
 
     def __init__(self, geometry, device: str = "cpu"):
-        from warp_sg.core.meshcheck import closed_parts, weld_ids
+        from warp_sg.core.meshcheck import closed_parts, part_volumes, weld_ids
 
         n_objects = len(geometry.object_names)
         self.device, self._cached = device, (None, False)
@@ -53,10 +53,7 @@ class BackfaceCulling:
             self.corners[has] = [box_corners(a, b) for a, b in zip(lo, hi)]  # (per object, not per vertex)
         # closed and consistently wound (the directed edges of the position-welded mesh), with a
         # positive volume (outward): trimesh's ``is_volume`` on merged vertices, every object at once
-        c = self.corners.mean(axis=1)[self.tri_object]
-        a, b, d = V[T[:, 0]] - c, V[T[:, 1]] - c, V[T[:, 2]] - c
-        volume = np.bincount(self.tri_object, weights=np.einsum("ij,ij->i", a, np.cross(b, d)),
-                             minlength=n_objects)[:n_objects]
+        volume = part_volumes(V, T, self.tri_object, n_objects, self.corners.mean(axis=1))
         self.closed = (counts >= 4) & (volume > 0.0) & closed_parts(T, weld_ids(V), self.tri_object, n_objects)
 
     def moved(self, geometry, objects=None) -> None:
