@@ -45,8 +45,11 @@ def main(argv=None) -> int:
     from warp_sg.core.device import resolve_device
 
     resolve_device("cpu")
+    import numpy as np
+
+    import precompute
     import precompute.visibility.ssdf as S
-    from warp_sg.core.image_io import save_image
+    from warp_sg.core.image_io import load_image, save_image
     from warp_sg.groundtruth.region_error import image_errors, region_errors, scene_regions
     from warp_sg.renderer.renderer import Renderer
     from warp_sg.scene.importers.asset import asset_scene
@@ -60,12 +63,8 @@ def main(argv=None) -> int:
     imgs, info = {}, {}
     runs = (("own", 0), (a.name, a.budget))
     if a.own:
-        from warp_sg.core.image_io import load_image
-
         imgs["own"] = load_image(a.own)[..., :3]
         runs = runs[1:]
-    import precompute
-
     plain = S.ssdf_for_mesh
     for name, budget in runs:
         def forced(*args, _b=budget, **kw):  # the renderer passes [render] visibility_budget: this budget instead
@@ -91,16 +90,10 @@ def main(argv=None) -> int:
                                 "regions": region_errors(imgs[a.name], imgs["own"], regions)}}
     ref = se = None
     if a.reference_file:
-        import numpy as np
-
-        from warp_sg.core.image_io import load_image
-
         ref = load_image(a.reference_file)[..., :3]
         sef = Path(a.reference_file).with_name("reference_stderr.npy")
         se = np.load(sef) if sef.exists() else None
     elif a.reference:
-        import numpy as np
-
         from warp_sg.groundtruth.region_error import box_reference
 
         w0, c0 = time.perf_counter(), time.process_time()
