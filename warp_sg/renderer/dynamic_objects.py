@@ -260,7 +260,11 @@ class DynamicObjects:
         tabs = [self.fields[k].table.reshape(-1, 4) for k in sorted(self.fields)] or [np.zeros((1, 4), np.float32)]
         rins = [self.fields[k].r_in for k in sorted(self.fields)] or [np.ones(1, np.float32)]
         px.field = wp.array(np.concatenate(tabs).astype(np.float32), dtype=wp.vec4, device=d)
-        px.field_rin = wp.array(np.concatenate(rins).astype(np.float32), dtype=float, device=d)
+        from precompute.visibility.occlusion_field import cell_axes
+
+        axes, rings = cell_axes(np.concatenate(rins)) if self.fields else (np.zeros((1, 4)), np.ones((1, 2)))
+        px.field_axis = wp.array(axes.astype(np.float32), dtype=wp.vec4, device=d)
+        px.field_ring = wp.array(rings.astype(np.float32), dtype=wp.vec2, device=d)
         px.field_cell = wp.array(np.array([cell0.get(k, -1) for k in range(n)], np.int32), dtype=int, device=d)
         px.field_inv = wp.array(self.rest_field_inv.astype(np.float32), dtype=wp.mat33, device=d)
         n_pl = len(self.planes)

@@ -73,7 +73,8 @@ class Proxies:
     blob_owner: wp.array(dtype=int)  # (objects,) object; -1: none (a plane, or no such object)
     #: the occlusion fields (precompute.visibility.occlusion_field), RINGS vec4 per cell, one object after the other
     field: wp.array(dtype=wp.vec4)
-    field_rin: wp.array(dtype=float)  # their cells' first rings
+    field_ring: wp.array(dtype=wp.vec2)  # their cells' first rings r_in and ln r_in (occlusion_field.cell_axes)
+    field_axis: wp.array(dtype=wp.vec4)  # their cells' −ω and rings' scale
     field_cell: wp.array(dtype=int)  # (objects,) the object's first cell; -1: none (its blob instead)
     field_inv: wp.array(dtype=wp.mat33)  # (objects,) (sRρ)⁻¹: world offsets from blobs[k]'s centre → field frame
     planes: wp.array(dtype=wp.vec4)  # (L,) unit normal m, offset h (m·x + h = 0)
@@ -338,7 +339,7 @@ def proxy_diffuse(px: Proxies, tri: int, P: wp.vec3, n: wp.vec3, radiance: wp.ar
             cell = px.field_cell[i]
             if cell >= 0:  # the object's occlusion field: the cap of its first moment M, π sin²α = |M|
                 A = px.field_inv[i]
-                mo = field_moments(px.field, px.field_rin, cell, A * (-v))
+                mo = field_moments(px.field, px.field_ring, px.field_axis, cell, A * (-v))
                 mv = wp.vec3(mo[0], mo[1], mo[2])
                 sin2 = wp.length(mv) / wp.pi
                 a = wp.normalize(wp.transpose(A) * mv)  # R M (Aᵀ = R/(sρ))
@@ -380,7 +381,8 @@ def no_proxies(device) -> Proxies:
     px.tri_object = px.dynamic = px.sphere_owner = px.plane_owner = px.blob_owner = wp.full(1, -1, dtype=int,
                                                                                            device=device)
     px.spheres = px.planes = px.disks = px.blobs = px.bounds = px.field = wp.zeros(1, dtype=wp.vec4, device=device)
-    px.field_rin = wp.ones(1, dtype=float, device=device)
+    px.field_ring = wp.ones(1, dtype=wp.vec2, device=device)
+    px.field_axis = wp.zeros(1, dtype=wp.vec4, device=device)
     px.field_cell = wp.full(1, -1, dtype=int, device=device)
     px.field_inv = wp.zeros(1, dtype=wp.mat33, device=device)
     px.sphere_start = px.sphere_count = wp.zeros(1, dtype=int, device=device)
