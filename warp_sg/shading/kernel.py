@@ -94,8 +94,9 @@ from precompute.environment.irradiance import env_irradiance  # noqa: E402
 from precompute.visibility.ssdf_wp import SSDFPoint, ssdf_point_framed  # noqa: E402
 from warp_sg.shading.motion_wp import Proxies, moving_lobe, proxy_diffuse, proxy_ratio  # noqa: E402  (moving objects' occluder proxies)
 
-from warp_sg.shading.visibility_terms import (CC_LAM, EnvSG, GeometryArrays, Visibility, fh_fraction, vis_ratio,
-                                              vis_ratio_depth, visible_irradiance, visible_lobe)
+from warp_sg.shading.visibility_terms import (CC_LAM, EnvSG, GeometryArrays, Visibility, light_fraction,
+                                              light_vis_ratio, vis_ratio, vis_ratio_depth, visible_irradiance,
+                                              visible_lobe)
 
 ENV_NONE, ENV_SG, ENV_PREFILTERED = 0, 1, 2
 
@@ -296,9 +297,9 @@ def shade_kernel(f: Features):
                                   + b2 * vis.light_deficit[i2, j])
                             if dd < 0.0:
                                 th_h = fast_asin(wp.dot(la, q.ng))
-                                vr = fh_fraction(FH, vis, th_h + dd, th_h, ll)
+                                vr = light_fraction(FH, vis, th_h + dd, th_h, ll)
                         else:
-                            vr = vis_ratio(SHADOWS, FH, vis, q, la, ll)
+                            vr = light_vis_ratio(SHADOWS, FH, vis, q, la, ll)
                         if wp.static(MOVING): vr = wp.min(vr, proxy_ratio(FH, vis.fh_table, px, t, P, ng, la, ll))  # noqa: E701
                         if e > 0.0:
                             f = brdf_eval(mat, o_l, above(li))
