@@ -33,8 +33,9 @@ uncompressed maps fit the renderer's decompression budget (:func:`decompress_bud
 float32) they are kept as well (``SSDFData.maps``) and the renderer reads them instead of the PCA
 reconstruction: at 32 terms the reconstruction is off by 0.016 rad RMS, and along the edge of a
 point light's shadow (a light 0.04 rad across) its error is correlated from vertex to vertex
-(−0.002 rad on average over the penumbra's vertices of the plain suite's ball), which moves the
-shadow's mean by −8 %; the maps themselves move it by +2.7 % (docs/report/plain_inputs.md).
+(−0.002 rad on average over the penumbra's vertices of the plain suite's ball): that shadow's mean
+comes out −7.6 % with the reconstruction, +2.7 % with the maps themselves, −0.4 % with the exact
+distance (docs/precompute.md "PCA", docs/report/plain_inputs.md).
 """
 from __future__ import annotations
 

@@ -225,8 +225,10 @@ def light_cap_visible(th: float, lam: float) -> float:
     """The visible fraction of a uniform light disc (a spherical cap of angular radius α) whose
     centre lies ``th`` = θd from a visibility boundary great circle (visible side ``th > 0``):
     the area of cap ∩ hemisphere over the cap's, ``2[π − acos(sin θd / sin α) − cos α ·
-    acos(−tan θd / tan α)] / (2π(1 − cos α))`` for |θd| < α (the intersection of two spherical caps
-    of radii α and π/2 whose centres are π/2 − θd apart, e.g. Tovchigrechko & Vakser 2001, eq. 4),
+    acos(−tan θd / tan α)] / (2π(1 − cos α))`` for |θd| < α (the intersection area of two spherical
+    caps, of radii α and π/2, whose centres are π/2 − θd apart: the two-cap formula as in
+    Tovchigrechko & Vakser, Protein Sci. 2001; checked against quadrature over the disc in
+    ``tests/test_light_visibility.py``),
     1 at θd ≥ α and 0 at θd ≤ −α; for small α it is the flat disc's ``½ + (u√(1−u²) + asin u)/π``,
     u = θd/α. α is the light's own from its SG sharpness (``warp_sg.scene.lights.light_irradiance``:
     λ = fa⁻¹(2π sin²α), so sin α = √(fa(λ)/2π)). Evaluated in float64: the numerator is O(α²)
