@@ -12,10 +12,13 @@ fh(θd(p), λ)/fh(θh(p), λ)`` the SSDF's visible fraction of a lobe over an un
 Local lights (point, spherical, directional; environment peaks such as a sun), eq. 42–43 made
 exact where it is cheap — one BRDF evaluation at the light's direction l::
 
-    Rlights += ρ(o, l) E e(n·l, λ_l) vis_ratio(l, λ_l)
+    Rlights += ρ(o, l) E e(n·l, λ_l) g_α(θd(l))/g_α(θh(l))
 
-(with ``Features.light_vis_vertex`` the SSDF towards the light is ``θd = θh + Σ_k b_k D[i_k, j]``,
-the per-vertex deficit cache of ``warp_sg.shading.vertex_visibility``, and no lookup is made.)
+with ``g_α`` the visible fraction of the light's uniform disc (angular radius α) cut by the SSDF's
+boundary ``θd`` from its centre (``visibility_terms.light_cap_visible``; the paper's SG ``fh`` ratio
+with ``fh = "sigmoid"``). With ``Features.light_vis_vertex`` the SSDF towards the light is
+``θd = θh + Σ_k b_k D[i_k, j]``, the per-vertex deficit cache of ``warp_sg.shading.vertex_visibility``,
+and no lookup is made.
 
 Environment, diffuse — eq. 39, with the magnitude exact: ``E(n)`` is the irradiance of the map
 (``precompute.environment.irradiance``, a cube-map table of its cosine-weighted integral) and only the

@@ -6,7 +6,9 @@ world space, its exact irradiance table and per-vertex caches). Functions: the v
 an SG lobe at a point, ``vis_ratio(p, λ) = fh(θd(p), λ) / fh(θh(p), λ)`` (paper eq. 25–31, on the
 SSDF value ``θd`` in direction ``p`` and the horizon angle ``θh``; ``fh`` tabulated or the paper's
 sigmoid, :mod:`warp_sg.sg.fh`), with the lookup skipped where the occluder cone is clear
-(``precompute.visibility.occluder_cone``); the lobe seen through the visibility boundary
+(``precompute.visibility.occluder_cone``); a light's visible fraction, its uniform disc cut by the
+same boundary (``light_cap_visible``, ``light_fraction``, ``light_vis_ratio``); the lobe seen
+through the visibility boundary
 (``visible_lobe``); and the per-lobe constants of the environment mixture (``lobe_constants``).
 The kernel variants that use them are :mod:`warp_sg.shading.kernel`'s.
 """
