@@ -75,6 +75,10 @@ def test_the_floor_of_two_triangles_is_lit_right_and_holds_the_shadow(results, n
     assert abs(sh["leak"]) <= 0.05, sh
     if CASES[name][1] == "sky":  # a sky-lit shadow is not black: its own bias is meaningful
         assert abs(sh["bias"]) <= 0.10, sh
+    else:  # a black umbra and the inner half of the penumbra: the light that reaches it, within 3 %
+        # (the light a uniform disc, not its SG's Gaussian, and the SSDFs' own maps, not their PCA
+        # reconstruction: docs/report/plain_inputs.md; measured −2.1 % here, was +5.1 %)
+        assert abs(sh["bias"]) <= 0.03, sh
     # and much darker than the lit floor, as in the reference
     ratio_ref = ref[regions["shadow"]].mean() / ref[regions["lit_floor"]].mean()
     ratio_img = img[regions["shadow"]].mean() / img[regions["lit_floor"]].mean()

@@ -85,7 +85,12 @@ def _frame_kernel(n: wp.array(dtype=wp.vec3), out: wp.array2d(dtype=wp.vec3)):
 
 def _lookups(data, N, tris, bary, dirs, device, decompress=False):
     """(ssdf_eval_bary, ssdf_eval_world) by the Warp kernels; ``decompress``: from the decompressed
-    device form (each vertex's reconstructed map) instead of the PCA form."""
+    device form of each vertex's reconstructed map (the uncompressed maps ``SSDFData.maps`` left
+    out, so both forms hold the same SSDF) instead of the PCA form."""
+    import dataclasses
+
+    if decompress:
+        data = dataclasses.replace(data, maps=np.zeros((0, 0), np.float32))
     mean, basis, w = data.device_arrays(device, decompress_bytes=1 << 40 if decompress else 0)
     assert (basis.shape[2] == 0) == decompress
     n = len(dirs)

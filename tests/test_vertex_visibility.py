@@ -237,18 +237,29 @@ def test_light_edits_rebuild_the_light_cache_and_camera_edits_do_not():
 
 
 def test_decompressed_ssdf_maps_render_the_same_frame_as_the_pca_form(monkeypatch):
-    """``WARP_SG_SSDF_DECOMPRESS_MB``: under the budget the renderer keeps each vertex's
-    reconstructed map (``SSDFData.device_arrays``), 0 keeps the PCA form; same frame either way."""
+    """``WARP_SG_SSDF_DECOMPRESS_MB``: under the budget the renderer keeps each vertex's map
+    decompressed (``SSDFData.device_arrays``), 0 keeps the PCA form. The decompressed form of the
+    reconstruction renders the same frame as the PCA form; by default the decompressed form holds
+    the uncompressed maps themselves (``SSDFData.maps``, the ray-cast SSDFs before PCA)."""
+    from precompute.visibility.ssdf import compute_ssdf
     from warp_sg.core.errors import InputError
 
     monkeypatch.setenv("WARP_SG_SSDF_DECOMPRESS_MB", "0")
     pca = Renderer(_scene(light=(1.0, 2.0, 1.0)), device="cpu")
-    assert pca.vis.basis.shape[2] > 0
+    assert pca.vis.basis.shape[2] > 0 and pca.ssdf.maps.size == 0  # (nothing kept beyond the budget)
     monkeypatch.setenv("WARP_SG_SSDF_DECOMPRESS_MB", "64")
     raw = Renderer(_scene(light=(1.0, 2.0, 1.0)), device="cpu")
-    R = raw.ssdf.resolution
-    assert raw.vis.basis.shape[2] == 0 and raw.vis.weights.shape == (len(raw.geometry.vertices), R * R)
-    a, b = pca.render(), raw.render()
+    R, nv = raw.ssdf.resolution, len(raw.geometry.vertices)
+    assert raw.vis.basis.shape[2] == 0 and raw.vis.weights.shape == (nv, R * R)
+    # the kept maps are the vertices' own SSDFs, as compute_ssdf casts them
+    g = raw.geometry
+    own = compute_ssdf(g.vertices, g.triangles, g.normals, resolution=R, ray_resolution=raw.ssdf.ray_resolution,
+                       progress=False)
+    np.testing.assert_array_equal(raw.vis.weights.numpy(), own.reshape(nv, R * R))
+    rec = Renderer(_scene(light=(1.0, 2.0, 1.0)), device="cpu",
+                   precomputed={**raw.precomputed(), "ssdf": dataclasses.replace(raw.ssdf, maps=np.zeros((0, 0)))})
+    assert rec.vis.basis.shape[2] == 0
+    a, b = pca.render(), rec.render()
     assert a.max() > 0.1
     np.testing.assert_allclose(b, a, rtol=1e-4, atol=1e-6 * a.max())
     monkeypatch.setenv("WARP_SG_SSDF_DECOMPRESS_MB", "lots")

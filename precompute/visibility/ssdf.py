@@ -28,7 +28,8 @@ on the device (:func:`compute_ssdf`; the kernels of steps 2–5 are :mod:`precom
    see docs/precompute.md for the measured error of each setting).
 
 Then all vertices are compressed with PCA (:mod:`warp_sg.numeric.pca`, eq. 24) and cached on disk
-(:func:`warp_sg.core.cache.load_or_build`) under a content hash of mesh + parameters.
+(:func:`warp_sg.core.cache.load_or_build`) under a content hash of mesh + parameters; within the
+decompression budget the maps themselves too (``SSDFData.maps``; why: docs/precompute.md, "PCA").
 """
 from __future__ import annotations
 
@@ -294,6 +295,8 @@ class SSDFData:
     #: weights (``build_at_representatives``; a representative: itself, 1); empty without
     blend_index: np.ndarray = field(default_factory=lambda: np.zeros((0, 1), np.int32))
     blend_weight: np.ndarray = field(default_factory=lambda: np.zeros((0, 1), np.float32))
+    #: (V, R²) float32 uncompressed maps, kept within :func:`decompress_budget`; empty: PCA form only
+    maps: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), np.float32))
 
     def blend_arrays(self, device):
         """``(representative ids, blend_index, blend_weight)`` as device arrays (kept per device), or
@@ -324,15 +327,15 @@ class SSDFData:
 
         Decompressed form, when the reconstructed maps take at most ``decompress_bytes``
         (``V·R²`` float32): ``mean`` zeros, ``basis`` of shape (R, R, 0) and ``weights`` (V, R²),
-        each vertex's reconstructed map ``mean + Σ_j w_j basis_j`` row-major (``reconstruct``). A
-        lookup then reads 4 texels per vertex instead of 4·(NV + 1) values and NV weights: the same
-        SSDF (``ssdf_wp._ssdf_combo`` takes either form)."""
+        each vertex's uncompressed map where kept (``maps``), else ``mean + Σ_j w_j basis_j``
+        (``reconstruct``), row-major. A lookup then reads 4 texels per vertex instead of 4·(NV + 1)
+        values and NV weights (``ssdf_wp._ssdf_combo`` takes either form)."""
         device = resolve_device(device)
         R, V = self.resolution, self.weights.shape[0]
         if V * R * R * 4 <= int(decompress_bytes):
-            maps = self.reconstruct().reshape(V, R * R).astype(np.float32)
+            maps = self.maps if self.maps.shape == (V, R * R) else self.reconstruct().reshape(V, R * R)
             return (wp.zeros((R, R), dtype=float, device=device), wp.zeros((R, R, 0), dtype=float, device=device),
-                    wp.array(maps, dtype=float, device=device))
+                    wp.array(maps.astype(np.float32), dtype=float, device=device))
         return (wp.array(self.mean, dtype=float, device=device),
                 wp.array(np.ascontiguousarray(np.moveaxis(self.basis, 0, -1)), dtype=float, device=device),
                 wp.array(self.weights, dtype=float, device=device))
@@ -354,7 +357,7 @@ def budget_mib(variable: str, default: str) -> int:
 def decompress_budget() -> int:
     """Bytes the renderer may spend on decompressed SSDF maps (``SSDFData.device_arrays``):
     ``WARP_SG_SSDF_DECOMPRESS_MB`` (default 256 MiB; 0 keeps the PCA form). 50 k vertices at the
-    default 32² maps take 205 MB."""
+    default 32² maps take 205 MB; within it the uncompressed maps are kept (``SSDFData.maps``)."""
     return budget_mib("WARP_SG_SSDF_DECOMPRESS_MB", "256")
 
 
@@ -395,6 +398,8 @@ def _ssdf_params(resolution, ray_resolution, pca_terms, rays=None, cutouts=None,
     if cutouts is not None:  # (the key of a mesh without cut-outs is unchanged)
         params.update(cutouts.key())
     params.update(representative_params(*reps) if reps is not None else {})  # (none within the budget)
+    if reps is not None and "representatives" not in params:  # the maps themselves kept (SSDFData.maps)?
+        params["maps"] = int(int(reps[0]) * int(resolution) ** 2 * 4 <= decompress_budget())
     return params
 
 
@@ -448,6 +453,7 @@ def ssdf_for_mesh(vertices, triangles, normals, *, resolution: int = DEFAULT_RES
     limit) gets its maps at that many representative vertices at most, clustered with normals at
     most ``rep_max_angle`` degrees apart, and transferred to the others
     (:mod:`precompute.visibility.representatives`; ``compute`` is called with ``vertex_ids``).
+    Without them, the uncompressed maps are kept where they fit :func:`decompress_budget` (``maps``).
     """
     v, f, n = validate_mesh(vertices, triangles, normals)
     params = _ssdf_params(resolution, ray_resolution, pca_terms, rays, cutouts, (len(v), representatives, rep_max_angle))
@@ -478,9 +484,10 @@ def ssdf_for_mesh(vertices, triangles, normals, *, resolution: int = DEFAULT_RES
                 X = compute(v, f, n, resolution=resolution, ray_resolution=ray_resolution, device=device,
                             progress=progress, **kw).reshape(len(v), -1)
             p, cones = _pca_and_cones(X, n, R, int(pca_terms), clock)
+            maps = {"maps": np.asarray(X, np.float32)} if params.get("maps") and "out" not in kw else {}
             del X
         return {"mean": p.mean.reshape(R, R), "basis": p.basis.reshape(-1, R, R), "weights": p.weights,
-                "pca_rms_error": p.rms_error, "cones": cones}
+                "pca_rms_error": p.rms_error, "cones": cones, **maps}
 
     data = _cache.load_or_build("ssdf", key, build) if use_cache else build()
     return SSDFData(resolution=int(resolution), mean=data["mean"].astype(np.float32),
@@ -489,4 +496,5 @@ def ssdf_for_mesh(vertices, triangles, normals, *, resolution: int = DEFAULT_RES
                     cones=np.asarray(data["cones"], np.float32), stats={**clock.as_dict(), **clock.counts},
                     representative=np.asarray(data.get("representative", np.zeros(0)), np.int32),
                     blend_index=np.asarray(data.get("blend_index", np.zeros((0, 1))), np.int32),
-                    blend_weight=np.asarray(data.get("blend_weight", np.zeros((0, 1))), np.float32))
+                    blend_weight=np.asarray(data.get("blend_weight", np.zeros((0, 1))), np.float32),
+                    maps=np.asarray(data.get("maps", np.zeros((0, 0))), np.float32))

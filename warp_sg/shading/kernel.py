@@ -12,10 +12,13 @@ fh(θd(p), λ)/fh(θh(p), λ)`` the SSDF's visible fraction of a lobe over an un
 Local lights (point, spherical, directional; environment peaks such as a sun), eq. 42–43 made
 exact where it is cheap — one BRDF evaluation at the light's direction l::
 
-    Rlights += ρ(o, l) E e(n·l, λ_l) vis_ratio(l, λ_l)
+    Rlights += ρ(o, l) E e(n·l, λ_l) g_α(θd(l))/g_α(θh(l))
 
-(with ``Features.light_vis_vertex`` the SSDF towards the light is ``θd = θh + Σ_k b_k D[i_k, j]``,
-the per-vertex deficit cache of ``warp_sg.shading.vertex_visibility``, and no lookup is made.)
+with ``g_α`` the visible fraction of the light's uniform disc (angular radius α) cut by the SSDF's
+boundary ``θd`` from its centre (``visibility_terms.light_cap_visible``; the paper's SG ``fh`` ratio
+with ``fh = "sigmoid"``). With ``Features.light_vis_vertex`` the SSDF towards the light is
+``θd = θh + Σ_k b_k D[i_k, j]``, the per-vertex deficit cache of ``warp_sg.shading.vertex_visibility``,
+and no lookup is made.
 
 Environment, diffuse — eq. 39, with the magnitude exact: ``E(n)`` is the irradiance of the map
 (``precompute.environment.irradiance``, a cube-map table of its cosine-weighted integral) and only the
@@ -94,8 +97,9 @@ from precompute.environment.irradiance import env_irradiance  # noqa: E402
 from precompute.visibility.ssdf_wp import SSDFPoint, ssdf_point_framed  # noqa: E402
 from warp_sg.shading.motion_wp import Proxies, moving_lobe, proxy_diffuse, proxy_ratio  # noqa: E402  (moving objects' occluder proxies)
 
-from warp_sg.shading.visibility_terms import (CC_LAM, EnvSG, GeometryArrays, Visibility, fh_fraction, vis_ratio,
-                                              vis_ratio_depth, visible_irradiance, visible_lobe)
+from warp_sg.shading.visibility_terms import (CC_LAM, EnvSG, GeometryArrays, Visibility, light_fraction,
+                                              light_vis_ratio, vis_ratio, vis_ratio_depth, visible_irradiance,
+                                              visible_lobe)
 
 ENV_NONE, ENV_SG, ENV_PREFILTERED = 0, 1, 2
 
@@ -296,9 +300,9 @@ def shade_kernel(f: Features):
                                   + b2 * vis.light_deficit[i2, j])
                             if dd < 0.0:
                                 th_h = fast_asin(wp.dot(la, q.ng))
-                                vr = fh_fraction(FH, vis, th_h + dd, th_h, ll)
+                                vr = light_fraction(FH, vis, th_h + dd, th_h, ll)
                         else:
-                            vr = vis_ratio(SHADOWS, FH, vis, q, la, ll)
+                            vr = light_vis_ratio(SHADOWS, FH, vis, q, la, ll)
                         if wp.static(MOVING): vr = wp.min(vr, proxy_ratio(FH, vis.fh_table, px, t, P, ng, la, ll))  # noqa: E701
                         if e > 0.0:
                             f = brdf_eval(mat, o_l, above(li))

@@ -6,7 +6,9 @@ world space, its exact irradiance table and per-vertex caches). Functions: the v
 an SG lobe at a point, ``vis_ratio(p, λ) = fh(θd(p), λ) / fh(θh(p), λ)`` (paper eq. 25–31, on the
 SSDF value ``θd`` in direction ``p`` and the horizon angle ``θh``; ``fh`` tabulated or the paper's
 sigmoid, :mod:`warp_sg.sg.fh`), with the lookup skipped where the occluder cone is clear
-(``precompute.visibility.occluder_cone``); the lobe seen through the visibility boundary
+(``precompute.visibility.occluder_cone``); a light's visible fraction, its uniform disc cut by the
+same boundary (``light_cap_visible``, ``light_fraction``, ``light_vis_ratio``); the lobe seen
+through the visibility boundary
 (``visible_lobe``); and the per-lobe constants of the environment mixture (``lobe_constants``).
 The kernel variants that use them are :mod:`warp_sg.shading.kernel`'s.
 """
@@ -21,6 +23,7 @@ from precompute.visibility.ssdf_wp import SSDFPoint, ssdf_at
 from warp_sg.brdf.kernel.material_wp import lum
 from warp_sg.numeric.fastmath import fast_asin
 from warp_sg.sg import CLAMPED_COSINE_SHARPNESS
+from warp_sg.sg.algebra_wp import FA_NUMERATOR, TWO_PI
 from warp_sg.sg.fh import fh_ratio_table_pair, fh_theta_max_wp
 from warp_sg.sg.irradiance import sg_irradiance_row, sg_power
 from warp_sg.sg.ssdf_product import sg_visibility_scale_sigmoid
@@ -217,6 +220,62 @@ def fh_fraction(fh_mode: int, vis: Visibility, th: float, th_h: float, lam: floa
     else:
         a, b = fh_ratio_table_pair(vis.fh_table, th, th_h, lam)
     return wp.clamp(a / wp.max(b, 1.0e-8), 0.0, 1.0)
+
+
+@wp.func
+def light_cap_visible(th: float, lam: float) -> float:
+    """The visible fraction of a uniform light disc (a spherical cap of angular radius α) whose
+    centre lies ``th`` = θd from a visibility boundary great circle (visible side ``th > 0``):
+    the area of cap ∩ hemisphere over the cap's, ``2[π − acos(sin θd / sin α) − cos α ·
+    acos(−tan θd / tan α)] / (2π(1 − cos α))`` for |θd| < α (the intersection area of two spherical
+    caps, of radii α and π/2, whose centres are π/2 − θd apart: the two-cap formula as in
+    Tovchigrechko & Vakser, Protein Sci. 2001; checked against quadrature over the disc in
+    ``tests/test_light_visibility.py``),
+    1 at θd ≥ α and 0 at θd ≤ −α; for small α it is the flat disc's ``½ + (u√(1−u²) + asin u)/π``,
+    u = θd/α. α is the light's own from its SG sharpness (``warp_sg.scene.lights.light_irradiance``:
+    λ = fa⁻¹(2π sin²α), so sin α = √(fa(λ)/2π)). Evaluated in float64: the numerator is O(α²)
+    out of O(1) terms."""
+    sa = wp.min(wp.sqrt(FA_NUMERATOR / (TWO_PI * wp.max(lam, 1.0e-30))), 1.0)
+    if th >= wp.asin(sa):
+        return 1.0
+    if th <= -wp.asin(sa):
+        return 0.0
+    s64 = wp.float64(sa)
+    c64 = wp.sqrt(wp.float64(1.0) - s64 * s64)
+    t64 = wp.float64(th)
+    u = wp.clamp(wp.sin(t64) / s64, wp.float64(-1.0), wp.float64(1.0))
+    v = wp.clamp(-wp.tan(t64) * c64 / s64, wp.float64(-1.0), wp.float64(1.0))
+    pi64 = wp.float64(3.141592653589793)
+    a = wp.float64(2.0) * (pi64 - wp.acos(u) - c64 * wp.acos(v))
+    omc = s64 * s64 / (wp.float64(1.0) + c64)  # 1 − cos α without cancellation
+    return wp.clamp(float(a / (wp.float64(2.0) * pi64 * omc)), 0.0, 1.0)
+
+
+@wp.func
+def light_fraction(fh_mode: int, vis: Visibility, th: float, th_h: float, lam: float) -> float:
+    """A light's visible fraction over that of the unoccluded point, ``g(θd)/g(θh)`` clamped to
+    [0, 1], ``g`` = :func:`light_cap_visible` (the light is a uniform disc, as in the Monte-Carlo
+    reference and ``docs/math.md``, not a Gaussian: the SG's fh has tails that reach ~1.5 α into
+    the umbra and out into the lit side). With the paper's sigmoid (``fh_mode`` 1) its fh ratio,
+    as for every lobe (:func:`fh_fraction`)."""
+    if fh_mode == 1:
+        return fh_fraction(fh_mode, vis, th, th_h, lam)
+    return wp.clamp(light_cap_visible(th, lam) / wp.max(light_cap_visible(th_h, lam), 1.0e-8), 0.0, 1.0)
+
+
+@wp.func
+def light_vis_ratio(shadows: int, fh_mode: int, vis: Visibility, q: SSDFPoint, p: wp.vec3, lam: float) -> float:
+    """:func:`vis_ratio` for a light (axis ``p``, sharpness ``λ``): the same SSDF lookup and skip,
+    the visible fraction from :func:`light_fraction`."""
+    if shadows == 0:
+        return 1.0
+    th_h = fast_asin(wp.dot(p, q.ng))
+    s = lookup_skip(fh_mode, vis, q, p, th_h, lam)
+    if s >= 1.0:
+        return 1.0
+    th = ssdf_at(vis.mean, vis.basis, vis.weights, q, p)
+    r = light_fraction(fh_mode, vis, th, th_h, lam)
+    return r + (1.0 - r) * s
 
 
 @wp.func
