@@ -123,15 +123,7 @@ def vis_ratio(shadows: int, fh_mode: int, vis: Visibility, q: SSDFPoint, p: wp.v
     the occluders take away. ``q``: the shading point (``ssdf_point``, once per pixel). 1 without
     shadows. With the table ``fh``, a lobe that clears the occluder cones of the point's vertices
     by ``min(θh, θmax(λ))`` is fully visible (``precompute.visibility.occluder_cone``): no SSDF lookup."""
-    if shadows == 0:
-        return 1.0
-    th_h = fast_asin(wp.dot(p, q.ng))
-    s = lookup_skip(fh_mode, vis, q, p, th_h, lam)
-    if s >= 1.0:
-        return 1.0
-    th = ssdf_at(vis.mean, vis.basis, vis.weights, q, p)
-    r = fh_fraction(fh_mode, vis, th, th_h, lam)
-    return r + (1.0 - r) * s
+    return _boundary_ratio(shadows, fh_mode, vis, q, p, lam, 0)
 
 
 @wp.func
@@ -267,6 +259,14 @@ def light_fraction(fh_mode: int, vis: Visibility, th: float, th_h: float, lam: f
 def light_vis_ratio(shadows: int, fh_mode: int, vis: Visibility, q: SSDFPoint, p: wp.vec3, lam: float) -> float:
     """:func:`vis_ratio` for a light (axis ``p``, sharpness ``λ``): the same SSDF lookup and skip,
     the visible fraction from :func:`light_fraction`."""
+    return _boundary_ratio(shadows, fh_mode, vis, q, p, lam, 1)
+
+
+@wp.func
+def _boundary_ratio(shadows: int, fh_mode: int, vis: Visibility, q: SSDFPoint, p: wp.vec3, lam: float,
+                    disc: int) -> float:
+    """:func:`vis_ratio` (``disc`` 0: the lobe's fh ratio) and :func:`light_vis_ratio` (1: the
+    light's disc, :func:`light_fraction`): one SSDF lookup, skipped where the occluder cones clear."""
     if shadows == 0:
         return 1.0
     th_h = fast_asin(wp.dot(p, q.ng))
@@ -274,7 +274,11 @@ def light_vis_ratio(shadows: int, fh_mode: int, vis: Visibility, q: SSDFPoint, p
     if s >= 1.0:
         return 1.0
     th = ssdf_at(vis.mean, vis.basis, vis.weights, q, p)
-    r = light_fraction(fh_mode, vis, th, th_h, lam)
+    r = float(0.0)
+    if disc != 0:
+        r = light_fraction(fh_mode, vis, th, th_h, lam)
+    else:
+        r = fh_fraction(fh_mode, vis, th, th_h, lam)
     return r + (1.0 - r) * s
 
 
