@@ -288,10 +288,10 @@ def lookup(field: OcclusionField, points, device="cpu") -> np.ndarray:
     """(N, 4) ``(M, Ω)`` of the field at world points of its rest pose (:func:`field_moments`)."""
     q = (np.asarray(points, np.float64).reshape(-1, 3) - field.centre) / field.radius
     out = wp.empty(len(q), dtype=wp.vec4, device=device)
+    axes, rings = cell_axes(field.r_in)
     wp.launch(_lookup_kernel, dim=len(q), device=device,
               inputs=[wp.array(field.table.reshape(-1, 4), dtype=wp.vec4, device=device),
-                      wp.array(cell_axes(field.r_in)[1], dtype=wp.vec2, device=device),
-                      wp.array(cell_axes(field.r_in)[0], dtype=wp.vec4, device=device),
+                      wp.array(rings, dtype=wp.vec2, device=device), wp.array(axes, dtype=wp.vec4, device=device),
                       wp.array(q.astype(np.float32), dtype=wp.vec3, device=device), out])
     return out.numpy().astype(np.float64)
 

@@ -227,10 +227,22 @@ def light_cap_visible(th: float, lam: float) -> float:
     u = θd/α. α is the light's own from its SG sharpness (``warp_sg.scene.lights.light_irradiance``:
     λ = fa⁻¹(2π sin²α), so sin α = √(fa(λ)/2π)). Evaluated in float64: the numerator is O(α²)
     out of O(1) terms."""
-    sa = wp.min(wp.sqrt(FA_NUMERATOR / (TWO_PI * wp.max(lam, 1.0e-30))), 1.0)
-    if th >= wp.asin(sa):
+    sa = _light_sin_radius(lam)
+    return _cap_visible(th, sa, wp.asin(sa))
+
+
+@wp.func
+def _light_sin_radius(lam: float) -> float:
+    """``sin α`` of a light of SG sharpness λ (:func:`light_cap_visible`)."""
+    return wp.min(wp.sqrt(FA_NUMERATOR / (TWO_PI * wp.max(lam, 1.0e-30))), 1.0)
+
+
+@wp.func
+def _cap_visible(th: float, sa: float, alpha: float) -> float:
+    """:func:`light_cap_visible` of the light's ``sin α`` and ``α``."""
+    if th >= alpha:
         return 1.0
-    if th <= -wp.asin(sa):
+    if th <= -alpha:
         return 0.0
     s64 = wp.float64(sa)
     c64 = wp.sqrt(wp.float64(1.0) - s64 * s64)
@@ -252,7 +264,9 @@ def light_fraction(fh_mode: int, vis: Visibility, th: float, th_h: float, lam: f
     as for every lobe (:func:`fh_fraction`)."""
     if fh_mode == 1:
         return fh_fraction(fh_mode, vis, th, th_h, lam)
-    return wp.clamp(light_cap_visible(th, lam) / wp.max(light_cap_visible(th_h, lam), 1.0e-8), 0.0, 1.0)
+    sa = _light_sin_radius(lam)  # (the light's radius once for both sides of the ratio)
+    alpha = wp.asin(sa)
+    return wp.clamp(_cap_visible(th, sa, alpha) / wp.max(_cap_visible(th_h, sa, alpha), 1.0e-8), 0.0, 1.0)
 
 
 @wp.func
