@@ -261,36 +261,44 @@ def _refine_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp
                    marked: wp.array2d(dtype=wp.uint8), vis: wp.array2d(dtype=wp.uint8),
                    depth: wp.array2d(dtype=float), known: wp.array2d(dtype=wp.uint8),
                    cell_vis: wp.array2d(dtype=wp.uint8), cell_depth: wp.array2d(dtype=float)):
-    """Cells of the (2s)×(2s) grid: a child of a marked parent gets its own sample (a ray unless its
-    texel is known; closest hit while the grid is coarser than the texels, any hit on the last
-    level), a child of an unmarked parent the parent's."""
-    k, c = wp.tid()
+    """Parent cell ``pc`` of the s×s grid and its four children on the (2s)×(2s) grid: a child of a
+    marked parent gets its own sample (a ray unless its texel is known; closest hit while the grid
+    is coarser than the texels, any hit on the last level), a child of an unmarked parent the
+    parent's. (One thread per parent, not per child: a CPU thread's entry copies the kernel's
+    arguments, and most parents are unmarked.)"""
+    k, pc = wp.tid()
     vi = first + k
     s2 = 2 * s
-    j = c / s2
-    i = c - j * s2
-    pc = (j / 2) * s + i / 2
-    v = parent_vis[k, pc]
-    t = parent_depth[k, pc]
-    if marked[k, pc] != wp.uint8(0):
-        f = Rr / s2
-        tex = _sample_texel(j, i, f, Rr)
-        if known[k, tex] != wp.uint8(0):
-            v = vis[k, tex]
-            t = depth[k, tex]
-        else:
-            o = vertex_ray_origin(points, normals, vi, offset)
-            d = vertex_ray_direction(normals, vi, dirs[tex])
-            if f > 1:
-                t = ray_hit_distance(mesh, o, d, max_t)
-                v = wp.where(t < NO_HIT, wp.uint8(0), wp.uint8(1))
-            else:  # the last level: no more marking, so any hit will do
-                v = wp.where(ray_blocked(mesh, o, d, max_t), wp.uint8(0), wp.uint8(1))
-            vis[k, tex] = v
-            depth[k, tex] = t
-            known[k, tex] = wp.uint8(1)
-    cell_vis[k, c] = v
-    cell_depth[k, c] = t
+    pj = pc / s
+    pi = pc - pj * s
+    pv = parent_vis[k, pc]
+    pt = parent_depth[k, pc]
+    split = marked[k, pc] != wp.uint8(0)
+    f = Rr / s2
+    for q in range(4):
+        j = 2 * pj + q / 2
+        i = 2 * pi + q % 2
+        c = j * s2 + i
+        v = pv
+        t = pt
+        if split:
+            tex = _sample_texel(j, i, f, Rr)
+            if known[k, tex] != wp.uint8(0):
+                v = vis[k, tex]
+                t = depth[k, tex]
+            else:
+                o = vertex_ray_origin(points, normals, vi, offset)
+                d = vertex_ray_direction(normals, vi, dirs[tex])
+                if f > 1:
+                    t = ray_hit_distance(mesh, o, d, max_t)
+                    v = wp.where(t < NO_HIT, wp.uint8(0), wp.uint8(1))
+                else:  # the last level: no more marking, so any hit will do
+                    v = wp.where(ray_blocked(mesh, o, d, max_t), wp.uint8(0), wp.uint8(1))
+                vis[k, tex] = v
+                depth[k, tex] = t
+                known[k, tex] = wp.uint8(1)
+        cell_vis[k, c] = v
+        cell_depth[k, c] = t
 
 
 @wp.kernel
@@ -351,7 +359,7 @@ def adaptive_visibility(ctx, dirs, Rr: int, points, normals, first: int, count: 
                   device=device)
         nv = wp.empty((B, 4 * s * s), dtype=wp.uint8, device=device)
         nd = wp.empty((B, 4 * s * s), dtype=float, device=device)
-        wp.launch(_refine_kernel, dim=(B, 4 * s * s),
+        wp.launch(_refine_kernel, dim=(B, s * s),
                   inputs=geo + [s, cv, cd, marked, vis, depth, known, nv, nd], device=device)
         cv, cd = nv, nd
     wp.launch(_fill_kernel, dim=(B, N), inputs=[cv, vis, known], device=device)
