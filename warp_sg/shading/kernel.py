@@ -95,7 +95,7 @@ from warp_sg.shading.surface_layers import Layers, coat_setup, emission_at, occl
 
 from precompute.environment.irradiance import env_irradiance  # noqa: E402
 from precompute.visibility.ssdf_wp import SSDFPoint, ssdf_point_framed  # noqa: E402
-from warp_sg.shading.motion_wp import Proxies, moving_lobe, proxy_diffuse, proxy_ratio  # noqa: E402  (moving objects' occluder proxies)
+from warp_sg.shading.motion_wp import Proxies, moving_lobe, proxy_diffuse, proxy_light_ratio, proxy_ratio  # noqa: E402  (moving objects' occluder proxies)
 
 from warp_sg.shading.visibility_terms import (CC_LAM, EnvSG, GeometryArrays, Visibility, light_fraction,
                                               light_vis_ratio, vis_ratio, vis_ratio_depth, visible_irradiance,
@@ -303,7 +303,7 @@ def shade_kernel(f: Features):
                                 vr = light_fraction(FH, vis, th_h + dd, th_h, ll)
                         else:
                             vr = light_vis_ratio(SHADOWS, FH, vis, q, la, ll)
-                        if wp.static(MOVING): vr = wp.min(vr, proxy_ratio(FH, vis.fh_table, px, t, P, ng, la, ll))  # noqa: E701
+                        if wp.static(MOVING): vr = wp.min(vr, proxy_light_ratio(FH, vis, px, t, P, ng, la, ll))  # noqa: E701
                         if e > 0.0:
                             f = brdf_eval(mat, o_l, above(li))
                             if wp.static(OCC):  # the environment's peaks: occlusion on their diffuse part

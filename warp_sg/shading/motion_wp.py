@@ -11,8 +11,9 @@ object only itself). Per shading point ``P`` (normal ``n``):
   the ray hits it) — not the infinite plane it lies in, whose ``asin(σ d·m)`` hides the environment
   past a floor's edge from a glossy object's grazing lobes; the lobe's visibility is ``min(V_own,
   fh(θp, λ)/fh(θh, λ))`` (:func:`proxy_ratio`), i.e. ``fh(min(θd, θp))/fh(θh)``: the SSDF of the
-  union of occluders, ``min``, before the SSDF × SG product (eq. 30) — used for lights and for the
-  specular lobes (and the diffuse lobes of the per-pixel path). A specular lobe's mean radiance is
+  union of occluders, ``min``, before the SSDF × SG product (eq. 30) — used for the specular
+  lobes (and the diffuse lobes of the per-pixel path); a light's fraction is the uniform disc's
+  at ``min(θd, θp)`` instead (:func:`proxy_light_ratio`), as the maps' own for lights. A specular lobe's mean radiance is
   read on its visible part (:func:`moving_lobe`): cut by the maps' occluders as in a static scene
   (``visible_lobe``), or, where a proxy cuts more, moved away from that proxy (``cut_lobe``, the
   same truncated-normal shift) — before, a glossy moving ball on a floor averaged the sky with
@@ -51,7 +52,8 @@ from warp_sg.scene.envmap import env_lookup
 from warp_sg.numeric.fastmath import fast_asin
 from warp_sg.sg.fh import fh_ratio_table_pair, fh_theta_max_wp
 from warp_sg.sg.ssdf_product import sg_visibility_scale_sigmoid
-from warp_sg.shading.visibility_terms import SSDFPoint, Visibility, cut_lobe, visible_lobe
+from warp_sg.shading.visibility_terms import (SSDFPoint, Visibility, _light_sin_radius, cut_lobe, light_fraction,
+                                             visible_lobe)
 
 _HALF_PI = wp.constant(1.5707963267948966)
 _FAR = wp.constant(4.0)  # an SSDF beyond any angle: no proxy
@@ -247,6 +249,26 @@ def proxy_ratio(fh_mode: int, table: wp.array2d(dtype=float), px: Proxies, tri: 
 
 
 @wp.func
+def proxy_light_ratio(fh_mode: int, vis: Visibility, px: Proxies, tri: int, P: wp.vec3, ng: wp.vec3, d: wp.vec3,
+                      lam: float) -> float:
+    """A light's (axis ``d``, SG sharpness λ) visible fraction that the proxies leave: the uniform
+    disc's, :func:`~warp_sg.shading.visibility_terms.light_fraction` of the proxies' SSDF θp — as
+    the maps' own for lights, so that a moving object's shadow has the umbra and penumbra a ray
+    cast finds, not the SG's tails (1 where the proxies clear the disc's radius α)."""
+    if px.active == 0:
+        return 1.0
+    reach = float(0.0)
+    if fh_mode == 1:
+        reach = fh_theta_max_wp(lam)
+    else:
+        reach = wp.asin(_light_sin_radius(lam))
+    th, c = proxy_theta_axis(px, tri, P, d, reach)
+    if th >= reach:
+        return 1.0
+    return light_fraction(fh_mode, vis, th, fast_asin(wp.clamp(wp.dot(d, ng), -1.0, 1.0)), lam)
+
+
+@wp.func
 def moving_lobe(fh_mode: int, vis: Visibility, q: SSDFPoint, px: Proxies, tri: int, P: wp.vec3, ng: wp.vec3,
                 p: wp.vec3, lam: float, vd: wp.vec2):
     """``(V, p', λ')`` of a specular lobe (p, λ) in a scene with moving objects: the smaller of the
@@ -393,5 +415,5 @@ def no_proxies(device) -> Proxies:
     return px
 
 
-__all__ = ["Proxies", "proxy_theta", "proxy_theta_axis", "proxy_cut", "moving_lobe", "polygon_theta", "proxy_ratio", "proxy_diffuse", "cap_cosine_solid_angle", "polygon_cosine_solid_angle",
+__all__ = ["Proxies", "proxy_theta", "proxy_theta_axis", "proxy_cut", "moving_lobe", "polygon_theta", "proxy_ratio", "proxy_light_ratio", "proxy_diffuse", "cap_cosine_solid_angle", "polygon_cosine_solid_angle",
            "no_proxies"]
