@@ -52,7 +52,7 @@ from warp_sg.scene.envmap import env_lookup
 from warp_sg.numeric.fastmath import fast_asin
 from warp_sg.sg.fh import fh_ratio_table_pair, fh_theta_max_wp
 from warp_sg.sg.ssdf_product import sg_visibility_scale_sigmoid
-from warp_sg.shading.visibility_terms import (SSDFPoint, Visibility, _light_sin_radius, cut_lobe, light_fraction,
+from warp_sg.shading.visibility_terms import (SSDFPoint, Visibility, cut_lobe, light_fraction, light_sin_radius,
                                              visible_lobe)
 
 _HALF_PI = wp.constant(1.5707963267948966)
@@ -261,8 +261,8 @@ def proxy_light_ratio(fh_mode: int, vis: Visibility, px: Proxies, tri: int, P: w
     if fh_mode == 1:
         reach = fh_theta_max_wp(lam)
     else:
-        reach = wp.asin(_light_sin_radius(lam))
-    th, c = proxy_theta_axis(px, tri, P, d, reach)
+        reach = wp.asin(light_sin_radius(lam))
+    th = proxy_theta(px, tri, P, d, reach)
     if th >= reach:
         return 1.0
     return light_fraction(fh_mode, vis, th, fast_asin(wp.clamp(wp.dot(d, ng), -1.0, 1.0)), lam)

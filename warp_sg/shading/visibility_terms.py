@@ -227,12 +227,12 @@ def light_cap_visible(th: float, lam: float) -> float:
     u = θd/α. α is the light's own from its SG sharpness (``warp_sg.scene.lights.light_irradiance``:
     λ = fa⁻¹(2π sin²α), so sin α = √(fa(λ)/2π)). Evaluated in float64: the numerator is O(α²)
     out of O(1) terms."""
-    sa = _light_sin_radius(lam)
+    sa = light_sin_radius(lam)
     return _cap_visible(th, sa, wp.asin(sa))
 
 
 @wp.func
-def _light_sin_radius(lam: float) -> float:
+def light_sin_radius(lam: float) -> float:
     """``sin α`` of a light of SG sharpness λ (:func:`light_cap_visible`)."""
     return wp.min(wp.sqrt(FA_NUMERATOR / (TWO_PI * wp.max(lam, 1.0e-30))), 1.0)
 
@@ -264,7 +264,7 @@ def light_fraction(fh_mode: int, vis: Visibility, th: float, th_h: float, lam: f
     as for every lobe (:func:`fh_fraction`)."""
     if fh_mode == 1:
         return fh_fraction(fh_mode, vis, th, th_h, lam)
-    sa = _light_sin_radius(lam)  # (the light's radius once for both sides of the ratio)
+    sa = light_sin_radius(lam)  # (the light's radius once for both sides of the ratio)
     alpha = wp.asin(sa)
     return wp.clamp(_cap_visible(th, sa, alpha) / wp.max(_cap_visible(th_h, sa, alpha), 1.0e-8), 0.0, 1.0)
 
