@@ -395,3 +395,24 @@ def test_a_transform_set_before_progressive_shadows_arrive_is_kept(tmp_path):
     r = ws.Renderer(_scene(tmp_path / "again", size=24))
     r.set_object_transform("object", M)
     assert np.array_equal(p.render(), r.render())
+
+
+def test_a_dynamic_object_keeps_its_own_vertices_unless_given_a_moving_budget(tmp_path):
+    """Each moving vertex costs every frame the object moves: by default the refinement adds none
+    to a dynamic object (``[render] moving_visibility_budget = 0``), and the floor keeps its
+    pre-split (its vertices see only the static group, which cannot shadow itself: no edge is split
+    for the blob's shadow where it stood); with a moving budget the blob, which shadows itself,
+    gets at most that many more."""
+    def counts(**render):  # (the object's, the floor's and the moving vertices)
+        r = ws.Renderer(_scene(tmp_path / f"b{len(render)}", obj="blob", **render))
+        per = np.bincount(np.asarray(r.geometry.vertex_object), minlength=2)
+        return int(per[0]), int(per[1]), int(r.dynamic.all_ids.shape[0])
+
+    own = ws.Renderer(_scene(tmp_path / "own", obj="blob", shadows=False))  # no refinement: the blob's mesh
+    n_own = int(np.bincount(np.asarray(own.geometry.vertex_object))[0])
+    blob, floor, moving = counts()
+    assert blob == moving == n_own
+    assert floor == 33 * 33  # the floor's uniform pre-split only
+    more, floor2, moving2 = counts(moving_visibility_budget=150)
+    assert blob < more <= blob + 150 and moving2 == more
+    assert floor2 == floor

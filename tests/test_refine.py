@@ -345,3 +345,75 @@ def test_signatures_are_cast_only_for_vertices_that_are_compared(monkeypatch):
     monkeypatch.setattr(rf, "hemisphere_visibility", real)
     more = refine_for_visibility(V, F, N, budget=budget, levels=5)
     assert np.array_equal(more.vertices, cut.vertices) and np.array_equal(more.triangles, cut.triangles)
+
+
+# ---------------------------------------------------------------------------------------------
+# visibility groups (scenes with objects that move)
+# ---------------------------------------------------------------------------------------------
+
+def _bench_on_floor():
+    """A slab with a post on it (two boxes, so the group shadows itself), beside the floor."""
+    parts = []
+    for ext, ctr in (((1.2, 0.1, 0.8), (1.0, 0.05, 0.0)), ((0.2, 0.8, 0.2), (1.0, 0.5, 0.0))):
+        b = trimesh.creation.box(extents=ext)
+        b.apply_translation(ctr)
+        parts.append((np.asarray(b.vertices), np.asarray(b.faces), np.asarray(b.vertex_normals)))
+    return _merge(*parts)
+
+
+SUN = [("directional", np.array([0.5, 0.8, 0.3]) / np.linalg.norm([0.5, 0.8, 0.3]))]
+
+
+def _group_vertices(r, groups, g):
+    """Sorted positions of the refined vertices of group ``g`` (their parent input triangle's)."""
+    tris = r.triangles[groups[r.parent_tri] == g]
+    return np.unique(np.round(r.vertices[np.unique(tris)], 12), axis=0)
+
+
+def test_a_group_is_refined_as_its_mesh_alone_and_the_floor_sees_no_other_groups_shadow():
+    """With groups, a vertex's signatures see only its own group's triangles: the moving object's
+    refinement is that of its mesh alone (same base edge), and the floor, which cannot shadow
+    itself, keeps its uniform pre-split; without groups the floor is refined around the object's
+    shadow (where the object stood when the precompute ran)."""
+    fl, ob = _floor(), _bench_on_floor()
+    V, F, N = _merge(fl, ob)
+    groups = np.r_[np.zeros(len(fl[1]), np.int64), np.ones(len(ob[1]), np.int64)]
+    edge = 0.25
+    grouped = refine_for_visibility(V, F, N, base_edge=edge, budget=100000, lights=SUN, groups=groups)
+    whole = refine_for_visibility(V, F, N, base_edge=edge, budget=100000, lights=SUN)
+    # each mesh alone, with the floor's corners as unused vertices: the same scene size (the
+    # shortest edge the levels split and the rays' offsets are fractions of it)
+    alone_ob = refine_for_visibility(*_merge(ob, (fl[0], np.zeros((0, 3), np.int64), fl[2])), base_edge=edge,
+                                     budget=100000, lights=SUN)
+    alone_fl = refine_for_visibility(*fl, base_edge=edge, budget=100000, lights=SUN)
+    assert alone_ob.stats["level_vertices"] and alone_ob.stats["level_vertices"][0] > 0  # it shadows itself
+    used = lambda r: np.unique(np.round(r.vertices[np.unique(r.triangles)], 12), axis=0)  # noqa: E731
+    np.testing.assert_array_equal(_group_vertices(grouped, groups, 1), used(alone_ob))
+    np.testing.assert_array_equal(_group_vertices(grouped, groups, 0), used(alone_fl))
+    assert alone_fl.stats["level_vertices"] == []  # the floor alone: its pre-split only
+    n_floor = len(used(alone_fl))
+    assert len(_group_vertices(whole, groups, 0)) > n_floor + 100  # refined around the object's shadow
+    _check_parents(V, F, N, grouped)
+
+
+def test_group_budgets_cap_what_the_levels_add_to_a_group():
+    fl, ob = _floor(), _bench_on_floor()
+    V, F, N = _merge(ob, _sphere(subdivisions=2, center=(-1.0, 0.6, 0.0)), fl)
+    groups = np.r_[np.ones(len(ob[1]), np.int64), np.full(320, 2), np.zeros(len(fl[1]), np.int64)]
+    edge = 0.25
+    pre = refine_for_visibility(V, F, N, base_edge=edge, levels=0, groups=groups)
+    free = refine_for_visibility(V, F, N, base_edge=edge, budget=100000, lights=SUN, groups=groups)
+    n_pre = len(_group_vertices(pre, groups, 1))
+    n_free = len(_group_vertices(free, groups, 1))
+    assert n_free > n_pre + 60
+    for cap in (0, 60):
+        r = refine_for_visibility(V, F, N, base_edge=edge, budget=100000, lights=SUN, groups=groups,
+                                  group_budgets={1: cap, 2: 0})
+        n = len(_group_vertices(r, groups, 1))
+        assert n_pre + (cap > 0) <= n <= n_pre + cap
+        # the other groups are as without the cap: the floor's pre-split, the convex sphere's own vertices
+        for g in (0, 2):
+            np.testing.assert_array_equal(_group_vertices(r, groups, g), _group_vertices(free, groups, g))
+        _check_parents(V, F, N, r)
+    with pytest.raises(Exception, match="group_budgets needs groups"):
+        refine_for_visibility(V, F, N, base_edge=edge, group_budgets={1: 0})

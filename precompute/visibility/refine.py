@@ -235,34 +235,40 @@ class _State:
             self.tparent = np.concatenate([self.tparent[keep], self.tparent[idx], self.tparent[idx]])
         raise RuntimeError("refine: bisection did not terminate (closure violated)")  # pragma: no cover
 
+    def fit_marks(self, edges, marked, score, room):
+        """The marks of the highest-``score`` marked geometric edges whose closed split adds at
+        most ``room`` vertices (all of ``marked`` when they fit), and the index keys they split."""
+        ikey, geid, _ = edges
+        split = self.split_keys(ikey, geid, self.closure(geid, marked))
+        if len(split) <= room:
+            return marked, split
+        cand = np.flatnonzero(marked)
+        cand = cand[np.argsort(-score[cand], kind="stable")]
+
+        def fits(k):
+            mk = np.zeros_like(marked)
+            mk[cand[:k]] = True
+            s = self.split_keys(ikey, geid, self.closure(geid, mk))
+            return len(s) <= room, s, mk
+
+        lo, hi = 0, len(cand)
+        best, best_mk = np.zeros(0, np.int64), np.zeros_like(marked)
+        while lo < hi:  # largest k that fits (the count is monotone in k)
+            mid = (lo + hi + 1) // 2
+            ok, s, mk = fits(mid)
+            if ok:
+                lo, best, best_mk = mid, s, mk
+            else:
+                hi = mid - 1
+        return best_mk, best
+
     def refine_step(self, edges, marked, score, room):
         """Split the marked geometric edges (``marked`` bool per geometric edge of ``edges`` =
         :meth:`edges`), at most ``room`` new vertices; if all do not fit, the highest ``score``
         first. Returns the number of vertices added."""
         if room <= 0:
             return 0
-        ikey, geid, _ = edges
-        closed = self.closure(geid, marked)
-        split = self.split_keys(ikey, geid, closed)
-        if len(split) > room:
-            cand = np.flatnonzero(marked)
-            cand = cand[np.argsort(-score[cand], kind="stable")]
-
-            def fits(k):
-                mk = np.zeros_like(marked)
-                mk[cand[:k]] = True
-                s = self.split_keys(ikey, geid, self.closure(geid, mk))
-                return len(s) <= room, s
-
-            lo, hi, best = 0, len(cand), np.zeros(0, np.int64)
-            while lo < hi:  # largest k that fits (the count is monotone in k)
-                mid = (lo + hi + 1) // 2
-                ok, s = fits(mid)
-                if ok:
-                    lo, best = mid, s
-                else:
-                    hi = mid - 1
-            split = best
+        _, split = self.fit_marks(edges, marked, score, room)
         if not len(split):
             return 0
         n0 = self.nv
@@ -309,10 +315,33 @@ def _signature_difference(sig, normals, i, j, R, device="cpu"):
 # public entry point
 # ---------------------------------------------------------------------------------------------
 
+def _group_occluders(V, F, groups) -> dict | None:
+    """Per visibility group ``g`` of the input triangles ``F`` (``groups``, or None: one group),
+    its triangles as occluders of its own vertices, or None where the group cannot shadow itself
+    (flat, or one closed convex body: :func:`precompute.visibility.ssdf_groups.group_casts_rays`);
+    and per input triangle its group (``"tri_group"``), per input vertex one triangle that uses it
+    (``"vertex_tri"``)."""
+    if groups is None:
+        return None
+    from precompute.visibility.ssdf_groups import group_casts_rays, group_submesh
+
+    tg = np.asarray(groups, np.int64).reshape(-1)
+    if tg.shape != (len(F),):
+        raise InputError(f"groups has {tg.size} entries for {len(F)} triangles", where="refine.groups")
+    out = {"tri_group": tg}
+    vt = np.zeros(len(V), np.int64)
+    vt[F.ravel()] = np.repeat(np.arange(len(F)), 3)
+    out["vertex_tri"] = vt
+    for g in np.unique(tg):
+        ids, local = group_submesh(V, F, None, tg, g)
+        out[int(g)] = F[tg == g] if group_casts_rays(V[ids], local) else None
+    return out
+
+
 def _light_signatures(mesh_v, F, V, N, lights, device, cutouts=None) -> np.ndarray:
     """(n, L) int8 per vertex and key light: 1 the light is seen, 0 it is hidden, 2 the light is
     below the vertex's horizon (no shadow edge to place there: the cosine handles it), for vertices
-    ``V`` with normals ``N`` of the mesh ``(mesh_v, F)``. ``lights``: ``("directional",
+    ``V`` with normals ``N`` of the mesh ``(mesh_v, F)`` (``F`` None: no occluder). ``lights``: ``("directional",
     towards-light unit vector)`` or ``("point", position)`` pairs."""
     from precompute.visibility.rays import ray_visibility
 
@@ -325,7 +354,9 @@ def _light_signatures(mesh_v, F, V, N, lights, device, cutouts=None) -> np.ndarr
         d = np.broadcast_to(d, V.shape)
         up = np.einsum("ij,ij->i", d, N) > 1e-6
         ids = np.flatnonzero(up)
-        if len(ids):
+        if F is None:  # no occluder: every light above the horizon is seen
+            out[ids, k] = 1
+        elif len(ids):
             out[ids, k] = ray_visibility(mesh_v, F, V[ids], N[ids], d[ids], device=device,
                                          cutouts=cutouts).astype(np.int8)
     return out
@@ -333,7 +364,8 @@ def _light_signatures(mesh_v, F, V, N, lights, device, cutouts=None) -> np.ndarr
 
 def refine_for_visibility(vertices, triangles, normals, *, budget: int = 20000, device="cpu",
                           base_edge: float | None = None, levels: int = 4, signature_resolution: int = 12,
-                          threshold: float = 0.03, lights=(), progress=False, cutouts=None) -> Refinement:
+                          threshold: float = 0.03, lights=(), progress=False, cutouts=None,
+                          groups=None, group_budgets=None) -> Refinement:
     """Refine a mesh so per-vertex visibility can hold its shadows (see module docstring).
 
     ``vertices`` (N, 3), ``triangles`` (M, 3), ``normals`` (N, 3) unit (the merged scene mesh;
@@ -348,7 +380,14 @@ def refine_for_visibility(vertices, triangles, normals, *, budget: int = 20000, 
     boundary at any distance from its occluder (the hemisphere signature misses an occluder that
     subtends less than a texel: the far end of a low sun's shadow). ``progress``: tqdm bar over the
     vertex budget. ``cutouts``: the mesh's alpha cut-outs (:class:`warp_sg.shading.cutout.CutoutData`; the
-    signature and light rays pass through holes).
+    signature and light rays pass through holes). ``groups``: (M,) ints per input triangle, the
+    visibility groups of a scene with moving objects (:mod:`precompute.visibility.ssdf_groups`): a
+    vertex's signatures then see only its own group's triangles, as its SSDF will, so no edge is
+    split for a shadow that a moving object casts where it stood (and a group that cannot shadow
+    itself, flat or one convex body, casts no ray). Cut-outs are not used with groups (nor by
+    :func:`precompute.visibility.ssdf_groups.ssdf_for_groups`). ``group_budgets``: ``{group: n}``,
+    the adaptive levels add at most ``n`` vertices to that group's triangles (a moving object's
+    vertices cost every frame it moves; the pre-split is not limited); the others share ``budget``.
     """
     t0 = time.perf_counter()
     v, f, n = validate_mesh(vertices, triangles, normals)
@@ -405,13 +444,52 @@ def refine_for_visibility(vertices, triangles, normals, *, budget: int = 20000, 
         lights = list(lights)
         lsig = np.full((st.nv, len(lights)), 2, np.int8)
 
+        occluders = _group_occluders(st.V, f, groups)
+
+        def vertex_group(ids):  # that of its parent input triangle (groups share no vertex)
+            return occluders["tri_group"][np.where(st.vparent[ids] >= 0, st.vparent[ids],
+                                                   occluders["vertex_tri"][np.minimum(ids, len(v) - 1)])]
+
+        caps = {}
+        if group_budgets:
+            if groups is None:
+                raise InputError("group_budgets needs groups", where="refine.group_budgets")
+            count = np.bincount(vertex_group(np.flatnonzero(used)), minlength=int(occluders["tri_group"].max()) + 1)
+            caps = {int(g): int(count[int(g)]) + max(int(n), 0) for g, n in group_budgets.items()
+                    if 0 <= int(g) < len(count)}
+
+        def within_group_budgets(edges, marked, score):
+            """``marked`` less the edges a capped group has no room for (lowest score first)."""
+            if not caps:
+                return marked
+            _, geid, _ = edges
+            egroup = np.full(len(marked), -1, np.int64)  # a geometric edge's group: its triangles'
+            egroup[geid.ravel()] = np.repeat(occluders["tri_group"][st.tparent], 3)
+            held = np.bincount(vertex_group(np.unique(st.T)), minlength=len(count))
+            for g, cap in caps.items():
+                sel = marked & (egroup == g)
+                if sel.any():
+                    keep, _ = st.fit_marks(edges, sel, score, cap - int(held[g]))
+                    marked = (marked & ~sel) | keep
+            return marked
+
         def signatures(ids):
-            if len(ids):
-                maps = hemisphere_visibility(st.V, f, st.N, resolution=R, device=device, vertex_ids=ids,
-                                             cutouts=cutouts)
-                sig[ids] = maps.reshape(len(ids), -1).astype(bool)
+            if groups is None:
+                parts = [(ids, f, cutouts)] if len(ids) else []
+            else:
+                vg = vertex_group(ids)
+                parts = [(ids[vg == g], occluders[g], None) for g in np.unique(vg)]
+            for sel, tris, cut in parts:
+                if tris is None:  # nothing the group holds can hide a direction of its vertices' hemispheres
+                    sig[sel] = True
+                    if lights:
+                        lsig[sel] = _light_signatures(st.V, None, st.V[sel], st.N[sel], lights, device)
+                    continue
+                maps = hemisphere_visibility(st.V, tris, st.N, resolution=R, device=device, vertex_ids=sel,
+                                             cutouts=cut)
+                sig[sel] = maps.reshape(len(sel), -1).astype(bool)
                 if lights:
-                    lsig[ids] = _light_signatures(st.V, f, st.V[ids], st.N[ids], lights, device, cutouts)
+                    lsig[sel] = _light_signatures(st.V, tris, st.V[sel], st.N[sel], lights, device, cut)
 
         signatures(np.flatnonzero(used))
         for level in range(levels):
@@ -431,7 +509,7 @@ def refine_for_visibility(vertices, triangles, normals, *, budget: int = 20000, 
                 d = np.where(edge & cand, 1.0, d)
             gdiff = np.zeros(len(glen))
             np.maximum.at(gdiff, ge, d)
-            marked = (gdiff > threshold) & (glen > min_edge)
+            marked = within_group_budgets(edges, (gdiff > threshold) & (glen > min_edge), gdiff * glen)
             if not marked.any():
                 break
             n0 = st.nv
@@ -468,11 +546,15 @@ def refine_cached(vertices, triangles, normals, *, budget: int = 20000, device="
     if "lights" in kwargs:  # (kind, vector) pairs as plain lists for the key
         kwargs["lights"] = [(str(k), [float(x) for x in np.ravel(v)]) for k, v in kwargs["lights"]]
     cut = kwargs.get("cutouts")
-    params = {k: x for k, x in kwargs.items() if k != "cutouts"}
+    params = {k: x for k, x in kwargs.items() if k not in ("cutouts", "groups")}
     if cut is not None:
         params.update(cut.key())
+    if kwargs.get("group_budgets"):
+        params["group_budgets"] = sorted([int(g), int(n)] for g, n in kwargs["group_budgets"].items())
+    groups = kwargs.get("groups")
+    extra = () if groups is None else (np.asarray(groups, np.int64),)
     key = content_key(np.asarray(vertices, np.float64), np.asarray(triangles, np.int64),
-                      np.asarray(normals, np.float64), dict(v=_VERSION, budget=int(budget), **params))
+                      np.asarray(normals, np.float64), *extra, dict(v=_VERSION, budget=int(budget), **params))
 
     def build():
         r = refine_for_visibility(vertices, triangles, normals, budget=budget, device=device, progress=progress,

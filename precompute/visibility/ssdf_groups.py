@@ -58,6 +58,13 @@ def _flat(points) -> bool:
     return len(p) < 4 or fit_plane(p)[2] <= PLANE_TOL * max(float(np.linalg.norm(np.ptp(p, axis=0))), 1e-30)
 
 
+def group_casts_rays(vertices, triangles) -> bool:
+    """Whether a group's mesh can shadow itself, so that its vertices need rays: not flat
+    (:func:`_flat`) and not one closed convex body (:func:`precompute.visibility.rays.needs_visibility`)."""
+    v = np.asarray(vertices, np.float64)
+    return len(v) > 0 and not _flat(v) and needs_visibility(v, triangles, shadows=True)
+
+
 def _inputs(vertices, triangles, normals, tri_group, resolution, ray_resolution, pca_terms):
     params = _ssdf_params(resolution, ray_resolution, pca_terms)
     v, f, n = validate_mesh(vertices, triangles, normals)
@@ -93,7 +100,7 @@ def ssdf_for_groups(vertices, triangles, normals, tri_group, *, resolution: int 
         cones[:, 3] = -1.0  # nothing occludes a vertex of a group that cannot shadow itself
         for g in np.unique(tg):
             ids, F = group_submesh(v, f, n, tg, g)
-            if len(ids) == 0 or _flat(v[ids]) or not needs_visibility(v[ids], F, shadows=True):
+            if not group_casts_rays(v[ids], F):
                 continue
             maps = compute(v[ids], F, n[ids], resolution=R, ray_resolution=params["ray_resolution"], device=device,
                            progress=progress).reshape(len(ids), -1)
@@ -110,4 +117,4 @@ def ssdf_for_groups(vertices, triangles, normals, tri_group, *, resolution: int 
                     cones=np.asarray(data["cones"], np.float32))
 
 
-__all__ = ["ssdf_for_groups", "ssdf_groups_key", "group_submesh", "horizon_maps"]
+__all__ = ["group_casts_rays", "ssdf_for_groups", "ssdf_groups_key", "group_submesh", "horizon_maps"]

@@ -43,8 +43,10 @@ class ResourceSetup:
         settings (camera, materials, lights and environment may differ)."""
         self.wait()
         g = self.input_geometry
-        budget = self.scene.render.visibility_budget
-        return {"refine_key": refine_key(g, budget, self._refine_lights()) if self._refined is not None else None,
+        rs = self.scene.render
+        dynamic = [bool(ob.dynamic) for ob in self.scene.objects]
+        key = refine_key(g, rs.visibility_budget, self._refine_lights(), dynamic, rs.moving_visibility_budget)
+        return {"refine_key": key if self._refined is not None else None,
                 "refinement": self._refined, "ssdf": self.ssdf}
 
     def _setup_geometry(self):

@@ -23,12 +23,35 @@ from warp_sg.scene.geometry import refined_geometry
 from warp_sg.shading import kernel as S
 
 
-def refine_key(g, budget: int, lights=()) -> str:
-    """The key that ties ``precomputed["refinement"]`` to a mesh, a budget and the key lights."""
+def visibility_groups(g, dynamic=()):
+    """Per triangle of the flattened mesh ``g``, its visibility group (0: the static objects,
+    1 + k: dynamic object k; :mod:`precompute.visibility.ssdf_groups`), or None when no object is
+    dynamic (``dynamic``: per object, ``SceneObject.dynamic``)."""
+    if not any(dynamic):
+        return None
+    to = np.asarray(g.tri_object, np.int64)
+    return np.where(np.asarray(dynamic, bool)[to], 1 + to, 0)
+
+
+def moving_budgets(g, dynamic=(), moving_budget: int = 0):
+    """``{group: vertices}`` the refinement may add to each dynamic object's group
+    (``[render] moving_visibility_budget``), or None when no object is dynamic."""
+    if not any(dynamic):
+        return None
+    return {1 + k: int(moving_budget) for k, d in enumerate(dynamic) if d}
+
+
+def refine_key(g, budget: int, lights=(), dynamic=(), moving_budget: int = 0) -> str:
+    """The key that ties ``precomputed["refinement"]`` to a mesh, a budget, the key lights and the
+    objects that move (and their own budget)."""
     from warp_sg.core.cache import content_key
 
-    return content_key(np.asarray(g.vertices), np.asarray(g.triangles), np.asarray(g.normals),
-                       {"budget": int(budget), "lights": [(k, np.ravel(v).tolist()) for k, v in lights]})
+    groups = visibility_groups(g, dynamic)
+    extra = () if groups is None else (groups,)
+    params = {"budget": int(budget), "lights": [(k, np.ravel(v).tolist()) for k, v in lights]}
+    if groups is not None:
+        params["moving_budget"] = int(moving_budget)
+    return content_key(np.asarray(g.vertices), np.asarray(g.triangles), np.asarray(g.normals), *extra, params)
 
 
 def needs_shadows(scene, g) -> bool:
@@ -71,21 +94,22 @@ def compute_visibility(scene, g, device, *, progress=False, compute=None, precom
             def refine():
                 if precomputed is not None:
                     if (precomputed.get("refinement") is None
-                            or precomputed.get("refine_key") != refine_key(g, rs.visibility_budget, lights)):
+                            or precomputed.get("refine_key") != refine_key(g, rs.visibility_budget, lights, dynamic,
+                                                                         rs.moving_visibility_budget)):
                         raise InputError("precomputed data is for a different mesh or visibility_budget",
                                          where="precomputed")
                     return precomputed["refinement"]
+                groups = visibility_groups(g, dynamic)  # (each vertex refined for its own group's shadows)
+                by_group = {"cutouts": cut_of(g)} if groups is None else {
+                    "groups": groups, "group_budgets": moving_budgets(g, dynamic, rs.moving_visibility_budget)}
                 return refine_cached(g.vertices, g.triangles, g.normals, budget=rs.visibility_budget, device=device,
-                                     lights=lights, progress=progress, cutouts=cut_of(g))
+                                     lights=lights, progress=progress, **by_group)
 
             ref = _timed(parts, "refine", refine)
         gr = refined_geometry(g, ref) if ref is not None and len(ref.vertices) > len(g.vertices) else g
         cut = cut_of(gr)
 
-        groups = None
-        if any(dynamic):  # 0: the static objects, 1 + k: dynamic object k
-            to = np.asarray(gr.tri_object, np.int64)
-            groups = np.where(np.asarray(dynamic, bool)[to], 1 + to, 0)
+        groups = visibility_groups(gr, dynamic)  # (None: one group)
 
         def ssdf():
             if precomputed is not None and precomputed.get("ssdf") is not None:
@@ -144,4 +168,5 @@ def visibility_arrays(ssdf, normals, n_vertices: int, device) -> S.Visibility:
     return vis
 
 
-__all__ = ["compute_visibility", "needs_shadows", "refine_key", "visibility_arrays"]
+__all__ = ["compute_visibility", "moving_budgets", "needs_shadows", "refine_key", "visibility_arrays",
+           "visibility_groups"]

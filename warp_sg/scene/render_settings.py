@@ -14,7 +14,8 @@ from functools import cache
 
 #: the integer keys and their ranges [lo, hi]
 RENDER_INT_RANGES = {"supersampling": (1, 16), "antialias": (1, 8), "lobes": (1, 16), "env_lobes": (1, 64),
-                     "env_peaks": (0, 16), "visibility_budget": (0, 10_000_000), "pca_terms": (1, 256),
+                     "env_peaks": (0, 16), "visibility_budget": (0, 10_000_000),
+                     "moving_visibility_budget": (0, 10_000_000), "pca_terms": (1, 256),
                      "ssdf_resolution": (4, 1024), "gamma_levels": (0, 64), "gamma_resolution": (4, 1024)}
 #: the string keys with a fixed set of choices
 RENDER_CHOICES = {"fh": ("table", "sigmoid"), "visibility_sampling": ("vertex", "pixel")}
@@ -33,6 +34,10 @@ RENDER_DOC = {
                          "(precompute.refine_for_visibility); a mesh with more casts its SSDF rays at this many "
                          "representative vertices (precompute.visibility.representatives); 0 = the mesh as "
                          "given, every vertex its own SSDF",
+    "moving_visibility_budget": "with shadows and objects that move: the refinement adds at most this many "
+                                "vertices to each dynamic object (within visibility_budget; the uniform "
+                                "pre-split aside): each moving vertex costs every frame it moves, so 0, the "
+                                "default, keeps a dynamic object's own vertices",
     "pca_terms": "SSDF PCA terms (NV)",
     "ssdf_resolution": "SSDF map resolution",
     "gamma_levels": "λ levels of the ΓL pyramid (0 = default ladder: λ0 = 0.5 growing by √2 up to the map's "
@@ -59,6 +64,7 @@ class RenderSettings:
     env_lobes: int = 8
     env_peaks: int = 8
     visibility_budget: int = 20000
+    moving_visibility_budget: int = 0
     pca_terms: int = 32
     ssdf_resolution: int = 32
     gamma_levels: int = 0
