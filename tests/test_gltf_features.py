@@ -19,6 +19,7 @@ from warp_sg.scene.lights import DirectionalLight, EnvironmentLight
 from warp_sg.groundtruth.reference import reference
 from warp_sg.groundtruth.region_error import region_errors, scene_regions
 from warp_sg.renderer.renderer import Renderer
+from warp_sg.core.errors import SceneError
 from warp_sg.scene.model import Material, Scene, SceneObject
 from warp_sg.scene.render_settings import RenderSettings
 
@@ -388,3 +389,13 @@ def test_a_draco_blob_that_does_not_decode_is_an_error_not_an_empty_mesh(tmp_pat
     path = w.glb(tmp_path / "bad.glb")
     with pytest.raises(MeshError, match="bad.glb"):
         load_gltf(path)
+
+
+def test_a_cut_out_in_a_scene_with_a_dynamic_object_is_refused_naming_the_cut_out_object(tmp_path):
+    """The groups' SSDFs and the moving objects' proxies are solid, so a hole would cast a shadow:
+    refused, whichever object moves, with the cut-out object's name."""
+    sun = DirectionalLight(direction=(0.2, 1.0, 0.1), radius=0.05, intensity=(3.0, 3.0, 3.0))
+    scene = scene_of(holed_quad(tmp_path / "m.glb"), [sun], floor=True, shadows=True, **MASK_VIEW)
+    scene.objects[1].dynamic = True  # the floor moves, the holed asset stays
+    with pytest.raises(SceneError, match=r"alpha cut-outs \(asset/thing\) are not supported in a scene with dynamic objects"):
+        Renderer(scene)

@@ -133,8 +133,12 @@ class DynamicObjects:
         scene, g, d = r.scene, r.geometry, r.device
         from precompute.visibility.proxies import object_proxies
 
-        if r.cutouts is not None:
-            raise SceneError("dynamic objects with alpha cut-outs are not supported", where="[[objects]] dynamic")
+        if r.cutouts is not None:  # (the groups' SSDFs and the proxies are solid: no hole would show)
+            c = r.cutouts
+            cut = np.asarray(c.cutoff)[np.asarray(c.tri_material, np.int64)] >= 0.0
+            names = sorted({str(g.object_names[k]) for k in np.unique(np.asarray(g.tri_object)[cut])})
+            raise SceneError(f"alpha cut-outs ({', '.join(names)}) are not supported in a scene with dynamic "
+                             "objects", where="[[objects]] dynamic")
         self.n_objects = len(scene.objects)
         self.flags = np.array([bool(ob.dynamic) for ob in scene.objects])
         T = np.asarray(g.triangles, np.int64)
