@@ -18,7 +18,6 @@ EDGE_KEY_STRIDE = np.int64(1) << np.int64(31)
 _S = EDGE_KEY_STRIDE
 
 
-
 class BisectionMesh:
     """Refined mesh under construction: triangles store their refinement edge as (T[:,0], T[:,1])."""
 
@@ -163,6 +162,7 @@ class BisectionMesh:
 
 
 def isin_sorted(x, sorted_keys):
+    """Per entry of ``x``, whether it is in the ascending array ``sorted_keys``."""
     if not len(sorted_keys):
         return np.zeros(len(x), bool)
     p = np.minimum(np.searchsorted(sorted_keys, x), len(sorted_keys) - 1)

@@ -20,9 +20,9 @@ Two stages, both conforming (no T-junctions, so the software rasteriser stays wa
     edges "differ" (a 642-vertex icosphere on a floor grew to 8k vertices; compared in world
     directions it grows to 0.8k, while the floor's refinement is unchanged).
 
-Splitting is **newest-vertex bisection** (:mod:`precompute.visibility.bisection`) (each triangle keeps a refinement edge, initially its
-longest; a triangle bisects across it, the children's refinement edges are the parent's other two
-edges) with the closure "a triangle with any marked edge has its refinement edge marked",
+Splitting is **newest-vertex bisection** (:mod:`precompute.visibility.bisection`: each triangle
+keeps a refinement edge, initially its longest; a triangle bisects across it, the children's
+refinement edges are the parent's other two edges) with the closure "a triangle with any marked edge has its refinement edge marked",
 iterated to a fixed point. Deviation from the red–green scheme the design sketch named: it is
 just as conforming (1→2, 1→3 and 1→4 patterns; every marked edge is split on both sides in the
 same step), but needs no green-closure removal before the next level, and repeated refinement
@@ -289,7 +289,7 @@ def refine_for_visibility(vertices, triangles, normals, *, budget: int = 20000, 
         lights = list(lights)
         lsig = np.full((st.nv, len(lights)), 2, np.int8)
 
-        occluders = _group_occluders(st.V, f, groups)
+        occluders = _group_occluders(v, f, groups)  # (of the input mesh, as the signatures' rays)
 
         def vertex_group(ids):  # that of its parent input triangle (groups share no vertex)
             return occluders["tri_group"][np.where(st.vparent[ids] >= 0, st.vparent[ids],

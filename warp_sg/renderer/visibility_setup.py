@@ -33,7 +33,7 @@ def visibility_groups(g, dynamic=()):
     return np.where(np.asarray(dynamic, bool)[to], 1 + to, 0)
 
 
-def moving_budgets(g, dynamic=(), moving_budget: int = 0):
+def moving_budgets(dynamic=(), moving_budget: int = 0):
     """``{group: vertices}`` the refinement may add to each dynamic object's group
     (``[render] moving_visibility_budget``), or None when no object is dynamic."""
     if not any(dynamic):
@@ -101,7 +101,7 @@ def compute_visibility(scene, g, device, *, progress=False, compute=None, precom
                     return precomputed["refinement"]
                 groups = visibility_groups(g, dynamic)  # (each vertex refined for its own group's shadows)
                 by_group = {"cutouts": cut_of(g)} if groups is None else {
-                    "groups": groups, "group_budgets": moving_budgets(g, dynamic, rs.moving_visibility_budget)}
+                    "groups": groups, "group_budgets": moving_budgets(dynamic, rs.moving_visibility_budget)}
                 return refine_cached(g.vertices, g.triangles, g.normals, budget=rs.visibility_budget, device=device,
                                      lights=lights, progress=progress, **by_group)
 
