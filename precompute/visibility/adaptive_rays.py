@@ -51,6 +51,7 @@ import math
 import numpy as np
 import warp as wp
 
+from precompute.visibility.jump_flood import run_length
 from precompute.visibility.rays import NO_HIT, ray_blocked, ray_hit_distance, vertex_ray_direction, vertex_ray_origin
 
 #: coarse grid = ray resolution / COARSE_FACTOR
@@ -198,17 +199,11 @@ def _ring_refine_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normal
         ring_depth[k, m] = wp.min(ring_depth[k, (m - h + M) % M], ring_depth[k, (m + h) % M])
 
 
-@wp.kernel
-def _mark_kernel(cell_vis: wp.array2d(dtype=wp.uint8), cell_depth: wp.array2d(dtype=float),
-                 vis: wp.array2d(dtype=wp.uint8), Rr: int, s: int, log_ratio: float,
-                 marked: wp.array2d(dtype=wp.uint8)):
-    """Mark cell (j, i) of the s×s grid when its 3×3 neighbourhood's samples (and the ring texels in
-    those cells) disagree in visibility, or its blocked samples' hit distances differ by more than
-    ``exp(log_ratio)``."""
-    k, c = wp.tid()
-    j = c / s
-    i = c - j * s
-    f = Rr / s
+@wp.func
+def _mark_cell(cell_vis: wp.array2d(dtype=wp.uint8), cell_depth: wp.array2d(dtype=float),
+               vis: wp.array2d(dtype=wp.uint8), Rr: int, s: int, f: int, log_ratio: float, k: int, j: int, i: int,
+               marked: wp.array2d(dtype=wp.uint8)):
+    """:func:`_mark_kernel` for cell (j, i) of vertex k."""
     lo = int(1)
     hi = int(0)
     dmin = float(NO_HIT)
@@ -251,7 +246,23 @@ def _mark_kernel(cell_vis: wp.array2d(dtype=wp.uint8), cell_depth: wp.array2d(dt
     elif dmax > 0.0 and dmin < NO_HIT:
         if wp.log(dmax) - wp.log(dmin) > log_ratio:
             m = wp.uint8(1)
-    marked[k, c] = m
+    marked[k, j * s + i] = m
+
+
+@wp.kernel
+def _mark_kernel(cell_vis: wp.array2d(dtype=wp.uint8), cell_depth: wp.array2d(dtype=float),
+                 vis: wp.array2d(dtype=wp.uint8), Rr: int, s: int, log_ratio: float,
+                 run: int, marked: wp.array2d(dtype=wp.uint8)):
+    """Mark cell (j, i) of the s×s grid when its 3×3 neighbourhood's samples (and the ring texels in
+    those cells) disagree in visibility, or its blocked samples' hit distances differ by more than
+    ``exp(log_ratio)``; thread ``(k, u)`` marks cells ``u·run … u·run + run − 1`` of one row
+    (:func:`precompute.visibility.jump_flood.run_length`)."""
+    k, u = wp.tid()
+    f = Rr / s
+    j = (u * run) / s
+    for r in range(run):
+        i = u * run - j * s + r
+        _mark_cell(cell_vis, cell_depth, vis, Rr, s, f, log_ratio, k, j, i, marked)
 
 
 @wp.kernel
@@ -303,11 +314,115 @@ def _refine_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp
 
 @wp.kernel
 def _fill_kernel(cell_vis: wp.array2d(dtype=wp.uint8), vis: wp.array2d(dtype=wp.uint8),
-                 known: wp.array2d(dtype=wp.uint8)):
-    """The last level's cells are texels: a texel no ray was cast at takes its cell's value."""
-    k, tex = wp.tid()
-    if known[k, tex] == wp.uint8(0):
-        vis[k, tex] = cell_vis[k, tex]
+                 known: wp.array2d(dtype=wp.uint8), run: int):
+    """The last level's cells are texels: a texel no ray was cast at takes its cell's value
+    (thread ``(k, u)``: texels ``u·run … u·run + run − 1``)."""
+    k, u = wp.tid()
+    for r in range(run):
+        tex = u * run + r
+        if known[k, tex] == wp.uint8(0):
+            vis[k, tex] = cell_vis[k, tex]
+
+
+@wp.kernel
+def _last_samples_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp.array(dtype=wp.vec3),
+                         first: int, dirs: wp.array(dtype=wp.vec3), offset: float, max_t: float, Rr: int, s: int,
+                         marked: wp.array2d(dtype=wp.uint8), vis: wp.array2d(dtype=wp.uint8),
+                         depth: wp.array2d(dtype=float), known: wp.array2d(dtype=wp.uint8),
+                         cell_vis: wp.array2d(dtype=wp.uint8), cell_depth: wp.array2d(dtype=float)):
+    """The last level, step 1 (``s = Rr/2``, cells of 2×2 texels): the sample of a marked cell is
+    made a ray (closest hit) where it was inherited; a cell whose sample texel is known takes
+    that texel's value. After it, every marked cell's sample is a ray."""
+    k, c = wp.tid()
+    j = c / s
+    i = c - j * s
+    tex = _sample_texel(j, i, 2, Rr)
+    if known[k, tex] != wp.uint8(0):
+        cell_vis[k, c] = vis[k, tex]
+        cell_depth[k, c] = depth[k, tex]
+    elif marked[k, c] != wp.uint8(0):
+        t = ray_hit_distance(mesh, vertex_ray_origin(points, normals, first + k, offset),
+                             vertex_ray_direction(normals, first + k, dirs[tex]), max_t)
+        v = wp.where(t < NO_HIT, wp.uint8(0), wp.uint8(1))
+        cell_vis[k, c] = v
+        cell_depth[k, c] = t
+        vis[k, tex] = v
+        depth[k, tex] = t
+        known[k, tex] = wp.uint8(1)
+
+
+@wp.func
+def _bracket(cell_vis: wp.array2d(dtype=wp.uint8), cell_depth: wp.array2d(dtype=float), k: int, s: int,
+             j: int, i: int, lo: int, hi: int, dmin: float, dmax: float):
+    """Fold the sample of cell (j, i) (skipped outside the grid) into the visibility range
+    ``lo, hi`` and the blocked hit distances' range ``dmin, dmax``."""
+    if j >= 0 and i >= 0:
+        c = j * s + i
+        v = int(cell_vis[k, c])
+        t = cell_depth[k, c]
+        lo = wp.min(lo, v)
+        hi = wp.max(hi, v)
+        if t < NO_HIT:
+            dmin = wp.min(dmin, t)
+            dmax = wp.max(dmax, t)
+    return lo, hi, dmin, dmax
+
+
+@wp.kernel
+def _last_texels_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp.array(dtype=wp.vec3),
+                        first: int, dirs: wp.array(dtype=wp.vec3), offset: float, max_t: float, Rr: int, s: int,
+                        log_ratio: float, run: int, marked: wp.array2d(dtype=wp.uint8),
+                        cell_vis: wp.array2d(dtype=wp.uint8), cell_depth: wp.array2d(dtype=float),
+                        vis: wp.array2d(dtype=wp.uint8), known: wp.array2d(dtype=wp.uint8)):
+    """The last level, step 2: the texels of cell (j, i) that are not yet known. Texel
+    ``(2j + a, 2i + b)`` lies between the samples of the cells ``(j − 1 + a … j, i − 1 + b … i)``
+    (one, two or four of them: the samples sit at the cells' odd texel); in a marked cell it is a
+    ray (any hit) when those samples disagree in visibility or their blocked hit distances differ
+    by more than ``exp(log_ratio)``, else it takes their value. A texel of the ring that no ray
+    met counts its own (segment) value among the samples. In an unmarked cell every texel takes
+    the cell's value. Thread ``(k, u)``: cells ``u·run … u·run + run − 1`` of one row."""
+    k, u = wp.tid()
+    j = (u * run) / s
+    for r in range(run):
+        i = u * run - j * s + r
+        c = j * s + i
+        split = marked[k, c] != wp.uint8(0)
+        for q in range(4):
+            a = q / 2
+            b = q - 2 * a
+            tex = (2 * j + a) * Rr + 2 * i + b
+            if known[k, tex] == wp.uint8(0):
+                if not split:
+                    vis[k, tex] = cell_vis[k, c]
+                else:
+                    lo = int(1)
+                    hi = int(0)
+                    dmin = float(NO_HIT)
+                    dmax = float(0.0)
+                    lo, hi, dmin, dmax = _bracket(cell_vis, cell_depth, k, s, j, i, lo, hi, dmin, dmax)
+                    if a == 0:
+                        lo, hi, dmin, dmax = _bracket(cell_vis, cell_depth, k, s, j - 1, i, lo, hi, dmin, dmax)
+                    if b == 0:
+                        lo, hi, dmin, dmax = _bracket(cell_vis, cell_depth, k, s, j, i - 1, lo, hi, dmin, dmax)
+                    if a == 0 and b == 0:
+                        lo, hi, dmin, dmax = _bracket(cell_vis, cell_depth, k, s, j - 1, i - 1, lo, hi, dmin, dmax)
+                    ty = 2 * j + a
+                    tx = 2 * i + b
+                    if ty == 0 or tx == 0 or ty == Rr - 1 or tx == Rr - 1:
+                        v = int(vis[k, tex])
+                        lo = wp.min(lo, v)
+                        hi = wp.max(hi, v)
+                    cast = lo != hi
+                    if dmax > 0.0 and dmin < NO_HIT:
+                        if wp.log(dmax) - wp.log(dmin) > log_ratio:
+                            cast = True
+                    if cast:
+                        o = vertex_ray_origin(points, normals, first + k, offset)
+                        d = vertex_ray_direction(normals, first + k, dirs[tex])
+                        vis[k, tex] = wp.where(ray_blocked(mesh, o, d, max_t), wp.uint8(0), wp.uint8(1))
+                        known[k, tex] = wp.uint8(1)
+                    else:
+                        vis[k, tex] = wp.uint8(lo)
 
 
 def levels(ray_resolution: int, coarse_factor: int = COARSE_FACTOR) -> list[int]:
@@ -325,7 +440,7 @@ def levels(ray_resolution: int, coarse_factor: int = COARSE_FACTOR) -> list[int]
 
 def adaptive_visibility(ctx, dirs, Rr: int, points, normals, first: int, count: int, device, *,
                         coarse_factor: int = COARSE_FACTOR, depth_ratio: float = DEPTH_RATIO,
-                        ring_step: int = RING_STEP):
+                        ring_step: int = RING_STEP, last: str = "bracket"):
     """``(vis (count, Rr²) wp.uint8 array, rays cast)`` of vertices ``first .. first+count−1`` of
     ``points``/``normals`` (module docstring). ``ctx``: :class:`precompute.visibility.rays._MeshContext`;
     ``dirs``: the ``Rr²`` local texel directions; ``ring_step``: :data:`RING_STEP`."""
@@ -355,14 +470,22 @@ def adaptive_visibility(ctx, dirs, Rr: int, points, normals, first: int, count: 
         h //= 2
     for s in lv[:-1]:
         marked = wp.empty((B, s * s), dtype=wp.uint8, device=device)
-        wp.launch(_mark_kernel, dim=(B, s * s), inputs=[cv, cd, vis, int(Rr), s, float(log_ratio), marked],
+        run = run_length(s, device)
+        wp.launch(_mark_kernel, dim=(B, s * s // run), inputs=[cv, cd, vis, int(Rr), s, float(log_ratio), run, marked],
                   device=device)
+        if last == "bracket" and 2 * s == Rr:
+            wp.launch(_last_samples_kernel, dim=(B, s * s), inputs=geo + [s, marked, vis, depth, known, cv, cd],
+                      device=device)
+            wp.launch(_last_texels_kernel, dim=(B, s * s // run),
+                      inputs=geo + [s, float(log_ratio), run, marked, cv, cd, vis, known], device=device)
+            return vis, int(np.count_nonzero(known.numpy()))
         nv = wp.empty((B, 4 * s * s), dtype=wp.uint8, device=device)
         nd = wp.empty((B, 4 * s * s), dtype=float, device=device)
         wp.launch(_refine_kernel, dim=(B, s * s),
                   inputs=geo + [s, cv, cd, marked, vis, depth, known, nv, nd], device=device)
         cv, cd = nv, nd
-    wp.launch(_fill_kernel, dim=(B, N), inputs=[cv, vis, known], device=device)
+    run = run_length(Rr, device)
+    wp.launch(_fill_kernel, dim=(B, N // run), inputs=[cv, vis, known, run], device=device)
     return vis, int(np.count_nonzero(known.numpy()))  # every texel a ray was cast at is known
 
 

@@ -48,8 +48,8 @@ from warp_sg.core.stage_clock import StageClock, thread_cpu
 
 from precompute.visibility.adaptive_rays import adaptive_visibility, levels
 from precompute.visibility.jump_flood import (coarse_seed_kernel, downsample_kernel, fine_seed_kernel,
-                                             fine_signed_kernel, jfa_steps, jfa_texel_kernel, seed_at_kernel,
-                                             seed_kernel, signed_kernel)
+                                             fine_signed_kernel, jfa_steps, jfa_texel_kernel, run_length,
+                                             seed_at_kernel, seed_kernel, signed_kernel)
 from precompute.visibility.occluder_cone import occluder_cones
 from precompute.visibility.representatives import (DEFAULT_BUDGET, DEFAULT_MAX_ANGLE, build_at_representatives,
                                                    representative_params)
@@ -113,8 +113,9 @@ def _flood(a, dirs, Rr, R, device):
     ca = wp.empty((B, M), dtype=int, device=device)
     cb = wp.empty((B, M), dtype=int, device=device)
     wp.launch(coarse_seed_kernel, dim=(B, M), device=device, inputs=[a, cdirs, R, f, ca])
+    run = run_length(R, device)
     for step in jfa_steps(R):
-        wp.launch(jfa_texel_kernel, dim=(B, M), device=device, inputs=[ca, a, cdirs, R, step, cb])
+        wp.launch(jfa_texel_kernel, dim=(B, M // run), device=device, inputs=[ca, a, cdirs, R, step, run, cb])
         ca, cb = cb, ca
     return ca
 
@@ -141,7 +142,8 @@ def _fit_maps(vis, dirs, Rr, R, device, fused: bool = True):
     (``fine_signed_kernel``); False: one kernel each (the same values)."""
     B, N = int(vis.shape[0]), Rr * Rr
     a = wp.empty((B, N), dtype=wp.vec3, device=device)
-    wp.launch(seed_kernel, dim=(B, N), device=device, inputs=[vis, dirs, Rr, a])
+    run = run_length(Rr, device)
+    wp.launch(seed_kernel, dim=(B, N // run), device=device, inputs=[vis, dirs, Rr, run, a])
     if Rr != R and fused:
         ds = wp.empty((B, R * R), dtype=float, device=device)
         wp.launch(fine_signed_kernel, dim=(B, R * R), device=device,
