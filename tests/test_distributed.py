@@ -136,8 +136,8 @@ def test_distributed_ssdfs_equal_local_ones_bitwise_and_are_the_same_cache_entry
     assert dist.key == loc.key and entry_path("ssdf", dist.key).is_file()
     for name in ("mean", "basis", "weights"):
         assert np.array_equal(getattr(dist, name), getattr(loc, name)), name
-    entry = load("ssdf", dist.key)  # the client wrote a complete, verified entry
-    assert entry is not None and np.array_equal(entry["weights"], loc.weights)
+    entry = load("ssdf", dist.key)  # the client wrote a complete, verified entry (the maps: their PCA on use)
+    assert entry is not None and np.array_equal(entry["maps"], loc.maps) and np.array_equal(entry["cones"], loc.cones)
 
 
 def test_a_worker_killed_mid_chunk_leaves_the_result_identical(client, mesh, workdir):
@@ -179,7 +179,7 @@ def test_a_worker_killed_mid_chunk_leaves_the_result_identical(client, mesh, wor
     for name in ("mean", "basis", "weights"):
         assert np.array_equal(getattr(got, name), getattr(want, name)), name
     entry = load("ssdf", got.key)
-    assert entry is not None and np.array_equal(entry["weights"], want.weights)
+    assert entry is not None and np.array_equal(entry["maps"], want.maps)
     client.wait_for_workers(2, timeout=60)  # the nanny restarted the killed worker
 
 

@@ -4,7 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from warp_sg.numeric.pca import pca
+from warp_sg.numeric import pca as pca_module
+from warp_sg.numeric.pca import DeferredPCA, pca
 
 
 def _low_rank(V, D, rank, seed=0, noise=0.0):
@@ -38,3 +39,31 @@ def test_more_terms_than_rank_are_zero_padded():
     p = pca(X, 10)
     assert p.basis.shape == (10, 30) and p.weights.shape == (4, 10)
     np.testing.assert_allclose(p.reconstruct(), X, atol=1e-4)
+
+
+def test_deferred_pca_is_computed_once_on_first_use_and_pickles(monkeypatch):
+    """DeferredPCA: nothing is computed until result() is called; then pca() runs once however many
+    threads ask at the same time, and gives what pca() gives; it pickles before and after."""
+    import pickle
+    from concurrent.futures import ThreadPoolExecutor
+
+    X = _low_rank(400, 64, 6, noise=0.05)
+    calls = []
+    real = pca_module.pca
+    monkeypatch.setattr(pca_module, "pca", lambda *a, **k: calls.append(1) or real(*a, **k))
+    d = DeferredPCA(X, 6)
+    assert d.pending and d.n_terms == 6 and d.n_rows == 400 and calls == []
+    early = pickle.loads(pickle.dumps(d))
+    with ThreadPoolExecutor(4) as ex:
+        results = list(ex.map(lambda _: d.result(), range(8)))
+    assert len(calls) == 1 and all(r is results[0] for r in results) and not d.pending
+    ref = real(X, 6)
+    for k in ("mean", "basis", "weights", "rms_error"):
+        np.testing.assert_array_equal(getattr(results[0], k), getattr(ref, k))
+    np.testing.assert_array_equal(early.result().weights, ref.weights)
+    late = pickle.loads(pickle.dumps(d))
+    assert not late.pending and np.array_equal(late.result().basis, ref.basis)
+    given = DeferredPCA.of(ref)
+    assert not given.pending and given.n_terms == 6 and given.n_rows == 400 and given.result() is ref
+    with pytest.raises(ValueError):
+        DeferredPCA()

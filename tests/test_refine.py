@@ -417,3 +417,25 @@ def test_group_budgets_cap_what_the_levels_add_to_a_group():
         _check_parents(V, F, N, r)
     with pytest.raises(Exception, match="group_budgets needs groups"):
         refine_for_visibility(V, F, N, base_edge=edge, group_budgets={1: 0})
+
+
+def test_ssdf_rays_cast_against_the_input_mesh_meet_the_refined_surface(floor_sphere):
+    """The refinement only splits triangles, so the SSDFs of the refined vertices may cast their
+    rays against the input mesh (``occluders``: a BVH of 2 + 1280 triangles instead of the refined
+    mesh's thousands): the binary maps are those the refined mesh gives. And the rays do meet the
+    occluders given: against the floor alone, the floor's vertices see no sphere."""
+    from precompute.visibility.ssdf import compute_ssdf
+
+    V, F, N, r = floor_sphere
+    assert len(r.triangles) > 2 * len(F)
+    ids = np.arange(0, len(r.vertices), max(len(r.vertices) // 400, 1))
+    kw = dict(resolution=16, ray_resolution=32, vertex_ids=ids, progress=False, return_visibility=True)
+    own, vis_own = compute_ssdf(r.vertices, r.triangles, r.normals, **kw)
+    inp, vis_inp = compute_ssdf(r.vertices, r.triangles, r.normals, occluders=(V, F), **kw)
+    assert np.mean(vis_own != vis_inp) <= 1e-4
+    assert np.mean(np.abs(own - inp)) <= 1e-4
+    floor_ids = np.flatnonzero(np.abs(r.vertices[ids, 1]) < 1e-9)
+    shadowed = floor_ids[(vis_own[floor_ids] == 0).any(axis=(1, 2))]
+    assert len(shadowed) > 10  # floor vertices that see the sphere
+    _, vis_floor = compute_ssdf(r.vertices, r.triangles, r.normals, occluders=_floor()[:2], **kw)
+    assert np.all(vis_floor[shadowed] == 1)

@@ -106,6 +106,29 @@ def test_downsampling_is_a_box_filter(device):
         np.testing.assert_allclose(out.numpy(), ref, atol=1e-6)
 
 
+def test_kept_maps_defer_the_pca_until_it_is_read(cache_dir):
+    """Where the uncompressed maps are kept (within the decompression budget), ssdf_for_mesh leaves
+    the PCA for when it is read: the device form is the ray-cast maps themselves (compute_ssdf's)
+    without it; reading the weights computes it, and it is the PCA of those maps; a cache hit
+    is deferred the same way."""
+    from warp_sg.numeric.pca import pca
+
+    V, F, N = SCENE
+    d = precompute.ssdf_for_mesh(V, F, N, resolution=16, ray_resolution=32, pca_terms=12, progress=False)
+    assert d.pca.pending and d.pca_terms == 12 and d.n_vertices == len(V) and "pca" not in d.stats
+    exact = S.compute_ssdf(V, F, N, resolution=16, ray_resolution=32, progress=False).reshape(len(V), -1)
+    _, basis, maps = d.device_arrays("cpu", S.decompress_budget())
+    assert basis.shape[2] == 0 and d.pca.pending
+    np.testing.assert_array_equal(maps.numpy(), exact)
+    ref = pca(exact, 12)
+    np.testing.assert_allclose(d.weights, ref.weights, atol=1e-6)
+    assert not d.pca.pending and d.basis.shape == (12, 16, 16)
+    np.testing.assert_allclose(d.pca_rms_error, ref.rms_error, rtol=1e-6)
+    hit = precompute.ssdf_for_mesh(V, F, N, resolution=16, ray_resolution=32, pca_terms=12, progress=False)
+    assert hit.pca.pending and hit.stats.get("rays") is None
+    np.testing.assert_array_equal(hit.maps, exact)
+
+
 def test_ssdf_for_mesh_compresses_and_caches(cache_dir, monkeypatch):
     V, F, N = SCENE
     d = precompute.ssdf_for_mesh(V, F, N, resolution=16, ray_resolution=32, pca_terms=12, progress=False)

@@ -251,6 +251,8 @@ def test_decompressed_ssdf_maps_render_the_same_frame_as_the_pca_form(monkeypatc
     raw = Renderer(_scene(light=(1.0, 2.0, 1.0)), device="cpu")
     R, nv = raw.ssdf.resolution, len(raw.geometry.vertices)
     assert raw.vis.basis.shape[2] == 0 and raw.vis.weights.shape == (nv, R * R)
+    raw.render()
+    assert raw.ssdf.pca.pending  # a renderer that reads the kept maps never computes their PCA
     # the kept maps are the vertices' own SSDFs, as compute_ssdf casts them
     g = raw.geometry
     own = compute_ssdf(g.vertices, g.triangles, g.normals, resolution=R, ray_resolution=raw.ssdf.ray_resolution,

@@ -165,12 +165,13 @@ def launch_visibility(ctx, points, normals, first: int, dirs, out) -> None:
 
 class _MeshContext:
     """wp.Mesh + per-vertex arrays on a device, shared by the batch workers; ``cutouts`` (a
-    :class:`warp_sg.shading.cutout.CutoutData` of the mesh, or None): its alpha cut-outs on the device."""
+    :class:`warp_sg.shading.cutout.CutoutData` of the mesh, or None): its alpha cut-outs on the device.
+    ``normals`` None: a mesh rays are cast against only (no per-vertex normals kept)."""
 
     def __init__(self, vertices, triangles, normals, device, cutouts=None):
         self.device = device
         self.points = wp.array(vertices.astype(np.float32), dtype=wp.vec3, device=device)
-        self.normals = wp.array(normals.astype(np.float32), dtype=wp.vec3, device=device)
+        self.normals = None if normals is None else wp.array(normals.astype(np.float32), dtype=wp.vec3, device=device)
         self.indices = wp.array(triangles.astype(np.int32).ravel(), dtype=wp.int32, device=device)
         if len(triangles) == 0:
             raise MeshError("mesh has no triangles (nothing to cast rays against)")

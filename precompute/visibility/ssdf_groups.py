@@ -111,10 +111,8 @@ def ssdf_for_groups(vertices, triangles, normals, tri_group, *, resolution: int 
                 "pca_rms_error": p.rms_error, "cones": cones}
 
     data = _cache.load_or_build("ssdf_groups", key, build)
-    return SSDFData(resolution=R, mean=data["mean"].astype(np.float32), basis=data["basis"].astype(np.float32),
-                    weights=data["weights"].astype(np.float32), ray_resolution=int(params["ray_resolution"]),
-                    pca_rms_error=np.asarray(data["pca_rms_error"]), key=key,
-                    cones=np.asarray(data["cones"], np.float32))
+    return SSDFData.from_entry(data, resolution=R, pca_terms=int(pca_terms), ray_resolution=int(params["ray_resolution"]),
+                               key=key)
 
 
 __all__ = ["group_casts_rays", "ssdf_for_groups", "ssdf_groups_key", "group_submesh", "horizon_maps"]

@@ -31,7 +31,6 @@ import hashlib
 import importlib.util
 import sys
 import tokenize
-import io
 import json
 import os
 import tempfile
@@ -81,7 +80,7 @@ def _update(h, part) -> None:
         h.update(b"A")
         h.update(str(a.dtype.str).encode())
         h.update(json.dumps(list(a.shape)).encode())
-        h.update(a.tobytes())
+        h.update(_raw_bytes(a))
     elif isinstance(part, bytes):
         h.update(b"B")
         h.update(len(part).to_bytes(8, "little"))
@@ -171,6 +170,15 @@ def code_key(*producers) -> str:
     return h.hexdigest()[:16]
 
 
+def _raw_bytes(a: np.ndarray):
+    """The bytes of the C-contiguous array ``a`` (``a.tobytes()``), without a copy where numpy's
+    buffer allows one."""
+    try:
+        return memoryview(a.reshape(-1)).cast("B")
+    except (TypeError, ValueError):  # (object arrays, non-native formats)
+        return a.tobytes()
+
+
 def _checksum(arrays: Mapping[str, np.ndarray]) -> str:
     h = hashlib.sha256()
     for name in sorted(arrays):
@@ -178,7 +186,7 @@ def _checksum(arrays: Mapping[str, np.ndarray]) -> str:
         h.update(name.encode() + b"\0")
         h.update(a.dtype.str.encode() + b"\0")
         h.update(json.dumps(list(a.shape)).encode())
-        h.update(a.tobytes())
+        h.update(_raw_bytes(a))
     return h.hexdigest()
 
 
@@ -210,10 +218,8 @@ def _write_atomic(path: Path, arrays: Mapping[str, np.ndarray]) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     payload = {k: np.asarray(v) for k, v in arrays.items()}
     payload[_CHECKSUM] = np.asarray(_checksum(payload))
-    buf = io.BytesIO()
-    np.savez(buf, **payload)
     with atomic_output(path) as tmp, open(tmp, "wb") as f:
-        f.write(buf.getbuffer())
+        np.savez(f, **payload)
         f.flush()
         os.fsync(f.fileno())
 

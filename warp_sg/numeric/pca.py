@@ -125,3 +125,52 @@ def _pca(X, n_terms: int, chunk: int, seed: int) -> PCAResult:
         weights = np.concatenate([weights, np.zeros((V, pad), np.float32)], axis=1)
         rms = np.concatenate([rms, np.full(pad, rms[-1])])
     return PCAResult(mean.astype(np.float32), basis, weights, rms)
+
+
+class DeferredPCA:
+    """A :class:`PCAResult` that is computed on first use: :func:`pca` of the rows ``X`` to
+    ``n_terms`` terms, once (thread-safe), when :meth:`result` is first called; or one given
+    (:meth:`of`). For data whose consumers may never need the compressed form (the renderer reads
+    uncompressed SSDF maps where they fit its budget): the PCA then costs nothing.
+    ``n_terms`` and ``n_rows`` are known without computing it. Pickles as its inputs (or result)."""
+
+    def __init__(self, X=None, n_terms: int = 0, result: PCAResult | None = None):
+        import threading
+
+        if result is None and X is None:
+            raise ValueError("DeferredPCA needs the rows X or a result")
+        self._X = None if result is not None else X
+        self._result = result
+        self.n_terms = int(result.basis.shape[0] if result is not None else n_terms)
+        self.n_rows = int(result.weights.shape[0] if result is not None else np.shape(X)[0])
+        self._lock = threading.Lock()
+
+    @classmethod
+    def of(cls, result: PCAResult) -> "DeferredPCA":
+        return cls(result=result)
+
+    @property
+    def pending(self) -> bool:
+        """Whether the PCA has not been computed yet."""
+        return self._result is None
+
+    def result(self) -> PCAResult:
+        if self._result is None:
+            with self._lock:
+                if self._result is None:
+                    self._result = pca(self._X, self.n_terms)
+                    self._X = None  # (the rows stay with their owner)
+        return self._result
+
+    def __getstate__(self):
+        return {"X": self._X, "n_terms": self.n_terms, "n_rows": self.n_rows, "result": self._result}
+
+    def __setstate__(self, st):
+        import threading
+
+        self._X, self._result = st["X"], st["result"]
+        self.n_terms, self.n_rows = st["n_terms"], st["n_rows"]
+        self._lock = threading.Lock()
+
+
+__all__ = ["PCAResult", "pca", "DeferredPCA"]

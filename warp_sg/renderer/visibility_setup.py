@@ -133,7 +133,8 @@ def compute_visibility(scene, g, device, *, progress=False, compute=None, precom
                                        pca_terms=rs.pca_terms, device=device, progress=progress, compute=compute)
             return precompute.ssdf_for_mesh(gr.vertices, gr.triangles, gr.normals, resolution=rs.ssdf_resolution,
                                             pca_terms=rs.pca_terms, device=device, progress=progress, compute=compute,
-                                            cutouts=cut, representatives=rs.visibility_budget)
+                                            cutouts=cut, representatives=rs.visibility_budget,
+                                            occluders=(g.vertices, g.triangles) if gr is not g else None)
 
         data = _timed(parts, "ssdf", ssdf)
     return ref, gr, data, parts
