@@ -19,7 +19,7 @@ _PUBLIC = {
     "load_or_build": ("warp_sg.core.cache", "load_or_build"),
     "hemisphere_visibility": ("precompute.visibility.rays", "hemisphere_visibility"),
     "needs_visibility": ("precompute.visibility.rays", "needs_visibility"),
-    "SSDFData": ("precompute.visibility.ssdf", "SSDFData"),
+    "SSDFData": ("precompute.visibility.ssdf_data", "SSDFData"),
     "ssdf_for_mesh": ("precompute.visibility.ssdf", "ssdf_for_mesh"),
     "compute_ssdf": ("precompute.visibility.ssdf", "compute_ssdf"),
     "ray_visibility": ("precompute.visibility.rays", "ray_visibility"),

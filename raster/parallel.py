@@ -33,6 +33,33 @@ def _ensure_loaded(kernel, device) -> None:
         _LOADED.add(key)
 
 
+def is_loaded(kernel, device) -> bool:
+    """Whether :func:`launch` has loaded ``kernel``'s module on ``device`` (it then starts at once)."""
+    return (id(kernel.module), str(device)) in _LOADED
+
+
+def load_beside(make_kernel, device):
+    """A future of ``make_kernel()`` with its module loaded on ``device`` (:func:`_ensure_loaded`),
+    made on a thread of its own: a frame whose kernel variant is new (built from its source and its
+    module hashed: Python work, a few hundred ms for the shading kernel) prepares it while its other
+    launches keep the pool's threads busy. Warp serialises its code generation itself."""
+    from concurrent.futures import Future
+    import threading
+
+    fut: Future = Future()
+
+    def run():
+        try:
+            k = make_kernel()
+            _ensure_loaded(k, device)
+            fut.set_result(k)
+        except BaseException as e:  # (re-raised by fut.result() in the caller)
+            fut.set_exception(e)
+
+    threading.Thread(target=run, name="warp-sg-kernel-load", daemon=True).start()
+    return fut
+
+
 def cpu_workers() -> int:
     """Threads used for CPU launches (:func:`warp_sg.core.workers.cpu_workers`: ``RASTER_THREADS`` or
     ``WARP_SG_THREADS`` override; default = usable cores)."""

@@ -26,7 +26,8 @@ from warp_sg.core.errors import InputError
 from warp_sg.numeric.pca import pca
 
 from precompute.visibility.occluder_cone import no_cones, occluder_cones
-from precompute.visibility.ssdf import SSDF_VERSION, SSDFData, _ssdf_params, compute_ssdf
+from precompute.visibility.ssdf import SSDF_VERSION, _ssdf_params, compute_ssdf
+from precompute.visibility.ssdf_data import SSDFData
 from precompute.visibility.ssdf_wp import texel_directions
 from precompute.visibility.rays import needs_visibility, validate_mesh
 

@@ -115,6 +115,18 @@ def texel_directions(resolution: int) -> np.ndarray:
     return concentric_to_dir(a, b)
 
 
+_TEXEL_DIRS: dict = {}
+
+
+def texel_direction_array(resolution: int, device) -> wp.array:
+    """:func:`texel_directions` as an ``R²`` row-major float32 ``wp.vec3`` array on ``device`` (kept)."""
+    key = (int(resolution), str(device))
+    if key not in _TEXEL_DIRS:
+        _TEXEL_DIRS[key] = wp.array(texel_directions(int(resolution)).reshape(-1, 3).astype(np.float32),
+                                    dtype=wp.vec3, device=device)
+    return _TEXEL_DIRS[key]
+
+
 def lookup_np(image, d):
     """numpy twin of :func:`ssdf_bilinear`: bilinear lookup of (..., R, R) maps at direction(s) ``d``."""
     image = np.asarray(image)

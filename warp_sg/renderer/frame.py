@@ -206,15 +206,17 @@ class FramePaths:
         d = self.device
         self._ensure_gamma()  # a material may have become specular
         f = self.features()
+        from raster import parallel
+
+        ready = S.shade_kernel_ready(f, d)  # (a new variant: built and loaded beside the vertex caches)
+        kern = None if ready else parallel.load_beside(lambda: S.shade_kernel(f), d)
         es = self._vertex_visibility(self._env_arrays(), f)
-        kern = S.shade_kernel(f)
+        kern = S.shade_kernel(f) if kern is None else kern.result()
         if f.env_specular == S.ENV_PREFILTERED:
             env = self.env_light
             gamma = self.gamma.table(rotation=env.rotation_matrix(), scale=env.scale, device=d)
         else:
             gamma = es  # placeholder argument of the variant without ΓL
-        from raster import parallel
-
         n = int(tri_id.shape[0]) * int(tri_id.shape[1])
         self.layers.n_local = len(self.scene.local_lights)  # (the rest are the environment's peaks)
         args = [tri_id, bary, *self._bg.kernel_args(bg), wp.vec3(*np.asarray(eye, np.float32)), self.geo_arrays,

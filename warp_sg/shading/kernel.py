@@ -170,6 +170,13 @@ def _gamma_parts():
     return P.GammaTable, P.gamma_mean
 
 
+def shade_kernel_ready(f: Features, device) -> bool:
+    """Whether the kernel of feature set ``f`` is built and its module loaded on ``device``."""
+    from raster.parallel import is_loaded
+
+    return f in _KERNELS and is_loaded(_KERNELS[f], device)
+
+
 def shade_kernel(f: Features):
     """The shading kernel for feature set ``f`` (compiled once per process and cached)."""
     if f in _KERNELS:
@@ -433,5 +440,5 @@ def resolve_box(src: wp.array2d(dtype=wp.vec3), k: int, out: wp.array2d(dtype=wp
     out[y, x] = acc / float(k * k)
 
 
-__all__ = ["Features", "shade_kernel", "resolve_box", "GeometryArrays", "MaterialTextures", "Visibility",
+__all__ = ["Features", "shade_kernel", "shade_kernel_ready", "resolve_box", "GeometryArrays", "MaterialTextures", "Visibility",
            "EnvSG", "ENV_NONE", "ENV_SG", "ENV_PREFILTERED"]

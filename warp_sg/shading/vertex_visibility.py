@@ -60,7 +60,7 @@ import numpy as np
 import warp as wp
 
 from precompute.environment.irradiance import irradiance_unscaled
-from precompute.visibility.ssdf_wp import SSDFPoint, concentric_to_dir_wp, ssdf_eval_vertex, world_to_local
+from precompute.visibility.ssdf_wp import SSDFPoint, concentric_to_dir_wp, ssdf_eval_vertex, texel_direction_array, world_to_local
 
 from warp_sg.numeric.fastmath import fast_asin
 from warp_sg.numeric.onb import frame_bitangent, frame_tangent, local_to_world
@@ -202,7 +202,8 @@ def visible_share(occ_sum: wp.vec3, seen_sum: wp.vec3, ex: wp.vec3, cone: wp.vec
 
 @wp.kernel(enable_backward=False)
 def env_vertex_visible_kernel(base: int, ids: wp.array(dtype=int), vis: Visibility, env: EnvSG,
-                              out: wp.array(dtype=wp.vec3), out_irr: wp.array(dtype=wp.vec3)):
+                              dirs: wp.array(dtype=wp.vec3), out: wp.array(dtype=wp.vec3),
+                              out_irr: wp.array(dtype=wp.vec3)):
     """``out[v]`` = the visible fraction (RGB) of vertex ``v = base + tid``'s diffuse irradiance:
     ``1 − O/(O + S + max(E − O − S, 0))`` with ``O``, ``S`` the occluded and the visible parts of
     ``Σ_t (n·d_t) L̄(d_t) Ω_t`` over the texels inside the vertex's occluder cone (the texel's
@@ -211,7 +212,8 @@ def env_vertex_visible_kernel(base: int, ids: wp.array(dtype=int), vis: Visibili
     outside the cone are visible (none when the cone holds the whole hemisphere). 1 without a read
     where nothing occludes the vertex; exactly 0 where everything does. ``out_irr[v] = E ∘ F``, the
     visible irradiance at unit scale (what smooth triangles interpolate). ``ids``: as in
-    :func:`env_vertex_visibility_kernel`."""
+    :func:`env_vertex_visibility_kernel`; ``dirs``: the R² texel directions of the maps
+    (``ssdf_wp.texel_direction_array``)."""
     v = _vertex_id(base + wp.tid(), ids)
     n = wp.normalize(vis.normals[v])
     cone = vis.cones[v]
@@ -224,15 +226,17 @@ def env_vertex_visible_kernel(base: int, ids: wp.array(dtype=int), vis: Visibili
         om = 2.0 * wp.pi / float(R * R)
         c_min = wp.cos(wp.min(cone[3] + h, wp.pi))
         axis = wp.vec3(cone[0], cone[1], cone[2])
+        # the cone test in the vertex's frame, and one matrix from it to the map's (no world direction)
+        axis_l = wp.vec3(wp.dot(axis, t), wp.dot(axis, b), wp.dot(axis, n))
+        to_map = env.exact.to_env * wp.matrix_from_cols(t, b, n)
         occ_sum = wp.vec3(0.0, 0.0, 0.0)
         seen_sum = wp.vec3(0.0, 0.0, 0.0)
         for y in range(R):
             for x in range(R):
-                dl = _texel_dir(R, y, x)
-                d = local_to_world(dl, t, b, n)
-                if wp.dot(d, axis) >= c_min:
+                dl = dirs[y * R + x]
+                if wp.dot(dl, axis_l) >= c_min:
                     s = wp.clamp(0.5 + texel_ssdf(vis, v, y, x) / h, 0.0, 1.0)
-                    e = env_lookup(env.radiance, env.exact.to_env, d) * (dl[2] * om)
+                    e = env_lookup(env.radiance, to_map, dl) * (dl[2] * om)
                     occ_sum += e * (1.0 - s)
                     seen_sum += e * s
         f = visible_share(occ_sum, seen_sum, ex, cone, n, h)
@@ -305,8 +309,10 @@ def env_vertex_visible(vis: Visibility, env: EnvSG, n_vertices: int, device, ids
                 wp.zeros(max(int(n_vertices), 1), dtype=wp.vec3, device=device))
     n = int(n_vertices) if n is None else n
     if n > 0:
-        parallel.launch(env_vertex_visible_kernel, n, [ida, vis, env, *into], device, min_chunk=64)
+        dirs = texel_direction_array(int(vis.mean.shape[0]), device)
+        parallel.launch(env_vertex_visible_kernel, n, [ida, vis, env, dirs, *into], device, min_chunk=64)
     return into
+
 
 
 #: the largest angle between the vertex normals of a triangle whose diffuse environment term is
