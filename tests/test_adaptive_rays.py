@@ -35,6 +35,25 @@ def _plates_scene(gap: float, near: float = 1.0, far: float = 4.0):
     return V, np.concatenate(F), N
 
 
+def _ball_over_floor():
+    """An icosphere (radius 0.5, 642 vertices) resting on a 41×41-vertex floor 6 wide, normals up on
+    the floor and outward on the ball. Returns (V, F, N)."""
+    import trimesh
+
+    ball = trimesh.creation.icosphere(subdivisions=3, radius=0.5)
+    ball.apply_translation([0.0, 0.5, 0.0])
+    n = 41
+    g = np.linspace(-3.0, 3.0, n)
+    X, Z = np.meshgrid(g, g, indexing="ij")
+    fv = np.stack([X.ravel(), np.zeros(n * n), Z.ravel()], axis=1)
+    q = (np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None, :]).ravel()
+    ff = np.concatenate([np.stack([q, q + 1, q + n], 1), np.stack([q + 1, q + n + 1, q + n], 1)])
+    V = np.concatenate([fv, ball.vertices])
+    F = np.concatenate([ff, ball.faces + len(fv)])
+    N = np.concatenate([np.tile([0.0, 1.0, 0.0], (len(fv), 1)), np.asarray(ball.vertex_normals)])
+    return V, F, N
+
+
 def _maps(V, F, N, ids, rays, **kw):
     clock = StageClock()
     sd, vis = S.compute_ssdf(V, F, N, resolution=32, ray_resolution=64, vertex_ids=ids, progress=False,
@@ -72,25 +91,39 @@ def test_a_slit_narrower_than_a_coarse_cell_is_found_by_its_depth_jump():
     assert np.count_nonzero(vis_n != vis_f) > 0
 
 
-def test_the_last_level_casts_only_between_samples_that_disagree():
-    """The last level's texels lie between two or four samples of the 2×2-texel cells; where those
-    agree the texel takes their value. A slit ≈ 5 texels wide (straight edges, a depth jump) is
-    found exactly with fewer rays than casting every texel of the marked cells (``last="block"``);
-    on the floor and box the maps stay within 1e-4 of the texels of a ray per texel."""
+def test_the_last_level_can_cast_only_between_samples_that_disagree():
+    """``last="bracket"``: the last level's texels lie between two or four samples of the 2×2-texel
+    cells; where those agree the texel takes their value. A slit ≈ 5 texels wide (straight edges, a
+    depth jump) is found exactly with fewer rays than the default, which casts every texel of the
+    marked cells; on the floor and box the maps stay within 1e-4 of the texels of a ray per texel,
+    the default's within fewer. On a ball over a floor the concentric map's diagonals, where a
+    boundary bends at texel scale, are cast: the bracketed maps miss no texel there."""
     V, F, N = _plates_scene(gap=0.25)
     _, vis_f, _ = _maps(V, F, N, [0], "full")
-    _, vis_a, rays_a = _maps(V, F, N, [0], "adaptive")
-    _, vis_b, rays_b = _maps(V, F, N, [0], "adaptive", adaptive={"last": "block"})
+    _, vis_a, rays_a = _maps(V, F, N, [0], "adaptive", adaptive={"last": "bracket"})
+    _, vis_b, rays_b = _maps(V, F, N, [0], "adaptive")
     assert 0 < vis_f.sum() < 0.3 * vis_f.size
     assert np.array_equal(vis_a, vis_f) and np.array_equal(vis_b, vis_f)
     assert rays_a < 0.85 * rays_b
     V, F, N = plane_box_scene(20)
     ids = np.arange(len(V))
     _, vis_f, _ = _maps(V, F, N, ids, "full")
-    _, vis_a, rays_a = _maps(V, F, N, ids, "adaptive")
-    _, vis_b, rays_b = _maps(V, F, N, ids, "adaptive", adaptive={"last": "block"})
+    _, vis_a, rays_a = _maps(V, F, N, ids, "adaptive", adaptive={"last": "bracket"})
+    _, vis_b, rays_b = _maps(V, F, N, ids, "adaptive")
     assert rays_a < 0.85 * rays_b
     assert np.count_nonzero(vis_b != vis_f) <= np.count_nonzero(vis_a != vis_f) <= 1e-4 * vis_f.size
+    V, F, N = _ball_over_floor()
+    ids = np.flatnonzero(np.abs(V[:, 1]) < 1e-9)
+    _, vis_f, _ = _maps(V, F, N, ids, "full")
+    _, vis_a, _ = _maps(V, F, N, ids, "adaptive", adaptive={"last": "bracket"})
+    _, vis_b, _ = _maps(V, F, N, ids, "adaptive")
+    y, x = np.mgrid[0:64, 0:64]
+    diagonal = (x == y) | (x + y == 63)
+    assert (vis_f[:, diagonal] == 0).any()  # the ball's outline crosses the diagonals
+    assert np.count_nonzero(vis_a[:, diagonal] != vis_f[:, diagonal]) <= np.count_nonzero(vis_b != vis_f)
+    assert np.count_nonzero(vis_a != vis_f) <= 1e-4 * vis_f.size
+    with pytest.raises(ValueError, match="last"):
+        _maps(V, F, N, ids[:1], "adaptive", adaptive={"last": "sometimes"})
 
 
 def test_the_horizon_ring_keeps_a_one_texel_band_just_above_the_horizon():

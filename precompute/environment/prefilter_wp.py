@@ -79,25 +79,39 @@ def _prefilter_level_kernel(
     w_src = src.shape[1]
     h_pt = TWO_PI / float(w_src)
     sq_lam = wp.sqrt(lam)
+    # Sub-sampled source (sub > 1): integrate G over whole texels instead, where the lobe is narrow
+    # in both directions. Exact separation 1 − cos γ = (1 − cos Δθ) + sin θ sin θp (1 − cos Δφ),
+    # each factor ≈ Gaussian: ∫_texel G dΩ ≈ sin θ_m ∫ e^{−λΔθ²/2} dθ · ∫ e^{−κΔφ²/2} dφ,
+    # κ = λ sin θ_m sin θp (normal-CDF differences). Rows near a pole (κ < 50) keep sub-cells.
+    # A row's upper edge is the next row's lower edge: its Φ and Gaussian are carried over.
+    whole = sub > 1 and cmin > -1.0
+    cdf_a = float(0.0)
+    e_a = float(0.0)
+    if whole:
+        za0 = (float(r_lo) * h_t - theta_p) * sq_lam
+        cdf_a = _phi_cdf(za0)
+        e_a = wp.exp(-0.5 * za0 * za0)
     for r in range(r_lo, r_hi + 1):
-        # Sub-sampled source (sub > 1): integrate G over whole texels instead, where the lobe is narrow
-        # in both directions. Exact separation 1 − cos γ = (1 − cos Δθ) + sin θ sin θp (1 − cos Δφ),
-        # each factor ≈ Gaussian: ∫_texel G dΩ ≈ sin θ_m ∫ e^{−λΔθ²/2} dθ · ∫ e^{−κΔφ²/2} dφ,
-        # κ = λ sin θ_m sin θp (normal-CDF differences). Rows near a pole (κ < 50) keep sub-cells.
         t0 = float(r) * h_t
-        t1 = t0 + h_t
-        # sin θ and κ at the Gaussian-weighted mean θ of the row (truncated-normal mean): the far
-        # tail of a bright source is sensitive to κ, so take it where the row's weight sits
-        za = (t0 - theta_p) * sq_lam
-        zb = (t1 - theta_p) * sq_lam
-        mass = _phi_cdf(zb) - _phi_cdf(za)
-        t_m = wp.clamp(theta_p, t0, t1)
-        if mass > 1.0e-12:
-            t_m = wp.clamp(theta_p + 0.3989422804014327 * (wp.exp(-0.5 * za * za) - wp.exp(-0.5 * zb * zb))
-                           / (mass * sq_lam), t0, t1)
-        st_c = wp.sin(t_m)
-        kappa = lam * st_c * sin_tp
-        if sub > 1 and kappa >= 50.0 and cmin > -1.0:
+        t1 = float(r + 1) * h_t
+        kappa = float(0.0)
+        mass = float(0.0)
+        st_c = float(0.0)
+        if whole:
+            # sin θ and κ at the Gaussian-weighted mean θ of the row (truncated-normal mean): the far
+            # tail of a bright source is sensitive to κ, so take it where the row's weight sits
+            zb = (t1 - theta_p) * sq_lam
+            cdf_b = _phi_cdf(zb)
+            e_b = wp.exp(-0.5 * zb * zb)
+            mass = cdf_b - cdf_a
+            t_m = wp.clamp(theta_p, t0, t1)
+            if mass > 1.0e-12:
+                t_m = wp.clamp(theta_p + 0.3989422804014327 * (e_a - e_b) / (mass * sq_lam), t0, t1)
+            st_c = wp.sin(t_m)
+            kappa = lam * st_c * sin_tp
+            cdf_a = cdf_b
+            e_a = e_b
+        if whole and kappa >= 50.0:
             a_r = st_c * mass / sq_lam
             # longitude extent of the cap at the row's θ closest to θp
             tn = wp.clamp(theta_p, t0, t1)

@@ -27,7 +27,11 @@ level by level, on grids of ``s × s`` cells of ``f = Rr / s`` texels each (``s 
    gap between two surfaces can hide between samples (a slit behind an ear, a handle);
 4. **refinement**: each child cell of a marked cell casts its own ray (a texel already cast at a
    coarser level or on the ring is reused); children of unmarked cells inherit the parent's sample.
-   Steps 3–4 repeat until ``s = Rr``, where a child is one texel.
+   Steps 3–4 repeat until ``s = Rr``, where a child is one texel. On that last level a marked
+   cell casts all four texels (``last="block"``, the default); ``last="bracket"`` casts its own
+   sample and, of its other texels, those whose neighbouring samples disagree, the ring's and the
+   map's diagonals' (:func:`_last_texels_kernel`): 25 % fewer rays, but it misses the one-texel
+   corners of polygonal silhouettes, which the sun's shadow shows (docs/precompute.md).
 
 Texels left unrefined take the visibility of the coarse sample whose uniform 3×3 neighbourhood
 they lie in. What this can miss is a feature that lies entirely between samples of one uniform
@@ -378,9 +382,13 @@ def _last_texels_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normal
     ``(2j + a, 2i + b)`` lies between the samples of the cells ``(j − 1 + a … j, i − 1 + b … i)``
     (one, two or four of them: the samples sit at the cells' odd texel); in a marked cell it is a
     ray (any hit) when those samples disagree in visibility or their blocked hit distances differ
-    by more than ``exp(log_ratio)``, else it takes their value. A texel of the ring that no ray
-    met counts its own (segment) value among the samples. In an unmarked cell every texel takes
-    the cell's value. Thread ``(k, u)``: cells ``u·run … u·run + run − 1`` of one row."""
+    by more than ``exp(log_ratio)``, else it takes their value. Two kinds of texel of a marked cell
+    are always cast: a texel of the ring that no ray met (it holds its segment's guess), and a
+    texel on one of the concentric map's diagonals (``x = y``, ``x + y = Rr − 1``), where the
+    mapping bends and a boundary straight on the sphere has a one-texel notch that no two samples
+    around it see (on a ball over a floor: 4 of 5 of the texels the rule missed). In an unmarked
+    cell every texel takes the cell's value. Thread ``(k, u)``: cells ``u·run … u·run + run − 1``
+    of one row."""
     k, u = wp.tid()
     j = (u * run) / s
     for r in range(run):
@@ -408,11 +416,11 @@ def _last_texels_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normal
                         lo, hi, dmin, dmax = _bracket(cell_vis, cell_depth, k, s, j - 1, i - 1, lo, hi, dmin, dmax)
                     ty = 2 * j + a
                     tx = 2 * i + b
-                    if ty == 0 or tx == 0 or ty == Rr - 1 or tx == Rr - 1:
-                        v = int(vis[k, tex])
-                        lo = wp.min(lo, v)
-                        hi = wp.max(hi, v)
                     cast = lo != hi
+                    if ty == 0 or tx == 0 or ty == Rr - 1 or tx == Rr - 1:
+                        cast = True  # a ring texel no ray met holds its segment's guess: cast it
+                    if tx == ty or tx + ty == Rr - 1:
+                        cast = True  # the concentric map's diagonals, where a boundary bends at texel scale
                     if dmax > 0.0 and dmin < NO_HIT:
                         if wp.log(dmax) - wp.log(dmin) > log_ratio:
                             cast = True
@@ -440,10 +448,13 @@ def levels(ray_resolution: int, coarse_factor: int = COARSE_FACTOR) -> list[int]
 
 def adaptive_visibility(ctx, dirs, Rr: int, points, normals, first: int, count: int, device, *,
                         coarse_factor: int = COARSE_FACTOR, depth_ratio: float = DEPTH_RATIO,
-                        ring_step: int = RING_STEP, last: str = "bracket"):
+                        ring_step: int = RING_STEP, last: str = "block"):
     """``(vis (count, Rr²) wp.uint8 array, rays cast)`` of vertices ``first .. first+count−1`` of
     ``points``/``normals`` (module docstring). ``ctx``: :class:`precompute.visibility.rays._MeshContext`;
-    ``dirs``: the ``Rr²`` local texel directions; ``ring_step``: :data:`RING_STEP`."""
+    ``dirs``: the ``Rr²`` local texel directions; ``ring_step``: :data:`RING_STEP`; ``last``: the
+    last level's rule, ``"block"`` or ``"bracket"`` (step 4)."""
+    if last not in ("block", "bracket"):
+        raise ValueError(f"last must be 'block' or 'bracket', got {last!r}")
     B, N = int(count), int(Rr) * int(Rr)
     g = int(ring_step)
     M = 4 * (int(Rr) - 1)

@@ -224,7 +224,7 @@ def ray_budget_section(device="cpu", quick=False):
         ids = np.random.default_rng(0).choice(len(ref.vertices), 120, replace=False)
         meshes.append(("scanned head", ref.vertices, ref.triangles, ref.normals, np.sort(ids)))
     budgets = [("full (a ray per texel)", "full", None), ("adaptive (default)", "adaptive", None),
-               ("adaptive, last level by whole cells", "adaptive", {"last": "block"}),
+               ("adaptive, last level between samples", "adaptive", {"last": "bracket"}),
                ("adaptive, no depth test", "adaptive", {"depth_ratio": 0}),
                ("adaptive, 8² coarse grid", "adaptive", {"coarse_factor": 8}),
                ("adaptive, 32² coarse grid", "adaptive", {"coarse_factor": 2})]
