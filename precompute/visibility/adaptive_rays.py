@@ -73,17 +73,13 @@ def _sample_texel(j: int, i: int, f: int, Rr: int) -> int:
     return (j * f + f / 2) * Rr + i * f + f / 2
 
 
-@wp.kernel
-def _coarse_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp.array(dtype=wp.vec3), first: int,
-                   dirs: wp.array(dtype=wp.vec3), offset: float, max_t: float, Rr: int, s: int,
-                   vis: wp.array2d(dtype=wp.uint8), depth: wp.array2d(dtype=float), known: wp.array2d(dtype=wp.uint8),
-                   cell_vis: wp.array2d(dtype=wp.uint8), cell_depth: wp.array2d(dtype=float)):
-    """One ray per coarse cell (closest hit): the cell's sample, also written to its texel."""
-    k, c = wp.tid()
-    vi = first + k
-    j = c / s
-    i = c - j * s
-    tex = _sample_texel(j, i, Rr / s, Rr)
+@wp.func
+def _cast_sample(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp.array(dtype=wp.vec3), vi: int,
+                 dirs: wp.array(dtype=wp.vec3), offset: float, max_t: float, k: int, c: int, tex: int,
+                 vis: wp.array2d(dtype=wp.uint8), depth: wp.array2d(dtype=float), known: wp.array2d(dtype=wp.uint8),
+                 cell_vis: wp.array2d(dtype=wp.uint8), cell_depth: wp.array2d(dtype=float)):
+    """Cell ``c``'s sample at texel ``tex`` of vertex ``vi`` (row ``k``): a closest-hit ray, its
+    visibility and hit distance written to the cell and to the texel (then known)."""
     t = ray_hit_distance(mesh, vertex_ray_origin(points, normals, vi, offset),
                          vertex_ray_direction(normals, vi, dirs[tex]), max_t)
     v = wp.where(t < NO_HIT, wp.uint8(0), wp.uint8(1))
@@ -92,6 +88,19 @@ def _coarse_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp
     vis[k, tex] = v
     depth[k, tex] = t
     known[k, tex] = wp.uint8(1)
+
+
+@wp.kernel
+def _coarse_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp.array(dtype=wp.vec3), first: int,
+                   dirs: wp.array(dtype=wp.vec3), offset: float, max_t: float, Rr: int, s: int,
+                   vis: wp.array2d(dtype=wp.uint8), depth: wp.array2d(dtype=float), known: wp.array2d(dtype=wp.uint8),
+                   cell_vis: wp.array2d(dtype=wp.uint8), cell_depth: wp.array2d(dtype=float)):
+    """One ray per coarse cell (closest hit): the cell's sample, also written to its texel."""
+    k, c = wp.tid()
+    j = c / s
+    i = c - j * s
+    _cast_sample(mesh, points, normals, first + k, dirs, offset, max_t, k, c, _sample_texel(j, i, Rr / s, Rr),
+                 vis, depth, known, cell_vis, cell_depth)
 
 
 @wp.func
@@ -345,14 +354,8 @@ def _last_samples_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), norma
         cell_vis[k, c] = vis[k, tex]
         cell_depth[k, c] = depth[k, tex]
     elif marked[k, c] != wp.uint8(0):
-        t = ray_hit_distance(mesh, vertex_ray_origin(points, normals, first + k, offset),
-                             vertex_ray_direction(normals, first + k, dirs[tex]), max_t)
-        v = wp.where(t < NO_HIT, wp.uint8(0), wp.uint8(1))
-        cell_vis[k, c] = v
-        cell_depth[k, c] = t
-        vis[k, tex] = v
-        depth[k, tex] = t
-        known[k, tex] = wp.uint8(1)
+        _cast_sample(mesh, points, normals, first + k, dirs, offset, max_t, k, c, tex, vis, depth, known,
+                     cell_vis, cell_depth)
 
 
 @wp.func

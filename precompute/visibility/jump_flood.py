@@ -46,14 +46,21 @@ def _consider(d: wp.vec3, da: wp.vec3, best: wp.vec3, best_dot: float):
     return best, best_dot
 
 
+@wp.func
+def _run_start(u: int, run: int, R: int):
+    """(row, first column) of thread ``u``'s run of ``run`` cells on an R-wide grid (``run``
+    divides R: the run lies in one row; :func:`run_length`)."""
+    j = (u * run) // R
+    return j, u * run - j * R
+
+
 @wp.kernel
 def seed_kernel(vis: wp.array2d(dtype=wp.uint8), dirs: wp.array(dtype=wp.vec3), R: int, run: int,
                 seeds: wp.array2d(dtype=wp.vec3)):
     """Nearest boundary midpoint among the 4-neighbour pairs of differing visibility (else
     :data:`NO_SEED`); thread ``(k, u)`` does texels ``u·run … u·run + run − 1`` (:func:`run_length`)."""
     k, u = wp.tid()
-    j = (u * run) // R  # (run divides R: the run lies in one row)
-    i0 = u * run - j * R
+    j, i0 = _run_start(u, run, R)
     for r in range(run):
         i = i0 + r
         tex = j * R + i
@@ -147,8 +154,7 @@ def jfa_texel_kernel(src: wp.array2d(dtype=int), seeds: wp.array2d(dtype=wp.vec3
     """One jump-flooding pass on the coarse grid over seed-texel indices (largest dot product of
     the seed an index points at wins); thread ``(k, u)`` does cells ``u·run … u·run + run − 1``."""
     k, u = wp.tid()
-    j = (u * run) // Rc  # (run divides Rc: the run lies in one row)
-    i0 = u * run - j * Rc
+    j, i0 = _run_start(u, run, Rc)
     for r in range(run):
         i = i0 + r
         c = j * Rc + i
