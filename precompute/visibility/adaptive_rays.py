@@ -7,7 +7,7 @@ level by level, on grids of ``s × s`` cells of ``f = Rr / s`` texels each (``s 
 
 1. **coarse level** (``s₀ = Rr / 4`` by default): one ray per cell, at texel
    ``(j f + f/2, i f + f/2)``, with its **hit distance** (:func:`precompute.visibility.rays.ray_hit_distance`);
-2. **the horizon ring**: the texels of the map's outermost row and column (the directions just
+2. **the horizon ring** (:mod:`precompute.visibility.horizon_ring`): the texels of the map's outermost row and column (the directions just
    above the horizon, ``4 (Rr − 1)`` texels; the grid's visibility test reads them, not their hit
    distances). A vertex on a curved surface sees a strip one
    texel wide there that no coarse sample meets; it is a visibility boundary the SSDF needs. The
@@ -55,6 +55,7 @@ import math
 import numpy as np
 import warp as wp
 
+from precompute.visibility.horizon_ring import ring_kernel, ring_refine_kernel
 from precompute.visibility.jump_flood import run_length
 from precompute.visibility.rays import NO_HIT, ray_blocked, ray_hit_distance, vertex_ray_direction, vertex_ray_origin
 
@@ -101,115 +102,6 @@ def _coarse_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp
     i = c - j * s
     _cast_sample(mesh, points, normals, first + k, dirs, offset, max_t, k, c, _sample_texel(j, i, Rr / s, Rr),
                  vis, depth, known, cell_vis, cell_depth)
-
-
-@wp.func
-def _ring_texel(m: int, Rr: int) -> int:
-    """Texel of position ``m`` of the ring (the outermost row and column, 4 (Rr − 1) texels),
-    walked clockwise from texel (0, 0)."""
-    side = m / (Rr - 1)
-    o = m - side * (Rr - 1)
-    j = int(0)
-    i = int(0)
-    if side == 0:
-        i = o
-    elif side == 1:
-        j = o
-        i = Rr - 1
-    elif side == 2:
-        j = Rr - 1
-        i = Rr - 1 - o
-    else:
-        j = Rr - 1 - o
-    return j * Rr + i
-
-
-@wp.func
-def _ring_ray(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp.array(dtype=wp.vec3), vi: int,
-              dirs: wp.array(dtype=wp.vec3), offset: float, max_t: float, k: int, m: int, tex: int, closest: int,
-              vis: wp.array2d(dtype=wp.uint8), depth: wp.array2d(dtype=float), known: wp.array2d(dtype=wp.uint8),
-              ring_depth: wp.array2d(dtype=float)):
-    """Cast ring position ``m`` (texel ``tex``) of vertex ``vi``: with ``closest`` its hit distance
-    goes to ``ring_depth`` (the ring's own depth test), else any hit. The texel's ``depth`` is
-    :data:`NO_HIT` either way: a refined cell whose sample is a ring texel takes part in the grid's
-    visibility test only."""
-    o = vertex_ray_origin(points, normals, vi, offset)
-    d = vertex_ray_direction(normals, vi, dirs[tex])
-    t = float(NO_HIT)
-    if closest != 0:
-        t = ray_hit_distance(mesh, o, d, max_t)
-    elif ray_blocked(mesh, o, d, max_t):
-        t = 0.0
-    vis[k, tex] = wp.where(t < NO_HIT, wp.uint8(0), wp.uint8(1))
-    depth[k, tex] = NO_HIT
-    known[k, tex] = wp.uint8(1)
-    ring_depth[k, m] = t
-
-
-@wp.kernel
-def _ring_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp.array(dtype=wp.vec3), first: int,
-                 dirs: wp.array(dtype=wp.vec3), offset: float, max_t: float, Rr: int, g: int,
-                 vis: wp.array2d(dtype=wp.uint8), depth: wp.array2d(dtype=float), known: wp.array2d(dtype=wp.uint8),
-                 ring_depth: wp.array2d(dtype=float)):
-    """Every ``g``-th texel of the ring (positions ``q·g``; :func:`_ring_texel`); closest hit while
-    the ring is refined after (``g > 1``)."""
-    k, q = wp.tid()
-    m = q * g
-    tex = _ring_texel(m, Rr)
-    if known[k, tex] == wp.uint8(0):
-        _ring_ray(mesh, points, normals, first + k, dirs, offset, max_t, k, m, tex, wp.where(g > 1, 1, 0),
-                  vis, depth, known, ring_depth)
-    else:
-        ring_depth[k, m] = NO_HIT  # (a grid sample on the ring: its visibility only)
-
-
-@wp.func
-def _ring_sample(vis: wp.array2d(dtype=wp.uint8), ring_depth: wp.array2d(dtype=float), k: int, m: int, Rr: int,
-                 lo: int, hi: int, dmin: float, dmax: float):
-    """Fold ring position ``m``'s sample into the visibility range ``lo, hi`` and the blocked hit
-    distances' range ``dmin, dmax``."""
-    v = int(vis[k, _ring_texel(m, Rr)])
-    t = ring_depth[k, m]
-    if v == 0 and t > 0.0 and t < NO_HIT:
-        dmin = wp.min(dmin, t)
-        dmax = wp.max(dmax, t)
-    return wp.min(lo, v), wp.max(hi, v), dmin, dmax
-
-
-@wp.kernel
-def _ring_refine_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp.array(dtype=wp.vec3),
-                        first: int, dirs: wp.array(dtype=wp.vec3), offset: float, max_t: float, Rr: int, h: int,
-                        log_ratio: float, vis: wp.array2d(dtype=wp.uint8), depth: wp.array2d(dtype=float),
-                        known: wp.array2d(dtype=wp.uint8), ring_depth: wp.array2d(dtype=float)):
-    """The midpoints ``m = q·2h + h`` of the ring's segments of length 2h: a ray when the four ring
-    samples ``m ± h``, ``m ± 3h`` (the segment and its neighbours on both sides) disagree in
-    visibility or their blocked hit distances differ by more than ``exp(log_ratio)`` (closest hit
-    while ``h > 1``), else the segment's value, written to ``vis`` only (not ``known``: no ray
-    was cast; its ``ring_depth`` is the nearer end's)."""
-    k, q = wp.tid()
-    M = 4 * (Rr - 1)
-    m = q * 2 * h + h
-    tex = _ring_texel(m, Rr)
-    lo = int(1)
-    hi = int(0)
-    dmin = float(NO_HIT)
-    dmax = float(0.0)
-    lo, hi, dmin, dmax = _ring_sample(vis, ring_depth, k, (m - h + M) % M, Rr, lo, hi, dmin, dmax)
-    lo, hi, dmin, dmax = _ring_sample(vis, ring_depth, k, (m + h) % M, Rr, lo, hi, dmin, dmax)
-    lo, hi, dmin, dmax = _ring_sample(vis, ring_depth, k, (m - 3 * h + 2 * M) % M, Rr, lo, hi, dmin, dmax)
-    lo, hi, dmin, dmax = _ring_sample(vis, ring_depth, k, (m + 3 * h) % M, Rr, lo, hi, dmin, dmax)
-    split = lo != hi
-    if dmax > 0.0 and dmin < NO_HIT:
-        if wp.log(dmax) - wp.log(dmin) > log_ratio:
-            split = True
-    if known[k, tex] != wp.uint8(0):
-        ring_depth[k, m] = NO_HIT
-    elif split:
-        _ring_ray(mesh, points, normals, first + k, dirs, offset, max_t, k, m, tex, wp.where(h > 1, 1, 0),
-                  vis, depth, known, ring_depth)
-    else:
-        vis[k, tex] = wp.uint8(lo)
-        ring_depth[k, m] = wp.min(ring_depth[k, (m - h + M) % M], ring_depth[k, (m + h) % M])
 
 
 @wp.func
@@ -476,10 +368,10 @@ def adaptive_visibility(ctx, dirs, Rr: int, points, normals, first: int, count: 
     wp.launch(_coarse_kernel, dim=(B, s * s), inputs=geo + [s, vis, depth, known, cv, cd], device=device)
     log_ratio = math.log(float(depth_ratio)) if depth_ratio and depth_ratio > 1 else 1.0e30
     ring_depth = wp.empty((B, M), dtype=float, device=device)
-    wp.launch(_ring_kernel, dim=(B, M // g), inputs=geo + [g, vis, depth, known, ring_depth], device=device)
+    wp.launch(ring_kernel, dim=(B, M // g), inputs=geo + [g, vis, depth, known, ring_depth], device=device)
     h = g // 2
     while h >= 1:  # halve the ring's segments where the samples around them disagree
-        wp.launch(_ring_refine_kernel, dim=(B, M // (2 * h)),
+        wp.launch(ring_refine_kernel, dim=(B, M // (2 * h)),
                   inputs=geo + [h, float(log_ratio), vis, depth, known, ring_depth], device=device)
         h //= 2
     for s in lv[:-1]:

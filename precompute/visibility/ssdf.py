@@ -69,7 +69,7 @@ DEFAULT_RAYS = "adaptive"
 #: Part of the "ssdf" cache key: the hash of the code that computes the maps (``warp_sg.core.cache.code_key``).
 SSDF_VERSION = _cache.code_key(__name__, "precompute.visibility.jump_flood", occluder_cones, texel_directions, launch_visibility, pca)  # the producing code
 #: the hash of the adaptive ray schedule's code (precompute.visibility.adaptive_rays), part of the cache key
-ADAPTIVE_VERSION = _cache.code_key(adaptive_visibility)  # the adaptive ray cast's code
+ADAPTIVE_VERSION = _cache.code_key(adaptive_visibility, "precompute.visibility.horizon_ring")  # the adaptive ray cast's code
 
 
 # ---------------------------------------------------------------------------------------------
