@@ -20,7 +20,7 @@ import numpy as np
 import warp as wp
 
 from precompute.visibility.rays import _MeshContext, launch_visibility, run_batches, validate_mesh
-from precompute.visibility.ssdf_wp import texel_directions
+from precompute.visibility.ssdf_wp import texel_direction_array
 
 #: the probe's map side ``R_p``: ``R_p²`` rays per vertex
 PROBE_RESOLUTION = 4
@@ -33,7 +33,7 @@ def probe_open_fraction(vertices, triangles, normals, *, resolution: int = PROBE
     v, f, n = validate_mesh(vertices, triangles, normals)
     R = int(resolution)
     ctx = _MeshContext(v, f, n, device, cutouts)
-    dirs = wp.array(texel_directions(R).reshape(-1, 3).astype(np.float32), dtype=wp.vec3, device=device)
+    dirs = texel_direction_array(R, device)
     out = np.empty(len(v), np.float64)
 
     def work(s, e):

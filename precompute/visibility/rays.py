@@ -29,7 +29,7 @@ from warp_sg.numeric.onb import frame_bitangent, frame_tangent, local_to_world
 
 from warp_sg.shading.cutout import Cutouts, blocked
 
-from precompute.visibility.ssdf_wp import texel_directions
+from precompute.visibility.ssdf_wp import texel_direction_array
 
 #: Self-intersection offset along the normal, as a fraction of the bounding-box diagonal.
 OFFSET_SCALE = 1e-4
@@ -235,7 +235,7 @@ def hemisphere_visibility(vertices, triangles, normals, resolution: int = 64, *,
         raise InputError(f"vertex id {bad} out of range (mesh has {len(v)} vertices)")
     ctx = _MeshContext(v, f, n, device, cutouts)
     R = int(resolution)
-    dirs = wp.array(texel_directions(R).reshape(-1, 3).astype(np.float32), dtype=wp.vec3, device=device)
+    dirs = texel_direction_array(R, device)
     sel_p = wp.array(v[ids].astype(np.float32), dtype=wp.vec3, device=device)
     sel_n = wp.array(n[ids].astype(np.float32), dtype=wp.vec3, device=device)
     out = np.empty((len(ids), R * R), np.uint8)

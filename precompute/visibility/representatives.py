@@ -68,7 +68,7 @@ from warp_sg.numeric.onb import frame_bitangent, frame_tangent, local_to_world, 
 
 from precompute.visibility import probe as _probe
 from precompute.visibility.probe import probe_open_fraction
-from precompute.visibility.ssdf_wp import _texel_coords, texel_directions
+from precompute.visibility.ssdf_wp import _texel_coords, texel_direction_array
 
 #: SSDF vertices beyond which the maps are computed at representatives only (the default
 #: ``[render] visibility_budget``); 0 or None: every vertex its own map
@@ -316,7 +316,7 @@ def transfer_maps(rep_maps, rep_normals, src, normals, resolution: int, device="
     n = len(src)
     out = wp.empty((max(n, 1), R * R), dtype=float, device=device)
     if n:
-        dirs = wp.array(texel_directions(R).reshape(-1, 3).astype(np.float32), dtype=wp.vec3, device=device)
+        dirs = texel_direction_array(R, device)
         wp.launch(transfer_kernel, dim=(n, R * R), device=device,
                   inputs=[rep_maps if isinstance(rep_maps, wp.array) else
                           wp.array(np.ascontiguousarray(rep_maps, np.float32), dtype=float, device=device),

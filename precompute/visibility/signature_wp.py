@@ -51,7 +51,7 @@ def world_disagreement(sig, normals, i, j, R: int, device="cpu", batch: int = 40
     """(E,) fraction of i's counted texel directions in which the maps of edges (i[e], j[e])
     disagree (module docstring). ``sig`` (V, R²) bool/uint8, ``normals`` (V, 3) unit. Batches of
     edges run on the CPU thread pool (:func:`precompute.visibility.rays.run_batches`)."""
-    from precompute.visibility.ssdf_wp import texel_directions
+    from precompute.visibility.ssdf_wp import texel_direction_array
     from precompute.visibility.rays import run_batches
 
     out = np.zeros(len(i))
@@ -59,7 +59,7 @@ def world_disagreement(sig, normals, i, j, R: int, device="cpu", batch: int = 40
         return out
     sig_w = wp.array(np.ascontiguousarray(sig, dtype=np.uint8), dtype=wp.uint8, device=device)
     nrm = wp.array(np.asarray(normals, np.float32), dtype=wp.vec3, device=device)
-    dirs = wp.array(texel_directions(R).reshape(-1, 3).astype(np.float32), dtype=wp.vec3, device=device)
+    dirs = texel_direction_array(R, device)
     ei = wp.array(np.asarray(i, np.int64), dtype=int, device=device)
     ej = wp.array(np.asarray(j, np.int64), dtype=int, device=device)
 

@@ -237,7 +237,7 @@ def compute_ssdf(vertices, triangles, normals, *, resolution: int = DEFAULT_RESO
     if clock is not None:
         clock.add("bvh", time.perf_counter() - w0, time.process_time() - c0)
     R, Rr = int(resolution), int(ray_resolution)
-    dirs = wp.array(texel_directions(Rr).reshape(-1, 3).astype(np.float32), dtype=wp.vec3, device=device)
+    dirs = texel_direction_array(Rr, device)
     pts = wp.array(v[ids].astype(np.float32), dtype=wp.vec3, device=device)
     nrm = wp.array(n[ids].astype(np.float32), dtype=wp.vec3, device=device)
     vis_out = np.empty((len(ids), Rr * Rr), np.uint8) if return_visibility else None

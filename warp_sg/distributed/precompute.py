@@ -41,9 +41,7 @@ _MESH_KEEP = 2
 def _mesh_context(mesh, mesh_key, ray_resolution, device):
     """The worker's ``(wp.Mesh context, texel directions)`` of ``mesh``: built once per worker
     process and kept (the two most recent meshes)."""
-    import warp as wp
-
-    from precompute.visibility.ssdf_wp import texel_directions
+    from precompute.visibility.ssdf_wp import texel_direction_array
     from precompute.visibility.rays import _MeshContext
 
     k = (mesh_key, int(ray_resolution), str(device))
@@ -51,8 +49,7 @@ def _mesh_context(mesh, mesh_key, ray_resolution, device):
         hit = _MESHES.get(k)
         if hit is None:
             v, f, n = mesh
-            dirs = texel_directions(int(ray_resolution)).reshape(-1, 3).astype(np.float32)
-            hit = (_MeshContext(v, f, n, device), wp.array(dirs, dtype=wp.vec3, device=device))
+            hit = (_MeshContext(v, f, n, device), texel_direction_array(int(ray_resolution), device))
             _MESHES[k] = hit
             while len(_MESHES) > _MESH_KEEP:
                 _MESHES.pop(next(iter(_MESHES)))
