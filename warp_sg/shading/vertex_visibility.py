@@ -60,7 +60,7 @@ import numpy as np
 import warp as wp
 
 from precompute.environment.irradiance import irradiance_unscaled
-from precompute.visibility.ssdf_wp import SSDFPoint, concentric_to_dir_wp, ssdf_eval_vertex, texel_direction_array, world_to_local
+from precompute.visibility.ssdf_wp import SSDFPoint, ssdf_eval_vertex, texel_direction_array, world_to_local
 
 from warp_sg.numeric.fastmath import fast_asin
 from warp_sg.numeric.onb import frame_bitangent, frame_tangent, local_to_world
@@ -103,21 +103,16 @@ def _vertex_id(k: int, ids: wp.array(dtype=int)) -> int:
     return v
 
 
-@wp.func
-def _texel_dir(R: int, y: int, x: int) -> wp.vec3:
-    """Local direction of texel (y, x) of an R×R equal-area concentric map."""
-    return concentric_to_dir_wp((float(x) + 0.5) * 2.0 / float(R) - 1.0, (float(y) + 0.5) * 2.0 / float(R) - 1.0)
-
-
 @wp.kernel(enable_backward=False)
 def env_vertex_visibility_kernel(base: int, ids: wp.array(dtype=int), irr: wp.array2d(dtype=float), vis: Visibility,
-                                 env: EnvSG, out: wp.array2d(dtype=float)):
+                                 env: EnvSG, dirs: wp.array(dtype=wp.vec3), out: wp.array2d(dtype=float)):
     """``out[v, j]`` = the visible fraction of the cosine-weighted lobe ``G_j max(n_v·i, 0)`` at vertex
     ``v = base + tid``, by quadrature of its SSDF over the R×R equal-area texels (module
     docstring): ``1 − Σ_t (1 − s_t) (n·d_t) G_j(d_t) Ω / (∫G_j e(n·p_j, λ_j))``, ``s_t =
     clamp(½ + θd_t/h, 0, 1)`` the texel's visible share from its SSDF value (h = the texel side).
     Only texels inside the vertex's occluder cone are read; a vertex with no occluder is 1. With
-    ``ids`` (non-empty) thread k computes vertex ``ids[base + k]`` only."""
+    ``ids`` (non-empty) thread k computes vertex ``ids[base + k]`` only; ``dirs``: the R² texel
+    directions of the maps (``ssdf_wp.texel_direction_array``)."""
     v = _vertex_id(base + wp.tid(), ids)
     nj = out.shape[1]
     n = wp.normalize(vis.normals[v])
@@ -131,13 +126,14 @@ def env_vertex_visibility_kernel(base: int, ids: wp.array(dtype=int), irr: wp.ar
         om = 2.0 * wp.pi / float(R * R)
         c_min = wp.cos(wp.min(cone[3] + h, wp.pi))
         axis = wp.vec3(cone[0], cone[1], cone[2])
+        axis_l = wp.vec3(wp.dot(axis, t), wp.dot(axis, b), wp.dot(axis, n))  # (the cone test in the vertex's frame)
         for y in range(R):
             for x in range(R):
-                dl = _texel_dir(R, y, x)
-                d = local_to_world(dl, t, b, n)
-                if wp.dot(d, axis) >= c_min:
+                dl = dirs[y * R + x]
+                if wp.dot(dl, axis_l) >= c_min:
                     occ = 1.0 - wp.clamp(0.5 + texel_ssdf(vis, v, y, x) / h, 0.0, 1.0)
                     if occ > 0.0:
+                        d = local_to_world(dl, t, b, n)
                         wgt = occ * dl[2] * om
                         for j in range(nj):
                             out[v, j] += wgt * wp.exp(env.lam[j] * (wp.dot(d, env.axis[j]) - 1.0))
@@ -314,7 +310,6 @@ def env_vertex_visible(vis: Visibility, env: EnvSG, n_vertices: int, device, ids
     return into
 
 
-
 #: the largest angle between the vertex normals of a triangle whose diffuse environment term is
 #: interpolated from its vertices' visible irradiance (``E ∘ F``) instead of reading the exact
 #: irradiance at each pixel's normal: 5°, where interpolating E errs by ≈ (5°)²/8 ≈ 0.1 % (0.4 % of
@@ -363,7 +358,8 @@ def env_vertex_visibility(irr, vis: Visibility, env: EnvSG, n_vertices: int, dev
         if into is None else into
     n = int(n_vertices) if n is None else n
     if env.count > 0 and n > 0:
-        parallel.launch(env_vertex_visibility_kernel, n, [ida, irr, vis, env, out], device, min_chunk=64)
+        dirs = texel_direction_array(int(vis.mean.shape[0]), device)
+        parallel.launch(env_vertex_visibility_kernel, n, [ida, irr, vis, env, dirs, out], device, min_chunk=64)
     return out
 
 
