@@ -208,10 +208,10 @@ class FramePaths:
         f = self.features()
         from raster import parallel
 
-        ready = S.shade_kernel_ready(f, d)  # (a new variant: built and loaded beside the vertex caches)
-        kern = None if ready else parallel.load_beside(lambda: S.shade_kernel(f), d)
+        # a new variant is built and its module loaded beside the vertex caches
+        loading = None if S.shade_kernel_ready(f, d) else parallel.load_beside(lambda: S.shade_kernel(f), d)
         es = self._vertex_visibility(self._env_arrays(), f)
-        kern = S.shade_kernel(f) if kern is None else kern.result()
+        kern = S.shade_kernel(f) if loading is None else loading.result()
         if f.env_specular == S.ENV_PREFILTERED:
             env = self.env_light
             gamma = self.gamma.table(rotation=env.rotation_matrix(), scale=env.scale, device=d)
