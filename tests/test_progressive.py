@@ -33,6 +33,25 @@ def test_first_frame_is_the_unshadowed_render_and_the_final_one_the_non_progress
     assert np.array_equal(first, unshadowed) or np.array_equal(first, final)
 
 
+def test_the_environment_built_beside_its_prefilter_equals_the_one_built_after_it(cache_dir, monkeypatch):
+    """The ΓL prefilter runs on threads beside the irradiance and the SG fit (overlap_precompute):
+    the same tables, lobes and image as one part after the other, each with a fresh cache."""
+    from warp_sg.core.cache import fresh_cache
+
+    built = {}
+    for overlap in (False, True):
+        monkeypatch.setattr(Renderer, "overlap_precompute", overlap)
+        with fresh_cache():
+            r = Renderer(_scene())
+            built[overlap] = (r, r.render())
+    (a, img_a), (b, img_b) = built[False], built[True]
+    assert a.gamma is not None and b.gamma is not None
+    assert np.array_equal(a.gamma.texels, b.gamma.texels) and np.array_equal(a.gamma.lambdas, b.gamma.lambdas)
+    for x, y in zip(a._env_sg_base, b._env_sg_base):
+        assert np.array_equal(x, y)
+    assert np.array_equal(img_a, img_b)
+
+
 def test_frames_do_not_wait_for_the_shadows_and_switch_when_they_are_ready(cache_dir):
     release = threading.Event()
     started = threading.Event()

@@ -295,37 +295,46 @@ def _build_tables(env, lambdas, sizes, device, samples_per_sigma, max_sub, progr
 
         bar = tqdm(total=float(sum(p[4] for p in plan)), desc="prefilter ΓL", unit="smp", unit_scale=True,
                    leave=False)
+    # every level's texels in chunks (a level of ≥ 4096 texels in 4 per thread), all on one pool
+    # of threads: the small broad levels run beside each other instead of one after the other
+    chunks = []
+    for k, lam, m, sub, work in plan:
+        key = (m, sub)
+        if key not in src_cache:
+            h, w = chain[m][0].shape[:2]
+            grid = _sample_grid(h, w, sub)
+            src_cache[key] = [wp.array(chain[m][0].astype(np.float32), dtype=wp.vec3, device=device),
+                              wp.array(chain[m][1].astype(np.float32), dtype=wp.vec3, device=device)] + [
+                wp.array(g.astype(np.float32), dtype=float, device=device) for g in grid
+            ]
+        cnt = int(counts[k])
+        parts = n_threads * 4 if n_threads > 1 and cnt >= 4096 else 1
+        bounds = np.linspace(0, cnt, parts + 1).astype(int)
+        level_out = out[int(offsets[k]) : int(offsets[k]) + cnt]
+        for lo, hi in zip(bounds[:-1], bounds[1:]):
+            chunks.append((int(lo), int(hi), level_out, int(sizes[k]), lam, sub, src_cache[key], work * (hi - lo) / cnt))
+
+    def launch(chunk):
+        lo, hi, level_out, n, lam, sub, src, _ = chunk
+        s_arr, s_dir, ct, st, wr, cp, sp = src
+        wp.launch(_prefilter_level_kernel, dim=hi - lo,
+                  inputs=[s_arr, s_dir, ct, st, wr, cp, sp, int(sub), float(lam), float(cutoff), n, lo, level_out],
+                  device=device)
+        return chunk[-1]
+
     try:
-        for k, lam, m, sub, work in plan:
-            key = (m, sub)
-            if key not in src_cache:
-                h, w = chain[m][0].shape[:2]
-                grid = _sample_grid(h, w, sub)
-                src_cache[key] = [wp.array(chain[m][0].astype(np.float32), dtype=wp.vec3, device=device),
-                                  wp.array(chain[m][1].astype(np.float32), dtype=wp.vec3, device=device)] + [
-                    wp.array(g.astype(np.float32), dtype=float, device=device) for g in grid
-                ]
-            s_arr, s_dir, ct, st, wr, cp, sp = src_cache[key]
-            n = int(sizes[k])
-            level_out = out[int(offsets[k]) : int(offsets[k]) + int(counts[k])]
-            cnt = int(counts[k])
-
-            def launch(lo, hi, level_out=level_out, n=n, lam=lam, sub=sub, s_arr=s_arr, s_dir=s_dir, ct=ct, st=st,
-                       wr=wr, cp=cp, sp=sp):
-                wp.launch(_prefilter_level_kernel, dim=hi - lo,
-                          inputs=[s_arr, s_dir, ct, st, wr, cp, sp, int(sub), float(lam), float(cutoff), n, lo, level_out],
-                          device=device)
-
-            if n_threads > 1 and cnt >= 4096:
-                bounds = np.linspace(0, cnt, n_threads * 4 + 1).astype(int)
-                wp.load_module(_prefilter_level_kernel.module, device=device)  # once, before the threads
-                with ThreadPoolExecutor(n_threads) as ex:
-                    list(ex.map(lambda ab: launch(*ab), zip(bounds[:-1], bounds[1:])))
-            else:
-                launch(0, cnt)
-            if bar is not None:
-                wp.synchronize_device(device)
-                bar.update(work)
+        if n_threads > 1:
+            wp.load_module(_prefilter_level_kernel.module, device=device)  # once, before the threads
+            with ThreadPoolExecutor(n_threads) as ex:
+                for done in ex.map(launch, chunks[::-1]):  # (the sharp, costly levels first)
+                    if bar is not None:
+                        bar.update(done)
+        else:
+            for chunk in chunks:
+                launch(chunk)
+                if bar is not None:
+                    wp.synchronize_device(device)
+                    bar.update(chunk[-1])
     finally:
         if bar is not None:
             bar.close()

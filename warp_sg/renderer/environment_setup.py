@@ -86,6 +86,20 @@ class EnvironmentSetup:
         if env is None:
             return
         base = self.env_base
+        # the ΓL prefilter needs only the residual: on its own threads beside the irradiance and the
+        # SG fit (the fit is one thread of numpy and scipy), joined before this returns
+        gamma = ShadowJob(self._ensure_gamma, name="warp-sg-gamma-setup") if (
+            self.overlap_precompute and self.has_specular) else None
+        try:
+            self._fit_environment(env, base, rs)
+        finally:
+            if gamma is not None:
+                gamma.wait()
+        if gamma is not None:
+            gamma.result()  # (its error, if any, is raised here)
+
+    def _fit_environment(self, env, base, rs):
+        """The exact irradiance table of the residual and its SG mixture (``_setup_environment``)."""
         t = self._tick()
         from precompute.environment.irradiance import cell_radiance, irradiance_cubemap
 
