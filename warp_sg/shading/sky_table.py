@@ -69,7 +69,7 @@ import numpy as np
 import warp as wp
 
 from precompute.environment.irradiance import irradiance_unscaled
-from precompute.visibility.ssdf_wp import concentric_to_dir_wp
+from precompute.visibility.ssdf_wp import texel_direction_array
 
 from warp_sg.numeric.onb import local_to_world
 from warp_sg.shading.vertex_visibility import texel_ssdf, visible_share
@@ -150,31 +150,17 @@ class SkyTable:
     groups: int
 
 
-@wp.func
-def _cone_texel(dl: wp.vec3, t: wp.vec3, b: wp.vec3, n: wp.vec3, cone: wp.vec4, c_min: float) -> int:
-    """1 when the texel of local direction ``dl`` lies in the cone (the test of
-    ``env_vertex_visible_kernel``)."""
-    r = int(0)
-    if wp.dot(local_to_world(dl, t, b, n), wp.vec3(cone[0], cone[1], cone[2])) >= c_min:
-        r = 1
-    return r
-
-
-@wp.func
-def _texel_local(R: int, q: int) -> wp.vec3:
-    y = q / R
-    x = q - y * R
-    return concentric_to_dir_wp((float(x) + 0.5) * 2.0 / float(R) - 1.0, (float(y) + 0.5) * 2.0 / float(R) - 1.0)
-
-
 @wp.kernel(enable_backward=False)
 def transfer_kernel(base: int, vis: Visibility, ids: wp.array(dtype=int), rest_n: wp.array(dtype=wp.vec3),
                     rest_t: wp.array(dtype=wp.vec3), rest_b: wp.array(dtype=wp.vec3),
-                    rest_cone: wp.array(dtype=wp.vec4), order: int, norms: wp.array(dtype=float),
-                    out: wp.array2d(dtype=wp.vec2), norm2: wp.array(dtype=wp.vec2)):
+                    rest_cone: wp.array(dtype=wp.vec4), dirs: wp.array(dtype=wp.vec3), order: int,
+                    norms: wp.array(dtype=float), out: wp.array2d(dtype=wp.vec2), norm2: wp.array(dtype=wp.vec2)):
     """Listed vertex ``i = base + tid``'s transfer vectors (module docstring), ``out[i, j] = Σ_t
     ((1 − s_t) c_t, s_t c_t) Y_j(D_t)`` over its texels inside the cone (rest pose), and
-    ``norm2[i] = Σ_t ((1 − s_t) c_t, s_t c_t)² / Ω``."""
+    ``norm2[i] = Σ_t ((1 − s_t) c_t, s_t c_t)² / Ω``. ``dirs``: the R² texel directions of the maps
+    (``ssdf_wp.texel_direction_array``); the cone is tested in the vertex's frame, as
+    ``env_vertex_visible_kernel`` tests it (the same texels), and a texel's world direction is
+    formed only inside it."""
     i = base + wp.tid()
     cone = rest_cone[i]
     if cone[3] < 0.0:
@@ -185,16 +171,20 @@ def transfer_kernel(base: int, vis: Visibility, ids: wp.array(dtype=int), rest_n
     om = 2.0 * wp.pi / float(R * R)
     c_min = wp.cos(wp.min(cone[3] + h, wp.pi))
     n = wp.normalize(rest_n[i])
+    t = rest_t[i]
+    b = rest_b[i]
+    axis = wp.vec3(cone[0], cone[1], cone[2])
+    axis_l = wp.vec3(wp.dot(axis, t), wp.dot(axis, b), wp.dot(axis, n))
     acc = wp.vec2(0.0, 0.0)
-    for q in range(R * R):
-        dl = _texel_local(R, q)
-        if _cone_texel(dl, rest_t[i], rest_b[i], n, cone, c_min) == 1:
-            y = q / R
-            s = wp.clamp(0.5 + texel_ssdf(vis, v, y, q - y * R) / h, 0.0, 1.0)
-            c = dl[2] * om
-            w = wp.vec2((1.0 - s) * c, s * c)
-            acc += wp.cw_mul(w, w) / om
-            sh_accumulate(out, i, order, norms, local_to_world(dl, rest_t[i], rest_b[i], n), w)
+    for y in range(R):
+        for x in range(R):
+            dl = dirs[y * R + x]
+            if wp.dot(dl, axis_l) >= c_min:
+                s = wp.clamp(0.5 + texel_ssdf(vis, v, y, x) / h, 0.0, 1.0)
+                c = dl[2] * om
+                w = wp.vec2((1.0 - s) * c, s * c)
+                acc += wp.cw_mul(w, w) / om
+                sh_accumulate(out, i, order, norms, local_to_world(dl, t, b, n), w)
     norm2[i] = acc
 
 
@@ -315,8 +305,9 @@ class MovingSky:
         transfer = wp.zeros((max(n, 1), nc), dtype=wp.vec2, device=device)
         norm2 = wp.zeros(max(n, 1), dtype=wp.vec2, device=device)
         if n:
-            parallel.launch(transfer_kernel, n, [vis, vertices, *rest, self.order, self.norms, transfer, norm2], device,
-                            min_chunk=64)
+            dirs = texel_direction_array(vis.mean.shape[0], device)
+            parallel.launch(transfer_kernel, n, [vis, vertices, *rest, dirs, self.order, self.norms, transfer, norm2],
+                            device, min_chunk=64)
         # (host copies for the bound, :meth:`prepare`; the kernels' layout of four coefficients a group)
         self._transfer, self._norm2 = transfer.numpy()[:n].astype(np.float64), norm2.numpy()[:n].astype(np.float64)
         ng = -(-nc // 4)
