@@ -109,3 +109,32 @@ def test_a_plain_mesh_gets_the_default_material_and_toml_scenes_refuse_env(tmp_p
     assert "--env" in capsys.readouterr().err
     assert main(["render", str(p)]) == 2
     assert "-o/--output" in capsys.readouterr().err
+
+
+def test_the_asset_file_is_read_once_and_again_when_it_changes(glb, monkeypatch):
+    """The scene of an asset reads its bounds and then its objects from one read of the file
+    (``load_gltf(keep=True)``); a file changed since is read again, and its new bounds are the
+    ones the scene frames."""
+    import os
+
+    from warp_sg.scene.importers import gltf
+
+    path, (lo, hi) = glb
+    reads = []
+    real = gltf._read_gltf
+    monkeypatch.setattr(gltf, "_read_gltf", lambda p, images: reads.append(p) or real(p, images))
+    scene, _ = asset_scene(path, width=64, height=48)
+    g = scene.geometry()
+    assert len(reads) == 1
+    asset = g.vertices[g.vertex_object != g.object_names.index("ground")]
+    assert np.allclose(asset.min(0), lo, atol=1e-5) and np.allclose(asset.max(0), hi, atol=1e-5)
+    s = trimesh.Scene()
+    s.add_geometry(trimesh.creation.box(extents=[4.0, 1.0, 1.0]), node_name="c", geom_name="c")
+    path.write_bytes(s.export(file_type="glb"))
+    st = path.stat()
+    os.utime(path, ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+    scene2, _ = asset_scene(path, width=64, height=48)
+    scene2.geometry()
+    assert len(reads) == 2
+    ground = next(o for o in scene2.objects if o.name == "ground")
+    assert np.isclose(ground.params["center"][1], -0.5, atol=1e-6)  # under the new box, not the old boxes

@@ -4,6 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import warp as wp
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from precompute.visibility import ssdf_wp
 from precompute.visibility.reference_checks import plane_box_scene
@@ -119,6 +121,45 @@ def test_needs_visibility():
     assert not needs_visibility(V, F, shadows=False)
     two = np.concatenate([s.vertices, s.vertices + [3.0, 0, 0]])
     assert needs_visibility(two, np.concatenate([s.faces, s.faces + len(s.vertices)]))
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(min_value=0, max_value=2**31 - 1), st.integers(min_value=8, max_value=400))
+def test_the_quick_convexity_test_never_calls_a_convex_hull_concave(seed, n):
+    """``_clearly_not_convex`` (the early exit of ``needs_visibility``) on convex hulls of random
+    points (thin slabs among them): never "not convex", and trimesh agrees they are convex."""
+    import trimesh
+
+    from precompute.visibility.rays import _clearly_not_convex
+
+    rng = np.random.default_rng(seed)
+    pts = rng.normal(size=(n, 3)) * rng.uniform(0.01, 10.0, size=3)
+    hull = trimesh.convex.convex_hull(pts)
+    assert not _clearly_not_convex(hull.vertices, hull.faces)
+    assert not needs_visibility(hull.vertices, hull.faces)
+
+
+def test_the_quick_convexity_test_agrees_with_trimesh_where_it_answers():
+    """Where the early exit answers (vertices well on both sides of a triangle's plane), trimesh's
+    own test says the same: not one convex body (two spheres, a torus, the plane and box). A
+    sphere with one vertex dented in has no such plane among the sampled triangles: trimesh's
+    test answers."""
+    import trimesh
+
+    from precompute.visibility.rays import _clearly_not_convex
+
+    s = trimesh.creation.icosphere(subdivisions=3)
+    dented = s.vertices.copy()
+    dented[np.argmax(dented[:, 1])] *= 0.8  # the top vertex pushed in by a fifth of the radius
+    two = np.concatenate([s.vertices, s.vertices + [3.0, 0, 0]])
+    torus = trimesh.creation.torus(major_radius=1.0, minor_radius=0.3)
+    V, F, _ = plane_box_scene(n=6)
+    cases = [(two, np.concatenate([s.faces, s.faces + len(s.vertices)])), (torus.vertices, torus.faces), (V, F)]
+    for v, f in cases:
+        assert _clearly_not_convex(v, f)
+        assert not trimesh.Trimesh(vertices=v, faces=f, process=True).is_convex
+        assert needs_visibility(v, f)
+    assert not _clearly_not_convex(dented, s.faces) and needs_visibility(dented, s.faces)
 
 
 def test_bad_meshes_name_the_element():

@@ -140,7 +140,8 @@ class EnvironmentSetup:
             lams = kw.get("lambdas", self._gamma_ladder())
             preview = lams[:max(int(np.searchsorted(lams, PREVIEW_GAMMA_LAMBDA, side="right")), 2)]
             self._install_gamma(self._prefilter(lambdas=preview), True, float(preview[-1]))
-            self._gamma_job = lambda: ShadowJob(lambda: (self._prefilter(**kw), capped, reach), name="warp-sg-gamma")
+            self._gamma_job = lambda: ShadowJob(lambda: (self._prefilter(**kw), capped, reach), name="warp-sg-gamma",
+                                                background=True)
         else:
             self._install_gamma(self._prefilter(**kw), capped, reach)
         self._tock("env_prefilter", t)

@@ -13,18 +13,48 @@ The job never holds the renderer's state: it only computes numpy/Warp data, whic
 thread installs. ``render()`` never waits for it (Warp releases the GIL while a kernel runs, so
 frames and rays share the cores); :meth:`ShadowJob.wait` does. An exception in the job (a broken
 mesh) is raised in the rendering thread by the next ``poll()``.
+
+A progressive renderer's jobs run ``background``: on Linux the job's thread lowers its own
+scheduling priority (nice +:data:`BACKGROUND_NICE`; the worker threads it starts for the rays and
+the prefilter inherit it), so that where the cores are contended the rendering thread and its
+pool get them first and the jobs take what is left — the frames come at the pace of a renderer
+with nothing in the background, and the jobs lose no CPU time when the frames are idle. Elsewhere
+(no per-thread priority) the job runs as before.
 """
 from __future__ import annotations
 
+import os
+import sys
 import threading
 import time
+
+#: how much a background job's threads lower their priority (nice 0 → 10: the kernel's scheduler
+#: then gives a contending rendering thread about nine tenths of a core)
+BACKGROUND_NICE = 10
+
+
+def lower_thread_priority(nice: int = BACKGROUND_NICE) -> bool:
+    """Lower the calling thread's scheduling priority by ``nice`` (Linux, where a priority is per
+    thread and threads started later inherit it); whether it did. Never the process's main thread
+    (its id is the process's), and a platform without per-thread priorities is left alone."""
+    if not sys.platform.startswith("linux"):
+        return False
+    tid = threading.get_native_id()
+    if tid == os.getpid():
+        return False
+    try:
+        os.setpriority(os.PRIO_PROCESS, tid, min(os.getpriority(os.PRIO_PROCESS, tid) + int(nice), 19))
+    except (AttributeError, OSError):
+        return False
+    return True
 
 
 class ShadowJob:
     """Runs ``fn()`` on a daemon thread; :meth:`result` returns its value or raises its exception."""
 
-    def __init__(self, fn, name: str = "warp-sg-shadows"):
+    def __init__(self, fn, name: str = "warp-sg-shadows", background: bool = False):
         self._fn = fn
+        self.background = bool(background)  # (lower_thread_priority at the start of the thread)
         self._value = None
         self._error: BaseException | None = None
         self._done = threading.Event()
@@ -35,6 +65,8 @@ class ShadowJob:
 
     def _run(self):
         try:
+            if self.background:
+                lower_thread_priority()
             self._value = self._fn()
         except BaseException as e:  # noqa: BLE001 - handed to the rendering thread
             self._error = e
@@ -58,4 +90,4 @@ class ShadowJob:
         return self._value
 
 
-__all__ = ["ShadowJob"]
+__all__ = ["BACKGROUND_NICE", "ShadowJob", "lower_thread_priority"]

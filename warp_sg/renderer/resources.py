@@ -72,7 +72,7 @@ class ResourceSetup:
               "lights": self._refine_lights(), "cutouts": lambda geo: cutout_data(geo, self.scene.materials),
               "dynamic": [bool(ob.dynamic) for ob in self.scene.objects]}  # (per-group SSDFs where any)
         if self.progressive:  # started once the first frame's own precompute is done (__init__)
-            self._job = lambda: ShadowJob(lambda: compute_visibility(*args, **kw))
+            self._job = lambda: ShadowJob(lambda: compute_visibility(*args, **kw), background=True)
         elif self.overlap_precompute:  # beside the environment fit and ΓL (single-threaded parts)
             self._job = ShadowJob(lambda: compute_visibility(*args, **kw))
         else:

@@ -58,7 +58,8 @@ def asset_bounds(path) -> tuple[np.ndarray, np.ndarray]:
     if path.is_dir():
         raise MeshError("is a folder, not an asset file", where=str(path))
     if is_gltf(path):
-        return load_gltf(path, images=False).bounds()
+        # read as the scene's object will read it, and kept for that read (load_gltf keep)
+        return load_gltf(path, images=brings_materials(path), keep=True).bounds()
     if is_usd(path):
         return load_usd(path).bounds()
     if not path.is_file():
