@@ -2,6 +2,7 @@
 thread, then the frames of a non-progressive renderer bit for bit (warp_sg.renderer.progressive)."""
 from __future__ import annotations
 
+import sys
 import threading
 import numpy as np
 import pytest
@@ -185,3 +186,32 @@ def test_a_progressive_renderer_previews_glossy_reflections_then_shows_the_scene
     assert r.wait(120) and not r.shadows_pending and r.shadows_ready()
     assert np.array_equal(r.render(), Renderer(_sharp_scene()).render())
     assert r.timings["precompute_parts"]["env_prefilter_full"] > 0
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="per-thread priorities are Linux's")
+def test_the_shadow_job_runs_below_the_rendering_threads_priority(cache_dir):
+    """A progressive renderer's shadow job (and the threads it starts) run at nice + BACKGROUND_NICE
+    (warp_sg.renderer.progressive.lower_thread_priority): where the cores are contended the frames
+    get them first. The rendering thread's own priority is unchanged."""
+    import os
+    from concurrent.futures import ThreadPoolExecutor
+
+    from warp_sg.renderer.progressive import BACKGROUND_NICE
+
+    def nice_here():
+        return os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
+
+    main_nice = nice_here()
+    seen = {}
+
+    def ssdf(*args, **kw):
+        seen["job"] = nice_here()
+        with ThreadPoolExecutor(1) as ex:  # a worker the job starts (the rays' pool) inherits it
+            seen["worker"] = ex.submit(nice_here).result()
+        return compute_ssdf(*args, **kw)
+
+    r = Renderer(_scene(), progressive=True, ssdf_compute=ssdf)
+    assert r.wait(120)
+    want = min(main_nice + BACKGROUND_NICE, 19)
+    assert seen == {"job": want, "worker": want}
+    assert nice_here() == main_nice
