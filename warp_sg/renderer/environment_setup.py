@@ -23,6 +23,22 @@ from warp_sg.scene.lights import DirectionalLight, PointLight
 #: read the prefilter's blend towards the map's own Gaussian-filtered texels until the scene's
 #: ladder arrives (``EnvironmentSetup._ensure_gamma``)
 PREVIEW_GAMMA_LAMBDA = 256.0
+#: the first frames' ladder keeps every PREVIEW_GAMMA_STRIDE-th level of the scene's, counted down
+#: from its top (ratio 2 instead of √2: half the prefilter's CPU; its lookups against quadrature
+#: err 2–3× more at the median, 0.17–0.6 % on the procedural sky and a Poly Haven map, and up to
+#: 5× at the worst point: docs/rendering.md, tests/test_progressive.py)
+PREVIEW_GAMMA_STRIDE = 2
+
+
+def preview_ladder(lams) -> np.ndarray:
+    """The ΓL ladder of a progressive renderer's first frames from the scene's geometric ladder
+    ``lams``: its levels up to :data:`PREVIEW_GAMMA_LAMBDA` (at least two), every
+    :data:`PREVIEW_GAMMA_STRIDE`-th from the top one down (still a geometric ladder, with the same
+    top)."""
+    lams = np.asarray(lams, np.float64)
+    top = lams[:max(int(np.searchsorted(lams, PREVIEW_GAMMA_LAMBDA, side="right")), 2)]
+    kept = top[::-1][::PREVIEW_GAMMA_STRIDE][::-1]
+    return kept if len(kept) >= 2 else top[-2:]
 
 
 class EnvironmentSetup:
@@ -138,7 +154,7 @@ class EnvironmentSetup:
         kw, capped, reach = self._gamma_request()
         if self.progressive and self._job is not None and reach > PREVIEW_GAMMA_LAMBDA:
             lams = kw.get("lambdas", self._gamma_ladder())
-            preview = lams[:max(int(np.searchsorted(lams, PREVIEW_GAMMA_LAMBDA, side="right")), 2)]
+            preview = preview_ladder(lams)
             self._install_gamma(self._prefilter(lambdas=preview), True, float(preview[-1]))
             self._gamma_job = lambda: ShadowJob(lambda: (self._prefilter(**kw), capped, reach), name="warp-sg-gamma",
                                                 background=True)
