@@ -63,7 +63,7 @@ def ring_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp.ar
                  dirs: wp.array(dtype=wp.vec3), offset: float, max_t: float, Rr: int, g: int,
                  vis: wp.array2d(dtype=wp.uint8), depth: wp.array2d(dtype=float), known: wp.array2d(dtype=wp.uint8),
                  ring_depth: wp.array2d(dtype=float)):
-    """Every ``g``-th texel of the ring (positions ``q·g``; :func:`_ring_texel`); closest hit while
+    """Every ``g``-th texel of the ring (positions ``q·g``; :func:`ring_texel`); closest hit while
     the ring is refined after (``g > 1``)."""
     k, q = wp.tid()
     m = q * g

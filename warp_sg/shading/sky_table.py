@@ -72,7 +72,7 @@ from precompute.environment.irradiance import irradiance_unscaled
 from precompute.visibility.ssdf_wp import texel_direction_array
 
 from warp_sg.numeric.onb import local_to_world
-from warp_sg.shading.vertex_visibility import texel_ssdf, visible_share
+from warp_sg.shading.vertex_visibility import cone_in_frame, texel_ssdf, visible_share
 from warp_sg.shading.visibility_terms import EnvSG, Visibility
 
 #: the spherical-harmonic order of the transfer vectors ((ORDER + 1)² coefficients per vertex)
@@ -169,12 +169,10 @@ def transfer_kernel(base: int, vis: Visibility, ids: wp.array(dtype=int), rest_n
     R = vis.mean.shape[0]
     h = _SQRT_2PI / float(R)
     om = 2.0 * wp.pi / float(R * R)
-    c_min = wp.cos(wp.min(cone[3] + h, wp.pi))
     n = wp.normalize(rest_n[i])
     t = rest_t[i]
     b = rest_b[i]
-    axis = wp.vec3(cone[0], cone[1], cone[2])
-    axis_l = wp.vec3(wp.dot(axis, t), wp.dot(axis, b), wp.dot(axis, n))
+    axis_l, c_min = cone_in_frame(cone, t, b, n, h)
     acc = wp.vec2(0.0, 0.0)
     for y in range(R):
         for x in range(R):

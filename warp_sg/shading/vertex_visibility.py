@@ -103,6 +103,16 @@ def _vertex_id(k: int, ids: wp.array(dtype=int)) -> int:
     return v
 
 
+@wp.func
+def cone_in_frame(cone: wp.vec4, t: wp.vec3, b: wp.vec3, n: wp.vec3, h: float):
+    """The occluder cone in the vertex's frame ``(t, b, n)``: its axis there and the cosine a texel's
+    local direction must reach to be read (the half-angle widened by ``h``, the texel's half
+    diagonal). Every per-vertex quadrature over the cone's texels tests them so (these kernels and
+    ``warp_sg.shading.sky_table.transfer_kernel``): the same texels."""
+    axis = wp.vec3(cone[0], cone[1], cone[2])
+    return wp.vec3(wp.dot(axis, t), wp.dot(axis, b), wp.dot(axis, n)), wp.cos(wp.min(cone[3] + h, wp.pi))
+
+
 @wp.kernel(enable_backward=False)
 def env_vertex_visibility_kernel(base: int, ids: wp.array(dtype=int), irr: wp.array2d(dtype=float), vis: Visibility,
                                  env: EnvSG, dirs: wp.array(dtype=wp.vec3), out: wp.array2d(dtype=float)):
@@ -124,9 +134,7 @@ def env_vertex_visibility_kernel(base: int, ids: wp.array(dtype=int), irr: wp.ar
         R = vis.mean.shape[0]
         h = _SQRT_2PI / float(R)
         om = 2.0 * wp.pi / float(R * R)
-        c_min = wp.cos(wp.min(cone[3] + h, wp.pi))
-        axis = wp.vec3(cone[0], cone[1], cone[2])
-        axis_l = wp.vec3(wp.dot(axis, t), wp.dot(axis, b), wp.dot(axis, n))  # (the cone test in the vertex's frame)
+        axis_l, c_min = cone_in_frame(cone, t, b, n, h)
         for y in range(R):
             for x in range(R):
                 dl = dirs[y * R + x]
@@ -220,10 +228,8 @@ def env_vertex_visible_kernel(base: int, ids: wp.array(dtype=int), vis: Visibili
         R = vis.mean.shape[0]
         h = _SQRT_2PI / float(R)
         om = 2.0 * wp.pi / float(R * R)
-        c_min = wp.cos(wp.min(cone[3] + h, wp.pi))
-        axis = wp.vec3(cone[0], cone[1], cone[2])
         # the cone test in the vertex's frame, and one matrix from it to the map's (no world direction)
-        axis_l = wp.vec3(wp.dot(axis, t), wp.dot(axis, b), wp.dot(axis, n))
+        axis_l, c_min = cone_in_frame(cone, t, b, n, h)
         to_map = env.exact.to_env * wp.matrix_from_cols(t, b, n)
         occ_sum = wp.vec3(0.0, 0.0, 0.0)
         seen_sum = wp.vec3(0.0, 0.0, 0.0)
@@ -482,7 +488,7 @@ def update_caches(caches: tuple, inputs: CacheInputs, f, es: EnvSG) -> tuple[Env
     return es, sum(c.seconds for c in caches)
 
 
-__all__ = ["blend_rows_kernel", "blend_visible_kernel", "VertexCache", "CacheInputs", "caches", "update_caches", "env_vertex_visible", "env_vertex_visible_kernel",
+__all__ = ["cone_in_frame", "blend_rows_kernel", "blend_visible_kernel", "VertexCache", "CacheInputs", "caches", "update_caches", "env_vertex_visible", "env_vertex_visible_kernel",
            "smooth_triangles", "SMOOTH_TRIANGLE_DEG",
            "env_vertex_visibility", "env_vertex_visibility_kernel", "light_vertex_deficit",
            "light_vertex_deficit_kernel"]
