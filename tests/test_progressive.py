@@ -53,6 +53,34 @@ def test_the_environment_built_beside_its_prefilter_equals_the_one_built_after_i
     assert np.array_equal(img_a, img_b)
 
 
+def test_the_first_frame_reads_the_mesh_caches_built_beside_the_environment_setup(cache_dir):
+    """A progressive renderer builds back-face culling's closedness and the contours' edge
+    adjacency on a thread during its constructor; the first frame takes them (the same objects),
+    they equal the ones built where they are needed, and once the shadows install a refined mesh
+    the job's result (of the input mesh) is not used for it."""
+    from warp_sg.scene.culling import BackfaceCulling
+    from warp_sg.shading.silhouette import edge_adjacency
+
+    r = Renderer(_scene(), progressive=True)
+    g, job = r._mesh_job
+    assert g is r.geometry and job.wait(60)
+    culling, (ev, ef) = job.result()
+    first = r.render()
+    if r.geometry is g:  # (the shadows were not installed before this frame)
+        assert r._culling is culling
+        assert np.array_equal(r._aa.edges[0].numpy(), ev) and np.array_equal(r._aa.edges[1].numpy(), ef)
+        assert np.array_equal(first, Renderer(_scene(shadows=False)).render())
+    direct = BackfaceCulling(g)
+    assert np.array_equal(culling.closed, direct.closed) and culling.closed.any() and not culling.closed.all()
+    assert np.array_equal(culling.corners, direct.corners)
+    dv, df = edge_adjacency(g.vertices, g.triangles)
+    assert np.array_equal(ev, dv) and np.array_equal(ef, df)
+    r.wait()
+    r.render()
+    assert r.geometry is not g and r._mesh_job is None  # the refined mesh's own caches
+    assert len(r._aa.edges[0]) > len(ev)
+
+
 def test_frames_do_not_wait_for_the_shadows_and_switch_when_they_are_ready(cache_dir):
     release = threading.Event()
     started = threading.Event()

@@ -25,10 +25,12 @@ class AntialiasCache:
     buffer) whose candidates did not change reuses it.
 
     ``moving`` (per triangle, a scene with dynamic objects): the contours in two parts, the static
-    edges' once per camera (module docstring)."""
+    edges' once per camera (module docstring). ``adjacency``: ``edge_adjacency(positions, tris)``
+    where it was computed already (the renderer's first-frame caches)."""
 
-    def __init__(self, positions: wp.array, tris: wp.array, device, moving=None):
+    def __init__(self, positions: wp.array, tris: wp.array, device, moving=None, adjacency=None):
         self.positions, self.tris, self.device = positions, tris, device
+        self._adjacency = adjacency  # edge_adjacency(positions, tris), when computed already
         self.moving = None if moving is None else np.asarray(moving, bool)
         self.edges = None
         self._contours = (None, None, None)  # (camera, 1× buffer, marks)
@@ -42,7 +44,8 @@ class AntialiasCache:
         from warp_sg.shading.silhouette import edge_adjacency
 
         if self.edges is None:
-            ev, ef = edge_adjacency(self.positions.numpy(), self.tris.numpy())
+            ev, ef = self._adjacency or edge_adjacency(self.positions.numpy(), self.tris.numpy())
+            self._adjacency = None
             arrays = lambda sel: (wp.array(ev[sel], dtype=wp.vec2i, device=self.device),  # noqa: E731
                                   wp.array(ef[sel], dtype=wp.vec2i, device=self.device))
             if self.moving is None:

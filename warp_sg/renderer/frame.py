@@ -144,8 +144,10 @@ class FramePaths:
         d, cam = self.device, self.scene.camera
         if self._aa is None:
             split = self.dynamic is not None and self.incremental_raster
+            ready = self._mesh_caches()
             self._aa = AntialiasCache(self.geo_arrays.positions, self.geo_arrays.tris, d,
-                                      moving=self.dynamic.raster.tri_moving if split else None)
+                                      moving=self.dynamic.raster.tri_moving if split else None,
+                                      adjacency=ready[1] if ready is not None else None)
         shade = lambda tri, bary, bg, out: self._launch_shade(tri, bary, bg, cam.origin, out)  # noqa: E731
         t0 = _timer(d)
         vb = self.rasterize(1, subsamples=a)
@@ -165,12 +167,45 @@ class FramePaths:
                             subpixel_tiles=st["tile_fraction"], subpixel_seconds=sub)
         return out
 
+    def _start_mesh_caches(self) -> None:
+        """Build the installed geometry's per-mesh caches of the first frame on a thread —
+        back-face culling's closedness (:class:`warp_sg.scene.culling.BackfaceCulling`) and the
+        contours' edge adjacency (:func:`warp_sg.shading.silhouette.edge_adjacency`, of the
+        float32 positions the device arrays hold), numpy sorts that release the GIL — so that they are ready when the first ``render()`` asks
+        (:meth:`_mesh_caches`): a progressive renderer starts it beside its environment setup,
+        whose SG fit leaves a core idle."""
+        from warp_sg.renderer.progressive import ShadowJob
+        from warp_sg.scene.culling import BackfaceCulling
+        from warp_sg.shading.silhouette import edge_adjacency
+
+        g, d = self.geometry, self.device
+        rs = self.scene.render
+        # the adaptive path's (_render); not with moving objects, whose first frame may move the
+        # vertex positions the adjacency reads
+        contours = rs.supersampling == 1 and rs.antialias > 1 and self.dynamic is None
+        job = ShadowJob(lambda: (BackfaceCulling(g, d),
+                                 edge_adjacency(g.vertices, g.triangles) if contours else None),
+                        name="warp-sg-mesh-caches")
+        self._mesh_job = (g, job)
+
+    def _mesh_caches(self):
+        """``(BackfaceCulling, (edge_v, edge_f) or None)`` of the installed geometry from
+        :meth:`_start_mesh_caches` (waited for), or None when none was started for it (they are
+        then built where they are needed)."""
+        g, job = getattr(self, "_mesh_job", None) or (None, None)
+        if job is None or g is not self.geometry:
+            self._mesh_job = None  # (a job for an earlier geometry: its result is not this mesh's)
+            return None
+        job.wait()
+        return job.result()
+
     def _cull_flags(self):
         """The back faces the raster may drop (``warp_sg.scene.culling``: closed objects seen from outside)."""
         from warp_sg.scene.culling import BackfaceCulling
 
         if self._culling is None:
-            self._culling = BackfaceCulling(self.geometry, self.device)
+            ready = self._mesh_caches()
+            self._culling = ready[0] if ready is not None else BackfaceCulling(self.geometry, self.device)
             if self.dynamic is not None:  # (the moving objects' boxes: a function of their transforms)
                 self.dynamic.place_culling(self._culling)
         return self._culling.flags(self.scene.camera)

@@ -97,6 +97,7 @@ class Renderer(FramePaths, VariantChoice, ResourceSetup, EnvironmentSetup):
         self._bg = BackgroundCache(self.device)  # what pixels that see no object show
         self._aa = None  # antialiasing's caches between frames (warp_sg.renderer.antialias.AntialiasCache)
         self._vb_key = self._vb = self._culling = None
+        self._mesh_job = None  # (geometry, the first frame's per-mesh caches on a thread: _start_mesh_caches)
         self.dynamic = None  # objects that move (warp_sg.renderer.dynamic_objects; _setup_dynamic)
         self._rest_motions = {k: ob.motion for k, ob in enumerate(scene.objects) if ob.dynamic}  # the built pose
         t0 = time.perf_counter()
@@ -105,6 +106,8 @@ class Renderer(FramePaths, VariantChoice, ResourceSetup, EnvironmentSetup):
         with wp.ScopedDevice(self.device):
             self._setup_env_peaks()
             self._setup_geometry()
+            if self.progressive:  # culling's and the contours' per-mesh work beside the environment setup
+                self._start_mesh_caches()
             self._setup_materials()
             self._setup_environment()
             self._ensure_gamma()
