@@ -112,9 +112,15 @@ class FramePaths:
         finally:
             self._start_gamma_job()  # (a progressive renderer's ΓL ladder: after its first frame)
 
+    def _adaptive(self) -> bool:
+        """Whether frames take the edge- and contrast-adaptive path (:meth:`render`): no
+        supersampling and ``antialias`` > 1."""
+        rs = self.scene.render
+        return rs.supersampling == 1 and rs.antialias > 1
+
     def _render(self) -> np.ndarray:
         rs = self.scene.render
-        if rs.supersampling == 1 and rs.antialias > 1:
+        if self._adaptive():
             return self._render_adaptive(int(rs.antialias))
         d = self.device
         k = rs.supersampling
@@ -171,18 +177,17 @@ class FramePaths:
         """Build the installed geometry's per-mesh caches of the first frame on a thread —
         back-face culling's closedness (:class:`warp_sg.scene.culling.BackfaceCulling`) and the
         contours' edge adjacency (:func:`warp_sg.shading.silhouette.edge_adjacency`, of the
-        float32 positions the device arrays hold), numpy sorts that release the GIL — so that they are ready when the first ``render()`` asks
-        (:meth:`_mesh_caches`): a progressive renderer starts it beside its environment setup,
-        whose SG fit leaves a core idle."""
+        float32 positions the device arrays hold), numpy sorts that release the GIL — so that they
+        are ready when the first ``render()`` asks (:meth:`_mesh_caches`): a progressive renderer
+        starts it beside its environment setup, whose SG fit leaves a core idle."""
         from warp_sg.renderer.progressive import ShadowJob
         from warp_sg.scene.culling import BackfaceCulling
         from warp_sg.shading.silhouette import edge_adjacency
 
         g, d = self.geometry, self.device
-        rs = self.scene.render
-        # the adaptive path's (_render); not with moving objects, whose first frame may move the
-        # vertex positions the adjacency reads
-        contours = rs.supersampling == 1 and rs.antialias > 1 and self.dynamic is None
+        # the adaptive path's; not with moving objects, whose first frame may move the vertex
+        # positions the adjacency reads
+        contours = self._adaptive() and self.dynamic is None
         job = ShadowJob(lambda: (BackfaceCulling(g, d),
                                  edge_adjacency(g.vertices, g.triangles) if contours else None),
                         name="warp-sg-mesh-caches")
@@ -192,7 +197,7 @@ class FramePaths:
         """``(BackfaceCulling, (edge_v, edge_f) or None)`` of the installed geometry from
         :meth:`_start_mesh_caches` (waited for), or None when none was started for it (they are
         then built where they are needed)."""
-        g, job = getattr(self, "_mesh_job", None) or (None, None)
+        g, job = self._mesh_job or (None, None)
         if job is None or g is not self.geometry:
             self._mesh_job = None  # (a job for an earlier geometry: its result is not this mesh's)
             return None
