@@ -150,6 +150,33 @@ def test_ferrari_draco_geometry_is_decoded_and_renders():
     assert np.isfinite(img).all() and img[car].mean() > 0.01
 
 
+def test_ferrari_body_shows_its_outward_shell_only_in_the_render_and_the_reference():
+    """The body stores every surface twice, as coincident shells facing opposite ways, under
+    single-sided materials (glTF ``doubleSided`` false: back faces culled). Seen from outside, no
+    pixel may see a triangle from behind (the test's own winding test, ``(eye − v0) · n ≤ 0``) in
+    the renderer's visibility buffer, and the reference's body pixels are lit (an inward twin's hit
+    has its normal away from the eye: black) — half of them were, before the culling."""
+    from warp_sg.groundtruth.reference import reference
+    from warp_sg.renderer.renderer import Renderer
+    from warp_sg.scene.camera import Camera
+
+    scene, _ = render_small(asset("ferrari.glb"), 8, 8)
+    scene.camera = Camera(origin=(3.0, 1.6, 3.6), target=(0.0, 0.5, 0.0), fov=30.0, width=96, height=64, near=0.05,
+                          far=100.0)
+    scene.render.antialias = 1
+    _, tri, g = asset_pixels(scene)
+    body = (tri >= 0) & (g.tri_material[np.maximum(tri, 0)] == g.material_names.index("asset/Body_Color"))
+    assert body.mean() > 0.2
+    seen = Renderer(scene).rasterize(1).tri_id.numpy()[body]
+    T = g.triangles[seen[seen >= 0]].astype(np.int64)
+    V = g.vertices.astype(np.float64)
+    n = np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]])
+    behind = np.einsum("ij,ij->i", np.asarray(scene.camera.origin) - V[T[:, 0]], n) <= 0
+    assert (seen >= 0).mean() > 0.98 and behind.mean() == 0.0
+    ref = reference(scene, spp=8, progress=False)
+    assert (ref[body].max(-1) < 1e-6).mean() < 0.02
+
+
 def test_shaderball_quantized_positions_are_dequantized_and_framed():
     path = asset("ShaderBall.glb")
     assert "KHR_mesh_quantization" in header(path)["extensionsRequired"]

@@ -103,6 +103,9 @@ class ReferenceInputs:
     colors: np.ndarray | None = None  # (V, 4) vertex colours (kd, alpha) and (V, 3) their ks factor
     specular_colors: np.ndarray | None = None
     cutouts: object = None  # warp_sg.shading.cutout.CutoutData of the mesh (alpha cut-outs), or None
+    #: (T,) bool: triangles whose back faces camera rays do not see (single-sided objects,
+    #: ``warp_sg.scene.culling``); None: every triangle double-sided
+    single_sided: np.ndarray | None = None
 
 
 @dataclass
@@ -151,6 +154,31 @@ def _light_table(lights, device) -> LightTable:
     return t
 
 
+def _camera_mesh(inp: ReferenceInputs, v: np.ndarray, tri: np.ndarray, points, device: str):
+    """The mesh the camera rays query: the single-sided triangles the eye sees from behind
+    (:func:`warp_sg.scene.culling.facing_away`) collapsed to a point, so that they are never hit
+    and the face indices stay those of the full mesh; None when no triangle is culled."""
+    if inp.single_sided is None or not np.any(inp.single_sided):
+        return None
+    from warp_sg.scene.culling import facing_away
+
+    eyes = np.asarray(inp.ray_origins, np.float64).reshape(-1, 3)
+    if len(eyes) and np.ptp(eyes, axis=0).max() > 0.0:
+        raise InputError("single-sided triangles need camera rays from one eye (a pinhole camera)",
+                         where="reference inputs")
+    single = np.asarray(inp.single_sided, bool).reshape(-1)
+    if len(single) != len(tri):
+        raise InputError(f"single_sided has {len(single)} flags for {len(tri)} triangles", where="reference inputs")
+    culled = single & facing_away(v, tri, eyes[0] if len(eyes) else np.zeros(3))
+    if not culled.any():
+        return None
+    cam = tri.copy()
+    cam[culled] = tri[culled, :1]  # (i0, i0, i0): no area, never hit
+    indices = wp.array(np.ascontiguousarray(cam.reshape(-1)), dtype=int, device=device)
+    mesh = wp.Mesh(points=points, indices=indices)
+    return mesh
+
+
 class _Prepared:
     def __init__(self, inp: ReferenceInputs, device: str):
         v = np.ascontiguousarray(inp.vertices, np.float32)
@@ -161,6 +189,8 @@ class _Prepared:
         self.mesh = wp.Mesh(points=self.points, indices=self.indices)
         geo = Geometry()
         geo.mesh = self.mesh.id
+        self.camera_mesh = _camera_mesh(inp, v, tri, self.points, device)
+        geo.camera = (self.mesh if self.camera_mesh is None else self.camera_mesh).id
         geo.indices = self.indices
         if inp.normals is not None:
             geo.normals = wp.array(np.ascontiguousarray(inp.normals, np.float32), dtype=wp.vec3, device=device)
@@ -352,7 +382,8 @@ def inputs_from_scene(scene, device="cpu") -> ReferenceInputs:
         lights=list(scene.local_lights), environment=None if env is None else env.radiance(),
         background=scene.render.background, uvs=g.uvs, tangents=g.tangents,
         layers=[scene.materials[n].layers for n in g.material_names], colors=g.colors,
-        specular_colors=g.specular_colors, cutouts=cutout_data(g, scene.materials))
+        specular_colors=g.specular_colors, cutouts=cutout_data(g, scene.materials),
+        single_sided=None if g.one_sided is None else g.one_sided[g.tri_object])
     slots, images = texture_tables(scene, g.material_names)
     if np.any(slots >= 0):
         inp.texture_slots, inp.texture_images = slots, images

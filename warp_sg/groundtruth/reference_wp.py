@@ -44,6 +44,7 @@ class LightTable:
 @wp.struct
 class Geometry:
     mesh: wp.uint64
+    camera: wp.uint64  # what camera rays query: ``mesh`` without the back faces of single-sided objects
     indices: wp.array(dtype=int)  # 3T
     normals: wp.array(dtype=wp.vec3)  # V (shading normals, per vertex)
     has_normals: int
@@ -318,7 +319,7 @@ def _reference_pass(
     tid = wp.tid() + offset
     ro = origins[tid]
     rd = dirs[tid]
-    hit, qt, f, qu, qv, qn = first_opaque_hit(geo.mesh, geo.cut, ro, rd, 1.0e30)
+    hit, qt, f, qu, qv, qn = first_opaque_hit(geo.camera, geo.cut, ro, rd, 1.0e30)
     if not hit:
         bg = wp.vec3(0.0)
         if background == 1:

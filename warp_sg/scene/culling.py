@@ -1,4 +1,16 @@
-"""Back faces a raster may drop: those of the closed objects the camera sees from outside.
+"""Back faces a raster drops: those of single-sided objects, and of the closed objects the camera sees from outside.
+
+**Single-sided objects** (``SceneObject.double_sided`` False: a glTF material with ``doubleSided``
+false, the glTF default; glTF 2.0 §3.9.5 "Double Sided": "back-face culling is enabled") never show
+a back face to camera rays, whatever their closedness, their distance or the near plane: a face is a
+back face when its winding is clockwise as seen from the eye, i.e. ``(eye − v0) · ((v1 − v0) ×
+(v2 − v0)) ≤ 0`` — for a pinhole camera a property of the triangle, not of the pixel. An asset
+that stores a surface twice as two coincident shells facing opposite ways (the shared Ferrari's
+body) thus shows its outward shell only, in the raster (:meth:`BackfaceCulling.flags`) and in the
+Monte-Carlo reference (:func:`facing_away`, whose camera rays query a mesh without those faces).
+Shadow rays and the precompute see both sides.
+
+**Closed objects** are culled as an optimisation only:
 
 A closed, consistently wound, outward-facing mesh (every directed edge of the position-welded
 mesh once and its reverse once, ``warp_sg.core.meshcheck.closed_parts``, and a positive volume:
@@ -13,7 +25,7 @@ where a back face can be seen keep every triangle of the object:
   the object's bounding box must lie entirely at view depth ≥ ``near`` — a conservative test per
   frame (an object partly behind the camera keeps its back faces).
 
-The image is unchanged: the tests compare a culled and an unculled raster.
+The image of a closed object is unchanged: the tests compare a culled and an unculled raster.
 """
 from __future__ import annotations
 
@@ -55,6 +67,8 @@ class BackfaceCulling:
         # positive volume (outward): trimesh's ``is_volume`` on merged vertices, every object at once
         volume = part_volumes(V, T, self.tri_object, n_objects, self.corners.mean(axis=1))
         self.closed = (counts >= 4) & (volume > 0.0) & closed_parts(T, weld_ids(V), self.tri_object, n_objects)
+        one = getattr(geometry, "one_sided", None)
+        self.one_sided = np.zeros(n_objects, bool) if one is None else np.asarray(one, bool)[:n_objects]
 
     def moved(self, geometry, objects=None) -> None:
         """Objects moved rigidly (``objects``: their indices, default all): new bounding boxes from
@@ -76,10 +90,10 @@ class BackfaceCulling:
         self.corners[k] = corners
 
     def objects(self, camera) -> np.ndarray:
-        """(objects,) bool: closed and entirely at view depth ≥ the near plane of ``camera``."""
+        """(objects,) bool: single-sided, or closed and entirely at view depth ≥ the near plane of ``camera``."""
         f = np.asarray(camera.basis()[2], np.float64)
         depth = (self.corners - np.asarray(camera.origin, np.float64)) @ f  # (objects, 8)
-        return self.closed & (depth.min(1) >= float(camera.near))
+        return self.one_sided | (self.closed & (depth.min(1) >= float(camera.near)))
 
     def flags(self, camera):
         """``cull_backfaces`` for ``raster.rasterize``: False when no object may cull, else one
@@ -96,4 +110,14 @@ class BackfaceCulling:
         return flags
 
 
-__all__ = ["BackfaceCulling", "box_corners"]
+def facing_away(vertices, triangles, eye) -> np.ndarray:
+    """(T,) bool: the triangles whose back the point ``eye`` sees, ``(eye − v0) · ((v1 − v0) × (v2 −
+    v0)) ≤ 0`` (edge-on ones included: they cover no pixel), in float64."""
+    V = np.asarray(vertices, np.float64)
+    T = np.asarray(triangles, np.int64).reshape(-1, 3)
+    v0 = V[T[:, 0]]
+    n = np.cross(V[T[:, 1]] - v0, V[T[:, 2]] - v0)
+    return np.einsum("ij,ij->i", np.asarray(eye, np.float64) - v0, n) <= 0.0
+
+
+__all__ = ["BackfaceCulling", "box_corners", "facing_away"]

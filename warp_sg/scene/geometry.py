@@ -54,6 +54,9 @@ class Geometry:
     #: None when no object has vertex colours (``SceneObject.colors``)
     colors: np.ndarray | None = None
     specular_colors: np.ndarray | None = None
+    #: (objects,) bool: the objects whose back faces camera rays never see (``SceneObject.double_sided``
+    #: False: glTF single-sided materials); None when every object is double-sided
+    one_sided: np.ndarray | None = None
 
 
 def vertex_samples(triangles: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
@@ -378,6 +381,7 @@ def build_geometry(scene) -> Geometry:
             kss.append(ks)
         dropped += getattr(m, "dropped", 0)
         base += len(m.vertices)
+    one_sided = np.array([not getattr(ob, "double_sided", True) for ob in scene.objects], bool)
     return Geometry(
         vertices=np.ascontiguousarray(np.concatenate(vs), np.float32),
         normals=np.ascontiguousarray(np.concatenate(ns), np.float32),
@@ -392,6 +396,7 @@ def build_geometry(scene) -> Geometry:
         dropped_triangles=dropped,
         colors=np.ascontiguousarray(np.concatenate(cs), np.float32) if coloured else None,
         specular_colors=np.ascontiguousarray(np.concatenate(kss), np.float32) if coloured else None,
+        one_sided=one_sided if one_sided.any() else None,
     )
 
 

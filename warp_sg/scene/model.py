@@ -91,6 +91,10 @@ class SceneObject:
     #: (4, 4) rigid motion (rotation, translation, uniform scale) applied after ``transform``
     #: (``Renderer.set_object_transform``; None: none)
     motion: np.ndarray | None = None
+    #: False: the back faces (clockwise as seen) are culled for camera rays, whatever the mesh's
+    #: closedness (glTF 2.0 §3.9.5 ``doubleSided`` false, the glTF default; the raster and the
+    #: Monte-Carlo reference: :mod:`warp_sg.scene.culling`); True: both sides are seen
+    double_sided: bool = True
 
     def label(self, index: int) -> str:
         return self.name or (Path(self.mesh).name if self.mesh is not None else self.primitive) or f"objects[{index}]"
@@ -235,7 +239,7 @@ def _expand_assets(objects: list, materials: dict, where: str) -> tuple[list, di
                                  f"by the scene (give the object another name)", where=where)
             mats[key] = Material(name=key, **spec)
         out.extend(SceneObject(material=ob.material or p.material, transform=ob.transform, name=p.name,
-                               dynamic=ob.dynamic, motion=ob.motion,
+                               dynamic=ob.dynamic, motion=ob.motion, double_sided=p.double_sided,
                                vertices=p.vertices, triangles=p.triangles, normals=p.normals, uvs=p.uvs,
                                tangents=p.tangents, colors=p.colors, specular_colors=p.specular_colors)
                    for p in parts)

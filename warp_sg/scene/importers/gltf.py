@@ -79,6 +79,8 @@ class GltfPart:
     material: int | str | None  # file material index (None: glTF default), or the scene's key
     colors: np.ndarray | None = None  # COLOR_0 (V, 4) linear RGBA
     specular_colors: np.ndarray | None = None  # (V, 3) the ks factor of COLOR_0 (gltf_material)
+    #: the material's ``doubleSided`` (glTF 2.0 §3.9.5; default false: back faces culled)
+    double_sided: bool = True
 
 
 @dataclass
@@ -458,7 +460,8 @@ def gltf_object_parts(path, label: str, *, materials: bool = True) -> tuple[list
                 colors, spec = vertex_colour_factors(entry, p.colors)
         parts.append(GltfPart(name=f"{label}/{p.name}", vertices=p.vertices, triangles=p.triangles,
                               normals=p.normals, uvs=uvs, tangents=tangents, material=keys[p.material],
-                              colors=colors, specular_colors=spec))
+                              colors=colors, specular_colors=spec,
+                              double_sided=(entry or {}).get("doubleSided", False) is True))
     for key, spec in specs.items():  # a cut-out with no alpha below its cutoff anywhere is opaque
         lay = spec.get("layers")
         if lay is not None and lay.cut_out and lay.alpha_map is None:
