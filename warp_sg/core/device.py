@@ -5,7 +5,11 @@ compiled kernels are cached by Warp in its kernel cache, so a module is compiled
 """
 from __future__ import annotations
 
+import contextlib
 import functools
+import os
+import sys
+import tempfile
 
 import warp as wp
 
@@ -18,10 +22,47 @@ def quiet_warp() -> None:
     wp.config.quiet = True  # older Warp
 
 
+#: what Warp's native library prints on stderr when it finds no CUDA driver (``wp.init``): said
+#: instead in the one error of a CUDA device asked for (:func:`resolve_device`), never on a CPU run
+_NO_DRIVER = "Could not find or load the NVIDIA CUDA driver"
+_DRIVER_NOTE: list = []  # the driver's line, once wp.init() printed it
+
+
+@contextlib.contextmanager
+def _native_stderr_without(marker: str, seen: list):
+    """Hold back the lines containing ``marker`` that native code writes to file descriptor 2
+    meanwhile (C ``fprintf(stderr)``: no Python hook sees them), appended to ``seen``; every other
+    line is written through afterwards."""
+    try:
+        fd = sys.stderr.fileno()
+    except (AttributeError, OSError, ValueError):
+        fd = 2
+    sys.stderr.flush()
+    saved = os.dup(fd)
+    with tempfile.TemporaryFile() as buf:
+        os.dup2(buf.fileno(), fd)
+        try:
+            yield
+        finally:
+            os.dup2(saved, fd)
+            os.close(saved)
+            buf.seek(0)
+            text = buf.read().decode("utf-8", "replace")
+            kept = []
+            for line in text.splitlines(keepends=True):
+                (seen.append(line.strip()) if marker in line else kept.append(line))
+            if kept:
+                sys.stderr.write("".join(kept))
+                sys.stderr.flush()
+
+
 @functools.lru_cache(maxsize=None)
 def _init() -> None:
+    """``wp.init()`` once, quiet: no banner, and no CUDA-driver warning on a machine without a GPU
+    (a CPU user can do nothing about it; a CUDA device asked for is one error that says it)."""
     quiet_warp()
-    wp.init()
+    with _native_stderr_without(_NO_DRIVER, _DRIVER_NOTE):
+        wp.init()
 
 
 #: The device when neither ``--device`` nor the scene's ``[render] device`` names one.
@@ -65,7 +106,8 @@ def resolve_device(device: str | None = "cpu") -> str:
         return "cpu"
     if name.startswith("cuda"):
         if not cuda_available():
-            raise InputError(f"device '{name}' requested but no CUDA device is available", where="--device")
+            why = " (the NVIDIA CUDA driver could not be loaded)" if _DRIVER_NOTE else ""
+            raise InputError(f"device '{name}' requested but no CUDA device is available{why}", where="--device")
         return "cuda:0" if name == "cuda" else name
     raise InputError(f"unknown device '{name}' (use cpu, cuda, cuda:N or auto)", where="--device")
 

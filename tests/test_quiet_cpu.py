@@ -1,0 +1,74 @@
+"""A successful CPU run prints nothing on stderr but progress bars and our own warnings: no line
+from Warp's native library (its CUDA-driver warning on a machine without a GPU), whether the CPU
+is asked for or chosen by ``auto``; a CUDA device asked for where there is none is one error line.
+
+Each case is a fresh ``python -m warp_sg.tools.cli`` process (Warp initialises once per process,
+and the warning is written by native code straight to file descriptor 2)."""
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+SCENE = """
+[camera]
+origin = [0.0, 1.0, 3.0]
+target = [0.0, 0.3, 0.0]
+fov = 40.0
+width = 8
+height = 6
+
+[[objects]]
+primitive = "sphere"
+center = [0.0, 0.4, 0.0]
+radius = 0.4
+material = "m"
+
+[materials.m]
+model = "lambert"
+kd = [0.6, 0.6, 0.6]
+
+[[lights]]
+type = "point"
+position = [1.0, 2.0, 1.0]
+radius = 0.1
+intensity = [5.0, 5.0, 5.0]
+
+[render]
+shadows = false
+"""
+
+
+def _cli(tmp_path, *argv):
+    scene = tmp_path / "scene.toml"
+    scene.write_text(SCENE)
+    return subprocess.run([sys.executable, "-m", "warp_sg.tools.cli", "render", str(scene), "-o",
+                           str(tmp_path / "o.png"), "--no-progress", *argv],
+                          capture_output=True, text=True, timeout=300)
+
+
+def _has_cuda() -> bool:
+    from warp_sg.core.device import cuda_available
+
+    return cuda_available()
+
+
+@pytest.mark.parametrize("device", ["cpu", "auto"])
+def test_successful_cpu_render_leaves_stderr_empty(tmp_path, device):
+    if device == "auto" and _has_cuda():
+        pytest.skip("auto picks the GPU on this machine (the cpu case still runs)")
+    r = _cli(tmp_path, "--device", device)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "o.png").is_file()
+    assert r.stderr == "", r.stderr
+
+
+def test_cuda_asked_for_without_a_gpu_is_one_error_line(tmp_path):
+    if _has_cuda():
+        pytest.skip("this machine has CUDA")
+    r = _cli(tmp_path, "--device", "cuda")
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("warp-sg: error:") and "cuda" in lines[0].lower(), r.stderr
+    assert not (tmp_path / "o.png").exists()
