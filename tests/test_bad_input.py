@@ -293,6 +293,26 @@ def test_cli_zero_spp_exits_2(tmp_path, capsys):
     assert not (tmp_path / "o.exr").exists()
 
 
+def test_cli_zero_max_depth_exits_2_naming_the_option(tmp_path, capsys):
+    rc, _, err = run_cli(["reference", write_scene(tmp_path), "-o", tmp_path / "o.exr", "--spp", "1",
+                          "--max-depth", "0"], capsys)
+    assert_clean_failure(rc, err, "--max-depth")
+    assert not (tmp_path / "o.exr").exists()
+
+
+def test_cli_reference_max_depth_two_is_the_direct_light_image(tmp_path, capsys):
+    # the CLI's reference at --max-depth 2 is ws.reference's direct-only image, bit for bit
+    import warp_sg as ws
+    from warp_sg.core.image_io import load_image
+
+    scene = write_scene(tmp_path)
+    rc, _, err = run_cli(["reference", scene, "-o", tmp_path / "d.exr", "--spp", "2", "--max-depth", "2",
+                          "--no-progress"], capsys)
+    assert rc == 0, err
+    want = ws.reference(ws.load_scene(scene), spp=2, progress=False, max_depth=2)
+    np.testing.assert_array_equal(load_image(tmp_path / "d.exr"), want)
+
+
 def test_cli_bad_scene_into_a_missing_folder_exits_2_and_creates_no_folder(tmp_path, capsys):
     # missing output folders are created, but only once the image exists
     out = tmp_path / "no" / "such" / "dir" / "o.exr"

@@ -242,7 +242,7 @@ def test_moved_ball_matches_the_reference_per_region(tmp_path):
     r = ws.Renderer(_scene(tmp_path, size=48))
     r.set_object_transform("object", _roll(0.9, 0.3))
     img = r.render()
-    ref = box_reference(r.scene, spp=256, supersample=4)
+    ref = box_reference(r.scene, spp=256, supersample=4, max_depth=2)  # direct light
     e = region_errors(img, ref, scene_regions(r.scene))
     assert e["shadow"]["pixels"] > 5
     assert abs(e["object"]["bias"]) < 0.05
@@ -302,7 +302,7 @@ def test_a_glossy_moving_ball_sees_the_sky_past_the_floors_edge(tmp_path):
                                          render={"ssdf_resolution": 16, "pca_terms": 16, "visibility_budget": 4000}))
     r = ws.Renderer(sc)
     img = r.render()
-    ref = box_reference(r.scene, spp=256, supersample=4)
+    ref = box_reference(r.scene, spp=256, supersample=4, max_depth=2)  # direct light
     regions = scene_regions(r.scene)
     e = region_errors(img, ref, regions)
     assert abs(e["object"]["bias"]) < 0.03

@@ -62,7 +62,7 @@ def _object_bias(folder: Path, material, sky: Path | None, size: int = SIZE):
     if sky is not None:
         path.write_text(path.read_text().replace('file = "sky.exr"', f'file = "{sky}"'))
     img = ws.render(ws.load_scene(path))
-    ref, se = box_reference(ws.load_scene(path), spp=SPP, seed=5, return_stderr=True)
+    ref, se = box_reference(ws.load_scene(path), spp=SPP, seed=5, return_stderr=True, max_depth=2)  # direct light
     e = region_errors(img, ref, scene_regions(ws.load_scene(path)), stderr=se)
     assert np.all(np.isfinite(img)) and np.all(img >= 0)
     return e["object"]

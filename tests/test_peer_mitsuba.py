@@ -1,8 +1,9 @@
 """warp_sg.tools.peer_mitsuba: Mitsuba 3 renders of our scenes agree with our Monte-Carlo reference.
 
-Two independent renderers of the same light transport (direct lighting, exact visibility, Lambert
-BRDF): Mitsuba 3's path tracer (``max_depth=2``) on the converted scene, and our reference
-(``warp_sg.groundtruth.region_error.box_reference``). Agreement within their combined noise checks our reference
+Two independent renderers of the same light transport (exact visibility, Lambert BRDF, paths of
+at most 8 segments — light that bounces between the sphere and the floor — or 2, direct light
+only): Mitsuba 3's path tracer (``path``, the same ``max_depth``) on the converted scene, and our
+reference (``warp_sg.groundtruth.region_error.box_reference``). Agreement within their combined noise checks our reference
 *and* the converter (camera convention, image orientation, envmap axes and rotation, light
 units). Pixels whose footprint straddles a silhouette are left out of the noise test: Mitsuba
 box-filters the pixel area, our reference averages a k×k grid of points, and the two differ there
@@ -43,12 +44,13 @@ def _scene(folder, light):
     return load_scene(write_plain_scene(folder / light, obj="sphere", light=light, material="lambert", size=SIZE))
 
 
-def _compare(scene):
-    """(chi² per degree of freedom off the silhouettes, {region: relative bias, its 1σ})."""
+def _compare(scene, max_depth=None):
+    """(chi² per degree of freedom off the silhouettes, {region: relative bias, its 1σ}) at paths of
+    ``max_depth`` segments (default the full depth of both)."""
     from warp_sg.groundtruth.region_error import box_reference, scene_regions
 
-    ref, ref_se = box_reference(scene, spp=REF_SPP, supersample=4, seed=5, return_stderr=True)
-    mi_img, mi_se = P.mitsuba_mean(P.mitsuba_scene(scene), MI_SPP, MI_BATCHES, seed=17)
+    ref, ref_se = box_reference(scene, spp=REF_SPP, supersample=4, seed=5, return_stderr=True, max_depth=max_depth)
+    mi_img, mi_se = P.mitsuba_mean(P.mitsuba_scene(scene, max_depth=max_depth), MI_SPP, MI_BATCHES, seed=17)
     regions = scene_regions(scene, supersample=8)
     keep = ~regions["silhouette"]
     d2 = ((mi_img.astype(np.float64) - ref) ** 2)[keep]
@@ -70,11 +72,25 @@ def _assert_agree(chi2, bias):
         assert abs(b) < max(0.003, 4 * sigma), f"{name}: Mitsuba/reference − 1 = {b:+.4f} (1σ = {sigma:.4f})"
 
 
-def test_sun_sky_lambert_sphere_and_floor_agree_with_reference_within_noise(plain_folder):
+@pytest.mark.parametrize("max_depth", [None, 2], ids=["full-depth", "direct-only"])
+def test_sun_sky_lambert_sphere_and_floor_agree_with_reference_within_noise(plain_folder, max_depth):
     # environment only; rotated so that the envmap axes *and* the rotation convention are tested
     scene = _scene(plain_folder, "sky")
     scene.environment.rotation = 40.0
-    _assert_agree(*_compare(scene))
+    _assert_agree(*_compare(scene, max_depth))
+
+
+def test_full_depth_reference_adds_the_interreflected_light_mitsuba_adds(plain_folder):
+    # the light that bounces between the sphere and the floor (a few per cent of the image) is
+    # there in both, equally: the full-depth images differ from the direct-only ones by the same
+    from warp_sg.groundtruth.region_error import box_reference
+
+    scene = _scene(plain_folder, "point")
+    ours = [box_reference(scene, spp=256, supersample=4, seed=9, max_depth=d).astype(np.float64).sum() for d in (2, 8)]
+    theirs = [P.mitsuba_mean(P.mitsuba_scene(scene, max_depth=d), 256, 2, seed=3)[0].astype(np.float64).sum()
+              for d in (2, 8)]
+    added, mi_added = ours[1] / ours[0] - 1, theirs[1] / theirs[0] - 1
+    assert added > 0.005 and abs(added - mi_added) < 0.15 * mi_added, (added, mi_added)
 
 
 def test_point_light_lambert_sphere_and_floor_agree_with_reference_within_noise(plain_folder):

@@ -40,7 +40,7 @@ def results(tmp_path_factory):
             obj, light, mat = CASES[name]
             path = write_plain_scene(tmp_path_factory.mktemp(name), obj=obj, light=light, material=mat, size=SIZE)
             img = ws.render(ws.load_scene(path))
-            ref, se = box_reference(ws.load_scene(path), spp=SPP, seed=3, return_stderr=True)
+            ref, se = box_reference(ws.load_scene(path), spp=SPP, seed=3, return_stderr=True, max_depth=2)  # direct light
             regions = scene_regions(ws.load_scene(path))
             # relative MSE net of the reference's own noise (its per-pixel standard error)
             cache[name] = (img, ref, regions, region_errors(img, ref, regions, stderr=se))
@@ -124,7 +124,7 @@ def test_shadows_on_a_two_triangle_floor_match_a_hand_subdivided_floor(tmp_path)
 
     fine = plane(size=(6.0, 6.0), resolution=(64, 64))  # the same 6×6 quad as 64×64 cells, exported
     trimesh.Trimesh(fine.vertices, fine.triangles, process=False).export(hand.parent / "floor.obj")
-    ref = box_reference(ws.load_scene(plain), spp=256, seed=5)
+    ref = box_reference(ws.load_scene(plain), spp=256, seed=5, max_depth=2)  # direct light
     errs = {}
     for name, path in (("plain", plain), ("hand", hand)):
         img = ws.render(ws.load_scene(path))

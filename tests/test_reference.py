@@ -208,7 +208,7 @@ def test_occluder_casts_an_exact_shadow_from_a_delta_light(device):
     o[..., 1] = 0.5  # start rays below the occluder so they see the plane
     inp = ReferenceInputs(v, t, np.zeros(4, int), [Lambert(kd=1.0)], o, d,
                           lights=[Light("directional", direction=[0, 1, 0], radius=0.0, intensity=np.pi)])
-    img = render_reference_inputs(inp, spp=1, device=device, progress=False).image
+    img = render_reference_inputs(inp, spp=1, device=device, progress=False, max_depth=2).image  # direct light
     x = np.abs(o[..., 0])
     z = np.abs(o[..., 2])
     shadowed = (x < 0.5) & (z < 0.5)
@@ -226,8 +226,8 @@ def test_supersampling_box_averages_the_subpixel_grid(device):
     light = [Light("point", position=[0.2, 3.0, 0.1], radius=0.0, intensity=10.0)]
     fine = ReferenceInputs(v, t, np.zeros(4, int), [Lambert(kd=0.8)], o, d, lights=light)
     coarse = ReferenceInputs(v, t, np.zeros(4, int), [Lambert(kd=0.8)], o, d, supersample=2, lights=light)
-    a = render_reference_inputs(fine, spp=1, device=device, progress=False).image
-    b = render_reference_inputs(coarse, spp=1, device=device, progress=False).image
+    a = render_reference_inputs(fine, spp=1, device=device, progress=False, max_depth=2).image  # direct light
+    b = render_reference_inputs(coarse, spp=1, device=device, progress=False, max_depth=2).image
     assert b.shape == (8, 8, 3)
     np.testing.assert_allclose(b, a.reshape(8, 2, 8, 2, 3).mean((1, 3)), rtol=1e-6)
     # the fine image in closed form: kd/π · s cos θ / r² where the segment to the light misses the
@@ -339,3 +339,58 @@ def test_reference_and_sg_renderer_agree_on_a_convex_object(case, cache_dir):
     assert e["rel_mse"] < 0.06 and e["psnr_db"] > 27
     dark = ref.sum(-1) == 0  # background or unlit: the renderer shows at most SG tails there
     assert np.all(img.sum(-1)[dark] < 0.02 * img.sum(-1).max())
+
+
+# ------------------------------------------------------------------------- paths (max_depth)
+def _furnace_inputs(albedo: float, emission: float, n: int = 6):
+    """Camera rays from the centre of a closed, faceted sphere whose inside emits ``emission`` and
+    reflects with Lambert albedo ``albedo`` (no lights, no environment): every point sees the same
+    radiance, ``Le Σ_{k < depth − 1} ρ^k`` for paths of at most ``depth`` segments, ``Le/(1 − ρ)``
+    without a cap (a geometric series; the radiosity of an enclosure)."""
+    from warp_sg.scene.material_layers import MaterialLayers
+
+    v, t, _ = _uv_sphere(12, 24)
+    rng = np.random.default_rng(0)
+    d = rng.normal(size=(n, n, 3))
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    org = np.zeros_like(d)
+    # no shading normals: the faces' own (two-sided), so every cosine sample stays in the enclosure
+    return ReferenceInputs(v, t, np.zeros(len(t), int), [Lambert(kd=albedo)], org, d,
+                           layers=[MaterialLayers(emission=(emission,) * 3)])
+
+
+@pytest.mark.parametrize("depth", [1, 2, 3, 5, 8, -1])
+def test_closed_emitting_sphere_gives_the_geometric_series_of_its_albedo(device, depth):
+    rho, le = 0.6, 1.5
+    res = render_reference_inputs(_furnace_inputs(rho, le), spp=256, device=device, progress=False, max_depth=depth,
+                                  seed=3)
+    exact = le / (1 - rho) if depth < 0 else le * sum(rho ** k for k in range(max(depth - 1, 1)))
+    m, se = mean_and_se(res)
+    # below the Russian roulette's depth every path is exact: no variance at all
+    assert np.all(np.abs(m - exact) < 4 * se + 1e-4 * exact), (depth, m, exact, se)
+
+
+def test_direct_light_only_is_max_depth_two_and_more_depth_adds_light(device):
+    # the plane and the square above it light each other once light bounces: the shadow gets the
+    # light the plane sends to the square's underside and back (two bounces)
+    occ = np.array([[-0.5, 1, -0.5], [0.5, 1, -0.5], [0.5, 1, 0.5], [-0.5, 1, 0.5]], float)
+    v = np.concatenate([PLANE_V, occ])
+    t = np.concatenate([PLANE_T, PLANE_T + 4])
+    o, d = ortho_rays(8, extent=1.0)
+    o[..., 1] = 0.5
+    inp = ReferenceInputs(v, t, np.zeros(4, int), [Lambert(kd=0.8)], o, d,
+                          lights=[Light("directional", direction=[0.3, 1, 0.2] / np.linalg.norm([0.3, 1, 0.2]),
+                                        radius=0.0, intensity=np.pi)])
+    direct = render_reference_inputs(inp, spp=16, device=device, progress=False, max_depth=2, seed=1).image
+    full = render_reference_inputs(inp, spp=16, device=device, progress=False, seed=1).image
+    assert np.all(full >= direct - 1e-6) and full.mean() > direct.mean() * 1.01
+    shadowed = direct[..., 0] == 0
+    assert shadowed.sum() >= 4 and full[shadowed].mean() > 0.01 * full.mean()
+
+
+@pytest.mark.parametrize("bad", [0, -2, 1.5, "x"])
+def test_bad_max_depth_is_an_input_error(bad):
+    from warp_sg.core.errors import InputError
+
+    with pytest.raises(InputError, match="max_depth"):
+        render_reference_inputs(plane_inputs(Lambert()), spp=1, progress=False, max_depth=bad)

@@ -267,8 +267,9 @@ def sample_chunks(spp: int, chunk_spp: int = 64):
     return chunks
 
 
-def _reference_chunk(inputs, token, start, stop, seed, device, version):
-    """Task: float64 sums Σ L and Σ L² per sub-pixel over samples ``[start, stop)``."""
+def _reference_chunk(inputs, token, start, stop, seed, device, version, max_depth):
+    """Task: float64 sums Σ L and Σ L² per sub-pixel over samples ``[start, stop)`` (paths of at
+    most ``max_depth`` segments)."""
     ensure_version(version)
     from warp_sg.groundtruth.reference import _Prepared
 
@@ -276,21 +277,25 @@ def _reference_chunk(inputs, token, start, stop, seed, device, version):
         acc = np.zeros((prep.n, 3))
         acc2 = np.zeros((prep.n, 3))
         for off, n in local_passes(start, stop):
-            s, s2 = prep.launch_pass(n, int(seed), off, 1)
+            s, s2 = prep.launch_pass(n, int(seed), off, 1, max_depth)
             acc += s
             acc2 += s2
         return acc, acc2
 
 
 def render_reference_distributed(scene, spp: int = 256, cluster=None, *, device=None, seed: int = 0,
-                                 progress: bool = True, chunk_spp: int = 64, retries: int = RETRIES):
+                                 progress: bool = True, chunk_spp: int = 64, retries: int = RETRIES,
+                                 max_depth: int | None = None):
     """:func:`warp_sg.groundtruth.reference.render_reference` with its samples split across a Dask cluster
-    (equal to the local result bit for bit; see the module docstring)."""
+    (equal to the local result bit for bit; see the module docstring). ``max_depth``: the paths'
+    most segments (default the reference's full depth; 2: direct light only)."""
     import time
 
     from warp_sg.core.device import resolve_device
-    from warp_sg.groundtruth.reference import ReferenceInputs, ReferenceResult, _resolve, inputs_from_scene
+    from warp_sg.groundtruth.reference import (DEFAULT_MAX_DEPTH, ReferenceInputs, ReferenceResult, _resolve,
+                                               check_max_depth, inputs_from_scene)
 
+    max_depth = check_max_depth(DEFAULT_MAX_DEPTH if max_depth is None else max_depth)
     spp = int(spp)
     if spp < 1:
         raise InputError(f"spp must be >= 1, got {spp}", where="--spp")
@@ -307,7 +312,7 @@ def render_reference_distributed(scene, spp: int = 256, cluster=None, *, device=
         inp_f = client.scatter([inp], broadcast=True)[0]
         token = uuid.uuid4().hex
         version = project_version()
-        futs = [client.submit(_reference_chunk, inp_f, token, s, e, int(seed), device, version, retries=retries,
+        futs = [client.submit(_reference_chunk, inp_f, token, s, e, int(seed), device, version, max_depth, retries=retries,
                               key=f"warp-sg-reference-{token}-{s}") for s, e in chunks]
         bar = _bar(len(futs), "reference", "chunk", progress)
         try:

@@ -51,7 +51,8 @@ from warp_sg.core.device import add_device_argument, device_for, resolve_device
 from warp_sg.core.errors import InputError
 from warp_sg.scene.lights import DirectionalLight, PointLight
 from warp_sg.scene.lights import LIGHT_DIRECTIONAL, LIGHT_POINT
-from warp_sg.groundtruth.reference_wp import Geometry, LightTable, _reference_pass
+from warp_sg.groundtruth.path_wp import DEFAULT_MAX_DEPTH, _reference_pass
+from warp_sg.groundtruth.reference_wp import Geometry, LightTable
 from warp_sg.shading.cutout import no_cutouts
 from warp_sg.shading.surface import N_SLOTS, MaterialTextures
 from warp_sg.shading.surface_layers import coat_models, layer_arrays
@@ -256,9 +257,9 @@ class _Prepared:
             self.bg_image = wp.zeros(1, dtype=wp.vec3, device=device)
         wp.load_module(_reference_pass.module, device=device)  # compile once, before any thread launches
 
-    def launch_pass(self, spp: int, seed: int, sample_offset: int, threads: int):
+    def launch_pass(self, spp: int, seed: int, sample_offset: int, threads: int, max_depth: int = DEFAULT_MAX_DEPTH):
         args = [self.geo, self.materials, self.tex, self.layers, self.env, self.lights, self.origins, self.dirs, self.background,
-                self.bg_image, spp, seed, sample_offset]
+                self.bg_image, spp, seed, sample_offset, int(max_depth)]
         n = self.n
         if self.device == "cpu" and threads > 1 and n >= 2 * threads:
             # a CPU launch runs on one core: disjoint ranges from a thread pool scale (docs/raster.md "Performance")
@@ -296,8 +297,13 @@ def render_reference_inputs(
     pass_spp: int | None = None,
     callback: Callable | None = None,
     threads: int | None = None,
+    max_depth: int = DEFAULT_MAX_DEPTH,
 ) -> ReferenceResult:
     """Progressive Monte-Carlo rendering of :class:`ReferenceInputs`.
+
+    ``max_depth``: the most segments of a path (:func:`check_max_depth`; Mitsuba's count: 2 is
+    direct light only, the paper's transport; the default :data:`DEFAULT_MAX_DEPTH` a full path
+    tracer; −1 no cap).
 
     ``callback(spp_done, seconds, image, stderr)`` is called after every pass (for error-vs-spp
     curves); passes grow geometrically from ``pass_spp`` (default: 1, 1, 2, 4, ... capped at 64
@@ -306,6 +312,7 @@ def render_reference_inputs(
     spp = int(spp)
     if spp < 1:
         raise InputError(f"spp must be >= 1, got {spp}", where="--spp")
+    max_depth = check_max_depth(max_depth)
     device = resolve_device(device)
     k = int(inp.supersample)
     t0 = time.perf_counter()
@@ -331,7 +338,7 @@ def render_reference_inputs(
                 n = min(int(pass_spp), spp - done)
             else:
                 n = min(max(done, 1), 64, spp - done)
-            s, s2 = prep.launch_pass(n, int(seed), done, threads)
+            s, s2 = prep.launch_pass(n, int(seed), done, threads, max_depth)
             acc += s
             acc2 += s2
             done += n
@@ -395,20 +402,35 @@ def inputs_from_scene(scene, device="cpu") -> ReferenceInputs:
     return inp
 
 
+def check_max_depth(max_depth, where: str = "max_depth") -> int:
+    """``max_depth`` as an int: −1 (no cap) or ≥ 1 (1: emission and background only, 2: direct light
+    only, 2 + n: n indirect bounces); anything else is an :class:`InputError`."""
+    try:
+        d = int(max_depth)
+    except (TypeError, ValueError):
+        raise InputError(f"must be an integer (-1 or >= 1), got {max_depth!r}", where=where) from None
+    if d != max_depth or not (d == -1 or d >= 1):
+        raise InputError(f"must be -1 (no cap) or >= 1 (2: direct light only), got {max_depth!r}", where=where)
+    return d
+
+
 def render_reference(scene, spp=256, device="cpu", progress=True, seed=0, pass_spp=None, callback=None,
-                     threads=None) -> ReferenceResult:
+                     threads=None, max_depth: int = DEFAULT_MAX_DEPTH) -> ReferenceResult:
     """:func:`reference` returning a :class:`ReferenceResult` (image, stderr, timings)."""
+    max_depth = check_max_depth(max_depth)
     inp = scene if isinstance(scene, ReferenceInputs) else inputs_from_scene(scene, device)
-    return render_reference_inputs(inp, spp, device, progress, seed, pass_spp, callback, threads)
+    return render_reference_inputs(inp, spp, device, progress, seed, pass_spp, callback, threads, max_depth)
 
 
 def reference(scene, spp: int = 256, device="cpu", progress: bool = True, seed: int = 0,
-              return_stderr: bool = False, pass_spp: int | None = None):
+              return_stderr: bool = False, pass_spp: int | None = None, max_depth: int = DEFAULT_MAX_DEPTH):
     """Monte-Carlo reference image (H, W, 3) float32 of ``scene`` (a Scene or ReferenceInputs).
 
     ``return_stderr=True`` returns ``(image, stderr)`` with the per-pixel standard error.
+    ``max_depth``: the most segments of a path (default :data:`DEFAULT_MAX_DEPTH`, a full path
+    tracer; 2: direct light only, the paper's transport; −1: no cap).
     """
-    res = render_reference(scene, spp, device, progress, seed, pass_spp)
+    res = render_reference(scene, spp, device, progress, seed, pass_spp, max_depth=max_depth)
     return (res.image, res.stderr) if return_stderr else res.image
 
 
@@ -421,6 +443,9 @@ def add_cli_arguments(p) -> None:
                    help="output image: .exr (linear HDR) or .png (sRGB); missing folders are created")
     p.add_argument("--spp", type=int, default=256, help="samples per (sub)pixel (default 256)")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--max-depth", type=int, default=DEFAULT_MAX_DEPTH, metavar="N",
+                   help=f"the most segments of a path (default {DEFAULT_MAX_DEPTH}: a full path tracer with Russian "
+                        "roulette; 2: direct light only, the paper's transport; -1: no cap)")
     add_device_argument(p)
     p.add_argument("--stderr", default=None, help="also write the per-pixel standard error image here")
     p.add_argument("--transform", action="append", default=[], metavar="OBJECT=M00,...,M33",
@@ -436,6 +461,7 @@ def cli_main(args) -> int:
 
     if args.spp < 1:
         raise InputError(f"must be >= 1, got {args.spp}", where="--spp")
+    check_max_depth(args.max_depth, "--max-depth")
     # fail before any work; folders are created only once the images exist (never a partial file)
     out = check_output_path(args.output, create_parents=True)
     err_out = check_output_path(args.stderr, create_parents=True) if args.stderr else None
@@ -445,7 +471,7 @@ def cli_main(args) -> int:
 
         scene = scene_with_transforms(scene, dict(parse_transform_argument(a) for a in args.transform))
     res = render_reference(scene, spp=args.spp, device=device_for(args.device, scene), progress=not args.no_progress,
-                           seed=args.seed)
+                           seed=args.seed, max_depth=args.max_depth)
     make_parents(out)
     save_image(out, res.image)
     if err_out is not None:
@@ -461,6 +487,8 @@ __all__ = [
     "ReferenceInputs",
     "ReferenceResult",
     "Light",
+    "check_max_depth",
+    "DEFAULT_MAX_DEPTH",
     "inputs_from_scene",
     "add_cli_arguments",
     "cli_main",

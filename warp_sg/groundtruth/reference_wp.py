@@ -1,8 +1,9 @@
 r"""Kernel side of the Monte-Carlo reference (:mod:`warp_sg.groundtruth.reference`, which documents the light
-transport and re-exports these names): the :class:`LightTable` and :class:`Geometry` structs, the
-per-sample MIS estimator ``_shade_sample`` (light sampling + BRDF sampling, power heuristic, exact
-``wp.Mesh`` shadow rays) and the ``_reference_pass`` kernel (primary ray, surface, ``spp``
-samples per pixel).
+transport and re-exports these names): the :class:`LightTable` and :class:`Geometry` structs and
+the estimator of one path vertex, ``_shade_sample`` (light sampling + BRDF sampling, power
+heuristic, exact ``wp.Mesh`` shadow rays; the BRDF sample's hit is where the path goes on, a
+:class:`PathStep`). The surface at a hit and the pass kernel that follows paths are
+:mod:`warp_sg.groundtruth.path_wp`'s.
 
 A surface point (:class:`SurfacePoint`) carries the material's layers as the renderer shades them
 (:mod:`warp_sg.shading.surface_layers`): with a clear coat the reflectance times cosine towards a world
@@ -19,8 +20,6 @@ from warp_sg.brdf.kernel import material_wp as M  # contract: Material, brdf_eva
 from warp_sg.brdf.models.ggx import GGX
 from warp_sg.shading.cutout import Cutouts, blocked, first_opaque_hit
 from warp_sg.numeric.onb import local_to_world, world_to_local
-from warp_sg.shading.surface import MaterialTextures, apply_shading_maps, tangent_in_plane, textured_material
-from warp_sg.shading.surface_layers import Layers, coat_at, coat_attenuation, coat_frame, emission_at, occlusion_at, vertex_coloured
 
 from warp_sg.scene.lights import LIGHT_DIRECTIONAL, LIGHT_POINT  # noqa: E402  (the light kinds' one source)
 #: the coat is a GGX lobe (warp_sg.scene.material_layers): its functions specialised to that model
@@ -61,7 +60,9 @@ class SurfacePoint:
     """A shading point: the base material in its frame (t, b, n) with the local view ``o``, and the
     coat (``has_coat``; material ``coat``, frame (tc, bc, nc), view ``oc``) with the attenuation
     ``atten`` = a(o); ``occ``: the occlusion of the environment's diffuse term; ``pd``: the
-    probability of a cosine sample among the base's; ``pc``: of a coat sample."""
+    probability of a cosine sample among the base's; ``pc``: of a coat sample; ``p``: the point,
+    ``ng``: its geometric normal on the shading normal's side (ray offsets); ``emit``: the
+    radiance it emits towards the view (times a(o))."""
 
     mat: M.Material
     coat: M.Material
@@ -78,6 +79,27 @@ class SurfacePoint:
     occ: float
     pd: float
     pc: float
+    p: wp.vec3
+    ng: wp.vec3
+    emit: wp.vec3
+
+
+@wp.struct
+class PathStep:
+    """What one vertex of a path adds (``L``, its light sample and its BRDF sample's light, MIS
+    weighted) and where the path goes on: the BRDF sample's direction ``d``, its weight ``fw =
+    f cos/pdf`` and its nearest opaque hit (``hit``; ``face``, ``u``, ``v`` Warp's barycentrics,
+    ``pos`` the point, ``n`` the triangle's geometric normal)."""
+
+    L: wp.vec3
+    d: wp.vec3
+    fw: wp.vec3
+    hit: int
+    face: int
+    u: float
+    v: float
+    pos: wp.vec3
+    n: wp.vec3
 
 
 @wp.func
@@ -91,17 +113,6 @@ def _occluded(geo: Geometry, p: wp.vec3, ng: wp.vec3, d: wp.vec3, max_t: float) 
     if s <= 0.0:
         return True
     return blocked(geo.mesh, geo.cut, p + ng * geo.eps, d, max_t)
-
-
-@wp.func
-def _trace(geo: Geometry, p: wp.vec3, ng: wp.vec3, d: wp.vec3) -> float:
-    """Distance to the first (opaque) mesh hit along ``d`` (1e30 if none; 0 if below the surface)."""
-    if wp.dot(d, ng) <= 0.0:
-        return 0.0
-    hit, t, face, u, v, nrm = first_opaque_hit(geo.mesh, geo.cut, p + ng * geo.eps, d, 1.0e30)
-    if hit:
-        return t
-    return 1.0e30
 
 
 @wp.func
@@ -191,9 +202,15 @@ def _shade_sample(
     p: wp.vec3,
     ng: wp.vec3,
     state: wp.uint32,
-) -> wp.vec3:
-    """One MIS sample of the reflected radiance at ``p`` towards the view of ``sp``."""
+) -> PathStep:
+    """One MIS sample of the light reflected at ``p`` towards the view of ``sp`` from the lights
+    and the environment (direct light), and the BRDF sample a path continues with
+    (:class:`PathStep`; ``hit`` 0 where the sample leaves the scene or has no weight)."""
     L = wp.vec3(0.0)
+    step = PathStep()
+    step.hit = 0
+    step.face = -1
+    step.fw = wp.vec3(0.0)
 
     # ---- light sampling -------------------------------------------------------------------
     if env.present != 0:
@@ -262,12 +279,25 @@ def _shade_sample(
     u1 = wp.randf(state)
     u2 = wp.randf(state)
     d = _sample(sp, us, u1, u2)
+    step.d = d
     pb = _pdf(sp, d)
     if pb > 0.0:
         fb, cb, fk, ck = _fcos(sp, d, 1.0)
         if _positive(fb) or _positive(fk):
             fw = fb * (cb / pb) + fk * (ck / pb)
-            tm = _trace(geo, p, ng, d)
+            tm = float(0.0)  # (below the geometric surface: blocked by the surface itself)
+            if wp.dot(d, ng) > 0.0:
+                hit, th, face, hu, hv, hn = first_opaque_hit(geo.mesh, geo.cut, p + ng * geo.eps, d, 1.0e30)
+                tm = 1.0e30
+                if hit:
+                    tm = th
+                    step.hit = 1
+                    step.face = face
+                    step.u = hu
+                    step.v = hv
+                    step.fw = fw
+                    step.pos = p + ng * geo.eps + d * th
+                    step.n = hn
             if tm > 0.0:
                 if env.present != 0 and tm >= 1.0e30:
                     w = S.power_heuristic(pb, S.env_pdf(env, d))
@@ -294,109 +324,8 @@ def _shade_sample(
                             if tm >= 1.0e30 and S.in_cone(lights.pos[k], omc, d):
                                 w = S.power_heuristic(pb, S.cone_pdf(omc))
                                 L += wp.cw_mul(lights.radiance[k], fw) * w
-    return L
+    step.L = L
+    return step
 
 
-@wp.kernel(enable_backward=False)  # forward only (no gradients of the reference)
-def _reference_pass(
-    geo: Geometry,
-    materials: wp.array(dtype=M.Material),
-    tex: MaterialTextures,
-    lay: Layers,
-    env: S.EnvSampler,
-    lights: LightTable,
-    origins: wp.array(dtype=wp.vec3),
-    dirs: wp.array(dtype=wp.vec3),
-    background: int,
-    bg_image: wp.array(dtype=wp.vec3),
-    spp: int,
-    seed: int,
-    sample_offset: int,
-    offset: int,
-    out_sum: wp.array(dtype=wp.vec3),
-    out_sq: wp.array(dtype=wp.vec3),
-):
-    tid = wp.tid() + offset
-    ro = origins[tid]
-    rd = dirs[tid]
-    hit, qt, f, qu, qv, qn = first_opaque_hit(geo.camera, geo.cut, ro, rd, 1.0e30)
-    if not hit:
-        bg = wp.vec3(0.0)
-        if background == 1:
-            bg = S.env_radiance(env, rd)
-        elif background == 2:
-            bg = bg_image[tid]
-        out_sum[tid] = bg * float(spp)
-        out_sq[tid] = wp.cw_mul(bg, bg) * float(spp)
-        return
-    i0 = geo.indices[3 * f]
-    i1 = geo.indices[3 * f + 1]
-    i2 = geo.indices[3 * f + 2]
-    # Warp: position = u v0 + v v1 + (1 - u - v) v2
-    b0 = qu
-    b1 = qv
-    b2 = 1.0 - qu - qv
-    p = ro + rd * qt
-    ng = wp.normalize(qn)  # geometric normal (winding order)
-    n = ng
-    if geo.has_normals != 0:
-        ns = b0 * geo.normals[i0] + b1 * geo.normals[i1] + b2 * geo.normals[i2]
-        ln = wp.length(ns)
-        if ln > 0.0:
-            n = ns / ln
-    elif wp.dot(ng, rd) > 0.0:
-        n = -ng  # no shading normals: two-sided
-    if wp.dot(ng, n) < 0.0:
-        ng = -ng  # the geometric normal on the side of the shading normal (shadow-ray offsets)
-    mi = geo.tri_material[f]
-    mat = materials[mi]
-    # texels and shading frame exactly as the renderer (warp_sg.shading.surface); all-(−1) slots are a no-op
-    uv = b0 * geo.uvs[i0] + b1 * geo.uvs[i1] + b2 * geo.uvs[i2]
-    mat = textured_material(mat, tex, mi, uv)
-    mat = vertex_coloured(mat, lay, i0, i1, i2, b0, b1, b2)
-    tg = wp.vec3(0.0)
-    if geo.has_tangents != 0:
-        tg = b0 * geo.tangents[i0] + b1 * geo.tangents[i1] + b2 * geo.tangents[i2]
-    t0 = tangent_in_plane(tg, n)
-    ns_, t = apply_shading_maps(tex, mi, uv, n, t0)
-    sp = SurfacePoint()
-    sp.mat = mat
-    sp.n = ns_
-    sp.t = t
-    sp.b = wp.cross(ns_, t)
-    sp.o = world_to_local(-rd, sp.t, sp.b, sp.n)
-    sp.pd = _mix_prob(mat)
-    has_coat, cm = coat_at(materials, lay, tex, mi, uv)
-    sp.coat = cm
-    sp.has_coat = 0
-    sp.atten = 1.0
-    sp.pc = 0.0
-    sp.nc = sp.n
-    sp.tc = sp.t
-    sp.bc = sp.b
-    sp.oc = sp.o
-    if has_coat:
-        nc, tc = coat_frame(tex, mi, uv, n, t0)
-        sp.has_coat = 1
-        sp.nc = nc
-        sp.tc = tc
-        sp.bc = wp.cross(nc, tc)
-        sp.oc = world_to_local(-rd, sp.tc, sp.bc, sp.nc)
-        sp.atten = coat_attenuation(cm.ks[0], sp.oc[2])
-        sp.pc = 0.5 * wp.clamp(cm.ks[0], 0.0, 1.0)
-    sp.occ = occlusion_at(tex, mi, uv)
-    emit = emission_at(lay, tex, mi, uv) * sp.atten
-    acc = wp.vec3(0.0)
-    acc2 = wp.vec3(0.0)
-    for si in range(spp):
-        # one RNG stream per (sample index, pixel); wp.funcs get their own copy of the state
-        st0 = wp.rand_init(seed, sample_offset + si)
-        state = wp.rand_init(wp.randi(st0), tid)
-        L = _shade_sample(geo, sp, env, lights, p, ng, state) + emit
-        acc += L
-        acc2 += wp.cw_mul(L, L)
-    out_sum[tid] = acc
-    out_sq[tid] = acc2
-
-
-__all__ = ["LightTable", "Geometry", "SurfacePoint", "LIGHT_POINT", "LIGHT_DIRECTIONAL"]
+__all__ = ["LightTable", "Geometry", "SurfacePoint", "PathStep", "LIGHT_POINT", "LIGHT_DIRECTIONAL"]

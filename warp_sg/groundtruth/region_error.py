@@ -113,19 +113,23 @@ def scene_regions(scene, supersample: int = 4, device: str = "cpu", floor=("floo
 
 
 def box_reference(scene, spp: int = 1024, supersample: int = 8, device: str = "cpu", seed: int = 0,
-                  return_stderr: bool = False):
+                  return_stderr: bool = False, max_depth: int | None = None):
     """The Monte-Carlo reference box-filtered over each pixel: ``supersample``² point-sampled
     sub-pixels (``spp / supersample²`` samples each), averaged — what an antialiased image is
     compared with (the renderer's own supersampling does not matter to it). With
-    ``return_stderr``: ``(image, per-pixel standard error)``."""
+    ``return_stderr``: ``(image, per-pixel standard error)``. ``max_depth``: the paths' most
+    segments (:func:`warp_sg.groundtruth.reference.reference`; default a full path tracer, 2:
+    direct light only)."""
     import copy
 
-    from warp_sg.groundtruth.reference import reference
+    from warp_sg.groundtruth.reference import DEFAULT_MAX_DEPTH, reference
+
+    max_depth = DEFAULT_MAX_DEPTH if max_depth is None else max_depth
 
     sc = copy.deepcopy(scene)
     sc.render.supersampling = int(supersample)
     return reference(sc, spp=max(1, int(round(spp / supersample ** 2))), device=device, progress=False, seed=seed,
-                     return_stderr=return_stderr)
+                     return_stderr=return_stderr, max_depth=max_depth)
 
 
 def image_errors(img, ref) -> dict:

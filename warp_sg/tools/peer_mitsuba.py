@@ -6,8 +6,10 @@ LLVM 14/15 with "Cannot select fminimum"; point ``DRJIT_LIBLLVM_PATH`` at the li
 does not find it). :func:`mitsuba_status` says whether it works and, if not, why, in one line.
 
 What the conversion (:func:`mitsuba_scene`) renders is the light transport of our Monte-Carlo
-reference (:mod:`warp_sg.groundtruth.reference`): direct lighting only (``path`` integrator, ``max_depth=2``),
-camera rays through a box-filtered pixel, environment visible in the background.
+reference (:mod:`warp_sg.groundtruth.reference`): Mitsuba's ``path`` integrator with the reference's
+``max_depth`` (default its full path tracer's, ``warp_sg.groundtruth.path_wp.DEFAULT_MAX_DEPTH``;
+``max_depth=2``: direct lighting only), camera rays through a box-filtered pixel, environment
+visible in the background.
 
 * **Geometry** — ``Scene.geometry()`` (the input geometry, as the reference ray-casts it), one
   ``mi.Mesh`` per material with our per-vertex shading normals (Mitsuba interpolates and
@@ -272,13 +274,18 @@ def envmap_dict(light, device: str = "cpu") -> dict:
             "to_world": mi.ScalarTransform4f(m.tolist())}
 
 
-def mitsuba_scene_dict(scene, spp: int = 1, device: str = "cpu", approximate: bool = False) -> dict:
+def mitsuba_scene_dict(scene, spp: int = 1, device: str = "cpu", approximate: bool = False,
+                       max_depth: int | None = None) -> dict:
     """The Mitsuba scene dict of ``scene`` (module docstring); raises :class:`NotExpressible`.
-    ``approximate``: GGX conductors too (:func:`_check_material`)."""
+    ``approximate``: GGX conductors too (:func:`_check_material`). ``max_depth``: the ``path``
+    integrator's (default our reference's full depth; 2: direct light only)."""
+    from warp_sg.groundtruth.path_wp import DEFAULT_MAX_DEPTH
+
     mi = _mi(device)
+    max_depth = DEFAULT_MAX_DEPTH if max_depth is None else int(max_depth)
     cam = scene.camera
     d = {"type": "scene",
-         "integrator": {"type": "path", "max_depth": 2, "hide_emitters": not scene.render.background},
+         "integrator": {"type": "path", "max_depth": max_depth, "hide_emitters": not scene.render.background},
          "sensor": {"type": "perspective", "fov": float(cam.fov), "fov_axis": "y",
                     "near_clip": float(cam.near), "far_clip": float(cam.far),
                     "to_world": mi.ScalarTransform4f().look_at(origin=list(cam.origin), target=list(cam.target),
@@ -291,10 +298,10 @@ def mitsuba_scene_dict(scene, spp: int = 1, device: str = "cpu", approximate: bo
     return d
 
 
-def mitsuba_scene(scene, device: str = "cpu", approximate: bool = False):
+def mitsuba_scene(scene, device: str = "cpu", approximate: bool = False, max_depth: int | None = None):
     """``mi.load_dict(mitsuba_scene_dict(scene))`` (the loaded scene: BVH and envmap sampling built)."""
     mi = _mi(device)
-    return mi.load_dict(mitsuba_scene_dict(scene, device=device, approximate=approximate))
+    return mi.load_dict(mitsuba_scene_dict(scene, device=device, approximate=approximate, max_depth=max_depth))
 
 
 def mitsuba_render(mscene, spp: int, seed: int = 0, device: str = "cpu") -> tuple[np.ndarray, float]:
@@ -316,14 +323,15 @@ def mitsuba_mean(mscene, spp: int, batches: int = 4, seed: int = 0, device: str 
 
 def mitsuba_curve(scene, truth: np.ndarray, spps=CURVE_SPP, device: str = "cpu", seed: int = 1, repeats: int = 3,
                   stop_below: float | None = None, max_spp: int = 4096,
-                  progress: bool = False) -> list[tuple[int, float, float]]:
+                  progress: bool = False, max_depth: int | None = None) -> list[tuple[int, float, float]]:
     """Mitsuba's error-vs-time curve ``[(spp, rel_mse against truth, seconds)]``: each sample
     count rendered once untimed (warm-up), then ``repeats`` times with other seeds; the error is
     the mean of their relative MSEs, the time their median. With ``stop_below``: powers of two
-    from 1 until the error is at most ``stop_below`` (or ``max_spp``) instead of ``spps``."""
+    from 1 until the error is at most ``stop_below`` (or ``max_spp``) instead of ``spps``.
+    ``max_depth``: the path integrator's (:func:`mitsuba_scene_dict`)."""
     from warp_sg.groundtruth.region_error import image_errors
 
-    mscene = mitsuba_scene(scene, device)
+    mscene = mitsuba_scene(scene, device, max_depth=max_depth)
     if stop_below is not None:
         spps = [2 ** i for i in range(int(math.log2(max(1, max_spp))) + 1)]
     spps = [int(s) for s in spps]
