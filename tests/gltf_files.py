@@ -118,6 +118,28 @@ class GltfWriter:
         self.h["scenes"][0]["nodes"].append(len(self.h["nodes"]) - 1)
         return len(self.h["nodes"]) - 1
 
+    def gltf(self, path, uri: str | None = None):
+        """A ``.gltf`` (JSON) whose buffer is a base64 ``data:`` URI, or the file ``uri`` (a URI:
+        ``%20`` for a space) beside it."""
+        import base64
+
+        h = dict(self.h)
+        data = bytes(self.bin)
+        if uri is None:
+            buf = {"byteLength": len(data), "uri": "data:application/octet-stream;base64," + base64.b64encode(data).decode()}
+        else:
+            from urllib.parse import unquote
+
+            (path.parent / unquote(uri)).write_bytes(data)
+            buf = {"byteLength": len(data), "uri": uri}
+        h["buffers"] = [buf]
+        if self.used:
+            h["extensionsUsed"] = sorted(self.used)
+        if "extensionsRequired" in h:
+            h["extensionsRequired"] = sorted(set(h["extensionsRequired"]))
+        path.write_text(json.dumps(h))
+        return path
+
     def glb(self, path):
         h = dict(self.h)
         h["buffers"] = [{"byteLength": len(self.bin)}]

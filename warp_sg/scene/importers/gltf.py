@@ -7,27 +7,30 @@ default scene, each placed by its node's world matrix (the product of the scene-
 (:func:`gltf_object_parts`) and adds the file's materials to the scene as
 ``"<object label>/<material name>"``; a ``material`` given for the object overrides the file's.
 
-Files are read by trimesh (``trimesh.load(..., force="scene")``: accessors, images, the node
-graph). The JSON header is read first, for what trimesh drops: exact float factors (trimesh stores
-``baseColorFactor`` as 8-bit), ``normalTexture.scale``, ``TANGENT`` attributes (renamed
-``_TANGENT`` so that trimesh keeps them as a vertex attribute) and the extension lists.
+Files are read against the specification first — the JSON's references and fields
+(:mod:`~warp_sg.scene.importers.gltf_checks`, :mod:`~warp_sg.scene.importers.gltf_rules`), the buffers and
+accessors decoded with numpy (:mod:`~warp_sg.scene.importers.gltf_data`) — and then by trimesh
+(``trimesh.load(..., force="scene")``: the node graph, Draco, images) from the self-contained GLB
+:mod:`~warp_sg.scene.importers.gltf_repack` writes (dense float attributes, triangle lists, morph
+targets applied, ``TANGENT``/``COLOR_0`` renamed ``_TANGENT``/``_COLOR_0`` so that trimesh keeps them,
+every material named by its index). The file's own JSON is kept for what trimesh drops: exact
+float factors (trimesh stores ``baseColorFactor`` as 8-bit), ``normalTexture.scale`` and the extensions.
 
 Materials (metallic-roughness, KHR_materials_ior / specular / clearcoat /
 emissive_strength, emission, occlusion, alpha modes) are converted by :mod:`warp_sg.scene.importers.gltf_material`;
 tangents come from the file or are generated from the UVs (:func:`warp_sg.scene.geometry.uv_tangents`).
 Geometry: Draco-compressed primitives (KHR_draco_mesh_compression) are decoded by trimesh with
 DracoPy; ``normalized`` integer attributes (KHR_mesh_quantization) are dequantised
-(:func:`_dequantize`); ``COLOR_0`` (linear RGBA) multiplies the base colour and its alpha;
+(:func:`~warp_sg.scene.importers.gltf_data.as_float`); ``COLOR_0`` (linear RGBA) multiplies the base colour and its alpha;
 KHR_texture_transform is applied to the texture coordinates.
 
-Whatever else a file uses (other extensions, second UV sets, animations, point and line
-primitives, alpha blending) is reported once per file and feature as an :class:`AssetWarning`
-(one line). An unreadable file raises :class:`~warp_sg.core.errors.MeshError` naming it; so do an index
-that points past its list (``meshes[0].primitives[0].indices = 9: the file has 2 accessors``), a
-node graph with a cycle, meshes compressed by an extension that cannot be decoded
-(:mod:`warp_sg.scene.importers.gltf_checks`), and a primitive with non-finite positions or out-of-range vertex
-indices (naming the node). A texture whose image cannot be read (a missing file, a corrupt image)
-raises :class:`~warp_sg.core.errors.ImageError` naming the material, the texture and the image: an
+Whatever else a file uses (extensions it does not require, second UV sets, animations, point and
+line primitives, alpha blending) is reported once per file and feature as an :class:`AssetWarning`
+(one line); an extension it requires and the importer does not render refuses it. An unreadable or
+malformed file raises :class:`~warp_sg.core.errors.MeshError` naming it, the glTF element and the rule
+(``meshes[0].primitives[0].indices: triangle 1 has a vertex index out of range``), never a Python
+exception's name. A texture whose image cannot be read (a missing file, a corrupt image) raises
+:class:`~warp_sg.core.errors.ImageError` naming the material, the texture and the image: an
 untextured image would be a wrong answer.
 """
 from __future__ import annotations
@@ -35,7 +38,6 @@ from __future__ import annotations
 import io
 import json
 import logging
-import struct
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -45,20 +47,21 @@ import numpy as np
 from warp_sg.core.errors import MeshError
 from warp_sg.scene.geometry import validate_mesh
 from warp_sg.scene.importers.gltf_checks import check_compression, check_images, check_references
+from warp_sg.scene.importers.gltf_data import GltfData, glb_chunks
+from warp_sg.scene.importers.gltf_repack import repack
+from warp_sg.scene.importers.gltf_rules import (RENDERED, check_asset, check_extensions, check_materials, check_meshes,
+                                                check_nodes, extension_notes, present_extensions)
 from warp_sg.scene.importers.gltf_material import (gltf_material, material_uv_transform, texture_infos, uv_transform,
                                                    vertex_colour_factors)
 from warp_sg.core.meshcheck import check_mesh
 
 GLTF_SUFFIXES = (".glb", ".gltf")
 #: glTF extensions whose meaning the importer renders (everything else is reported and ignored)
-SUPPORTED_EXTENSIONS: frozenset = frozenset({
-    "KHR_draco_mesh_compression", "KHR_mesh_quantization", "KHR_texture_transform", "KHR_materials_emissive_strength",
-    "KHR_materials_ior", "KHR_materials_specular", "KHR_materials_clearcoat"})
+SUPPORTED_EXTENSIONS: frozenset = RENDERED
 #: the texture slots trimesh reads (the others, of extensions, are read by :func:`_extension_images`)
 _TRIMESH_SLOTS = ("baseColorTexture", "metallicRoughnessTexture", "normalTexture", "emissiveTexture",
                   "occlusionTexture")
 
-_GLB_MAGIC, _JSON_CHUNK = 0x46546C67, 0x4E4F534A
 _TAG = "warp_sg_material_"
 
 
@@ -103,103 +106,43 @@ def is_gltf(path) -> bool:
 # --------------------------------------------------------------------------------------------
 # file
 # --------------------------------------------------------------------------------------------
-def _read_header(path: Path) -> tuple[dict, bytes]:
-    """The JSON header and the raw file bytes (GLB: 12-byte header, JSON chunk first)."""
+def _number(text: str):
+    """A JSON number: an integer where its value is one (``1.0`` is the integer 1 in JSON Schema, as
+    glTF's indices may be written), else a float."""
+    f = float(text)
+    return int(f) if f.is_integer() and abs(f) < 2.0 ** 53 else f
+
+
+def _read_header(path: Path) -> tuple[dict, bytes | None]:
+    """The JSON header and the GLB's BIN chunk (None for a .gltf), glTF 2.0 §3.2 and §4.4."""
     try:
         raw = path.read_bytes()
     except OSError as e:
         raise MeshError(f"cannot read glTF file ({e.strerror or e})", where=str(path)) from None
+    bin_chunk = None
     try:
         if path.suffix.lower() == ".glb":
-            if len(raw) < 20:
-                raise ValueError(f"not a binary glTF ({len(raw)} bytes; GLB has a 20-byte header)")
-            magic, version, _length = struct.unpack_from("<III", raw, 0)
-            if magic != _GLB_MAGIC:
-                raise ValueError("not a binary glTF (GLB magic missing)")
-            if version != 2:
-                raise ValueError(f"GLB version {version}; only glTF 2.0 is supported")
-            n, kind = struct.unpack_from("<II", raw, 12)
-            if kind != _JSON_CHUNK:
-                raise ValueError("the first GLB chunk is not JSON")
-            header = json.loads(raw[20:20 + n].decode("utf-8"))
+            text, bin_chunk = glb_chunks(raw)
         else:
-            header = json.loads(raw.decode("utf-8"))
-    except (ValueError, struct.error, UnicodeDecodeError) as e:
+            text = raw
+        if text.startswith(b"\xef\xbb\xbf"):
+            raise ValueError("the JSON starts with a byte-order mark, which glTF 2.0 forbids (§3.2: UTF-8 "
+                             "without BOM)")
+        header = json.loads(text.decode("utf-8"), parse_float=_number)
+    except UnicodeDecodeError:
+        raise MeshError("cannot read glTF file (the JSON is not UTF-8 text)", where=str(path)) from None
+    except RecursionError:
+        raise MeshError("cannot read glTF file (the JSON is nested too deeply)", where=str(path)) from None
+    except ValueError as e:
         raise MeshError(f"cannot read glTF file ({e})", where=str(path)) from None
     if not isinstance(header, dict):
         raise MeshError("cannot read glTF file (the JSON header is not an object)", where=str(path))
-    version = str(header.get("asset", {}).get("version", "2.0"))
-    if not version.startswith("2"):
-        raise MeshError(f"glTF version {version}; only glTF 2.0 is supported", where=str(path))
-    return header, raw
-
-
-#: glTF 2.0 §3.6.2.1 (``normalized`` accessors, KHR_mesh_quantization): integer code c → float,
-#: ``max(c / (2^(b−1) − 1), −1)`` for signed and ``c / (2^b − 1)`` for unsigned b-bit components
-_NORMALIZED = {5120: 127.0, 5121: 255.0, 5122: 32767.0, 5123: 65535.0, 5125: 4294967295.0}
-#: the private primitive extension that carries the dequantisation plan to :func:`_dequantize`
-_DEQUANTIZE = "WARP_SG_dequantize"
-
-
-def _dequantize(context) -> None:
-    """trimesh ``primitive_preprocess`` handler: the primitive's ``normalized`` integer accessors
-    (listed by :func:`_retagged`, each in one primitive only) become floats in place."""
-    acc = context["accessors"]
-    for idx, div in context["data"].items():
-        a = acc[int(idx)]
-        acc[int(idx)] = np.maximum(np.asarray(a, np.float64) / float(div), -1.0).astype(np.float32)
-
-
-def _register_dequantize() -> None:
-    from trimesh.exchange.gltf.extensions import register_handler
-
-    register_handler(_DEQUANTIZE, scope="primitive_preprocess")(_dequantize)
-
-
-def _retagged(path: Path, header: dict, raw: bytes) -> bytes:
-    """The file with ``TANGENT`` and ``COLOR_0`` attributes renamed ``_TANGENT`` and ``_COLOR_0``
-    (trimesh keeps ``_`` attributes, aligned with the vertices), every material named by its index
-    (to find the header entry behind trimesh's material) and the ``normalized`` integer accessors of
-    the primitives' attributes (KHR_mesh_quantization) listed for :func:`_dequantize` in the first
-    primitive that reads each (Draco primitives decode to floats: none of theirs)."""
-    h = json.loads(json.dumps(header))
-    accessors = h.get("accessors", [])
-    planned = set()
-    for mesh in h.get("meshes", []):
-        for prim in mesh.get("primitives", []):
-            attr = prim.get("attributes", {})
-            for name in ("TANGENT", "COLOR_0"):
-                if name in attr:
-                    attr["_" + name] = attr.pop(name)
-            if "KHR_draco_mesh_compression" in prim.get("extensions", {}):
-                continue
-            plan = {}
-            for idx in attr.values():
-                a = accessors[idx] if isinstance(idx, int) and 0 <= idx < len(accessors) else {}
-                if a.get("normalized") and a.get("componentType") in _NORMALIZED and idx not in planned:
-                    plan[str(idx)] = _NORMALIZED[a["componentType"]]
-                    planned.add(idx)
-            if plan:
-                prim.setdefault("extensions", {})[_DEQUANTIZE] = plan
-    for i, mat in enumerate(h.get("materials", [])):
-        mat["name"] = f"{_TAG}{i}"
-    text = json.dumps(h).encode("utf-8")
-    if path.suffix.lower() != ".glb":
-        return text
-    text += b" " * (-len(text) % 4)  # chunks are 4-byte aligned, JSON padded with spaces
-    n_old = struct.unpack_from("<I", raw, 12)[0]
-    rest = raw[20 + n_old:]
-    body = struct.pack("<II", len(text), _JSON_CHUNK) + text + rest
-    return struct.pack("<III", _GLB_MAGIC, 2, 12 + len(body)) + body
+    return header, bin_chunk
 
 
 def _notes(path: Path, header: dict) -> list[str]:
     """One line per feature of the file that is not rendered."""
-    out = []
-    used = list(dict.fromkeys(list(header.get("extensionsUsed", [])) + list(header.get("extensionsRequired", []))))
-    for ext in used:
-        if ext not in SUPPORTED_EXTENSIONS:
-            out.append(f"{path.name}: glTF extension '{ext}' is not supported; ignored")
+    out = extension_notes(path, header)
     mats = [m for m in header.get("materials", []) if isinstance(m, dict)]
     blend = [m.get("name") or f"material{i}" for i, m in enumerate(mats) if m.get("alphaMode") == "BLEND"
              and (float(m.get("pbrMetallicRoughness", {}).get("baseColorFactor", [1, 1, 1, 1])[3]) < 1.0
@@ -260,27 +203,32 @@ def load_gltf(path, *, images: bool = True, keep: bool = False) -> GltfAsset:
 
 
 def _read_gltf(path: Path, images: bool) -> GltfAsset:
-    """:func:`load_gltf`'s reading of the file."""
+    """:func:`load_gltf`'s reading of the file: the JSON checked against the specification
+    (:mod:`warp_sg.scene.importers.gltf_rules`, references by :mod:`~warp_sg.scene.importers.gltf_checks`),
+    the data decoded and repacked (:mod:`~warp_sg.scene.importers.gltf_repack`), then read by trimesh."""
     import trimesh
 
-    header, raw = _read_header(path)
+    header, bin_chunk = _read_header(path)
+    check_asset(path, header)
     check_references(path, header)
+    check_extensions(path, header)
     check_compression(path, header, SUPPORTED_EXTENSIONS)
-    data = _retagged(path, header, raw)
-    _register_dequantize()
-    if "KHR_draco_mesh_compression" in header.get("extensionsUsed", []):
+    check_meshes(path, header)
+    check_nodes(path, header)
+    check_materials(path, header)
+    data = GltfData(path, header, bin_chunk)
+    glb, missing = repack(data, images)
+    if "KHR_draco_mesh_compression" in present_extensions(header):
         try:
             import DracoPy  # noqa: F401  (trimesh decodes KHR_draco_mesh_compression with it)
         except ImportError as e:
             raise MeshError(f"Draco-compressed meshes need DracoPy ({e})", where=str(path)) from None
     failed = _TrimeshFailures()
     try:
-        resolver = trimesh.resolvers.FilePathResolver(str(path))
         with failed:
-            sc = trimesh.load(io.BytesIO(data), file_type=path.suffix.lower()[1:], resolver=resolver,
-                              force="scene", skip_materials=not images)
-    except Exception as e:  # noqa: BLE001 - trimesh raises many types for broken files
-        raise MeshError(f"cannot read glTF file ({type(e).__name__}: {e})", where=str(path)) from None
+            sc = trimesh.load(io.BytesIO(glb), file_type="glb", force="scene", skip_materials=not images)
+    except Exception as e:  # noqa: BLE001 - the checks above leave trimesh nothing it cannot read
+        raise MeshError(f"cannot read glTF file (trimesh: {e})", where=str(path)) from None
     if failed.messages:  # e.g. a Draco blob that does not decode: trimesh would go on with zeros
         raise MeshError(f"cannot read glTF file ({failed.messages[0]})", where=str(path))
     parts, imgs = [], {}
@@ -295,53 +243,28 @@ def _read_gltf(path: Path, images: bool) -> GltfAsset:
         if idx is not None and idx not in imgs:
             imgs[idx] = {k: getattr(mat, k, None) for k in _TRIMESH_SLOTS}
             if images:
-                check_images(path, header, idx, imgs[idx])
+                check_images(path, header, idx, imgs[idx], data)
     if not parts:
-        raise MeshError("glTF file contains no triangles", where=str(path))
-    notes = _notes(path, header)
+        why = f" ({missing[0].split(': ', 1)[1]})" if missing else ""
+        raise MeshError(f"the file's scene holds no triangles{why}: nothing to draw", where=str(path))
+    notes = _notes(path, header) + missing
     if images:
-        notes += _extension_images(path, header, raw, imgs)
+        notes += _extension_images(path, header, data, imgs)
     return GltfAsset(path=path, parts=parts, header=header, images=imgs, notes=notes)
 
 
-def _buffer_bytes(path: Path, header: dict, raw: bytes, i: int) -> bytes:
-    """Buffer ``i``: the GLB's BIN chunk (no ``uri``), a base64 ``data:`` URI or a file next to ``path``."""
-    import base64
-    from urllib.parse import unquote
-
-    uri = header["buffers"][i].get("uri")
-    if uri is None:
-        n = struct.unpack_from("<I", raw, 12)[0]
-        off = 20 + n + (-n % 4)
-        length = struct.unpack_from("<I", raw, off)[0]
-        return raw[off + 8:off + 8 + length]
-    if uri.startswith("data:"):
-        return base64.b64decode(uri.split(",", 1)[1])
-    return (path.parent / unquote(uri)).read_bytes()
-
-
-def _texture_image(path: Path, header: dict, raw: bytes, tex: int):
-    """The PIL image of texture ``tex`` (its ``source`` image: a buffer view or a URI)."""
-    import base64
-    from urllib.parse import unquote
-
+def _texture_image(data: GltfData, tex: int):
+    """The PIL image of texture ``tex`` (its ``source``, or EXT_texture_webp's)."""
     from PIL import Image
 
-    img = header["images"][header["textures"][tex]["source"]]
-    if "bufferView" in img:
-        bv = header["bufferViews"][img["bufferView"]]
-        buf = _buffer_bytes(path, header, raw, bv.get("buffer", 0))
-        data = buf[bv.get("byteOffset", 0):bv.get("byteOffset", 0) + bv["byteLength"]]
-    elif img["uri"].startswith("data:"):
-        data = base64.b64decode(img["uri"].split(",", 1)[1])
-    else:
-        data = (path.parent / unquote(img["uri"])).read_bytes()
-    im = Image.open(io.BytesIO(data))
+    t = data.h["textures"][tex]
+    src = ((t.get("extensions") or {}).get("EXT_texture_webp") or {}).get("source", t.get("source"))
+    im = Image.open(io.BytesIO(data.image_bytes(src)))
     im.load()
     return im
 
 
-def _extension_images(path: Path, header: dict, raw: bytes, imgs: dict) -> list[str]:
+def _extension_images(path: Path, header: dict, data: GltfData, imgs: dict) -> list[str]:
     """Add the images of the extension texture slots (which trimesh does not read) to ``imgs``
     ({material index: {slot: PIL image}}); one note per file for those that cannot be read."""
     mats = header.get("materials", [])
@@ -352,10 +275,10 @@ def _extension_images(path: Path, header: dict, raw: bytes, imgs: dict) -> list[
             if name in _TRIMESH_SLOTS:
                 continue
             try:
-                slots[name] = _texture_image(path, header, raw, int(info["index"]))
-            except Exception as e:  # noqa: BLE001 - missing keys, files, bad image data
+                slots[name] = _texture_image(data, int(info["index"]))
+            except Exception:  # noqa: BLE001 - missing files, bad image data (Pillow raises many types)
                 slots[name] = None
-                bad.append(f"{name} of '{entry.get('name') or f'material{idx}'}' ({type(e).__name__})")
+                bad.append(f"{name} of '{entry.get('name') or f'material{idx}'}'")
     return [f"{path.name}: textures that cannot be read are not rendered: {_names(bad)}"] if bad else []
 
 

@@ -12,6 +12,7 @@ file is one line naming the bad element instead of a trimesh traceback or a sile
 """
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 from warp_sg.core.errors import ImageError, MeshError
@@ -33,6 +34,13 @@ _REFERENCES = (
     ("materials", "emissiveTexture.index", "textures"), ("textures", "source", "images"),
     ("textures", "sampler", "samplers"), ("images", "bufferView", "bufferViews"),
     ("skins", "joints[]", "nodes"), ("skins", "inverseBindMatrices", "accessors"),
+    ("meshes", "primitives[].extensions.KHR_draco_mesh_compression.bufferView", "bufferViews"),
+    ("textures", "extensions.EXT_texture_webp.source", "images"),
+    ("materials", "extensions.KHR_materials_clearcoat.clearcoatTexture.index", "textures"),
+    ("materials", "extensions.KHR_materials_clearcoat.clearcoatRoughnessTexture.index", "textures"),
+    ("materials", "extensions.KHR_materials_clearcoat.clearcoatNormalTexture.index", "textures"),
+    ("materials", "extensions.KHR_materials_specular.specularTexture.index", "textures"),
+    ("materials", "extensions.KHR_materials_specular.specularColorTexture.index", "textures"),
 )
 
 
@@ -107,15 +115,16 @@ def check_references(path: Path, header: dict) -> None:
     for i, node in enumerate(nodes):
         for c in (node.get("children", []) if isinstance(node, dict) else []):
             if c == i or c in parent:
-                raise MeshError(f"node {c} has two parents or is its own child (nodes[{i}].children); the node "
-                                f"graph must be a forest", where=str(path))
+                raise MeshError(f"nodes[{c}] has two parents or is its own child (nodes[{i}].children lists node "
+                                f"{c}); the node graph must be a forest (glTF 2.0 §3.5.1)", where=str(path))
             parent[c] = i
     for i in range(len(nodes)):  # with one parent each, a cycle shows as a walk up that never ends
         j, seen = i, 0
         while j in parent and seen <= len(nodes):
             j, seen = parent[j], seen + 1
         if seen > len(nodes):
-            raise MeshError(f"the node graph has a cycle through node {i}", where=str(path))
+            raise MeshError(f"nodes[{i}]: the node graph has a cycle through node {i} (nodes form trees, glTF 2.0 "
+                            f"§3.5.1)", where=str(path))
 
 
 def check_compression(path: Path, header: dict, supported=frozenset()) -> None:
@@ -127,11 +136,13 @@ def check_compression(path: Path, header: dict, supported=frozenset()) -> None:
                             where=str(path))
 
 
-def _image_problem(path: Path, header: dict, ref: dict) -> str:
-    """Why the image of texture reference ``ref`` (``{"index": t}``) could not be read."""
+def _image_problem(path: Path, header: dict, ref: dict, data) -> str:
+    """Why the image of texture reference ``ref`` (``{"index": t}``) could not be read (``data``:
+    the file's :class:`~warp_sg.scene.importers.gltf_data.GltfData`)."""
     t = ref.get("index")
     tex = header["textures"][t]
-    src = tex.get("source")
+    webp = (tex.get("extensions") or {}).get("EXT_texture_webp") or {}
+    src = webp.get("source", tex.get("source"))
     if src is None:
         exts = ", ".join(tex.get("extensions", {})) or "none"
         return f"texture {t} has no image source this importer reads (its extensions: {exts})"
@@ -140,26 +151,23 @@ def _image_problem(path: Path, header: dict, ref: dict) -> str:
     if img.get("mimeType") == "image/ktx2":
         return f"{what} is KTX2, which cannot be decoded"
     uri = img.get("uri")
-    if uri is None:
-        return f"{what} (buffer view {img.get('bufferView')}) is not a readable PNG or JPEG image"
-    if uri.startswith("data:"):
-        return f"{what} (embedded data URI) is not a readable image"
-    from urllib.parse import unquote
-
-    file = path.parent / unquote(uri)
-    if not file.is_file():
-        return f"{what}: image file '{uri}' not found"
+    try:
+        blob = data.image_bytes(src)
+    except MeshError as e:
+        return f"{what}: {str(e).split(': ', 1)[-1]}"
     from PIL import Image
 
     try:
-        with Image.open(file) as im:
+        with Image.open(io.BytesIO(blob)) as im:
             im.load()
-    except Exception as e:  # noqa: BLE001 - Pillow raises many types for broken files
-        return f"{what}: image file '{uri}' cannot be read ({type(e).__name__}: {e})"
-    return f"{what}: image file '{uri}' could not be read"
+    except Exception:  # noqa: BLE001 - Pillow raises many types for broken files
+        source = f"image file '{uri}'" if isinstance(uri, str) and not uri.startswith("data:") else \
+            ("the embedded data URI" if uri is not None else f"buffer view {img.get('bufferView')}")
+        return f"{what}: {source} cannot be read as a PNG, JPEG or WebP image"
+    return f"{what} could not be read"
 
 
-def check_images(path: Path, header: dict, idx: int, found: dict) -> None:
+def check_images(path: Path, header: dict, idx: int, found: dict, data) -> None:
     """Every texture that material ``idx`` uses and the importer reads has its image; else
     :class:`ImageError` naming the material, the texture and the image."""
     entry = header.get("materials", [])[idx]
@@ -169,7 +177,7 @@ def check_images(path: Path, header: dict, idx: int, found: dict) -> None:
         ref = (pbr if key in ("baseColorTexture", "metallicRoughnessTexture") else entry).get(key)
         if isinstance(ref, dict) and "index" in ref and found.get(key) is None:
             name = entry.get("name") or f"material{idx}"
-            raise ImageError(f"material '{name}' {key}: {_image_problem(path, header, ref)}", where=str(path))
+            raise ImageError(f"material '{name}' {key}: {_image_problem(path, header, ref, data)}", where=str(path))
 
 
 __all__ = ["COMPRESSION_EXTENSIONS", "check_references", "check_compression", "check_images"]
