@@ -7,7 +7,8 @@ CUDA path of every kernel (rasterizer, precompute, shading variants, reference) 
 compiled on the CPU-only machines. Imports every module of ``warp_sg``, ``raster`` and
 ``precompute``, instantiates the shading kernel variants a scene can select (all features on, and
 each feature off in turn; the all-features variant for representative material-model sets: one
-diffuse, one microfacet, Lafortune, measured, GGX, and a mix), and calls ``wp.compile_aot_module(..., arch=ARCH, use_ptx=True)`` on
+diffuse, one microfacet, Lafortune, measured, GGX, and a mix; an SG-mixture environment and the
+gradient variant), and calls ``wp.compile_aot_module(..., arch=ARCH, use_ptx=True)`` on
 each module that holds kernels. Exits 1 and names the module when one fails.
 """
 from __future__ import annotations
@@ -42,8 +43,12 @@ def shading_variants():
            "shadows": False, "textures": False, "normal_maps": False, "fh_sigmoid": True,
            "env_vis_vertex": False, "light_vis_vertex": False, "env_visible_vertex": False, "models": (0,),
            "emission": False, "occlusion": False, "coat": False, "vertex_colors": False, "cutouts": False,
-           "moving": False}
+           "moving": False, "env_mixture": False, "grad": False}
     variants = [full] + [replace(full, **{f.name: off[f.name]}) for f in fields(S.Features)]
+    # an environment given as its SG mixture (ENV_MIXTURE), and the gradient variant (its adjoint,
+    # warp_sg.shading.kernel_grad) of the features a fit uses
+    mixture = replace(full, env_mixture=True, env_specular=S.ENV_MIXTURE)
+    variants += [mixture, replace(mixture, grad=True, moving=False, coat=False, cutouts=False)]
     # material-model variants (brdf.kernel.material_variants): Oren–Nayar, Cook–Torrance, Lafortune,
     # measured, GGX, and Lambert + Blinn–Phong + Ward + Ashikhmin–Shirley
     variants += [replace(full, models=ms) for ms in ((1,), (4,), (8,), (9,), (10,), (0, 3, 6, 7))]

@@ -255,22 +255,29 @@ def erf_filtered(radiance: wp.array2d(dtype=wp.vec3), d_env: wp.vec3, sigma: flo
             nxt = _phi_cdf((float(c0 + q + 1) * h_p - phi_p) / sig_p)
             wcol[q] = nxt - prev
             prev = nxt
-    acc = wp.vec3(0.0)
-    wsum = float(0.0)
-    rprev = _phi_cdf((float(r0) * h_t - theta_p) / sigma)
-    for r in range(r0, r1 + 1):
-        rnext = _phi_cdf((float(r + 1) * h_t - theta_p) / sigma)
-        wr = rnext - rprev
-        rprev = rnext
+    sums = _window_sums(radiance, wcol, r0, r1, c0, c1, h_t, theta_p, sigma)
+    wsum = sums[3]
+    if wsum <= 0.0:
+        return wp.vec4(0.0)
+    return wp.vec4(sums[0] / wsum, sums[1] / wsum, sums[2] / wsum, 1.0)
+
+
+@wp.func
+def _window_sums(radiance: wp.array2d(dtype=wp.vec3), wcol: _vec6, r0: int, r1: int, c0: int, c1: int, h_t: float,
+                 theta_p: float, sigma: float) -> wp.vec4:
+    """(Σ w·L, Σ w) over the window of :func:`erf_filtered`: a function of its own, whose sums its
+    caller divides, because Warp's reverse pass replays a function whole but not a dynamic loop
+    (``warp_sg.shading.kernel_grad``)."""
+    ww = radiance.shape[1]
+    acc = wp.vec4(0.0)
+    for r in range(r0, r1 + 1):  # (each row's edges anew: a loop's body is replayed alone)
+        wr = _phi_cdf((float(r + 1) * h_t - theta_p) / sigma) - _phi_cdf((float(r) * h_t - theta_p) / sigma)
         for q in range(c1 - c0 + 1):
             cc = (((c0 + q) % ww) + ww) % ww
             wgt = wr * wcol[q]
-            acc += wgt * radiance[r, cc]
-            wsum += wgt
-    if wsum <= 0.0:
-        return wp.vec4(0.0)
-    v = acc / wsum
-    return wp.vec4(v[0], v[1], v[2], 1.0)
+            L = radiance[r, cc]
+            acc += wp.vec4(wgt * L[0], wgt * L[1], wgt * L[2], wgt)
+    return acc
 
 
 @wp.func

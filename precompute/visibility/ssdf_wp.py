@@ -279,6 +279,20 @@ def ssdf_bilinear(image: wp.array2d(dtype=float), d: wp.vec3) -> float:
 
 
 @wp.func
+def _pca_sum(basis: wp.array3d(dtype=float), weights: wp.array2d(dtype=float), i0: int, i1: int, i2: int,
+             c0: float, c1: float, c2: float, x0: int, y0: int, w00: float, w01: float, w10: float, w11: float) -> float:
+    """Σ_j (Σ_k c_k w[i_k, j]) basis_j at the bilinear footprint (x0, y0; w..): the PCA part of
+    :func:`_ssdf_combo`, a function of its own so that the rule below the horizon applied after it
+    sees its value in Warp's reverse pass (which replays a function whole, not a dynamic loop)."""
+    v = float(0.0)
+    for j in range(basis.shape[2]):
+        wj = c0 * weights[i0, j] + c1 * weights[i1, j] + c2 * weights[i2, j]
+        v += wj * (basis[y0, x0, j] * w00 + basis[y0, x0 + 1, j] * w01
+                   + basis[y0 + 1, x0, j] * w10 + basis[y0 + 1, x0 + 1, j] * w11)
+    return v
+
+
+@wp.func
 def _ssdf_combo(mean: wp.array2d(dtype=float), basis: wp.array3d(dtype=float),
                 weights: wp.array2d(dtype=float), i0: int, i1: int, i2: int,
                 c0: float, c1: float, c2: float, d: wp.vec3) -> float:
@@ -312,10 +326,7 @@ def _ssdf_combo(mean: wp.array2d(dtype=float), basis: wp.array3d(dtype=float),
     else:
         v = csum * (mean[y0, x0] * w00 + mean[y0, x0 + 1] * w01 + mean[y0 + 1, x0] * w10
                     + mean[y0 + 1, x0 + 1] * w11)
-        for j in range(basis.shape[2]):
-            wj = c0 * weights[i0, j] + c1 * weights[i1, j] + c2 * weights[i2, j]
-            v += wj * (basis[y0, x0, j] * w00 + basis[y0, x0 + 1, j] * w01
-                       + basis[y0 + 1, x0, j] * w10 + basis[y0 + 1, x0 + 1, j] * w11)
+        v += _pca_sum(basis, weights, i0, i1, i2, c0, c1, c2, x0, y0, w00, w01, w10, w11)
     if d[2] < 0.0:
         return wp.min(v, 0.0) - csum * fast_asin(wp.min(-d[2], 1.0))
     return v

@@ -146,8 +146,8 @@ class EnvironmentSetup:
         ladder on a background thread beside the shadows (:meth:`_start_gamma_job`, installed by
         :meth:`poll`): its later frames are those of a renderer built without ``progressive``."""
         env = self.env_light
-        if env is None or not self.has_specular or self._gamma_job is not None:
-            return  # (a full ladder on its way: the preview's serves until poll() installs it)
+        if env is None or not self.has_specular or self._gamma_job is not None or self.env_mixture:
+            return  # (a full ladder on its way: the preview's serves until poll() installs it; a mixture needs none)
         if self.gamma is not None and (not self._gamma_capped or self._gamma_need <= self._gamma_reach):
             return
         t = self._tick()
@@ -223,8 +223,9 @@ class EnvironmentSetup:
         motion of dynamic objects) changes. Lobes that carry no energy (``|μ| ∫G`` below 1e-6 of the
         mixture's, e.g. amplitudes the non-negative fit set to 0) are left out."""
         env = self.env_light
-        key = None if env is None or self._env_sg_base is None else (id(self._env_sg_base), float(env.rotation), float(env.scale),
-                                                                     id(self.geometry.triangles))  # (smooth: per triangle)
+        base = self._env_sg_base  # (the key holds its axes and sharpnesses: set_environment_mixture changes μ in place)
+        key = None if env is None or base is None else (id(base[0]), id(base[1]), float(env.rotation), float(env.scale),
+                                                        id(self.geometry.triangles))  # (smooth: per triangle)
         if self._env_arrays_key == key:
             return self._env_sg_arrays
         d = self.device
@@ -242,6 +243,8 @@ class EnvironmentSetup:
             ax, lam, mu = self._env_sg_base
             energy = np.abs(mu).max(axis=1) * 2.0 * np.pi * -np.expm1(-2.0 * lam) / np.maximum(lam, 1e-12)
             keep = energy > 1e-6 * max(float(energy.sum()), 1e-300)
+            if self.env_mixture:  # (every lobe of a given mixture: its gradients are indexed by lobe)
+                keep[:] = True
             if not keep.any():
                 keep[:1] = True
             ax, lam, mu = ax[keep], lam[keep], mu[keep]
@@ -254,6 +257,48 @@ class EnvironmentSetup:
             es.smooth = self._smooth_tris()
         self._env_arrays_key, self._env_sg_arrays = key, lobe_constants(es, self.irr_table, d)
         return es
+
+    def set_environment_mixture(self, axes, lam, mu) -> None:
+        """Make the environment light the SG mixture ``L(i) = Σ_j μ_j exp(λ_j (i·p_j − 1))``: ``axes``
+        (K, 3) unit vectors in the map's frame (the light's rotation applies), ``lam`` (K,) > 0 and
+        ``mu`` (K, 3) radiance (the light's scale applies). Its diffuse term is the lobes' exact
+        irradiance with each lobe's visible fraction, its specular term the lobes' closed-form
+        product with the slice lobes (:mod:`warp_sg.shading.env_mixture`); the map's peaks are no
+        longer lights and the background still shows the map. A call with the same axes and
+        sharpnesses changes only μ: no per-vertex visibility is recomputed (what inverse rendering
+        does every step, :mod:`warp_sg.inverse`)."""
+        from warp_sg.core.errors import SceneError
+
+        if self.env_light is None:
+            raise SceneError("the scene has no environment light", where="set_environment_mixture")
+        ax = np.asarray(axes, np.float64).reshape(-1, 3)
+        lam = np.asarray(lam, np.float64).reshape(-1)
+        mu = np.asarray(mu, np.float64).reshape(-1, 3)
+        if not (len(ax) == len(lam) == len(mu) and len(lam) > 0):
+            raise SceneError(f"axes, lam and mu must have one row per lobe, got {len(ax)}, {len(lam)}, {len(mu)}",
+                             where="set_environment_mixture")
+        norm = np.linalg.norm(ax, axis=1)
+        if not (np.all(np.isfinite(ax)) and np.all(norm > 0) and np.all(np.isfinite(lam)) and np.all(lam > 0)
+                and np.all(np.isfinite(mu))):
+            raise SceneError("axes must be finite non-zero vectors, lam finite and > 0, mu finite",
+                             where="set_environment_mixture")
+        ax = ax / norm[:, None]
+        old = self._env_sg_base
+        if (self.env_mixture and old is not None and old[0].shape == ax.shape and np.array_equal(old[0], ax)
+                and np.array_equal(old[1], lam)):
+            self._env_sg_base = (old[0], old[1], mu)  # the same key: the device μ updated here
+            es = self._env_sg_arrays
+            key = self._env_arrays_key
+            if es is not None and key and key[0] == id(old[0]) and key[1] == id(old[1]):  # (built for these lobes)
+                es.mu.assign((mu * self.env_light.scale).astype(np.float32))
+                lobe_constants(es, self.irr_table, self.device, keep=True)
+            return
+        self._env_sg_base = (ax, lam, mu)
+        if not self.env_mixture:
+            self.env_mixture = True
+            self.env_peaks = []  # (the mixture is the whole environment)
+            self.env_diffuse_mode = S.ENV_SG
+            self._setup_lights()
 
     def peak_lights(self) -> list:
         """The environment's sharp peaks as world-space directional lights (rotation and scale

@@ -114,12 +114,15 @@ class FramePaths:
 
     def _adaptive(self) -> bool:
         """Whether frames take the edge- and contrast-adaptive path (:meth:`render`): no
-        supersampling and ``antialias`` > 1."""
+        supersampling, ``antialias`` > 1 and no gradients (a ``requires_grad`` renderer's frames
+        shade k×k sub-pixels, :mod:`warp_sg.renderer.gradients`)."""
         rs = self.scene.render
-        return rs.supersampling == 1 and rs.antialias > 1
+        return rs.supersampling == 1 and rs.antialias > 1 and not self.requires_grad
 
     def _render(self) -> np.ndarray:
         rs = self.scene.render
+        if self.requires_grad:  # recorded for the backward pass (warp_sg.renderer.gradients)
+            return self._render_grad()
         if self._adaptive():
             return self._render_adaptive(int(rs.antialias))
         d = self.device
@@ -243,6 +246,14 @@ class FramePaths:
         return out.numpy().reshape(nv, 3)
 
     def _launch_shade(self, tri_id, bary, bg, eye, out):
+        from raster import parallel
+
+        kern, n, args, _ = self._shade_args(tri_id, bary, bg, eye, out)
+        parallel.launch(kern, n, args, self.device, min_chunk=2048, per_thread=S.PIXELS_PER_THREAD)
+
+    def _shade_args(self, tri_id, bary, bg, eye, out):
+        """``(kernel, samples, arguments after (base, per), EnvSG)`` of one shading launch: the
+        variant of the current state, the per-vertex caches brought up to date."""
         d = self.device
         self._ensure_gamma()  # a material may have become specular
         f = self.features()
@@ -256,13 +267,13 @@ class FramePaths:
             env = self.env_light
             gamma = self.gamma.table(rotation=env.rotation_matrix(), scale=env.scale, device=d)
         else:
-            gamma = es  # placeholder argument of the variant without ΓL
+            gamma = es  # the mixture's lobes (ENV_MIXTURE), or a placeholder of the variant without ΓL
         n = int(tri_id.shape[0]) * int(tri_id.shape[1])
         self.layers.n_local = len(self.scene.local_lights)  # (the rest are the environment's peaks)
         args = [tri_id, bary, *self._bg.kernel_args(bg), wp.vec3(*np.asarray(eye, np.float32)), self.geo_arrays,
                 self.material_table.materials, self.material_textures, self.irr_table, self.light_arrays, es, gamma,
                 self.vis, self._proxies, self.layers, self.cut.arrays, self.cut.mesh_id, self._bg.params(*self._bg_args(1)), out]
-        parallel.launch(kern, n, args, d, min_chunk=2048, per_thread=S.PIXELS_PER_THREAD)
+        return kern, n, args, es
 
 
 __all__ = ["FramePaths"]

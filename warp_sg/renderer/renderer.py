@@ -41,6 +41,7 @@ from warp_sg.core.errors import InputError, SceneError
 from warp_sg.renderer.costs import check_frame_costs
 from warp_sg.renderer.environment_setup import EnvironmentSetup
 from warp_sg.renderer.frame import FramePaths
+from warp_sg.renderer.gradients import GradientPaths
 from warp_sg.renderer.resources import ResourceSetup
 from warp_sg.renderer.variant import VariantChoice
 from warp_sg.scene.lights import DirectionalLight, EnvironmentLight, PointLight
@@ -50,7 +51,7 @@ from warp_sg.shading.background import BackgroundCache
 from warp_sg.shading.vertex_visibility import caches
 
 
-class Renderer(FramePaths, VariantChoice, ResourceSetup, EnvironmentSetup):
+class Renderer(FramePaths, VariantChoice, ResourceSetup, EnvironmentSetup, GradientPaths):
     """Stateful renderer: precompute once, then ``render()`` any number of frames.
 
     ``progress``: show progress bars for the precompute steps. ``ssdf_compute``: replaces
@@ -62,6 +63,9 @@ class Renderer(FramePaths, VariantChoice, ResourceSetup, EnvironmentSetup):
     (:mod:`warp_sg.renderer.progressive`); frames are unshadowed (those of ``[render] shadows = false``)
     until they are installed (:meth:`poll`, called by :meth:`render`; :meth:`wait`;
     :attr:`shadows_pending`), then equal to a non-progressive renderer's, bit for bit.
+    ``requires_grad``: frames are recorded for their adjoint (:meth:`backward`, :meth:`gradients`,
+    :mod:`warp_sg.renderer.gradients`): the shading's gradients with respect to the materials,
+    textures, lights and an SG-mixture environment, visibility and geometry held fixed.
     """
 
     #: compute the refinement and SSDFs on a thread beside the environment fit and ΓL prefilter
@@ -77,7 +81,7 @@ class Renderer(FramePaths, VariantChoice, ResourceSetup, EnvironmentSetup):
     show_shadows = True
 
     def __init__(self, scene: Scene, device: str | None = None, progress: bool = False, *, ssdf_compute=None,
-                 precomputed: dict | None = None, progressive: bool = False):
+                 precomputed: dict | None = None, progressive: bool = False, requires_grad: bool = False):
         if not isinstance(scene, Scene):
             raise InputError(f"expected a warp_sg.Scene, got {type(scene).__name__}", where="scene")
         scene.render.validate()  # the scene-file model's rule, for settings edited since the Scene was built
@@ -87,6 +91,9 @@ class Renderer(FramePaths, VariantChoice, ResourceSetup, EnvironmentSetup):
         self.device = resolve_device(device if device is not None else scene.render.device)
         self.progress = progress
         self.progressive = bool(progressive)
+        self.requires_grad = bool(requires_grad)  # (warp_sg.renderer.gradients)
+        self.env_mixture = False  # the environment is its SG mixture (set_environment_mixture)
+        self._grad = None  # the last taped frame (GradientPaths)
         self._job = None  # the background shadow precompute (progressive)
         self._gamma_job = None  # the background ΓL prefilter (progressive: _ensure_gamma)
         self.timings: dict = {"precompute_parts": {}, "precompute_cpu": {}}
@@ -142,11 +149,11 @@ class Renderer(FramePaths, VariantChoice, ResourceSetup, EnvironmentSetup):
         if "model" in params:
             m.model, m.params = str(params.pop("model")), {}
         for k, v in params.items():
-            if isinstance(v, Texture):
+            if k in ("normal_map", "tangent_map"):
+                setattr(m, k, v)
+            elif isinstance(v, Texture):
                 m.textures[k] = v
                 m.params.pop(k, None)
-            elif k in ("normal_map", "tangent_map"):
-                setattr(m, k, v)
             else:
                 m.textures.pop(k, None)
                 m.params[k] = v

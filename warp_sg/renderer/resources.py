@@ -214,6 +214,8 @@ class ResourceSetup:
             ranges = [None if s < 0 else (max(float(np.min(images[s][..., 0])), 1e-4),
                                           max(float(np.max(images[s][..., 0])), 1e-4))
                       for s in slots[:len(mats), SLOT_P0]]
+            if self.requires_grad:  # ranges that stay put between edits (warp_sg.renderer.gradients)
+                ranges = self._fixed_albedo_ranges(names, ranges)
             albedo.attach(self.material_table, ranges, irradiance_table_array(self.device), self.device)
 
     def _setup_lights(self):

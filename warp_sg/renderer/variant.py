@@ -4,8 +4,9 @@ scene's content and the renderer's switches (a mixin of :class:`~warp_sg.rendere
 The kernel is specialised per feature set (:func:`warp_sg.shading.kernel.shade_kernel`): the
 environment's diffuse and specular modes, local lights, specular materials, SSDF shadows (shown:
 ``Renderer.show_shadows``), textures and normal maps, the ``fh`` form, the per-vertex visibility
-paths (``[render] visibility_sampling = "vertex"``), the material models, and the material layers
-(emission, occlusion, clear coat, vertex colours, cut-outs).
+paths (``[render] visibility_sampling = "vertex"``), the material models, the material layers
+(emission, occlusion, clear coat, vertex colours, cut-outs), an environment given as its SG mixture
+(``Renderer.set_environment_mixture``) and the adjoint (``Renderer(requires_grad=True)``).
 """
 from __future__ import annotations
 
@@ -28,7 +29,7 @@ class VariantChoice:
     def features(self) -> S.Features:
         return S.Features(
             env_diffuse=self.env_diffuse_mode,
-            env_specular=self.env_specular_mode if self.has_specular else S.ENV_NONE,
+            env_specular=(S.ENV_MIXTURE if self.env_mixture else self.env_specular_mode) if self.has_specular else S.ENV_NONE,
             lights=len(self.shading_lights) > 0,
             specular=self.has_specular,
             shadows=self.shadows and self.show_shadows,
@@ -42,6 +43,7 @@ class VariantChoice:
             emission=self.has_emission, occlusion=self.has_occlusion, coat=self.has_coat,
             vertex_colors=self.geometry.colors is not None, cutouts=self.cutouts is not None,
             moving=self.dynamic is not None and self.shadows and self.show_shadows,
+            env_mixture=self.env_mixture and self.env_diffuse_mode == S.ENV_SG, grad=self.requires_grad,
         )
 
 

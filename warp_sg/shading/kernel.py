@@ -82,6 +82,7 @@ import warp as wp
 
 from warp_sg.shading.background import Background, background_along, background_at
 from warp_sg.shading.cutout import Cutouts, see_behind
+from warp_sg.shading.env_mixture import mixture_mean
 from warp_sg.brdf.kernel.albedo import albedo_correction
 from warp_sg.brdf.kernel.material_wp import ALL_MODELS, Material, above, constant_diffuse, material_funcs
 from warp_sg.numeric.fastmath import fast_asin
@@ -101,7 +102,7 @@ from warp_sg.shading.visibility_terms import (CC_LAM, EnvSG, GeometryArrays, Vis
                                               light_vis_ratio, vis_ratio, vis_ratio_depth, visible_irradiance,
                                               visible_lobe)
 
-ENV_NONE, ENV_SG, ENV_PREFILTERED = 0, 1, 2
+ENV_NONE, ENV_SG, ENV_PREFILTERED, ENV_MIXTURE = 0, 1, 2, 3
 
 
 # --------------------------------------------------------------------------------------------
@@ -112,7 +113,8 @@ class Features:
     """What a scene needs; one compiled kernel per distinct value."""
 
     env_diffuse: int = ENV_NONE   # ENV_NONE | ENV_SG (the environment's SG mixture)
-    env_specular: int = ENV_NONE  # ENV_NONE | ENV_PREFILTERED (the ΓL pyramid)
+    #: ENV_NONE | ENV_PREFILTERED (the ΓL pyramid) | ENV_MIXTURE (the SG mixture's lobes, ``env_mixture``)
+    env_specular: int = ENV_NONE
     lights: bool = False
     specular: bool = False
     shadows: bool = False
@@ -138,9 +140,16 @@ class Features:
     vertex_colors: bool = False
     cutouts: bool = False
     moving: bool = False  # dynamic objects: their occluder proxies per pixel (warp_sg.shading.motion_wp)
+    #: the environment *is* its SG mixture (``Renderer.set_environment_mixture``): diffuse from the
+    #: lobes alone (no exact-irradiance table), specular from the lobes (``env_specular = ENV_MIXTURE``)
+    env_mixture: bool = False
+    #: the kernel is compiled with its adjoint (``Renderer(requires_grad=True)``, :mod:`warp_sg.renderer.gradients`)
+    grad: bool = False
 
     def __post_init__(self):
         object.__setattr__(self, "models", tuple(sorted({int(m) for m in self.models})))
+        if self.env_mixture:  # (the per-vertex visible fraction weighs the map, which the mixture replaces)
+            object.__setattr__(self, "env_visible_vertex", False)
         # the per-vertex visibility gating, decided once here (the renderer's caches and the kernel read it)
         evis = bool(self.env_visible_vertex and self.shadows) and env_visible_vertex_ok(self.env_diffuse, self.models)
         object.__setattr__(self, "env_visible_vertex", evis)
@@ -198,13 +207,109 @@ def shade_kernel(f: Features):
     brdf_eval, diffuse_at, slice_lobe_count = MF.brdf_eval, MF.diffuse_at, MF.slice_lobe_count
     shading_slice_lobe = MF.shading_slice_lobe
     USE_GAMMA = ENV_S == ENV_PREFILTERED
+    MIX = bool(f.env_mixture)
     EMIT, OCC, COAT, VCOL, CUT, MOVING = (bool(f.emission), bool(f.occlusion), bool(f.coat),
                                           bool(f.vertex_colors), bool(f.cutouts), bool(f.moving))
     brdf_diffuse = MF.brdf_diffuse
     if USE_GAMMA:
         GammaT, gamma_mean = _gamma_parts()
-    else:
-        GammaT, gamma_mean = EnvSG, None  # placeholder type (unused argument)
+    else:  # the mixture's own lobes (ENV_MIXTURE: the EnvSG passed again), or a placeholder
+        GammaT, gamma_mean = EnvSG, mixture_mean
+    key = "shade_" + "_".join(str(int(v)) for v in (ENV_D, ENV_S, LIGHTS, SPEC, SHADOWS, TEX, NMAP, FH, VVIS, LVIS,
+                                                      EVIS, EMIT, OCC, COAT, VCOL, CUT, MOVING, MIX, f.grad)) + MF.tag
+
+    # Each loop over lights or lobes is a function that returns its sums: Warp's reverse pass
+    # replays a function's forward body whole but not a dynamic loop's, so a value summed in a loop
+    # is only used after the loop by the caller (the gradient variant, warp_sg.shading.kernel_grad).
+    @wp.func(name=key + "_lights")
+    def lights_sum(lights: LightArrays, irr: wp.array2d(dtype=float), vis: Visibility, px: Proxies, lay: Layers,
+                   mat: Material, cm: Material, has_coat: bool, o_l: wp.vec3, oc_l: wp.vec3, P: wp.vec3, ng: wp.vec3,
+                   ts: wp.vec3, bs: wp.vec3, ns: wp.vec3, ts_c: wp.vec3, bs_c: wp.vec3, ns_c: wp.vec3, q: SSDFPoint,
+                   t: int, i0: int, i1: int, i2: int, b0: float, b1: float, b2: float, occ: float):
+        """(the lights' colour, the coat's): exact BRDF × irradiance × the light's SG cosine e(n·l, λ);
+        the SSDF (and the moving objects' proxies) supply only the occluded fraction."""
+        col = wp.vec3(0.0, 0.0, 0.0)
+        ccol = wp.vec3(0.0, 0.0, 0.0)
+        for j in range(lights.count):
+            la, ll, E = light_irradiance(lights, j, P)
+            li = world_to_local(la, ts, bs, ns)
+            e = sg_irradiance_norm(irr, li[2], ll)
+            ec = float(0.0)
+            lc = li
+            if wp.static(COAT):
+                if has_coat:
+                    lc = world_to_local(la, ts_c, bs_c, ns_c)
+                    ec = sg_irradiance_norm(irr, lc[2], ll)
+            if e > 0.0 or ec > 0.0:
+                vr = float(1.0)
+                if wp.static(LVIS):  # θd = θh + the vertices' interpolated deficit (per-vertex cache)
+                    dd = (b0 * vis.light_deficit[i0, j] + b1 * vis.light_deficit[i1, j]
+                          + b2 * vis.light_deficit[i2, j])
+                    if dd < 0.0:
+                        th_h = fast_asin(wp.dot(la, q.ng))
+                        vr = light_fraction(FH, vis, th_h + dd, th_h, ll)
+                else:
+                    vr = light_vis_ratio(SHADOWS, FH, vis, q, la, ll)
+                if wp.static(MOVING): vr = wp.min(vr, proxy_light_ratio(FH, vis, px, t, P, ng, la, ll))  # noqa: E701
+                if e > 0.0:
+                    f = brdf_eval(mat, o_l, above(li))
+                    if wp.static(OCC):  # the environment's peaks: occlusion on their diffuse part
+                        if j >= lay.n_local:
+                            f = f - brdf_diffuse(mat, o_l, above(li)) * (1.0 - occ)
+                    col += wp.cw_mul(f, E) * (e * vr)
+                if wp.static(COAT):
+                    if ec > 0.0:
+                        ccol += wp.cw_mul(brdf_eval(cm, oc_l, above(lc)), E) * (ec * vr)
+        return col, ccol
+
+    @wp.func(name=key + "_env_lobes")
+    def env_lobes_sum(env: EnvSG, irr: wp.array2d(dtype=float), vis: Visibility, px: Proxies, mat: Material,
+                      o_l: wp.vec3, P: wp.vec3, ng: wp.vec3, ts: wp.vec3, bs: wp.vec3, ns: wp.vec3, q: SSDFPoint,
+                      t: int, i0: int, i1: int, i2: int, b0: float, b1: float, b2: float):
+        """(Σ_j a_j ρd(p_G) V_j, Σ_j a_j, Σ_j a_j V_j) over the mixture's lobes (eq. 39)."""
+        cd = wp.vec3(0.0, 0.0, 0.0)
+        unocc = wp.vec3(0.0, 0.0, 0.0)
+        seen = wp.vec3(0.0, 0.0, 0.0)
+        for j in range(env.count):
+            ax = env.axis[j]
+            E = env.power[j] * sg_irradiance_norm_at(irr, wp.dot(ns, ax), env.lam[j], env.irr_row[j])
+            if wp.length_sq(E) > 0.0:
+                vr = float(1.0)
+                pe, le = sg_product_lobe(ns, CC_LAM, ax, env.lam[j])
+                if wp.static(VVIS):  # the per-vertex cache, interpolated
+                    vr = b0 * env.vis[i0, j] + b1 * env.vis[i1, j] + b2 * env.vis[i2, j]
+                else:
+                    vr = vis_ratio(SHADOWS, FH, vis, q, pe, le)
+                if wp.static(MOVING): vr = wp.min(vr, proxy_ratio(FH, vis.fh_table, px, t, P, ng, pe, le))  # noqa: E701,E501
+                unocc += E
+                seen += E * vr
+                cd += wp.cw_mul(E, diffuse_at(mat, o_l, world_to_local(pe, ts, bs, ns))) * vr
+        return cd, unocc, seen
+
+    @wp.func(name=key + "_specular")
+    def specular_sum(mat: Material, o_l: wp.vec3, ts: wp.vec3, bs: wp.vec3, ns: wp.vec3, n: int,
+                     irr: wp.array2d(dtype=float), vis: Visibility, q: SSDFPoint, px: Proxies, gamma: GammaT,
+                     t: int, P: wp.vec3, ng: wp.vec3) -> wp.vec3:
+        """Σ_k [μ_k ∫G_k e(n·pW, λW)] · L̄ · V over the first ``n`` slice lobes of the material in the
+        frame (ts, bs, ns) (eq. 41; the module docstring)."""
+        spec = wp.vec3(0.0, 0.0, 0.0)
+        for k in range(n):
+            pw_l, lw, mw = shading_slice_lobe(mat, o_l, k)
+            if wp.length_sq(mw) > 0.0:
+                e = sg_irradiance_norm(irr, pw_l[2], lw) * sg_integral(lw)
+                if e > 0.0:
+                    pa, lam = sg_product_lobe(ns, CC_LAM, local_to_world(pw_l, ts, bs, ns), lw)
+                    vd = vis_ratio_depth(SHADOWS, FH, vis, q, pa, lam)
+                    pv = pa
+                    lv = lam
+                    vr = vd[0]
+                    if wp.static(MOVING):  # the maps' and the proxies' cut, the smaller
+                        vr, pv, lv = moving_lobe(FH, vis, q, px, t, P, ng, pa, lam, vd)
+                    else:
+                        if vd[0] < 1.0:  # the mean radiance of the lobe's visible part
+                            pv, lv = visible_lobe(vis, q, pa, lam, vd[1])
+                    spec += wp.cw_mul(mw, gamma_mean(gamma, pv, lv)) * (e * vr)  # L̄ = ΓL(p, λ)/∫G(λ)
+        return spec
 
     def shade(base: int, per: int, tri_id: wp.array2d(dtype=int), bary: wp.array2d(dtype=wp.vec2), background: wp.array2d(dtype=wp.vec3),
               rays: Background, use_rays: int, cam: wp.vec3, geo: GeometryArrays, mats: wp.array(dtype=Material), tex: MaterialTextures,
@@ -290,42 +395,16 @@ def shade_kernel(f: Features):
             # exact BRDF × irradiance × the light's SG cosine e(n·l, λ); the SSDF (and the moving
             # objects' proxies) supply only the occluded fraction (vis_ratio, proxy_ratio)
             if wp.static(LIGHTS):
-                for j in range(lights.count):
-                    la, ll, E = light_irradiance(lights, j, P)
-                    li = world_to_local(la, ts, bs, ns)
-                    e = sg_irradiance_norm(irr, li[2], ll)
-                    ec = float(0.0)
-                    lc = li
-                    if wp.static(COAT):
-                        if has_coat:
-                            lc = world_to_local(la, ts_c, bs_c, ns_c)
-                            ec = sg_irradiance_norm(irr, lc[2], ll)
-                    if e > 0.0 or ec > 0.0:
-                        vr = float(1.0)
-                        if wp.static(LVIS):  # θd = θh + the vertices' interpolated deficit (per-vertex cache)
-                            dd = (b0 * vis.light_deficit[i0, j] + b1 * vis.light_deficit[i1, j]
-                                  + b2 * vis.light_deficit[i2, j])
-                            if dd < 0.0:
-                                th_h = fast_asin(wp.dot(la, q.ng))
-                                vr = light_fraction(FH, vis, th_h + dd, th_h, ll)
-                        else:
-                            vr = light_vis_ratio(SHADOWS, FH, vis, q, la, ll)
-                        if wp.static(MOVING): vr = wp.min(vr, proxy_light_ratio(FH, vis, px, t, P, ng, la, ll))  # noqa: E701
-                        if e > 0.0:
-                            f = brdf_eval(mat, o_l, above(li))
-                            if wp.static(OCC):  # the environment's peaks: occlusion on their diffuse part
-                                if j >= lay.n_local:
-                                    f = f - brdf_diffuse(mat, o_l, above(li)) * (1.0 - occ)
-                            col += wp.cw_mul(f, E) * (e * vr)
-                        if wp.static(COAT):
-                            if ec > 0.0:
-                                ccol += wp.cw_mul(brdf_eval(cm, oc_l, above(lc)), E) * (ec * vr)
+                lc, lcc = lights_sum(lights, irr, vis, px, lay, mat, cm, has_coat, o_l, oc_l, P, ng, ts, bs, ns,
+                                     ts_c, bs_c, ns_c, q, t, i0, i1, i2, b0, b1, b2, occ)
+                col += lc
+                ccol += lcc
 
             # ---------------- environment, diffuse (eq. 39) ----------------
             # ρd E(n) times its visible fraction: per vertex by quadrature of the SSDF (EVIS, the
             # default), else from the mixture's lobes and the part of E(n) they miss (module docstring)
             cd = wp.vec3(0.0, 0.0, 0.0)  # the environment's diffuse term (times the occlusion)
-            if wp.static(ENV_D == 1 and SHADOWS == 0 and RHO_D_CONST):
+            if wp.static(ENV_D == 1 and SHADOWS == 0 and RHO_D_CONST and not MIX):
                 if has_kd:  # nothing occludes: ρd E(n), no lobe
                     cd += wp.cw_mul(env_irradiance(env.exact, ns), diffuse_at(mat, o_l, wp.vec3(0.0, 0.0, 1.0)))
             if wp.static(ENV_D == 1 and EVIS):
@@ -338,36 +417,23 @@ def shade_kernel(f: Features):
                         fv = b0 * env.visible[i0] + b1 * env.visible[i1] + b2 * env.visible[i2]
                         cd += wp.cw_mul(wp.cw_mul(env_irradiance(env.exact, ns), fv), rho_d)
                     if wp.static(MOVING): cd = wp.cw_mul(cd, proxy_diffuse(px, t, P, ns, env.radiance, env.exact))  # noqa: E701
-            if wp.static(ENV_D == 1 and not (SHADOWS == 0 and RHO_D_CONST) and not EVIS):
+            if wp.static(ENV_D == 1 and (MIX or not (SHADOWS == 0 and RHO_D_CONST)) and not EVIS):
                 if has_kd:
                     rho_d = diffuse_at(mat, o_l, wp.vec3(0.0, 0.0, 1.0))  # ρd at the normal
-                    nj = env.count
                     # Σ_j a_j ρd(p_G) V_j, and the exact irradiance's part the lobes miss (E − Σ_j a_j)
                     # with ρd at the normal and the lobes' mean visible fraction (visible_irradiance)
-                    unocc = wp.vec3(0.0, 0.0, 0.0)
-                    seen = wp.vec3(0.0, 0.0, 0.0)
-                    for j in range(nj):
-                        ax = env.axis[j]
-                        E = env.power[j] * sg_irradiance_norm_at(irr, wp.dot(ns, ax), env.lam[j], env.irr_row[j])
-                        if wp.length_sq(E) > 0.0:
-                            vr = float(1.0)
-                            pe, le = sg_product_lobe(ns, CC_LAM, ax, env.lam[j])
-                            if wp.static(VVIS):  # the per-vertex cache, interpolated
-                                vr = b0 * env.vis[i0, j] + b1 * env.vis[i1, j] + b2 * env.vis[i2, j]
-                            else:
-                                vr = vis_ratio(SHADOWS, FH, vis, q, pe, le)
-                            if wp.static(MOVING): vr = wp.min(vr, proxy_ratio(FH, vis.fh_table, px, t, P, ng, pe, le))  # noqa: E701,E501
-                            unocc += E
-                            seen += E * vr
-                            cd += wp.cw_mul(E, diffuse_at(mat, o_l, world_to_local(pe, ts, bs, ns))) * vr
-                    rest = visible_irradiance(env_irradiance(env.exact, ns), unocc, seen) - seen
-                    cd += wp.cw_mul(rest, rho_d)
+                    cl, unocc, seen = env_lobes_sum(env, irr, vis, px, mat, o_l, P, ng, ts, bs, ns, q, t,
+                                                    i0, i1, i2, b0, b1, b2)
+                    cd += cl
+                    if wp.static(not MIX):  # (the mixture alone: no part missed)
+                        rest = visible_irradiance(env_irradiance(env.exact, ns), unocc, seen) - seen
+                        cd += wp.cw_mul(rest, rho_d)
             col += cd * occ
 
             # ---------------- environment, specular (eq. 41) ----------------
             # per slice lobe G_k: [μ_k ∫G_k e(n·pW, λW)] · L̄, the lobe's exact cosine-weighted mass times
             # the mean radiance L̄ = ΓL(p, λ)/∫G(λ) over (p, λ) = C* ⊗ G_k (eq. 35; module docstring)
-            if wp.static(SPEC and ENV_S == 2):
+            if wp.static(SPEC and ENV_S >= 2):
                 nspec = slice_lobe_count(mat)
                 ncoat = int(0)
                 if wp.static(COAT):
@@ -376,43 +442,11 @@ def shade_kernel(f: Features):
                 if wp.static(SHADOWS == 1 and not Q_EARLY):
                     if nspec > 0 or ncoat > 0:
                         q = ssdf_point_framed(vis.normals, vis.frame_t, vis.frame_b, i0, i1, i2, b0, b1, b2, ng)
-                spec = wp.vec3(0.0, 0.0, 0.0)
-                for k in range(nspec):
-                    pw_l, lw, mw = shading_slice_lobe(mat, o_l, k)
-                    if wp.length_sq(mw) > 0.0:
-                        e = sg_irradiance_norm(irr, pw_l[2], lw) * sg_integral(lw)
-                        if e > 0.0:
-                            pw = local_to_world(pw_l, ts, bs, ns)
-                            pa, lam = sg_product_lobe(ns, CC_LAM, pw, lw)
-                            vd = vis_ratio_depth(SHADOWS, FH, vis, q, pa, lam)
-                            pv = pa
-                            lv = lam
-                            vr = vd[0]
-                            if wp.static(MOVING):  # the maps' and the proxies' cut, the smaller
-                                vr, pv, lv = moving_lobe(FH, vis, q, px, t, P, ng, pa, lam, vd)
-                            else:
-                                if vd[0] < 1.0:  # the mean radiance of the lobe's visible part
-                                    pv, lv = visible_lobe(vis, q, pa, lam, vd[1])
-                            g = gamma_mean(gamma, pv, lv)  # L̄ = ΓL(p, λ)/∫G(λ)
-                            spec += wp.cw_mul(mw, g) * (e * vr)
+                spec = specular_sum(mat, o_l, ts, bs, ns, nspec, irr, vis, q, px, gamma, t, P, ng)
                 if nspec > 0:  # the slice's energy made the BRDF's: A(o)/A*(o) (brdf.kernel.albedo)
                     col += wp.cw_mul(spec, albedo_correction(mat, o_l))
-                if wp.static(COAT):
-                    cspec = wp.vec3(0.0, 0.0, 0.0)
-                    for k in range(ncoat):  # the coat's lobes, the same way in the coat's frame
-                        pw_l, lw, mw = shading_slice_lobe(cm, oc_l, k)
-                        e = sg_irradiance_norm(irr, pw_l[2], lw) * sg_integral(lw)
-                        if e > 0.0 and wp.length_sq(mw) > 0.0:
-                            pa, lam = sg_product_lobe(ns_c, CC_LAM, local_to_world(pw_l, ts_c, bs_c, ns_c), lw)
-                            vd = vis_ratio_depth(SHADOWS, FH, vis, q, pa, lam)
-                            pv, lv = pa, lam
-                            vr = vd[0]
-                            if wp.static(MOVING):
-                                vr, pv, lv = moving_lobe(FH, vis, q, px, t, P, ng, pa, lam, vd)
-                            else:
-                                if vd[0] < 1.0:
-                                    pv, lv = visible_lobe(vis, q, pa, lam, vd[1])
-                            cspec += wp.cw_mul(mw, gamma_mean(gamma, pv, lv)) * (e * vr)
+                if wp.static(COAT):  # the coat's lobes, the same way in the coat's frame
+                    cspec = specular_sum(cm, oc_l, ts_c, bs_c, ns_c, ncoat, irr, vis, q, px, gamma, t, P, ng)
                     ccol += wp.cw_mul(cspec, albedo_correction(cm, oc_l))  # (zero without a coat)
             if wp.static(EMIT):
                 col += emission_at(lay, tex, mi, uv)
@@ -420,11 +454,14 @@ def shade_kernel(f: Features):
                 col = col * atten + ccol
             out[y, x] = wp.vec3(wp.max(col[0], 0.0), wp.max(col[1], 0.0), wp.max(col[2], 0.0))
 
-    key = "shade_" + "_".join(str(int(v)) for v in (ENV_D, ENV_S, LIGHTS, SPEC, SHADOWS, TEX, NMAP, FH, VVIS, LVIS,
-                                                      EVIS, EMIT, OCC, COAT, VCOL, CUT, MOVING)) + MF.tag
     shade.__name__ = key
     shade.__qualname__ = key
-    k = wp.kernel(shade, enable_backward=False, module="unique")
+    if f.grad:  # one pixel per thread, with its adjoint (warp_sg.shading.kernel_grad)
+        from warp_sg.shading.kernel_grad import grad_kernel
+
+        k = grad_kernel(shade, key)
+    else:
+        k = wp.kernel(shade, enable_backward=False, module="unique")
     _KERNELS[f] = k
     return k
 
@@ -441,4 +478,4 @@ def resolve_box(src: wp.array2d(dtype=wp.vec3), k: int, out: wp.array2d(dtype=wp
 
 
 __all__ = ["Features", "shade_kernel", "shade_kernel_ready", "resolve_box", "GeometryArrays", "MaterialTextures", "Visibility",
-           "EnvSG", "ENV_NONE", "ENV_SG", "ENV_PREFILTERED"]
+           "EnvSG", "ENV_NONE", "ENV_SG", "ENV_PREFILTERED", "ENV_MIXTURE"]

@@ -310,7 +310,7 @@ def visible_irradiance(exact: wp.vec3, lobes: wp.vec3, lobes_visible: wp.vec3) -
     return lobes_visible + (exact - lobes) * vbar
 
 
-@wp.kernel(enable_backward=False)
+@wp.kernel  # (with its adjoint: a requires_grad frame records it, warp_sg.renderer.gradients)
 def _lobe_constants_kernel(irr: wp.array2d(dtype=float), lam: wp.array(dtype=float), mu: wp.array(dtype=wp.vec3),
                            power: wp.array(dtype=wp.vec3), row: wp.array(dtype=float)):
     j = wp.tid()
@@ -318,12 +318,13 @@ def _lobe_constants_kernel(irr: wp.array2d(dtype=float), lam: wp.array(dtype=flo
     row[j] = sg_irradiance_row(irr, lam[j])
 
 
-def lobe_constants(es: EnvSG, irr, device) -> EnvSG:
+def lobe_constants(es: EnvSG, irr, device, keep: bool = False) -> EnvSG:
     """Fill ``es.power`` (μ ∫G(λ)) and ``es.irr_row`` (the lobe's irradiance-table row) once per
     environment change: ``sg_irradiance(irr, n, p, λ, μ) = power · sg_irradiance_norm_at(irr, n·p,
-    λ, irr_row)`` for every pixel."""
+    λ, irr_row)`` for every pixel. ``keep``: into the arrays ``es`` has (a change of μ only)."""
     n = int(es.lam.shape[0])
-    es.power = wp.zeros(n, dtype=wp.vec3, device=device)
-    es.irr_row = wp.zeros(n, dtype=float, device=device)
+    if not keep:
+        es.power = wp.zeros(n, dtype=wp.vec3, device=device)
+        es.irr_row = wp.zeros(n, dtype=float, device=device)
     wp.launch(_lobe_constants_kernel, dim=n, inputs=[irr, es.lam, es.mu, es.power, es.irr_row], device=device)
     return es
