@@ -128,7 +128,7 @@ def texel_direction_array(resolution: int, device) -> wp.array:
 
 
 def lookup_np(image, d):
-    """numpy twin of :func:`ssdf_bilinear`: bilinear lookup of (..., R, R) maps at direction(s) ``d``."""
+    """Bilinear lookup of (..., R, R) maps at direction(s) ``d`` (the footprint of :func:`_texel_coords`)."""
     image = np.asarray(image)
     R = image.shape[-1]
     a, b = dir_to_concentric(d)
@@ -264,18 +264,6 @@ def _texel_coords(d: wp.vec3, R: int) -> wp.vec4:
     x0 = wp.min(int(wp.floor(x)), R - 2)
     y0 = wp.min(int(wp.floor(y)), R - 2)
     return wp.vec4(float(x0), float(y0), x - float(x0), y - float(y0))
-
-
-@wp.func
-def ssdf_bilinear(image: wp.array2d(dtype=float), d: wp.vec3) -> float:
-    """Bilinear lookup of one R×R concentric map at local direction d (clamped to the horizon)."""
-    t = _texel_coords(d, image.shape[0])
-    x0 = int(t[0])
-    y0 = int(t[1])
-    fx = t[2]
-    fy = t[3]
-    return ((image[y0, x0] * (1.0 - fx) + image[y0, x0 + 1] * fx) * (1.0 - fy)
-            + (image[y0 + 1, x0] * (1.0 - fx) + image[y0 + 1, x0 + 1] * fx) * fy)
 
 
 @wp.func

@@ -224,7 +224,7 @@ class EnvironmentSetup:
         mixture's, e.g. amplitudes the non-negative fit set to 0) are left out."""
         env = self.env_light
         base = self._env_sg_base  # (the key holds its axes and sharpnesses: set_environment_mixture changes μ in place)
-        key = None if env is None or base is None else (id(base[0]), id(base[1]), float(env.rotation), float(env.scale),
+        key = None if env is None or base is None else ((id(base[0]), id(base[1])), float(env.rotation), float(env.scale),
                                                         id(self.geometry.triangles))  # (smooth: per triangle)
         if self._env_arrays_key == key:
             return self._env_sg_arrays
@@ -266,7 +266,7 @@ class EnvironmentSetup:
         product with the slice lobes (:mod:`warp_sg.shading.env_mixture`); the map's peaks are no
         longer lights and the background still shows the map. A call with the same axes and
         sharpnesses changes only μ: no per-vertex visibility is recomputed (what inverse rendering
-        does every step, :mod:`warp_sg.inverse`)."""
+        does every step)."""
         from warp_sg.core.errors import SceneError
 
         if self.env_light is None:
@@ -289,7 +289,7 @@ class EnvironmentSetup:
             self._env_sg_base = (old[0], old[1], mu)  # the same key: the device μ updated here
             es = self._env_sg_arrays
             key = self._env_arrays_key
-            if es is not None and key and key[0] == id(old[0]) and key[1] == id(old[1]):  # (built for these lobes)
+            if es is not None and key and key[0] == (id(old[0]), id(old[1])):  # (built for these lobes)
                 es.mu.assign((mu * self.env_light.scale).astype(np.float32))
                 lobe_constants(es, self.irr_table, self.device, keep=True)
             return

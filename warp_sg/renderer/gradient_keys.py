@@ -11,12 +11,12 @@ environment mixture's lobes. :func:`scene_gradients` names them as a scene file 
 * ``materials.NAME.PARAM`` for a textured parameter: (H, W, C) per texel of the texture's values
   (``offset + scale · texel``, linear; C = 3 for colours, 1 otherwise); ``materials.NAME.normal_map``
   (H, W, 3) per raw texel;
-* ``lights.I.intensity`` (3,), ``lights.I.position`` (3,) of a point light, ``lights.I.direction``
+* ``lights.INDEX.intensity`` (3,), ``lights.INDEX.position`` (3,) of a point light, ``lights.INDEX.direction``
   (3,) of a directional light (projected on the plane orthogonal to the unit direction, the only
-  directions it can move in), ``lights.I.radius``;
+  directions it can move in), ``lights.INDEX.radius``;
 * an environment light given as an SG mixture (``Renderer.set_environment_mixture``):
-  ``lights.I.mu`` (K, 3), ``lights.I.axis`` (K, 3, in the map's frame, projected as directions are)
-  and ``lights.I.lambda`` (K,), with ``lights.I.scale``.
+  ``lights.INDEX.mu`` (K, 3), ``lights.INDEX.axis`` (K, 3, in the map's frame, projected as directions are)
+  and ``lights.INDEX.lambda`` (K,), with ``lights.INDEX.scale``.
 """
 from __future__ import annotations
 
@@ -41,7 +41,7 @@ def record_vector(model: str, params: dict) -> np.ndarray:
 
 def numeric_leaves(params: dict, prefix: str = ""):
     """``(dotted key, value)`` of every number or numeric list in a parameter table (strings and
-    flags skipped): ``{"alpha": 0.3, "fresnel": {"schlick": 0.04}}`` → ``alpha``, ``fresnel.schlick``."""
+    flags skipped): ``{"alpha": 0.3, "fresnel": {"schlick": 0.04}}`` → alpha, fresnel.schlick."""
     for k, v in params.items():
         key = f"{prefix}{k}"
         if isinstance(v, dict):

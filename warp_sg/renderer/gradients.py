@@ -30,11 +30,14 @@ sub-pixel; the adaptive antialiasing's choice of pixels is not differentiable).
 
 **Warp's adjoint rules** (its documentation, "Differentiability"), which the shading kernel keeps:
 loops over lights and lobes only accumulate (``col += …``), with no in-place ``*=``/``/=`` on a
-taped array; Warp replays a dynamic loop's body in its reverse pass, which is exact for such
-sums (the per-pixel loop of ``per`` samples too: its indices are recomputed, checked by the
-finite-difference tests). **Parallel adjoint on the CPU**: Warp's CPU ``atomic_add`` is a plain
-add, so two threads must not add into one gradient array: each worker thread runs the adjoint of
-its own pixel range into private gradient arrays, summed afterwards.
+taped array; Warp's reverse pass does not replay a dynamic loop before the statements after it, so
+every such loop is a function that returns its sums and nothing after a loop uses what it summed
+(:mod:`warp_sg.shading.kernel_grad`; the per-pixel loop of the forward kernel is taken out of the
+gradient variant). Arrays inside a ``@wp.struct`` get their gradients through their own ``.grad``
+(the adjoint struct's arrays are not read). **Parallel adjoint on the CPU**: Warp's CPU
+``atomic_add`` is a plain add, so two threads must not add into one gradient array: each worker
+thread runs the adjoint of its own pixel range into private gradient arrays (views of the inputs
+carrying them, :func:`with_grads`), summed afterwards.
 """
 from __future__ import annotations
 
@@ -156,8 +159,6 @@ class GradientPaths:
 
     def _render_grad(self) -> np.ndarray:
         """One frame recorded on :attr:`tape`: (H, W, 3) float32 linear radiance."""
-        from raster import parallel
-        from warp_sg.core.workers import cpu_workers
         from warp_sg.renderer.frame import _timer
 
         d = self.device
@@ -166,19 +167,7 @@ class GradientPaths:
         t0 = _timer(d)
         vb = self.rasterize(k)
         t1 = _timer(d)
-        bg = self._background(k)
-        hs, ws_ = cam.height * k, cam.width * k
-        sub = wp.zeros((hs, ws_), dtype=wp.vec3, device=d, requires_grad=True)
-        kern, n, args, es = self._shade_args(vb.tri_id, vb.bary, bg, cam.origin, sub)
-        arrays = self._differentiable(es)
-        tape = wp.Tape()
-        if self.env_light is not None and es.count > 0:
-            with tape:  # μ ∫G(λ) and the table rows, recomputed on the tape
-                lobe_constants(es, self.irr_table, d, keep=True)
-        parallel.launch(kern, n, args, d, min_chunk=2048, per_thread=1)  # (kernel_grad: one pixel per thread)
-        grads = {id(a): a.grad for a in arrays}
-        workers = cpu_workers()
-        tape.record_func(lambda: adjoint_launch(kern, n, args, grads, d, workers), arrays)
+        sub = self._shade_taped(vb.tri_id, vb.bary, self._background(k), cam.origin)
         img = sub
         if k > 1:
             img = wp.zeros((cam.height, cam.width), dtype=wp.vec3, device=d, requires_grad=True)
@@ -188,17 +177,56 @@ class GradientPaths:
                 g = np.repeat(np.repeat(img.grad.numpy(), k, axis=0), k, axis=1) / float(k * k)
                 sub.grad.assign(sub.grad.numpy() + g.astype(np.float32))
 
-            tape.record_func(spread, [sub, img])
+            self.tape.record_func(spread, [sub, img])
         t2 = _timer(d)
-        self.tape, self._grad = tape, {"image": img, "sub": sub, "arrays": arrays, "es": es}
-        out = img.numpy().reshape(cam.height, cam.width, 3).copy()
+        self._grad["image"] = img
+        hs, ws_ = sub.shape
         self.timings.update(raster=t1 - t0, shade=t2 - t1, resolve=0.0, frame=t2 - t0, shaded_samples=hs * ws_)
-        return out
+        return img.numpy().reshape(cam.height, cam.width, 3).copy()
+
+    def shade_samples(self, tri_id, bary, eye) -> np.ndarray:
+        """The shading of N surface samples — triangle ``tri_id`` (N,) of the installed geometry,
+        barycentrics ``bary`` (N, 2) of its vertices 1 and 2 — seen from ``eye``, recorded on
+        :attr:`tape` like a frame: (N, 3) float32 (:meth:`backward` takes (N, 3)). What a fit
+        shades: the pixels of a view that see the object, or a random part of them."""
+        if not self.requires_grad:
+            from warp_sg.core.errors import InputError
+
+            raise InputError("shade_samples needs Renderer(requires_grad=True)", where="shade_samples")
+        self.poll()
+        d = self.device
+        tri = np.asarray(tri_id, np.int32).reshape(1, -1)
+        n = tri.shape[1]
+        t = wp.array(tri, dtype=int, device=d)
+        b = wp.array(np.asarray(bary, np.float32).reshape(1, n, 2), dtype=wp.vec2, device=d)
+        sub = self._shade_taped(t, b, wp.zeros((1, n), dtype=wp.vec3, device=d), eye)
+        return sub.numpy().reshape(n, 3).copy()
+
+    def _shade_taped(self, tri_id, bary, bg, eye):
+        """Shade the samples of (tri_id, bary) into a new array on a new :attr:`tape` (module
+        docstring): the lobe constants, the shading launch and its adjoint as a recorded function."""
+        from raster import parallel
+        from warp_sg.core.workers import cpu_workers
+
+        d = self.device
+        sub = wp.zeros(tri_id.shape, dtype=wp.vec3, device=d, requires_grad=True)
+        kern, n, args, es = self._shade_args(tri_id, bary, bg, eye, sub)
+        arrays = self._differentiable(es)
+        tape = wp.Tape()
+        if self.env_light is not None and es.count > 0:
+            with tape:  # μ ∫G(λ) and the table rows, recomputed on the tape
+                lobe_constants(es, self.irr_table, d, keep=True)
+        parallel.launch(kern, n, args, d, min_chunk=2048, per_thread=1)  # (kernel_grad: one pixel per thread)
+        grads = {id(a): a.grad for a in arrays}
+        workers = cpu_workers()
+        tape.record_func(lambda: adjoint_launch(kern, n, args, grads, d, workers), arrays)
+        self.tape, self._grad = tape, {"image": sub, "sub": sub, "arrays": arrays, "es": es}
+        return sub
 
     @property
     def image_array(self):
         """The last ``requires_grad`` frame as a (H, W) ``wp.vec3`` array on the tape (a loss kernel
-        launched on it inside ``with renderer.tape:`` is differentiated with it)."""
+        launched on it while :attr:`tape` records is differentiated with it)."""
         return None if self._grad is None else self._grad["image"]
 
     def backward(self, adj_image) -> dict:
@@ -211,7 +239,7 @@ class GradientPaths:
             raise InputError("no requires_grad frame to differentiate: render() one first", where="backward")
         img = self._grad["image"]
         g = np.asarray(adj_image, np.float32)
-        if g.shape != (img.shape[0], img.shape[1], 3) or not np.all(np.isfinite(g)):
+        if g.size != img.shape[0] * img.shape[1] * 3 or not np.all(np.isfinite(g)):
             raise InputError(f"expected a finite ({img.shape[0]}, {img.shape[1]}, 3) array, got shape {g.shape}",
                              where="backward")
         for a in self._grad["arrays"] + [self._grad["sub"]]:  # (each call: the gradients of its adjoint alone)

@@ -4,8 +4,8 @@ The specular environment term (eq. 41, :mod:`warp_sg.shading.kernel`) reads the 
 the environment under the product lobe ``G(p, λ)`` of each slice lobe, ``L̄ = ΓL(p, λ)/∫G(λ)``
 (eq. 35). For a map the prefiltered ΓL pyramid holds it
 (``precompute.environment.prefilter_wp.gamma_mean``). For an environment given as the mixture
-``L(i) = Σ_j μ_j G_j(i)`` (``Renderer.set_environment_mixture``: what inverse rendering recovers,
-:mod:`warp_sg.inverse`) it is exact in closed form, the SG inner product (paper eq. 4)::
+``L(i) = Σ_j μ_j G_j(i)`` (``Renderer.set_environment_mixture``: what inverse rendering
+recovers) it is exact in closed form, the SG inner product (paper eq. 4)::
 
     L̄(p, λ) = Σ_j μ_j ∫ G(i; p, λ) G(i; p_j, λ_j) di / ∫G(λ)
 

@@ -58,6 +58,10 @@ taking ``Ng`` to the mapped normal (Rodrigues; equivalent to the paper's quatern
 rotation about it to the mapped tangent. The BRDF and its slice are built in the rotated frame
 (with ``o' = ℜ o``); visibility stays in the vertex frame.
 
+An environment given as its SG mixture (``Features.env_mixture``: ``Renderer.set_environment_mixture``,
+what inverse rendering recovers) is shaded by its lobes alone: the diffuse lobe sum above without
+the exact table's rest, and ``L̄`` in eq. 41 the lobes' closed form (:mod:`warp_sg.shading.env_mixture`).
+
 Layers (:mod:`warp_sg.shading.surface_layers`): ``a(o)·(R + Le) + Rcoat``, the coat's GGX lobe shaded like the
 specular terms in its frame; occlusion on the environment's diffuse term; cut-outs' holes seen through.
 Moving objects (``Features.moving``, :mod:`warp_sg.shading.motion_wp`): each visibility is capped by the proxies' own.
@@ -72,7 +76,9 @@ tuple and cached (``shade_kernel``); code a scene does not need is removed at co
 ``wp.static``. The kernel is 1-D over row-major samples with an index offset ``base`` and ``per``
 samples per thread (:data:`PIXELS_PER_THREAD` on the CPU, 1 on CUDA), so on the CPU disjoint
 ranges run on a small thread pool (``raster.parallel.launch``; Warp runs one CPU launch on one
-core).
+core). ``Features.grad``: the same kernel with its adjoint and one pixel per thread
+(:mod:`warp_sg.shading.kernel_grad`); its loops over lights and lobes are functions that return
+their sums, for every variant.
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the kernel annotations at definition
 # time and the kernel variants are closures.
