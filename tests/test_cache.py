@@ -180,3 +180,70 @@ def test_cached_producers_key_on_a_code_hash_not_a_version_number():
     for mod, key in keys.items():
         assert isinstance(key, str) and len(key) == 16 and int(key, 16) >= 0, mod.__name__
     assert len(set(keys.values())) == len(keys)
+
+
+# ------------------------------------------------------------------------------------------------
+# entries that know what they hold (issue 51)
+# ------------------------------------------------------------------------------------------------
+def _warnings_of(fn):
+    import warnings
+
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        out = fn()
+    return out, [str(w.message) for w in rec]
+
+
+def test_a_valid_entry_of_other_inputs_under_this_key_is_rebuilt_with_one_warning(cache_dir):
+    # before: another scene's entry copied under this key was used without a word (wrong shadows)
+    cache.load_or_build("unit", "mine", _builder([], 1.0))
+    cache.load_or_build("unit", "theirs", _builder([], 7.0))
+    cache.entry_path("unit", "theirs").replace(cache.entry_path("unit", "mine"))
+    calls = []
+    d, msgs = _warnings_of(lambda: cache.load_or_build("unit", "mine", _builder(calls, 1.0)))
+    assert len(calls) == 1 and (d["a"] == 1.0).all()
+    assert len(msgs) == 1 and "built for other inputs" in msgs[0] and "unit/theirs" in msgs[0]
+    again, msgs = _warnings_of(lambda: cache.load_or_build("unit", "mine", _builder(calls, 1.0)))
+    assert len(calls) == 1 and msgs == [] and (again["a"] == 1.0).all()
+
+
+def test_a_folder_in_place_of_an_entry_is_replaced_by_the_rebuilt_entry(cache_dir):
+    # before: every later render of the scene failed (IsADirectoryError when removing it)
+    path = cache.entry_path("unit", "dir")
+    (path / "inside").mkdir(parents=True)
+    calls = []
+    d, msgs = _warnings_of(lambda: cache.load_or_build("unit", "dir", _builder(calls)))
+    assert len(calls) == 1 and len(msgs) == 1 and "not a cache entry" in msgs[0]
+    assert path.is_file()
+    _, msgs = _warnings_of(lambda: cache.load_or_build("unit", "dir", _builder(calls)))
+    assert len(calls) == 1 and msgs == []
+
+
+def test_an_entry_that_cannot_be_cleared_is_built_with_one_warning(cache_dir, monkeypatch):
+    path = cache.entry_path("unit", "stuck")
+    path.mkdir(parents=True)
+    monkeypatch.setattr(cache, "_clear", lambda p: False)  # (a folder the process may not remove)
+    monkeypatch.setattr(cache, "_BLOCKED", set())
+    calls = []
+    d, msgs = _warnings_of(lambda: cache.load_or_build("unit", "stuck", _builder(calls)))
+    assert len(calls) == 1 and (d["a"] == 1.0).all()
+    assert len(msgs) == 1 and "cannot be removed" in msgs[0]
+
+
+@pytest.mark.parametrize("damage", ["truncate", "empty"])
+def test_a_damaged_entry_is_one_warning_and_no_open_file_left(cache_dir, damage):
+    # before: a truncated entry left its file open (a ResourceWarning: a second warning line)
+    import gc
+
+    cache.load_or_build("unit", "t", _builder([]))
+    path = cache.entry_path("unit", "t")
+    path.write_bytes(path.read_bytes()[:40] if damage == "truncate" else b"")
+
+    def run():
+        out = cache.load_or_build("unit", "t", _builder([]))
+        gc.collect()  # an unclosed file warns when it is collected
+        return out
+
+    _, msgs = _warnings_of(run)
+    assert len(msgs) == 1 and "rebuilding" in msgs[0], msgs
+    assert "Error" not in msgs[0]

@@ -13,9 +13,13 @@ fit; the precompute facade names it ``precompute.cache``.
   (no hand-kept version numbers).
 * :func:`load_or_build` — ``kind/key.npz`` files holding ``dict[str, np.ndarray]``. Files are
   written atomically (a temporary file in the same folder, flushed and fsync-ed, then
-  ``os.replace``) and carry a SHA-256 checksum of their own contents (``__checksum__``); a file
-  that is truncated, corrupt, or whose checksum does not match is never trusted: it is deleted,
-  a warning is issued, and the entry is rebuilt.
+  ``os.replace``) and carry the fingerprint of their inputs (``__key__``: the kind and the
+  :func:`content_key` they were built for) and a SHA-256 checksum of their own contents
+  (``__checksum__``). An entry that is truncated, corrupt, of other inputs (a valid entry of
+  another scene copied under this key), or not a file at all (a folder in its place) is never
+  trusted: it is removed, one warning is issued, and the entry is rebuilt (when it cannot be
+  removed, the build is used without caching, still with one warning). Entries are read through
+  a file the reader closes, whatever the failure (no handle left open).
 * :func:`cached_table` — a constant table that depends on no input, only on the code computing it
   (the SG irradiance and ``fh`` tables): kind ``tables``, keyed by that code's :func:`code_key`,
   so a cold start on a new asset reads it instead of recomputing it.
@@ -47,9 +51,13 @@ from warp_sg.core.files import atomic_output
 from warp_sg.core.errors import CacheError
 
 #: Bump whenever the layout or meaning of any cached entry changes (old entries then miss).
-FORMAT_VERSION = 1
+#: 2: entries record their key (``__key__``)
+FORMAT_VERSION = 2
 
 _CHECKSUM = "__checksum__"
+_KEY = "__key__"
+#: entry paths that could not be cleared this process (a folder in the way): built, not written
+_BLOCKED: set = set()
 
 
 def cache_dir() -> Path:
@@ -197,45 +205,74 @@ def entry_path(kind: str, key: str) -> Path:
     return cache_dir() / kind / f"{key}.npz"
 
 
-def _read(path: Path) -> dict[str, np.ndarray]:
-    """Read and verify an entry; :class:`CacheError` if it cannot be trusted."""
+def _read(path: Path, fingerprint: str | None = None) -> dict[str, np.ndarray]:
+    """Read and verify an entry; :class:`CacheError` if it cannot be trusted (unreadable, not a
+    file, checksum mismatch, or built for other inputs than ``fingerprint``)."""
+    if not path.is_file():
+        raise CacheError(f"{path}: not a cache entry (a folder or another non-file is in its place)")
     try:
-        with np.load(path, allow_pickle=False) as z:
+        with open(path, "rb") as f, np.load(f, allow_pickle=False) as z:
             data = {k: z[k] for k in z.files}
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as e:
-        raise CacheError(f"{path}: unreadable cache entry ({type(e).__name__}: {e})") from None
-    except Exception as e:  # zlib.error, struct errors ... anything means corrupt
-        raise CacheError(f"{path}: unreadable cache entry ({type(e).__name__}: {e})") from None
+    except Exception as e:  # noqa: BLE001 - OSError, BadZipFile, zlib and struct errors ... anything means corrupt
+        raise CacheError(f"{path}: unreadable cache entry ({str(e) or 'truncated'})") from None
     stored = data.pop(_CHECKSUM, None)
     if stored is None:
         raise CacheError(f"{path}: cache entry has no checksum")
     if str(stored) != _checksum(data):
         raise CacheError(f"{path}: cache entry checksum mismatch")
+    key = data.pop(_KEY, None)
+    if fingerprint is not None and (key is None or str(key) != fingerprint):
+        raise CacheError(f"{path}: the entry was built for other inputs ({str(key)[:60] if key is not None else 'none'}"
+                         f"), not these")
     return data
 
 
-def _write_atomic(path: Path, arrays: Mapping[str, np.ndarray]) -> None:
+def _write_atomic(path: Path, arrays: Mapping[str, np.ndarray], fingerprint: str | None = None) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     payload = {k: np.asarray(v) for k, v in arrays.items()}
+    if fingerprint is not None:
+        payload[_KEY] = np.asarray(fingerprint)
     payload[_CHECKSUM] = np.asarray(_checksum(payload))
     with atomic_output(path) as tmp, open(tmp, "wb") as f:
         np.savez(f, **payload)
         f.flush()
         os.fsync(f.fileno())
 
+
+def _fingerprint(kind: str, key: str) -> str:
+    return f"{kind}/{key}"
+
+
+def _clear(path: Path) -> bool:
+    """Remove an untrusted entry (a file, or a folder in its place); False when it stays."""
+    import shutil
+
+    try:
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        else:
+            path.unlink()
+    except FileNotFoundError:
+        pass
+    except OSError:
+        return False
+    return True
+
+
 def load(kind: str, key: str) -> dict[str, np.ndarray] | None:
-    """The verified entry, or ``None`` when missing or corrupt (a corrupt file is deleted with a warning)."""
+    """The verified entry, or ``None`` when missing or untrusted (removed, with one warning)."""
     path = entry_path(kind, key)
-    if not path.exists():
+    if not (path.exists() or path.is_symlink()):
         return None
     try:
-        return _read(path)
+        return _read(path, _fingerprint(kind, key))
     except CacheError as e:
-        warnings.warn(f"warp-sg cache: {e}; rebuilding", RuntimeWarning, stacklevel=3)
-        try:
-            path.unlink()
-        except FileNotFoundError:
-            pass
+        if _clear(path):
+            warnings.warn(f"warp-sg cache: {e}; rebuilding", RuntimeWarning, stacklevel=3)
+        else:
+            _BLOCKED.add(path)
+            warnings.warn(f"warp-sg cache: {e}, and it cannot be removed; rebuilding without caching it",
+                          RuntimeWarning, stacklevel=3)
         return None
 
 
@@ -266,10 +303,13 @@ def load_or_build(
         if k.startswith("__"):
             raise ValueError(f"cache entry names must not start with '__': {k!r}")
         arrays[k] = np.asarray(v)
+    path = entry_path(kind, key)
+    if path in _BLOCKED:  # (said when it was read)
+        return arrays
     try:
-        _write_atomic(entry_path(kind, key), arrays)
+        _write_atomic(path, arrays, _fingerprint(kind, key))
     except OSError as e:  # read-only cache folder etc.: still return the result
-        warnings.warn(f"warp-sg cache: cannot write {entry_path(kind, key)} ({e})", RuntimeWarning, stacklevel=2)
+        warnings.warn(f"warp-sg cache: cannot write {path} ({e.strerror or e})", RuntimeWarning, stacklevel=2)
     return arrays
 
 

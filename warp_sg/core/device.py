@@ -82,7 +82,20 @@ def device_for(device, scene=None) -> str:
     :data:`DEFAULT_DEVICE`."""
     if device is not None:
         return device
-    return getattr(getattr(scene, "render", None), "device", None) or DEFAULT_DEVICE
+    name = getattr(getattr(scene, "render", None), "device", None)
+    if name is None:
+        return DEFAULT_DEVICE
+    # the scene's choice: a refusal by resolve_device names the scene key, not --device (not given)
+    return SceneDevice(name, f"{getattr(scene, 'path', None) or 'scene'}: [render] device")
+
+
+class SceneDevice(str):
+    """A device name chosen by a scene's ``[render] device`` (``where``: that key, for refusals)."""
+
+    def __new__(cls, name: str, where: str = "[render] device"):
+        s = super().__new__(cls, name)
+        s.where = where
+        return s
 
 
 def cuda_available() -> bool:
@@ -90,13 +103,15 @@ def cuda_available() -> bool:
     return wp.get_cuda_device_count() > 0
 
 
-def resolve_device(device: str | None = "cpu") -> str:
+def resolve_device(device: str | None = "cpu", where: str | None = None) -> str:
     """Map ``"cpu" | "cuda" | "cuda:N" | "auto" | None`` to a Warp device name.
 
     ``auto`` (and ``None``) picks CUDA when present, else the CPU. Asking for CUDA on a machine
-    without it is an :class:`InputError` (CUDA is never required).
+    without it is an :class:`InputError` (CUDA is never required) naming ``where`` the choice came
+    from (``--device``, or a scene's ``[render] device``).
     """
     _init()
+    where = where or getattr(device, "where", None) or "--device"
     if device is None or device == "auto":
         return "cuda:0" if cuda_available() else "cpu"
     if isinstance(device, wp.Device):
@@ -107,9 +122,9 @@ def resolve_device(device: str | None = "cpu") -> str:
     if name.startswith("cuda"):
         if not cuda_available():
             why = " (the NVIDIA CUDA driver could not be loaded)" if _DRIVER_NOTE else ""
-            raise InputError(f"device '{name}' requested but no CUDA device is available{why}", where="--device")
+            raise InputError(f"device '{name}' requested but no CUDA device is available{why}", where=where)
         return "cuda:0" if name == "cuda" else name
-    raise InputError(f"unknown device '{name}' (use cpu, cuda, cuda:N or auto)", where="--device")
+    raise InputError(f"unknown device '{name}' (use cpu, cuda, cuda:N or auto)", where=where)
 
 
 def device_table(cache: dict, build, device="cpu") -> wp.array:

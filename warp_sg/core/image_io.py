@@ -40,6 +40,7 @@ Images are ``(H, W, C)`` float32 numpy arrays of *linear* values, row 0 at the t
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -125,15 +126,52 @@ def _write_hdr(tmp: str, a: np.ndarray) -> None:
         raise ImageError("OpenCV could not write the Radiance HDR file", where=tmp)
 
 
+#: a Radiance resolution line: two axes, each ``[-+][XY] N`` (the first the scanlines' axis)
+_HDR_RESOLUTION = re.compile(rb"\n\s*([-+])([XY])\s+(\d+)\s+([-+])([XY])\s+(\d+)[ \t]*\r?\n")
+
+
+def hdr_resolution(head: bytes, where: str):
+    """The resolution line of a Radiance header: ``(match, (sign, axis, n) of the scanlines' axis,
+    (sign, axis, n) of the pixels' axis)`` — any of the eight orientations of the format
+    (``-Y H +X W`` the usual one: rows top to bottom, pixels left to right; ``+X W -Y H`` column
+    scanlines)."""
+    m = _HDR_RESOLUTION.search(head)
+    if m is None or m.group(2) == m.group(5):
+        raise ImageError("cannot read Radiance HDR file (no resolution line such as '-Y 512 +X 1024' in its "
+                         "header)", where=where)
+    return m, (m.group(1), m.group(2), int(m.group(3))), (m.group(4), m.group(5), int(m.group(6)))
+
+
 def read_hdr(path) -> np.ndarray:
-    """A Radiance RGBE (``.hdr``) file as ``(H, W, 3)`` float32 RGB (OpenCV). Unreadable or
-    truncated files raise :class:`ImageError` naming the file."""
+    """A Radiance RGBE (``.hdr``) file as ``(H, W, 3)`` float32 RGB, row 0 the top, in any of the
+    format's eight orientations: the pixels are decoded by OpenCV from the file with its resolution
+    line rewritten to ``-Y n1 +X n2`` (scanlines in file order), then flipped and transposed here
+    (``+Y``: the first scanline is the bottom; ``-X``: right to left; an ``X`` first: the scanlines
+    are columns). Unreadable or truncated files raise :class:`ImageError` naming the file."""
     path = Path(path)
     cv2 = _cv2()
-    a = cv2.imread(str(path), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
-    if a is None or a.ndim != 3 or a.shape[2] != 3:
+    try:
+        raw = path.read_bytes()
+    except OSError as e:
+        raise ImageError(f"cannot open Radiance HDR file ({e.strerror or e})", where=str(path)) from None
+    m, (s1, a1, n1), (s2, _, n2) = hdr_resolution(raw[:1 << 16], str(path))
+    std = b"-Y %d +X %d\n" % (n1, n2)
+    buf = np.frombuffer(raw[:m.start(1)] + std + raw[m.end():], np.uint8)
+    a = cv2.imdecode(buf, cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
+    del buf, raw
+    if a is None or a.shape != (n1, n2, 3):
         raise ImageError("cannot read Radiance HDR file (corrupt, truncated or not RGBE)", where=str(path))
-    return np.ascontiguousarray(a[..., ::-1], np.float32)
+    if (s1, a1, s2) == (b"-", b"Y", b"+") and a.dtype == np.float32:  # the usual layout: no copy
+        return cv2.cvtColor(a, cv2.COLOR_BGR2RGB, dst=a)
+    a = a[..., ::-1]  # BGR → RGB
+    if a1 == b"Y":
+        a = a[::-1] if s1 == b"+" else a
+        a = a[:, ::-1] if s2 == b"-" else a
+    else:  # column scanlines: axis 0 runs over X, axis 1 over Y
+        a = a[::-1] if s1 == b"-" else a
+        a = a[:, ::-1] if s2 == b"+" else a
+        a = a.transpose(1, 0, 2)
+    return np.ascontiguousarray(a, np.float32)
 
 
 def image_size(path) -> tuple[int | None, int | None, int]:
@@ -141,7 +179,6 @@ def image_size(path) -> tuple[int | None, int | None, int]:
     resolution line, Pillow's lazy open), before any pixel is decoded; ``H``, ``W`` are None when
     Pillow refuses the file as a decompression bomb (its count is then the third value). Unreadable
     headers raise :class:`ImageError` naming the file."""
-    import re
     import warnings
 
     path = Path(path)
@@ -161,10 +198,8 @@ def image_size(path) -> tuple[int | None, int | None, int]:
         h, w = int(hi[1]) - int(lo[1]) + 1, int(hi[0]) - int(lo[0]) + 1
         return h, w, h * w
     if head[:2] == b"#?":
-        m = re.search(rb"\n\s*[-+]Y\s+(\d+)\s+[-+]X\s+(\d+)\s*\n", head)
-        if m is None:
-            raise ImageError("cannot read Radiance HDR file (no resolution line in its header)", where=str(path))
-        h, w = int(m.group(1)), int(m.group(2))
+        _, (_, a1, n1), (_, _, n2) = hdr_resolution(head, str(path))
+        h, w = (n1, n2) if a1 == b"Y" else (n2, n1)
         return h, w, h * w
     from PIL import Image, UnidentifiedImageError
 

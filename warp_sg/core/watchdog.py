@@ -24,6 +24,15 @@ texture is refused when its header is read, a 2 × 20000 map by its aspect
 (:func:`warp_sg.scene.envmap.check_envmap_shape`). The bounds are where this machine class (2 cores,
 24 GiB) still finishes in minutes, not hours; they are constants of this module, documented in
 ``docs/rendering.md`` ("Sizes the renderer refuses").
+
+Within its bound a map is also **reduced** when it is larger than :data:`MAX_ENV_WORK_TEXELS`
+(4096 × 2048): read, checked, then averaged down by whole texel blocks, weighted by solid angle so
+that its light (∑ L Ω over every block, and over the sphere) is kept
+(:func:`warp_sg.scene.envmap.reduce_envmap`), with one warning saying to what size. The steps
+after loading — peaks, the SG fit, ΓL, the reference's sampling tables — hold several float64
+copies of the map (~80 B a texel at the peak step): a 16k × 8k map (134 M texels) would need
+over 10 GiB there and was killed by the kernel on a 24 GiB machine. Reading it peaks at about
+two float32 copies (3.2 GiB for 16k × 8k) before the reduction.
 """
 from __future__ import annotations
 
@@ -31,6 +40,9 @@ from warp_sg.core.errors import InputError
 
 #: texels of an environment map (16384 × 8192)
 MAX_ENV_TEXELS = 1 << 27
+#: texels of an environment map the steps after loading work on (4096 × 2048): larger maps are
+#: reduced to it at load, with one warning
+MAX_ENV_WORK_TEXELS = 1 << 23
 #: texels of one texture
 MAX_TEXTURE_TEXELS = 1 << 27
 #: triangles of a scene (after flattening every object)
@@ -54,5 +66,5 @@ def check_size(what: str, size: int, bound: int, detail: str, unit: str, *, wher
                     where=where)
 
 
-__all__ = ["MAX_ENV_TEXELS", "MAX_TEXTURE_TEXELS", "MAX_TRIANGLES", "MAX_SSDF_ENTRIES", "MAX_PREFILTER_TEXELS",
+__all__ = ["MAX_ENV_TEXELS", "MAX_ENV_WORK_TEXELS", "MAX_TEXTURE_TEXELS", "MAX_TRIANGLES", "MAX_SSDF_ENTRIES", "MAX_PREFILTER_TEXELS",
            "MAX_SAMPLES", "check_size"]

@@ -83,6 +83,40 @@ def animate_variants(table: dict, where: str = "[animate]") -> list[dict]:
     return [dotted_variant({k: _lerp(v[0], v[-1], i / max(n - 1, 1)) for k, v in table.items()}) for i in range(n)]
 
 
+#: the widest field an ``output`` pattern may ask for (``{index:0999999999d}`` would build a
+#: gigabyte file name before any check of its length)
+MAX_FIELD_WIDTH = 32
+
+
+def check_output_pattern(out: str, where: str) -> None:
+    """``output`` must hold ``{index}`` (e.g. ``frame_{index:04d}.png``), format with an integer
+    index, ask for a field at most :data:`MAX_FIELD_WIDTH` wide and give a file name of at most 255
+    characters; else one :class:`InputError` line quoting the pattern (shortened)."""
+    import re
+    import string
+
+    shown = repr(out) if len(out) <= 80 else repr(out[:77] + "...")
+    if "{index" not in out:
+        raise InputError(f"'output' must contain {{index}} (e.g. frame_{{index:04d}}.png), got {shown}", where=where)
+    try:
+        fields = [(f, spec) for _, f, spec, _ in string.Formatter().parse(out) if f is not None]
+    except ValueError as e:
+        raise InputError(f"bad 'output' pattern {shown} ({e})", where=where) from None
+    for name, spec in fields:
+        if name != "index":
+            raise InputError(f"bad 'output' pattern {shown}: only {{index}} may be used, not {{{name}}}", where=where)
+        width = max((int(w) for w in re.findall(r"\d+", spec or "")), default=0)
+        if width > MAX_FIELD_WIDTH:
+            raise InputError(f"bad 'output' pattern {shown}: a field {width} characters wide (at most "
+                             f"{MAX_FIELD_WIDTH})", where=where)
+    try:
+        name = Path(out.format(index=0)).name
+    except (KeyError, ValueError, IndexError, TypeError) as e:
+        raise InputError(f"bad 'output' pattern {shown} ({e})", where=where) from None
+    if len(name.encode("utf-8", "replace")) > 255:
+        raise InputError(f"bad 'output' pattern {shown}: its file names are longer than 255 bytes", where=where)
+
+
 def load_job(path) -> Job:
     """Read and check a job file (see the module docstring)."""
     import tomllib
@@ -97,6 +131,11 @@ def load_job(path) -> Job:
         raise InputError("job file not found", where=str(path)) from None
     except tomllib.TOMLDecodeError as e:
         raise InputError(f"not valid TOML ({e})", where=str(path)) from None
+    except RecursionError:
+        raise InputError("not valid TOML here: arrays or tables nested too deeply to read (a job file nests a "
+                         "few levels)", where=str(path)) from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise InputError(f"cannot read the job file ({getattr(e, 'strerror', None) or e})", where=str(path)) from None
     where = str(path)
     unknown = sorted(set(data) - set(_TOP_KEYS))
     if unknown:
@@ -106,12 +145,7 @@ def load_job(path) -> Job:
             raise InputError(f"'{k}' must be a string", where=where)
     base = path.parent
     out = data["output"]
-    if "{index" not in out:
-        raise InputError(f"'output' must contain {{index}} (e.g. frame_{{index:04d}}.png), got {out!r}", where=where)
-    try:
-        out.format(index=0)
-    except (KeyError, ValueError, IndexError) as e:
-        raise InputError(f"bad 'output' pattern {out!r} ({e})", where=where) from None
+    check_output_pattern(out, where)
     variants = []
     frames = data.get("frames", [])
     if not isinstance(frames, list) or not all(isinstance(f, dict) for f in frames):
@@ -137,7 +171,7 @@ def load_job(path) -> Job:
 def run_job(job: Job, cluster=None, device=None, progress: bool = True, skip_existing: bool = False) -> list[Path]:
     """Render a :class:`Job`; returns the frame paths (all frames, written or skipped)."""
     from warp_sg.core.files import check_output_path, make_parents
-    from warp_sg.distributed.rendering import normalize_variants, render_many
+    from warp_sg.distributed.rendering import check_variants, normalize_variants, render_many
     from warp_sg.core.image_io import save_image
     from warp_sg.scene.loader import load_scene
 
@@ -148,6 +182,7 @@ def run_job(job: Job, cluster=None, device=None, progress: bool = True, skip_exi
         check_output_path(p, create_parents=True)
     scene = load_scene(job.scene)
     normalize_variants(scene, job.variants)  # every variant checked before any work
+    check_variants(scene, job.variants, where=str(job.path or "job"))  # and its values
     todo = [i for i, p in enumerate(paths) if not (skip_existing and p.exists())]
     scale = 2.0 ** job.exposure
 
@@ -180,4 +215,5 @@ def cli_main(args) -> int:
     return 0
 
 
-__all__ = ["Job", "load_job", "run_job", "animate_variants", "add_cli_arguments", "cli_main"]
+__all__ = ["Job", "load_job", "run_job", "animate_variants", "check_output_pattern", "MAX_FIELD_WIDTH",
+           "add_cli_arguments", "cli_main"]

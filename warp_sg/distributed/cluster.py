@@ -59,9 +59,13 @@ def parse_cluster(spec: str):
         proto = s.partition("://")[0]
         if proto not in ("tcp", "tls", "ucx", "inproc", "ws", "wss"):
             raise ClusterError(f"unknown scheduler protocol {proto!r} in {spec!r}", where="--cluster")
+        host, _, port = s.partition("://")[2].rpartition(":")
+        if proto != "inproc" and (not host or not port.isdigit() or not 0 < int(port) < 65536):
+            raise ClusterError(f"a scheduler address needs a host and a port, like {proto}://host:8786, got {spec!r}",
+                               where="--cluster")
         return "address", s
     host, _, port = s.rpartition(":")
-    if host and port.isdigit():
+    if host and port.isdigit() and 0 < int(port) < 65536:
         return "address", f"tcp://{s}"
     raise ClusterError(f"expected 'local', 'local:N' or a scheduler address like tcp://host:8786, got {spec!r}",
                        where="--cluster")

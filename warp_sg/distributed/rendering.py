@@ -162,6 +162,53 @@ def normalize_variants(scene, variants) -> list[dict]:
     return out
 
 
+def check_variants(scene, variants, where: str = "batch") -> None:
+    """Every value of every variant checked against ``scene`` before any work (no Dask, no
+    renderer): camera fields, material parameters (:meth:`warp_sg.scene.model.Material.updated`),
+    light and environment records, dynamic objects' motions (rigid, and within the coordinates
+    the renderer shades: :func:`warp_sg.scene.geometry.check_moved_extent`). The first bad value is
+    one :class:`InputError` line ``<where>: frame <i>: ...``."""
+    from dataclasses import replace
+
+    from warp_sg.numeric.rigid_motion import check_motion, motion_from_fields
+
+    boxes = {}
+    for i, v in enumerate(variants):
+        at = f"{where}: frame {i}"
+        try:
+            for section, name, key, _ in _items(v):
+                _base_value(scene, section, name, key)
+            if v.get("camera"):
+                replace(scene.camera, **v["camera"])
+            for name, params in v.get("materials", {}).items():
+                scene.materials[name].updated(name, **params)
+            lights = scene.local_lights
+            for index, fields in v.get("lights", {}).items():
+                replace(lights[int(index)], **fields)
+            if v.get("environment"):
+                replace(scene.environment, **v["environment"])
+            for name, fields in v.get("objects", {}).items():
+                M = motion_from_fields(fields, where=f"objects.{name}")
+                check_motion(M, where=f"objects.{name}")
+                if name not in boxes:
+                    boxes[name] = _object_box(scene, name)
+                from warp_sg.scene.geometry import check_moved_extent
+
+                check_moved_extent(boxes[name], M, f"objects.{name}")
+        except (InputError, TypeError) as e:
+            raise InputError(str(e) if isinstance(e, InputError) else f"bad variant ({e})", where=at) from None
+
+
+def _object_box(scene, name) -> np.ndarray:
+    """The corners of object ``name``'s box in its rest pose (the scene as loaded)."""
+    from warp_sg.renderer.dynamic_objects import object_index
+    from warp_sg.scene.culling import box_corners
+
+    g = scene.geometry()
+    v = np.asarray(g.vertices, np.float64)[np.asarray(g.vertex_object) == object_index(scene, name)]
+    return box_corners(v.min(0), v.max(0))
+
+
 def apply_variant(renderer, variant: dict) -> None:
     """Apply a (full-state) variant through the renderer's setters (no precompute is re-run)."""
     if "camera" in variant:
@@ -204,6 +251,7 @@ def render_many(scene, variants, cluster=None, *, device=None, progress: bool = 
     from warp_sg.renderer.renderer import Renderer
     from warp_sg.distributed.precompute import DaskSSDF
 
+    check_variants(scene, variants)  # every value, before Dask starts (a worker would fail it, with retries)
     variants = normalize_variants(scene, variants)
     if not variants:
         return []

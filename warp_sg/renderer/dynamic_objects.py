@@ -319,6 +319,7 @@ class DynamicObjects:
         R, s, t = check_motion(matrix, where=f"set_object_transform('{label}')")
         M = np.eye(4)
         M[:3, :3], M[:3, 3] = s * R, t
+        self._check_extent(k, M, f"set_object_transform('{label}')")  # (before anything changes)
         if not np.array_equal(M, self.motion[k]):
             self._decomposed(k, M, (R, s, t))
             self.motion[k] = M
@@ -326,6 +327,22 @@ class DynamicObjects:
             scene.objects[k].motion = M
             scene.invalidate_geometry()
         return k
+
+    def _check_extent(self, k, M, where: str) -> None:
+        """Object k moved by ``M`` stays where float32 shading holds (its rest box carried by
+        ``M·M0⁻¹``, :func:`warp_sg.scene.geometry.check_moved_extent`)."""
+        from warp_sg.scene.geometry import check_moved_extent
+
+        if k in self._rest_boxes():  # (an object without vertices has nothing to check)
+            check_moved_extent(self._rest_boxes()[k], M @ np.linalg.inv(self.rest_motion[k]), where)
+
+    def _rest_boxes(self) -> dict:
+        """Per moving object the corners of its rest-pose box (computed once)."""
+        from warp_sg.scene.culling import box_corners
+
+        if self._rest_box is None:
+            self._rest_box = {k: box_corners(self.rest_v[i].min(0), self.rest_v[i].max(0)) for k, i in self.ids.items() if len(i)}
+        return self._rest_box
 
     def _delta(self, k) -> tuple:
         """``(R, s, t)`` of object k's motion from the pose its geometry was built in (the identity
@@ -431,12 +448,7 @@ class DynamicObjects:
         """The moving objects' boxes for back-face culling (``warp_sg.scene.culling``): each one's
         rest-pose box carried by its motion — a function of the transform, not of the moved
         vertices (no pass over them)."""
-        if self._rest_box is None:
-            from warp_sg.scene.culling import box_corners
-
-            self._rest_box = {k: box_corners(self.rest_v[ids].min(0), self.rest_v[ids].max(0))
-                              for k, ids in self.ids.items() if len(ids)}
-        for k, corners in self._rest_box.items():
+        for k, corners in self._rest_boxes().items():
             R, s, t = self._delta(k)
             culling.place(k, corners @ (s * R).T + t)
 

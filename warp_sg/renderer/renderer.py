@@ -46,7 +46,6 @@ from warp_sg.renderer.resources import ResourceSetup
 from warp_sg.renderer.variant import VariantChoice
 from warp_sg.scene.lights import DirectionalLight, EnvironmentLight, PointLight
 from warp_sg.scene.model import Scene
-from warp_sg.scene.textures import Texture
 from warp_sg.shading.background import BackgroundCache
 from warp_sg.shading.vertex_visibility import caches
 
@@ -88,7 +87,8 @@ class Renderer(FramePaths, VariantChoice, ResourceSetup, EnvironmentSetup, Gradi
         self.scene = scene
         self._ssdf_compute = ssdf_compute
         self._precomputed = precomputed
-        self.device = resolve_device(device if device is not None else scene.render.device)
+        self.device = resolve_device(device, "--device") if device is not None else \
+            resolve_device(scene.render.device, f"{scene.path or 'scene'}: [render] device")
         self.progress = progress
         self.progressive = bool(progressive)
         self.requires_grad = bool(requires_grad)  # (warp_sg.renderer.gradients)
@@ -144,23 +144,7 @@ class Renderer(FramePaths, VariantChoice, ResourceSetup, EnvironmentSetup, Gradi
         if name not in self.scene.materials:
             raise SceneError(f"unknown material '{name}'", where="set_material")
         # edit a copy and swap it in only once it is valid: a bad value leaves the material as it was
-        m = replace(self.scene.materials[name], params=dict(self.scene.materials[name].params),
-                    textures=dict(self.scene.materials[name].textures), _brdf=None)
-        if "model" in params:
-            m.model, m.params = str(params.pop("model")), {}
-        for k, v in params.items():
-            if k in ("normal_map", "tangent_map"):
-                setattr(m, k, v)
-            elif isinstance(v, Texture):
-                m.textures[k] = v
-                m.params.pop(k, None)
-            else:
-                m.textures.pop(k, None)
-                m.params[k] = v
-        try:
-            _ = m.brdf
-        except InputError as e:
-            raise SceneError(f"[materials.{name}] {e}") from None
+        m = self.scene.materials[name].updated(name, **params)
         self.scene.materials[name] = m
         with wp.ScopedDevice(self.device):
             self._setup_materials()

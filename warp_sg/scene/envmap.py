@@ -36,6 +36,7 @@ import numpy as np
 import warp as wp
 
 from warp_sg.core.errors import ImageError
+from warp_sg.core import watchdog
 from warp_sg.core.watchdog import MAX_ENV_TEXELS, check_size
 from warp_sg.numeric.fastmath import fast_asin, fast_atan2
 
@@ -321,13 +322,49 @@ def validate_envmap(env, where: str = "environment map") -> np.ndarray:
     return a
 
 
+def reduce_envmap(env: np.ndarray, bound: int, where: str = "environment map") -> np.ndarray:
+    """``env`` (H, W, 3) when it has at most ``bound`` texels, else averaged down to the largest
+    ``(H/f) × (W/f)`` (integer f, sizes rounded down) within it: every output texel the
+    solid-angle-weighted mean of its block of input texels, ``L' = Σ L Ω / Σ Ω``, so that ``Σ L Ω``
+    over each block (and the whole sphere) is kept. Done by blocks of rows in float64 (no full
+    float64 copy); one :class:`~warp_sg.core.errors.InputWarning` names the sizes."""
+    import warnings
+
+    from warp_sg.core.errors import InputWarning
+
+    h, w = env.shape[:2]
+    if h * w <= bound:
+        return env
+    f = max(2, math.ceil(math.sqrt(h * w / bound)))
+    while (h // f) * (w // f) > bound:
+        f += 1
+    h2, w2 = max(h // f, 2), max(w // f, 2)
+    rows = np.linspace(0, h, h2 + 1).round().astype(np.int64)
+    cols = np.linspace(0, w, w2 + 1).round().astype(np.int64)
+    om = row_solid_angles(h, w)
+    out = np.empty((h2, w2, env.shape[2]), np.float32)
+    step = max(1, (1 << 22) // max(w * int(rows[1] - rows[0]), 1))  # output rows per block: ~4 M texels
+    for i0 in range(0, h2, step):
+        i1 = min(i0 + step, h2)
+        block = env[rows[i0]:rows[i1]].astype(np.float64) * om[rows[i0]:rows[i1], None, None]
+        by_row = np.add.reduceat(block, rows[i0:i1] - rows[i0], axis=0)  # (rows of output, W, 3)
+        sums = np.add.reduceat(by_row, cols[:-1], axis=1)
+        weight = np.add.reduceat(om[rows[i0]:rows[i1]], rows[i0:i1] - rows[i0])[:, None] * np.diff(cols)[None, :]
+        out[i0:i1] = sums / weight[..., None]
+    warnings.warn(f"{where}: the {w}×{h} environment map is reduced to {w2}×{h2} texels (solid-angle-weighted "
+                  f"means of {f}×{f} blocks: its light is kept) to bound memory; at most {bound:,} texels are "
+                  f"worked on (warp_sg.core.watchdog.MAX_ENV_WORK_TEXELS)", InputWarning, stacklevel=3)
+    return out
+
+
 def load_envmap(path, scale: float = 1.0) -> np.ndarray:
     """Read an equirectangular environment map as ``(H, W, 3)`` float32 radiance × ``scale``:
     OpenEXR (``R``, ``G``, ``B`` channels; extras such as ``A`` ignored) or Radiance RGBE ``.hdr``
     (:func:`warp_sg.core.image_io.read_hdr`, OpenCV).
 
     NaN/inf or negative texels, a grey-only EXR, a file of another format or an unreadable file
-    raise :class:`ImageError` naming the file.
+    raise :class:`ImageError` naming the file. A map larger than
+    :data:`warp_sg.core.watchdog.MAX_ENV_WORK_TEXELS` is reduced (:func:`reduce_envmap`, one warning).
     """
     from warp_sg.core.image_io import exr_channel_names, is_hdr_file, read_exr, read_hdr
 
@@ -362,11 +399,14 @@ def load_envmap(path, scale: float = 1.0) -> np.ndarray:
     if not np.isfinite(s) or s < 0:
         raise ImageError(f"scale must be a finite non-negative number, got {scale}", where=where)
     env = validate_envmap(img, where=where)
+    del img
+    env = reduce_envmap(env, watchdog.MAX_ENV_WORK_TEXELS, where)
     return (env * np.float32(s)).astype(np.float32) if s != 1.0 else env
 
 
 __all__ = [
     "load_envmap",
+    "reduce_envmap",
     "validate_envmap",
     "check_envmap_shape",
     "ASPECT_RANGE",

@@ -312,6 +312,23 @@ def check_extent(vertices, where: str) -> None:
                         f"renderer's welding tolerance merges its vertices); scale it up", where=where)
 
 
+def check_moved_extent(corners, matrix, where: str) -> None:
+    """An object whose box has ``corners`` (8, 3), moved by the 4×4 rigid ``matrix``, must stay
+    within ±:data:`MAX_COORDINATE` and at least :data:`MIN_EXTENT` across (the rules of
+    :func:`check_extent` for a loaded mesh); else one :class:`MeshError` line naming the scale."""
+    M = np.asarray(matrix, np.float64)
+    c = np.asarray(corners, np.float64) @ M[:3, :3].T + M[:3, 3]
+    s = float(np.cbrt(abs(np.linalg.det(M[:3, :3]))))
+    far = float(np.abs(c).max()) if np.isfinite(c).all() else float("inf")
+    if far > MAX_COORDINATE:
+        raise MeshError(f"the motion (uniform scale {s:.3g}) puts the object at coordinates up to {far:.3g}, beyond "
+                        f"±{MAX_COORDINATE:g} (float32 shading loses it there)", where=where)
+    size = float(np.linalg.norm(c.max(0) - c.min(0)))
+    if size < MIN_EXTENT:
+        raise MeshError(f"the motion (uniform scale {s:.3g}) makes the object {size:.3g} across: at least "
+                        f"{MIN_EXTENT:g} is needed", where=where)
+
+
 def orient_outward(v, t, keep, normals, where: str, eye=None):
     """``(triangles, normals)`` of a closed, consistently oriented mesh made to face outwards: a
     negative :func:`~warp_sg.core.meshcheck.signed_volume` (inside out) flips every triangle's winding,
@@ -400,5 +417,5 @@ def build_geometry(scene) -> Geometry:
     )
 
 
-__all__ = ["Geometry", "validate_mesh", "vertex_normals", "uv_tangents", "object_mesh", "build_geometry", "vertex_samples",
+__all__ = ["Geometry", "validate_mesh", "check_moved_extent", "vertex_normals", "uv_tangents", "object_mesh", "build_geometry", "vertex_samples",
            "orient_outward", "check_extent", "MESH_SUFFIXES", "MAX_COORDINATE", "MIN_EXTENT"]

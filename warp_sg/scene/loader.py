@@ -159,6 +159,9 @@ def load_scene(path) -> Scene:
         data = tomllib.loads(raw.decode("utf-8-sig"))  # -sig: a byte-order mark (editors on Windows) is no error
     except tomllib.TOMLDecodeError as e:
         raise SceneError(f"not valid TOML: {e}", where=path.name) from None
+    except RecursionError:
+        raise SceneError("not valid TOML here: arrays or tables nested too deeply to read (a scene file nests "
+                         "a few levels)", where=path.name) from None
     except (OSError, UnicodeDecodeError) as e:
         raise SceneError(f"cannot read scene file ({e})", where=str(path)) from None
     from warp_sg.scene.schema import SceneFile, error_message  # pydantic models: built on first use

@@ -141,6 +141,34 @@ class Material:
             self._brdf = make_model(self.model, **p)
         return self._brdf
 
+    def updated(self, name: str, **params) -> "Material":
+        """A checked copy with ``params`` changed (a :class:`Texture` value makes a parameter
+        textured, ``normal_map``/``tangent_map`` set those maps, ``model=`` switches the model,
+        whose constant parameters are then only these); this material is left as it was. A bad
+        value raises :class:`SceneError` ``[materials.NAME] ...``."""
+        from dataclasses import replace
+
+        from warp_sg.core.errors import InputError
+
+        m = replace(self, params=dict(self.params), textures=dict(self.textures), _brdf=None)
+        params = dict(params)
+        if "model" in params:
+            m.model, m.params = str(params.pop("model")), {}
+        for k, v in params.items():
+            if k in ("normal_map", "tangent_map"):
+                setattr(m, k, v)
+            elif isinstance(v, Texture):
+                m.textures[k] = v
+                m.params.pop(k, None)
+            else:
+                m.textures.pop(k, None)
+                m.params[k] = v
+        try:
+            _ = m.brdf
+        except InputError as e:
+            raise SceneError(f"[materials.{name}] {e}") from None
+        return m
+
     def invalidate(self) -> None:
         """Forget the cached model (call after changing ``params``/``textures``)."""
         self._brdf = None
