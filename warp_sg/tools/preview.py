@@ -15,6 +15,7 @@ start-up, with progress bars; view changes and edits only call the ``Renderer`` 
 """
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +40,11 @@ def has_notebook_backend() -> bool:
     except ImportError:
         return False
     return True
+
+
+#: how long the window's event loop sleeps between rounds of window events (the GIL is free
+#: meanwhile: the background precompute's Python parts run)
+LOOP_SLEEP_S = 0.005
 
 
 class Viewer:
@@ -68,8 +74,43 @@ class Viewer:
         if notebook:
             backend = "trame" if has_notebook_backend() else "static"
             return pl.show(jupyter_backend=backend, return_viewer=backend == "trame")
-        pl.show(title=title or "warp-sg preview", interactive_update=False)
+        pl.show(title=title or "warp-sg preview", interactive_update=True, auto_close=False)
+        try:
+            self.run()
+        finally:
+            self.close()
         return None
+
+    def run(self, until=None, timeout: float | None = None, between=None) -> bool:
+        """The window's event loop until the window is closed (or ``until()`` is true, or
+        ``timeout`` seconds have passed; whether ``until`` was met): VTK's non-blocking
+        ``ProcessEvents`` (mouse and keys, VTK's timers: the frames), then
+        :meth:`~warp_sg.tools.viewer.Viewport.tick` (the shadows when they are ready, a held-back
+        frame, the rest frame), then ``between()`` if given (a test's or a script's mouse events),
+        then a :data:`LOOP_SLEEP_S` sleep.
+
+        A loop in Python rather than VTK's ``Start()``: the wrapped ``Start`` keeps Python's GIL
+        for as long as the window is open, and a progressive renderer's background precompute then
+        only runs while a callback does (measured in a real X window: the background thread got 5 %
+        of the work it does alone; with this loop all of it). An off-screen plotter runs the same
+        loop (its interactor has no window events to wait for)."""
+        iren = self.plotter.iren
+        it = None if iren is None else iren.interactor
+        end = None if timeout is None else time.perf_counter() + float(timeout)
+        while True:
+            if it is not None:
+                if not self.plotter.off_screen:
+                    it.ProcessEvents()
+                if it.GetDone():
+                    return False
+            self.viewport.tick()
+            if between is not None:
+                between()
+            if until is not None and until():
+                return True
+            if end is not None and time.perf_counter() >= end:
+                return False
+            time.sleep(LOOP_SLEEP_S)
 
     def screenshot(self, path) -> Path:
         """The window as a PNG, written atomically (with the shadows: a progressive renderer's
@@ -104,7 +145,7 @@ def open_viewer(scene, device=None, off_screen: bool = False, window_size=None, 
     scene's ``warp-sg render`` image. ``hud``: show the frame time. ``progressive`` (default: on
     screen, not off screen): the window opens with unshadowed frames while the SSDFs are computed
     on a background thread, and switches to shadowed frames when they are ready
-    (``Renderer(..., progressive=True)``; the viewport checks four times a second)."""
+    (``Renderer(..., progressive=True)``; the event loop, :meth:`Viewer.run`, checks between window events)."""
     pv = _pyvista()
     from warp_sg.renderer.renderer import Renderer
     from warp_sg.tools.viewer import Viewport, quiet_vtk

@@ -21,9 +21,15 @@
   texture filtering; the full frame follows when the interaction ends, or when the view rests
   for ``rest_ms`` with the button still down (a one-shot interactor timer).
 * **Shadows arrive later** with a progressive renderer (``Renderer(..., progressive=True)``, the
-  viewer's default on screen): a repeating timer (:data:`SHADOW_POLL_MS`) checks
-  ``Renderer.shadows_ready()``; when the background precompute is done the frame is redrawn, and
-  that render installs the SSDFs. Until then frames are unshadowed and interaction never waits.
+  viewer's default on screen): the window's event loop (:meth:`warp_sg.tools.preview.Viewer.run`,
+  a Python loop of VTK's non-blocking ``ProcessEvents``, not VTK's blocking ``Start``, whose C++
+  loop holds Python's GIL and so starves the background precompute) calls :meth:`Viewport.tick`
+  between events; when the background precompute is done the frame is redrawn, and that render
+  installs the SSDFs. Until then frames are unshadowed and interaction never waits, and while the
+  user drags, the frames (ours and VTK's drawing of them) take at most
+  :data:`PENDING_FRAME_SHARE` of the time: after a frame the interactor's renders of the camera
+  moves pause until the next one is due, and the frame then shows the pose the camera has reached.
+  Frames first, the precompute never starved.
 * Nothing here runs precompute: only the ``Renderer`` setters (camera, materials, lights,
   environment) are used. The last frame's time is shown in the upper-right corner.
 """
@@ -37,8 +43,9 @@ from warp_sg.core.image_io import tonemap_srgb
 
 #: coarse resolution divisors tried while interacting, finest first
 COARSE_STEPS = (1, 2, 4, 8)
-#: how often the viewport checks whether a progressive renderer's shadows are ready
-SHADOW_POLL_MS = 250
+#: while a progressive renderer's precompute runs, the share of the wall time the interactive
+#: (coarse) frames may take: after a frame of t seconds the next waits until t / share has passed
+PENDING_FRAME_SHARE = 0.25
 
 
 def quiet_vtk() -> None:
@@ -94,7 +101,12 @@ class Viewport:
         self._rest = False
         self._last_coarse_t = 0.0
         self._vimg = None
-        self._shadow_timer = None  # repeating timer while a progressive renderer computes its SSDFs
+        self._awaiting = not renderer.shadows_ready()  # a progressive renderer's precompute not shown yet
+        self._frame_start = None  # (perf_counter) a frame's start, until its VTK render has ended
+        self._frame_end = 0.0  # when the last frame was on screen, and how long it took (ours and
+        self._frame_dt = 0.0  # VTK's drawing): the pace of the frames while a precompute runs
+        self._deferred = False  # a coarse frame held back for that pace (tick renders it when due)
+        self._paused = False  # VTK's renders of the style's camera moves paused meanwhile
         self._texture = vtk.vtkTexture()
         self._texture.InterpolateOff()
         pl = plotter
@@ -104,6 +116,7 @@ class Viewport:
         pl.camera_position = self.home
         pl.camera.view_angle = self.home_fov
         pl.renderer.AddObserver("StartEvent", lambda *_: self.update())
+        pl.renderer.AddObserver("EndEvent", lambda *_: self._frame_drawn())
         self._picker = vtk.vtkCellPicker()
         self._picker.SetTolerance(0.0)
         self._picker.PickFromListOn()  # the scene's meshes only (not the widgets)
@@ -196,25 +209,53 @@ class Viewport:
             # calls it instead of its own OnTimer, which in the rotate / pan state would repeat the
             # last mouse delta (the camera would keep spinning while the button is held still).
             style.AddObserver("TimerEvent", lambda *_: self._on_timer())
-        if self.renderer.shadows_pending and not self.plotter.off_screen:
-            self._shadow_timer = iren.interactor.CreateRepeatingTimer(SHADOW_POLL_MS)
-
-    def _stop_shadow_timer(self) -> None:
-        iren = self.plotter.iren
-        if iren is not None and self._shadow_timer is not None:
-            iren.interactor.DestroyTimer(self._shadow_timer)
-        self._shadow_timer = None
 
     def _on_timer(self) -> None:
-        if self._shadow_timer is not None and self.renderer.shadows_ready():
-            self._stop_shadow_timer()
+        self.tick()
+
+    def tick(self) -> None:
+        """What the event loop does between window events (and VTK's timer events): show the
+        shadows once a progressive renderer's background precompute is done (the frame that
+        installs them), a frame held back for the precompute's share when it is due, and the full
+        frame when the view has rested ``rest_ms`` with the button still down."""
+        if self._awaiting and self.renderer.shadows_ready():
+            self._awaiting = False
+            self._pause_renders(False)
             self.invalidate()  # the next frame installs the shadows (Renderer.poll)
             self.draw()
             return
-        if self.interacting and self._shown and self._shown[1] > 1 \
+        if (self._deferred or self._paused) and not self._hold_back():
+            self._pause_renders(False)
+            self.draw()  # (the pose the camera has reached meanwhile, if it moved)
+            return
+        if self.interacting and self._shown and self._shown[1] > 1 and not self._paused \
                 and time.perf_counter() - self._last_coarse_t >= 0.9 * self.rest_ms / 1000.0:
-            self._rest = True
+            self._rest = True  # (not while the moves' renders pause: the camera may be moving)
             self.draw()
+
+    def _hold_back(self) -> bool:
+        """Whether an interactive frame waits now: a background precompute runs and the last frame
+        has not yet had its share of the time (:data:`PENDING_FRAME_SHARE`)."""
+        if not self._awaiting:
+            return False
+        return time.perf_counter() - self._frame_end < self._frame_dt * (1.0 / PENDING_FRAME_SHARE - 1.0)
+
+    def _frame_drawn(self) -> None:
+        """The VTK render of a frame has ended (the renderer's ``EndEvent``): its whole time, ours
+        and VTK's drawing (software OpenGL costs CPU too), sets the pace; while a precompute runs,
+        the interactor's renders of the style's camera moves pause until the next frame is due."""
+        if self._frame_start is None:
+            return
+        now = time.perf_counter()
+        self._frame_end, self._frame_dt, self._frame_start = now, now - self._frame_start, None
+        if self.interacting and self._hold_back():
+            self._pause_renders(True)
+
+    def _pause_renders(self, on: bool) -> None:
+        iren = self.plotter.iren
+        if iren is not None and on != self._paused:
+            iren.interactor.SetEnableRender(not on)
+            self._paused = on
 
     # ------------------------------------------------------------------ frames
     def coarse_divisor(self) -> int:
@@ -231,11 +272,18 @@ class Viewport:
         """Render a new frame if the pose, the scene or the coarse/full state asks for one."""
         pose = self.pose()
         want_coarse = self.interacting and not self._rest
-        stale = (self._dirty or self._shown is None or self._shown[0] != pose
-                 or (not want_coarse and self._shown[1] > 1))
+        moved = self._shown is not None and self._shown[0] != pose
+        if moved and self.interacting and self._rest:  # moving again after a rest: coarse frames again
+            self._rest, want_coarse = False, True
+        stale = self._dirty or self._shown is None or moved or (not want_coarse and self._shown[1] > 1)
         if not stale:
             return False
+        self._deferred = want_coarse and self._hold_back()
+        if self._deferred:  # (the frame on screen stays; tick() renders this one when it is due)
+            self._last_coarse_t = time.perf_counter()  # (the view is not at rest)
+            return False
         self.render_frame(coarse=want_coarse, pose=pose)
+        self._frame_start = self._frame_end - self._frame_dt  # (its VTK render ends it: _frame_drawn)
         return True
 
     def draw(self) -> None:
@@ -270,6 +318,7 @@ class Viewport:
             self._last_coarse_t = time.perf_counter()
             self._schedule_rest()
         self._shown = (pose, k)
+        self._frame_end, self._frame_dt = time.perf_counter(), dt
         self._dirty = False
         self.frames += 1
         self.last = {"coarse": k, "width": img.shape[1], "height": img.shape[0], "seconds": dt}
@@ -311,4 +360,4 @@ class Viewport:
             iren.interactor.CreateOneShotTimer(self.rest_ms)
 
 
-__all__ = ["Viewport", "camera_pose", "quiet_vtk", "COARSE_STEPS"]
+__all__ = ["Viewport", "camera_pose", "quiet_vtk", "COARSE_STEPS", "PENDING_FRAME_SHARE"]
