@@ -27,7 +27,7 @@ def _phi_cdf(x: float) -> float:
     return 0.5 * (1.0 + wp.erf(x * 0.7071067811865476))
 
 
-@wp.kernel
+@wp.kernel(enable_backward=False)
 def _prefilter_level_kernel(
     src: wp.array2d(dtype=wp.vec3),
     src_dir: wp.array2d(dtype=wp.vec3),

@@ -91,7 +91,7 @@ def _cast_sample(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp.a
     known[k, tex] = wp.uint8(1)
 
 
-@wp.kernel
+@wp.kernel(enable_backward=False)
 def _coarse_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp.array(dtype=wp.vec3), first: int,
                    dirs: wp.array(dtype=wp.vec3), offset: float, max_t: float, Rr: int, s: int,
                    vis: wp.array2d(dtype=wp.uint8), depth: wp.array2d(dtype=float), known: wp.array2d(dtype=wp.uint8),
@@ -154,7 +154,7 @@ def _mark_cell(cell_vis: wp.array2d(dtype=wp.uint8), cell_depth: wp.array2d(dtyp
     marked[k, j * s + i] = m
 
 
-@wp.kernel
+@wp.kernel(enable_backward=False)
 def _mark_kernel(cell_vis: wp.array2d(dtype=wp.uint8), cell_depth: wp.array2d(dtype=float),
                  vis: wp.array2d(dtype=wp.uint8), Rr: int, s: int, log_ratio: float,
                  run: int, marked: wp.array2d(dtype=wp.uint8)):
@@ -170,7 +170,7 @@ def _mark_kernel(cell_vis: wp.array2d(dtype=wp.uint8), cell_depth: wp.array2d(dt
         _mark_cell(cell_vis, cell_depth, vis, Rr, s, f, log_ratio, k, j, i, marked)
 
 
-@wp.kernel
+@wp.kernel(enable_backward=False)
 def _refine_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp.array(dtype=wp.vec3), first: int,
                    dirs: wp.array(dtype=wp.vec3), offset: float, max_t: float, Rr: int, s: int,
                    parent_vis: wp.array2d(dtype=wp.uint8), parent_depth: wp.array2d(dtype=float),
@@ -217,7 +217,7 @@ def _refine_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp
         cell_depth[k, c] = t
 
 
-@wp.kernel
+@wp.kernel(enable_backward=False)
 def _fill_kernel(cell_vis: wp.array2d(dtype=wp.uint8), vis: wp.array2d(dtype=wp.uint8),
                  known: wp.array2d(dtype=wp.uint8), run: int):
     """The last level's cells are texels: a texel no ray was cast at takes its cell's value
@@ -229,7 +229,7 @@ def _fill_kernel(cell_vis: wp.array2d(dtype=wp.uint8), vis: wp.array2d(dtype=wp.
             vis[k, tex] = cell_vis[k, tex]
 
 
-@wp.kernel
+@wp.kernel(enable_backward=False)
 def _last_samples_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp.array(dtype=wp.vec3),
                          first: int, dirs: wp.array(dtype=wp.vec3), offset: float, max_t: float, Rr: int, s: int,
                          marked: wp.array2d(dtype=wp.uint8), vis: wp.array2d(dtype=wp.uint8),
@@ -267,7 +267,7 @@ def _bracket(cell_vis: wp.array2d(dtype=wp.uint8), cell_depth: wp.array2d(dtype=
     return lo, hi, dmin, dmax
 
 
-@wp.kernel
+@wp.kernel(enable_backward=False)
 def _last_texels_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp.array(dtype=wp.vec3),
                         first: int, dirs: wp.array(dtype=wp.vec3), offset: float, max_t: float, Rr: int, s: int,
                         log_ratio: float, run: int, marked: wp.array2d(dtype=wp.uint8),

@@ -58,7 +58,7 @@ def _ring_ray(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp.arra
     ring_depth[k, m] = t
 
 
-@wp.kernel
+@wp.kernel(enable_backward=False)
 def ring_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp.array(dtype=wp.vec3), first: int,
                  dirs: wp.array(dtype=wp.vec3), offset: float, max_t: float, Rr: int, g: int,
                  vis: wp.array2d(dtype=wp.uint8), depth: wp.array2d(dtype=float), known: wp.array2d(dtype=wp.uint8),
@@ -88,7 +88,7 @@ def _ring_sample(vis: wp.array2d(dtype=wp.uint8), ring_depth: wp.array2d(dtype=f
     return wp.min(lo, v), wp.max(hi, v), dmin, dmax
 
 
-@wp.kernel
+@wp.kernel(enable_backward=False)
 def ring_refine_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp.array(dtype=wp.vec3),
                         first: int, dirs: wp.array(dtype=wp.vec3), offset: float, max_t: float, Rr: int, h: int,
                         log_ratio: float, vis: wp.array2d(dtype=wp.uint8), depth: wp.array2d(dtype=float),

@@ -54,7 +54,7 @@ def _run_start(u: int, run: int, R: int):
     return j, u * run - j * R
 
 
-@wp.kernel
+@wp.kernel(enable_backward=False)
 def seed_kernel(vis: wp.array2d(dtype=wp.uint8), dirs: wp.array(dtype=wp.vec3), R: int, run: int,
                 seeds: wp.array2d(dtype=wp.vec3)):
     """Nearest boundary midpoint among the 4-neighbour pairs of differing visibility (else
@@ -95,7 +95,7 @@ def _signed(visible: wp.uint8, d: wp.vec3, s: wp.vec3) -> float:
     return -wp.min(dist, _HALF_PI)
 
 
-@wp.kernel
+@wp.kernel(enable_backward=False)
 def signed_kernel(vis: wp.array2d(dtype=wp.uint8), seeds: wp.array2d(dtype=wp.vec3),
                    dirs: wp.array(dtype=wp.vec3), out: wp.array2d(dtype=float)):
     """Signed angular distance (eq. 23), horizon included, clamped to [−π/2, π/2]."""
@@ -103,7 +103,7 @@ def signed_kernel(vis: wp.array2d(dtype=wp.uint8), seeds: wp.array2d(dtype=wp.ve
     out[k, tex] = _signed(vis[k, tex], dirs[tex], seeds[k, tex])
 
 
-@wp.kernel
+@wp.kernel(enable_backward=False)
 def downsample_kernel(src: wp.array2d(dtype=float), Rs: int, f: int, dst: wp.array2d(dtype=float)):
     """Box filter f×f: (B, (Rs·f)²) → (B, Rs²)."""
     k, tex = wp.tid()
@@ -117,7 +117,7 @@ def downsample_kernel(src: wp.array2d(dtype=float), Rs: int, f: int, dst: wp.arr
     dst[k, tex] = acc / float(f * f)
 
 
-@wp.kernel
+@wp.kernel(enable_backward=False)
 def coarse_seed_kernel(seeds: wp.array2d(dtype=wp.vec3), cdirs: wp.array(dtype=wp.vec3), Rc: int, f: int,
                        out: wp.array2d(dtype=int)):
     """Coarse cell ``c`` of the ``Rc × Rc`` grid: the fine texel (of its ``f × f``) whose seed is nearest
@@ -148,7 +148,7 @@ def _seed_dot(seeds: wp.array2d(dtype=wp.vec3), k: int, t: int, d: wp.vec3) -> f
     return wp.dot(d, seeds[k, t])
 
 
-@wp.kernel
+@wp.kernel(enable_backward=False)
 def jfa_texel_kernel(src: wp.array2d(dtype=int), seeds: wp.array2d(dtype=wp.vec3), cdirs: wp.array(dtype=wp.vec3),
                      Rc: int, step: int, run: int, dst: wp.array2d(dtype=int)):
     """One jump-flooding pass on the coarse grid over seed-texel indices (largest dot product of
@@ -175,7 +175,7 @@ def jfa_texel_kernel(src: wp.array2d(dtype=int), seeds: wp.array2d(dtype=wp.vec3
         dst[k, c] = best
 
 
-@wp.kernel
+@wp.kernel(enable_backward=False)
 def seed_at_kernel(seeds: wp.array2d(dtype=wp.vec3), idx: wp.array2d(dtype=int), out: wp.array2d(dtype=wp.vec3)):
     """The seed each texel's index points at (:data:`NO_SEED` for the empty index −1): the result of
     flooding on the ray grid itself."""
@@ -187,7 +187,7 @@ def seed_at_kernel(seeds: wp.array2d(dtype=wp.vec3), idx: wp.array2d(dtype=int),
         out[k, t] = NO_SEED
 
 
-@wp.kernel
+@wp.kernel(enable_backward=False)
 def fine_seed_kernel(seeds: wp.array2d(dtype=wp.vec3), coarse: wp.array2d(dtype=int), dirs: wp.array(dtype=wp.vec3),
                      Rf: int, f: int, out: wp.array2d(dtype=wp.vec3)):
     """Fine texel ``t``'s nearest boundary point: the best of its own seed, the seeds the 3×3 coarse
@@ -196,7 +196,7 @@ def fine_seed_kernel(seeds: wp.array2d(dtype=wp.vec3), coarse: wp.array2d(dtype=
     out[k, t] = _fine_seed(seeds, coarse, dirs, k, t, Rf, f)
 
 
-@wp.kernel
+@wp.kernel(enable_backward=False)
 def fine_signed_kernel(seeds: wp.array2d(dtype=wp.vec3), coarse: wp.array2d(dtype=int), vis: wp.array2d(dtype=wp.uint8),
                        dirs: wp.array(dtype=wp.vec3), Rf: int, f: int, out: wp.array2d(dtype=float)):
     """:func:`fine_seed_kernel`, :func:`signed_kernel` and :func:`downsample_kernel` in one pass:

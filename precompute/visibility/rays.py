@@ -136,7 +136,7 @@ def vertex_ray_direction(normals: wp.array(dtype=wp.vec3), vi: int, local: wp.ve
     return local_to_world(local, frame_tangent(n), frame_bitangent(n), n)
 
 
-@wp.kernel
+@wp.kernel(enable_backward=False)
 def _visibility_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals: wp.array(dtype=wp.vec3),
                        first: int, dirs: wp.array(dtype=wp.vec3), offset: float, max_t: float,
                        out: wp.array2d(dtype=wp.uint8)):
@@ -152,7 +152,7 @@ def _visibility_kernel(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), normals
 # alpha cut-outs: the same queries through holes (warp_sg.shading.cutout)
 # ---------------------------------------------------------------------------------------------
 
-@wp.kernel
+@wp.kernel(enable_backward=False)
 def _visibility_cutout_kernel(mesh: wp.uint64, cut: Cutouts, points: wp.array(dtype=wp.vec3),
                               normals: wp.array(dtype=wp.vec3), first: int, dirs: wp.array(dtype=wp.vec3),
                               offset: float, max_t: float, out: wp.array2d(dtype=wp.uint8)):
@@ -165,7 +165,7 @@ def _visibility_cutout_kernel(mesh: wp.uint64, cut: Cutouts, points: wp.array(dt
     out[k, tex] = wp.where(hit, wp.uint8(0), wp.uint8(1))
 
 
-@wp.kernel
+@wp.kernel(enable_backward=False)
 def _ray_cutout_kernel(mesh: wp.uint64, cut: Cutouts, origins: wp.array(dtype=wp.vec3),
                        normals: wp.array(dtype=wp.vec3), dirs: wp.array(dtype=wp.vec3), offset: float, max_t: float,
                        out: wp.array(dtype=wp.uint8)):
@@ -281,7 +281,7 @@ def hemisphere_visibility(vertices, triangles, normals, resolution: int = 64, *,
     return out.reshape(len(ids), R, R)
 
 
-@wp.kernel
+@wp.kernel(enable_backward=False)
 def _ray_kernel(mesh: wp.uint64, origins: wp.array(dtype=wp.vec3), normals: wp.array(dtype=wp.vec3),
                 dirs: wp.array(dtype=wp.vec3), offset: float, max_t: float, out: wp.array(dtype=wp.uint8)):
     k = wp.tid()

@@ -21,7 +21,7 @@ from warp_sg.numeric.onb import frame_bitangent, frame_tangent, local_to_world, 
 from precompute.visibility.ssdf_wp import dir_to_concentric_wp
 
 
-@wp.kernel
+@wp.kernel(enable_backward=False)
 def _world_disagreement_kernel(sig: wp.array2d(dtype=wp.uint8), normals: wp.array(dtype=wp.vec3),
                                ei: wp.array(dtype=int), ej: wp.array(dtype=int), dirs: wp.array(dtype=wp.vec3),
                                R: int, counted: wp.array2d(dtype=wp.uint8), differs: wp.array2d(dtype=wp.uint8)):
