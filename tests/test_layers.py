@@ -57,6 +57,7 @@ FOLDER_LAYERS = {
     "warp_sg.groundtruth": "render",
     "warp_sg.tools": "tools",
     "warp_sg.distributed": "tools",
+    "warp_sg.inverse": "tools",
     "warp_sg": "tools",
 }
 

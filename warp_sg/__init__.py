@@ -12,7 +12,7 @@ Public interface (docs/architecture.md "Public interface")::
 The sub-packages are the layers, bottom to top: ``core`` (base), ``numeric``, ``sg``, ``brdf``
 (math), ``scene`` (with ``scene.importers``), ``shading`` (engines, with the top-level packages
 ``raster`` and ``precompute``), ``renderer`` and ``groundtruth`` (render), ``tools`` and
-``distributed`` (tools). ``errors``, ``sg`` and ``InputError`` load with the package; the names of
+``distributed`` and ``inverse`` (tools). ``errors``, ``sg`` and ``InputError`` load with the package; the names of
 :data:`_PUBLIC` load on first use (a module ``__getattr__``, PEP 562): the renderer imports
 ``raster`` and ``precompute``, which import ``warp_sg.core``, so importing them here eagerly
 would run inside their own import.
@@ -36,6 +36,7 @@ _PUBLIC = {
     "reference": ("warp_sg.groundtruth.reference", "reference"),
     "save_image": ("warp_sg.core.image_io", "save_image"),
     "load_image": ("warp_sg.core.image_io", "load_image"),
+    "fit": ("warp_sg.inverse.fit", "fit"),
 }
 
 

@@ -11,6 +11,7 @@
     warp-sg precompute SCENE [--cluster local:N|tcp://HOST:PORT]   (warp_sg.distributed.precompute)
     warp-sg batch JOB.toml [--cluster ...]         (warp_sg.distributed.batch)
     warp-sg schema [-o FILE] [--markdown]          (JSON Schema of scene files, warp_sg.scene.schema; or the key reference)
+    warp-sg fit SCENE VIEWS --free KEY ... -o FITTED.toml   (warp_sg.inverse.fit)
 
 ``render``, ``precompute``, ``report``, ``bench`` and ``batch`` take ``--cluster``: the SSDF precompute
 (and batch / reference work) then runs on Dask (docs/distributed.md); without it Dask is not imported.
@@ -47,6 +48,7 @@ EXTERNAL = {
     "bench": ("warp_sg.tools.bench", "performance benchmarks (rasterizer, shading, precompute)"),
     "precompute": ("warp_sg.distributed.precompute", "fill the precompute cache of a scene (optionally on Dask)"),
     "batch": ("warp_sg.distributed.batch", "render a batch of frames (animation / parameter grid) on Dask"),
+    "fit": ("warp_sg.inverse.fit", "recover materials, textures and lighting from photographs (known geometry)"),
 }
 
 

@@ -166,10 +166,11 @@ def _toml_value(v) -> str:
     raise TypeError(f"cannot write {type(v).__name__} to TOML")
 
 
-def scene_toml(doc: dict) -> str:
+def scene_toml(doc: dict, header: str = "written by `warp-sg render ASSET --print-scene`: edit it and "
+                                        "render it again") -> str:
     """TOML text of a scene document: ``[camera]``, ``[[objects]]``, ``[materials.NAME]``,
-    ``[[lights]]``, ``[render]`` tables, values inline."""
-    out = ["# warp-sg scene written by `warp-sg render ASSET --print-scene`: edit it and render it again\n"]
+    ``[[lights]]``, ``[render]`` tables, values inline; ``header`` the first line's comment."""
+    out = [f"# warp-sg scene {header}\n"]
 
     def table(head, d):
         out.append(f"\n{head}\n" + "".join(f"{k} = {_toml_value(v)}\n" for k, v in d.items()))
