@@ -920,12 +920,31 @@ def test_cli_prints_a_library_warning_as_one_line(tmp_path, capsys, monkeypatch)
     import warp_sg.tools.cli as cli
 
     def noisy(args):
-        warnings.warn_explicit("overflow encountered in multiply", RuntimeWarning, "/x/numpy/_core/umath.py", 7)
+        warnings.warn_explicit("Palette images with Transparency expressed in bytes should be converted\nto RGBA",
+                               UserWarning, "/x/PIL/Image.py", 7)
         return 0
 
     monkeypatch.setattr(cli, "schema_main", noisy)
     rc, _, err = run_cli(["schema"], capsys)
-    assert rc == 0 and err.strip() == "warp-sg: warning: numpy: overflow encountered in multiply (RuntimeWarning)"
+    assert rc == 0 and err.strip() == ("warp-sg: warning: PIL: Palette images with Transparency expressed in bytes "
+                                       "should be converted (UserWarning)")
+
+
+def test_numpy_floating_point_notes_are_kept_from_the_user(tmp_path, capsys, monkeypatch):
+    # (issue 51) numpy's "overflow encountered in multiply" and friends: the results are checked
+    # where they matter; before, each reached the user as an extra line
+    import warnings
+
+    import warp_sg.tools.cli as cli
+
+    def noisy(args):
+        warnings.warn_explicit("overflow encountered in multiply", RuntimeWarning, "/x/numpy/_core/umath.py", 7)
+        warnings.warn_explicit("invalid value encountered in divide", RuntimeWarning, "/x/warp_sg/scene/envmap.py", 9)
+        return 0
+
+    monkeypatch.setattr(cli, "schema_main", noisy)
+    rc, _, err = run_cli(["schema"], capsys)
+    assert rc == 0 and err.strip() == ""
 
 
 # ------------------------------------------------------------------------------------------------

@@ -18,32 +18,21 @@ from warp_sg.core.errors import InputError, MeshError
 # --------------------------------------------------------------------------------------------
 # Radiance maps in every orientation
 # --------------------------------------------------------------------------------------------
-def rgbe(a: np.ndarray) -> np.ndarray:
-    """Flat (uncompressed) RGBE bytes of float RGB texels (Ward's shared exponent)."""
-    v = a.max(-1)
-    m, e = np.frexp(v)
-    f = np.where(v > 1e-32, m * 256.0 / np.maximum(v, 1e-32), 0.0)
-    out = np.zeros(a.shape[:-1] + (4,), np.uint8)
-    out[..., :3] = (a * f[..., None]).astype(np.uint8)
-    out[..., 3] = np.where(v > 1e-32, e + 128, 0)
-    return out
+def _hostile_script():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("hostile_inputs", Path(__file__).resolve().parents[1] / "scripts"
+                                                  / "hostile_inputs.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
 
 
 def write_hdr(path: Path, img: np.ndarray, first: str, second: str) -> Path:
-    """``img`` (row 0 the top) stored with resolution line ``first N second M`` (e.g. ``+X`` ``-Y``:
-    column scanlines left to right, each from the top down), Radiance's definition."""
-    H, W, _ = img.shape
-    if first[1] == "Y":
-        d = img[::-1] if first[0] == "+" else img
-        d = d[:, ::-1] if second[0] == "-" else d
-        line = f"{first} {H} {second} {W}"
-    else:
-        d = img.transpose(1, 0, 2)
-        d = d[::-1] if first[0] == "-" else d
-        d = d[:, ::-1] if second[0] == "+" else d
-        line = f"{first} {W} {second} {H}"
-    path.write_bytes(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n" + line.encode() + b"\n"
-                     + rgbe(np.ascontiguousarray(d)).tobytes())
+    """``img`` (row 0 the top) stored flat (RGBE, Ward's shared exponent) with the resolution line
+    ``first N second M`` (e.g. ``+X`` ``-Y``: column scanlines left to right, each from the top
+    down): Radiance's definition, written by ``scripts/hostile_inputs.py``'s ``hdr``."""
+    path.write_bytes(_hostile_script().hdr(img, first, second))
     return path
 
 
@@ -207,3 +196,72 @@ def test_a_map_over_the_working_bound_is_reduced_keeping_its_light_with_one_warn
         return (a.astype(np.float64) * om[:, None, None]).sum((0, 1))
 
     np.testing.assert_allclose(power(env), power(read), rtol=1e-5)
+
+
+# --------------------------------------------------------------------------------------------
+# noise and contract drift
+# --------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("argv,option", [(["render", "{scene}", "--width", "0"], "--width"),
+                                         (["render", "{scene}", "--spp", "0"], "--spp"),
+                                         (["preview", "{scene}", "--window-size", "0", "0"], "--window-size"),
+                                         (["render", "{scene}", "--spps", "4"], "--spps"),
+                                         (["rendr", "{scene}"], "rendr")])
+def test_a_bad_option_is_one_line_without_the_usage(tmp_path, capsys, argv, option):
+    # before: argparse printed its 7-line usage before the error
+    scene = write_scene(tmp_path)
+    rc, out, err = run_cli([a.format(scene=scene) for a in argv], capsys)
+    lines = err.strip().splitlines()
+    assert rc == 2 and len(lines) == 1 and lines[0].startswith("warp-sg: error:") and option in lines[0], err
+    assert "usage:" not in err and out == ""
+
+
+def test_bench_with_an_unknown_section_is_refused(capsys):
+    # before: it ran nothing and exited 0
+    rc, _, err = run_cli(["bench", "--section", "shadng"], capsys)
+    assert_clean_failure(rc, err, "--section", "'shadng'", "did you mean")
+
+
+def test_reference_with_stderr_naming_the_output_file_is_refused(tmp_path, capsys):
+    # before: the standard-error image overwrote the image without a word
+    out = tmp_path / "ref.exr"
+    rc, _, err = run_cli(["reference", write_scene(tmp_path), "-o", out, "--stderr", tmp_path / "." / "ref.exr",
+                          "--spp", "1", "--no-progress"], capsys)
+    assert_clean_failure(rc, err, "--stderr", "same file as -o")
+    assert not out.exists()
+
+
+def test_two_objects_with_one_name_are_refused_naming_both(tmp_path):
+    import warp_sg as ws
+    from warp_sg.core.errors import SceneError
+
+    text = replace('primitive = "sphere"', 'name = "thing"\nprimitive = "sphere"')
+    text = replace('primitive = "plane"', 'name = "thing"\nprimitive = "plane"', text)
+    with pytest.raises(SceneError, match=r"scene.toml: \[\[objects\]\] #2 name 'thing' is also the name of "
+                                         r"\[\[objects\]\] #1"):
+        ws.load_scene(write_scene(tmp_path, text))
+
+
+def test_a_measured_material_without_a_file_asks_for_the_file(tmp_path):
+    # before: "give exactly one of 'file' or 'table'", a key the scene file does not accept
+    import warp_sg as ws
+    from warp_sg.core.errors import SceneError
+
+    text = replace('model = "cook_torrance"\nkd = [0.2, 0.1, 0.1]\nks = [0.5, 0.5, 0.5]\nm = 0.3', 'model = "measured"')
+    with pytest.raises(SceneError) as e:
+        ws.load_scene(write_scene(tmp_path, text))
+    assert "[materials.shiny] key 'file'" in str(e.value) and "is required" in str(e.value)
+    assert "'table'" not in str(e.value)
+
+
+def test_usd_diagnostics_become_one_warning_line(tmp_path, capsys):
+    # before: USD printed "Warning: in _ReportErrors at line 3326 of .../stage.cpp -- ..." lines itself
+    pytest.importorskip("pxr")
+    (tmp_path / "a.usda").write_text('#usda 1.0\n(\n    subLayers = [@missing.usda@]\n    upAxis = "Y"\n)\n'
+                                     'def Mesh "quad"\n{\n    int[] faceVertexCounts = [4]\n'
+                                     '    int[] faceVertexIndices = [0, 1, 2, 3]\n'
+                                     '    point3f[] points = [(0,0,0), (1,0,0), (1,0,1), (0,0,1)]\n}\n')
+    rc, _, err = run_cli(["render", tmp_path / "a.usda", "-o", tmp_path / "o.png", "--width", 16, "--height", 12,
+                          "--no-shadows", "--no-progress"], capsys)
+    lines = err.strip().splitlines()
+    assert rc == 0 and len(lines) == 1, err
+    assert lines[0].startswith("warp-sg: warning: a.usda: USD reports: Could not load sublayer @missing.usda@")

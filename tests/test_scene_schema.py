@@ -220,6 +220,8 @@ BAD = [  # (old, new, words of the loader's one-line message)
     ('model = "lambert"', 'modle = "lambert"', ["[materials.floor]", "key 'modle' unknown"]),
     ('fresnel = "gold"', 'fresnel = { eta = 1.5, k = 2.0, schlick = 0.1 }', ["key 'fresnel'"]),
     ('fresnel = "gold"', 'fresnel = "gld"', ["key 'fresnel'", "did you mean 'gold'"]),
+    ('fresnel = "gold"', "fresnel = { eta = 0.0 }", ["key 'fresnel", "eta", "> 0"]),  # (issue 51: the schema
+    ('fresnel = "gold"', "fresnel = { schlick = [0.5, 1.5, 0.5] }", ["key 'fresnel", "schlick"]),  # allowed these)
     ("m = 0.2", "m = 0.0", ["key 'm' must be > 0"]),
     ("m = 0.2", 'm = { texture = "r.png", scael = 2.0 }', ["key 'm.scael' unknown", "did you mean 'scale'"]),
     ("kd = 0.8", "kd = [0.8, 0.8]", ["[materials.floor]", "key 'kd' must be a number or a list of 3"]),

@@ -306,6 +306,10 @@ def load_or_build(
     path = entry_path(kind, key)
     if path in _BLOCKED:  # (said when it was read)
         return arrays
+    for folder in (path.parent.parent, path.parent):  # a file where the cache's folders go: not ours to keep
+        if (folder.exists() or folder.is_symlink()) and not folder.is_dir() and _clear(folder):
+            warnings.warn(f"warp-sg cache: {folder} was a file, not a cache folder; replaced by one",
+                          RuntimeWarning, stacklevel=2)
     try:
         _write_atomic(path, arrays, _fingerprint(kind, key))
     except OSError as e:  # read-only cache folder etc.: still return the result

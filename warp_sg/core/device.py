@@ -7,9 +7,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
-import os
 import sys
-import tempfile
 
 import warp as wp
 
@@ -31,29 +29,20 @@ _DRIVER_NOTE: list = []  # the driver's line, once wp.init() printed it
 @contextlib.contextmanager
 def _native_stderr_without(marker: str, seen: list):
     """Hold back the lines containing ``marker`` that native code writes to file descriptor 2
-    meanwhile (C ``fprintf(stderr)``: no Python hook sees them), appended to ``seen``; every other
+    meanwhile (:func:`warp_sg.core.native_stderr.native_stderr`), appended to ``seen``; every other
     line is written through afterwards."""
+    from warp_sg.core.native_stderr import native_stderr
+
+    lines: list = []
     try:
-        fd = sys.stderr.fileno()
-    except (AttributeError, OSError, ValueError):
-        fd = 2
-    sys.stderr.flush()
-    saved = os.dup(fd)
-    with tempfile.TemporaryFile() as buf:
-        os.dup2(buf.fileno(), fd)
-        try:
+        with native_stderr(lines):
             yield
-        finally:
-            os.dup2(saved, fd)
-            os.close(saved)
-            buf.seek(0)
-            text = buf.read().decode("utf-8", "replace")
-            kept = []
-            for line in text.splitlines(keepends=True):
-                (seen.append(line.strip()) if marker in line else kept.append(line))
-            if kept:
-                sys.stderr.write("".join(kept))
-                sys.stderr.flush()
+    finally:
+        kept = [ln for ln in lines if marker not in ln]
+        seen.extend(ln.strip() for ln in lines if marker in ln)
+        if kept:
+            sys.stderr.write("".join(ln + "\n" for ln in kept))
+            sys.stderr.flush()
 
 
 @functools.lru_cache(maxsize=None)

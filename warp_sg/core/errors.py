@@ -30,6 +30,21 @@ class ImageError(InputError):
     """An image/texture/environment map cannot be read or has the wrong shape/channels."""
 
 
+def reason(e: BaseException) -> str:
+    """What went wrong in a library's exception, in words for a one-line message — never the
+    exception's class name (``cannot identify image file`` is "not an image format this program
+    reads"; an empty message is "unreadable")."""
+    name = type(e).__name__
+    if name == "UnidentifiedImageError":
+        return "not an image format this program reads (PNG, JPEG, TIFF, WebP, OpenEXR, Radiance .hdr)"
+    if isinstance(e, OSError) and getattr(e, "strerror", None):
+        return str(e.strerror)
+    text = str(e).strip().splitlines()[0] if str(e).strip() else ""
+    if isinstance(e, (TimeoutError,)) or name.endswith("TimeoutError"):
+        return "timed out" + (f": {text}" if text else "")
+    return text.rstrip(".!") or "unreadable"
+
+
 class InputWarning(UserWarning):
     """Input that is accepted but changed or doubtful (an inside-out mesh flipped, a material that
     reflects more light than it receives): one line naming the element; the CLI prints it as

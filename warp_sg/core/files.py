@@ -54,10 +54,10 @@ def check_output_path(path, suffixes=IMAGE_SUFFIXES, create_parents: bool = Fals
     ``create_parents``: missing folders are allowed (created by :func:`make_parents` once the image
     exists) as long as the nearest existing ancestor is a writable folder."""
     p = Path(path)
-    if p.suffix.lower() not in suffixes:
-        raise InputError(f"unknown image format '{p.suffix}' (use {' or '.join(suffixes)})", where=str(p))
     if p.is_dir():
         raise InputError("is a folder, not a file", where=str(p))
+    if p.suffix.lower() not in suffixes:
+        raise InputError(f"unknown image format '{p.suffix}' (use {' or '.join(suffixes)})", where=str(p))
     parent = p.parent if str(p.parent) else Path(".")
     if not parent.is_dir():
         if not create_parents:

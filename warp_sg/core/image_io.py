@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from warp_sg.core.files import atomic_output
-from warp_sg.core.errors import ImageError
+from warp_sg.core.errors import ImageError, reason
 
 EXR_EXTS = (".exr",)
 HDR_EXTS = (".hdr",)
@@ -156,7 +156,10 @@ def read_hdr(path) -> np.ndarray:
         raise ImageError(f"cannot open Radiance HDR file ({e.strerror or e})", where=str(path)) from None
     m, (s1, a1, n1), (s2, _, n2) = hdr_resolution(raw[:1 << 16], str(path))
     std = b"-Y %d +X %d\n" % (n1, n2)
-    buf = np.frombuffer(raw[:m.start(1)] + std + raw[m.end():], np.uint8)
+    head = raw[:m.start(1)]
+    if head.startswith(b"#?") and not head.startswith((b"#?RADIANCE\n", b"#?RGBE\n")):
+        head = b"#?RADIANCE" + head[head.find(b"\n"):]  # (any program name may follow "#?"; OpenCV wants these)
+    buf = np.frombuffer(head + std + raw[m.end():], np.uint8)
     a = cv2.imdecode(buf, cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
     del buf, raw
     if a is None or a.shape != (n1, n2, 3):
@@ -194,7 +197,7 @@ def image_size(path) -> tuple[int | None, int | None, int]:
             with OpenEXR.File(str(path), header_only=True) as f:
                 lo, hi = f.header()["dataWindow"]
         except Exception as e:  # noqa: BLE001 - the OpenEXR binding raises many types
-            raise ImageError(f"cannot read OpenEXR file ({type(e).__name__}: {e})", where=str(path)) from None
+            raise ImageError(f"cannot read OpenEXR file ({reason(e)})", where=str(path)) from None
         h, w = int(hi[1]) - int(lo[1]) + 1, int(hi[0]) - int(lo[0]) + 1
         return h, w, h * w
     if head[:2] == b"#?":
@@ -212,7 +215,7 @@ def image_size(path) -> tuple[int | None, int | None, int]:
             m = re.search(r"\((\d+) pixels\)", str(e))
             return None, None, int(m.group(1)) if m else Image.MAX_IMAGE_PIXELS * 2 + 1
         except (UnidentifiedImageError, OSError, ValueError, SyntaxError) as e:
-            raise ImageError(f"cannot read image ({type(e).__name__}: {e})", where=str(path)) from None
+            raise ImageError(f"cannot read image ({reason(e)})", where=str(path)) from None
     return int(h), int(w), int(h) * int(w)
 
 
@@ -291,7 +294,7 @@ def save_image(path, img, exposure: float = 0.0, half: bool = False) -> Path:
     except PermissionError as e:
         raise ImageError(f"cannot write to folder '{folder}' ({e.strerror or e})", where=str(path)) from None
     except Exception as e:
-        raise ImageError(f"cannot write image ({type(e).__name__}: {e})", where=str(path)) from None
+        raise ImageError(f"cannot write image ({reason(e)})", where=str(path)) from None
     return path
 
 
@@ -305,7 +308,7 @@ def _exr_channels(path: Path) -> tuple[dict[str, np.ndarray], tuple[int, int]]:
         with OpenEXR.File(str(path), separate_channels=True) as f:
             chans = {name: np.asarray(ch.pixels) for name, ch in f.channels().items()}
     except Exception as e:
-        raise ImageError(f"cannot read OpenEXR file ({type(e).__name__}: {e})", where=str(path)) from None
+        raise ImageError(f"cannot read OpenEXR file ({reason(e)})", where=str(path)) from None
     if not chans:
         raise ImageError("OpenEXR file has no channels", where=str(path))
     shapes = {c.shape for c in chans.values()}
@@ -381,7 +384,7 @@ def _read_ldr(path: Path, linear: bool) -> np.ndarray:
     except FileNotFoundError:
         raise ImageError("image file not found", where=str(path)) from None
     except (UnidentifiedImageError, OSError, ValueError, SyntaxError) as e:
-        raise ImageError(f"cannot read image ({type(e).__name__}: {e})", where=str(path)) from None
+        raise ImageError(f"cannot read image ({reason(e)})", where=str(path)) from None
     a = a.astype(np.float32)
     if not linear:
         ncol = a.shape[2] - (1 if alpha_idx is not None else 0)

@@ -181,7 +181,10 @@ def run_job(job: Job, cluster=None, device=None, progress: bool = True, skip_exi
     for p in paths:
         check_output_path(p, create_parents=True)
     scene = load_scene(job.scene)
-    normalize_variants(scene, job.variants)  # every variant checked before any work
+    try:
+        normalize_variants(scene, job.variants)  # every variant checked before any work
+    except InputError as e:
+        raise InputError(str(e), where=str(job.path or "job")) from None
     check_variants(scene, job.variants, where=str(job.path or "job"))  # and its values
     todo = [i for i, p in enumerate(paths) if not (skip_existing and p.exists())]
     scale = 2.0 ** job.exposure

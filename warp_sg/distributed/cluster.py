@@ -19,7 +19,7 @@ import contextlib
 import logging
 import threading
 
-from warp_sg.core.errors import InputError
+from warp_sg.core.errors import InputError, reason
 
 #: Seconds to wait for a scheduler (and for its first worker) before giving up
 #: (``$WARP_SG_DASK_TIMEOUT`` overrides it).
@@ -90,7 +90,7 @@ def check_versions(client) -> None:
     try:
         versions = client.run(_worker_version)
     except Exception as e:  # noqa: BLE001 - e.g. warp_sg missing on a worker
-        raise ClusterError(f"cannot ask the workers for their warp-sg version ({type(e).__name__}: {e})",
+        raise ClusterError(f"cannot ask the workers for their warp-sg version ({reason(e)})",
                            where="--cluster") from None
     for worker, v in sorted(versions.items()):
         if v != mine:
@@ -158,7 +158,7 @@ def connect(cluster=None, timeout: float | None = None):
             client = distributed.Client(target, timeout=timeout)
         except (OSError, TimeoutError) as e:
             raise ClusterError(f"cannot reach the Dask scheduler at {target} within {timeout:g} s "
-                               f"({type(e).__name__})", where="--cluster") from None
+                               f"({reason(e)})", where="--cluster") from None
         try:
             try:
                 client.wait_for_workers(1, timeout=timeout)

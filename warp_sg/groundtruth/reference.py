@@ -37,6 +37,7 @@ Files: this module is the host side and the public entry; the kernels and their 
 from __future__ import annotations
 
 import math
+import os
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -48,6 +49,7 @@ import warp as wp
 from warp_sg.groundtruth import sampling as S
 from warp_sg.brdf.kernel import material_wp as M  # contract: Material, pack_materials, brdf_*
 from warp_sg.core.device import add_device_argument, device_for, resolve_device
+from warp_sg.scene.culling import camera_mesh
 from warp_sg.core.errors import InputError
 from warp_sg.scene.lights import DirectionalLight, PointLight
 from warp_sg.scene.lights import LIGHT_DIRECTIONAL, LIGHT_POINT
@@ -155,31 +157,6 @@ def _light_table(lights, device) -> LightTable:
     return t
 
 
-def _camera_mesh(inp: ReferenceInputs, v: np.ndarray, tri: np.ndarray, points, device: str):
-    """The mesh the camera rays query: the single-sided triangles the eye sees from behind
-    (:func:`warp_sg.scene.culling.facing_away`) collapsed to a point, so that they are never hit
-    and the face indices stay those of the full mesh; None when no triangle is culled."""
-    if inp.single_sided is None or not np.any(inp.single_sided):
-        return None
-    from warp_sg.scene.culling import facing_away
-
-    eyes = np.asarray(inp.ray_origins, np.float64).reshape(-1, 3)
-    if len(eyes) and np.ptp(eyes, axis=0).max() > 0.0:
-        raise InputError("single-sided triangles need camera rays from one eye (a pinhole camera)",
-                         where="reference inputs")
-    single = np.asarray(inp.single_sided, bool).reshape(-1)
-    if len(single) != len(tri):
-        raise InputError(f"single_sided has {len(single)} flags for {len(tri)} triangles", where="reference inputs")
-    culled = single & facing_away(v, tri, eyes[0] if len(eyes) else np.zeros(3))
-    if not culled.any():
-        return None
-    cam = tri.copy()
-    cam[culled] = tri[culled, :1]  # (i0, i0, i0): no area, never hit
-    indices = wp.array(np.ascontiguousarray(cam.reshape(-1)), dtype=int, device=device)
-    mesh = wp.Mesh(points=points, indices=indices)
-    return mesh
-
-
 class _Prepared:
     def __init__(self, inp: ReferenceInputs, device: str):
         v = np.ascontiguousarray(inp.vertices, np.float32)
@@ -190,7 +167,7 @@ class _Prepared:
         self.mesh = wp.Mesh(points=self.points, indices=self.indices)
         geo = Geometry()
         geo.mesh = self.mesh.id
-        self.camera_mesh = _camera_mesh(inp, v, tri, self.points, device)
+        self.camera_mesh = camera_mesh(inp.single_sided, inp.ray_origins, v, tri, self.points, device)
         geo.camera = (self.mesh if self.camera_mesh is None else self.camera_mesh).id
         geo.indices = self.indices
         if inp.normals is not None:
@@ -377,8 +354,12 @@ def inputs_from_scene(scene, device="cpu") -> ReferenceInputs:
     background (bilinear environment lookup) for pixels that see no object."""
     from warp_sg.shading.cutout import cutout_data
 
+    from warp_sg.core.watchdog import MAX_SAMPLES, check_size
+
+    k, cam = scene.render.supersampling, scene.camera
+    check_size("the frame", cam.width * cam.height * k * k, MAX_SAMPLES, f"{cam.width}×{cam.height} pixels × "
+               f"supersampling {k}²", "samples", where=f"{scene.path or 'scene'}: [camera]", error=InputError)
     g = scene.geometry()
-    k = scene.render.supersampling
     dirs = np.asarray(scene.camera.ray_directions(supersample=k), np.float32)
     origins = np.broadcast_to(np.asarray(scene.camera.origin, np.float32), dirs.shape).copy()
     env = scene.environment
@@ -465,6 +446,9 @@ def cli_main(args) -> int:
     # fail before any work; folders are created only once the images exist (never a partial file)
     out = check_output_path(args.output, create_parents=True)
     err_out = check_output_path(args.stderr, create_parents=True) if args.stderr else None
+    if err_out is not None and os.path.abspath(err_out) == os.path.abspath(out):
+        raise InputError(f"names the same file as -o ({out}): the standard error would overwrite the image",
+                         where="--stderr")
     scene = load_scene(args.scene)
     if args.transform:
         from warp_sg.renderer.dynamic_objects import parse_transform_argument, scene_with_transforms

@@ -7,7 +7,7 @@ back face when its winding is clockwise as seen from the eye, i.e. ``(eye − v0
 (v2 − v0)) ≤ 0`` — for a pinhole camera a property of the triangle, not of the pixel. An asset
 that stores a surface twice as two coincident shells facing opposite ways (the shared Ferrari's
 body) thus shows its outward shell only, in the raster (:meth:`BackfaceCulling.flags`) and in the
-Monte-Carlo reference (:func:`facing_away`, whose camera rays query a mesh without those faces).
+Monte-Carlo reference (:func:`camera_mesh`: its camera rays query a mesh without those faces).
 Shadow rays and the precompute see both sides.
 
 **Closed objects** are culled as an optimisation only:
@@ -120,4 +120,31 @@ def facing_away(vertices, triangles, eye) -> np.ndarray:
     return np.einsum("ij,ij->i", np.asarray(eye, np.float64) - v0, n) <= 0.0
 
 
-__all__ = ["BackfaceCulling", "box_corners", "facing_away"]
+def camera_mesh(single_sided, ray_origins, vertices, triangles, points, device: str):
+    """The ``wp.Mesh`` a Monte-Carlo reference's camera rays query: the triangles flagged in
+    ``single_sided`` (T,) that the eye (every ray's origin: a pinhole camera) sees from behind
+    (:func:`facing_away`) collapsed to a point, so that they are never hit while the face indices
+    stay those of the full mesh (``points``: its device vertex array); None when none is culled."""
+    import warp as wp
+
+    from warp_sg.core.errors import InputError
+
+    if single_sided is None or not np.any(single_sided):
+        return None
+    eyes = np.asarray(ray_origins, np.float64).reshape(-1, 3)
+    if len(eyes) and np.ptp(eyes, axis=0).max() > 0.0:
+        raise InputError("single-sided triangles need camera rays from one eye (a pinhole camera)",
+                         where="reference inputs")
+    tri = np.asarray(triangles, np.int32).reshape(-1, 3)
+    single = np.asarray(single_sided, bool).reshape(-1)
+    if len(single) != len(tri):
+        raise InputError(f"single_sided has {len(single)} flags for {len(tri)} triangles", where="reference inputs")
+    culled = single & facing_away(vertices, tri, eyes[0] if len(eyes) else np.zeros(3))
+    if not culled.any():
+        return None
+    cam = tri.copy()
+    cam[culled] = tri[culled, :1]  # (i0, i0, i0): no area, never hit
+    return wp.Mesh(points=points, indices=wp.array(np.ascontiguousarray(cam.reshape(-1)), dtype=int, device=device))
+
+
+__all__ = ["BackfaceCulling", "box_corners", "facing_away", "camera_mesh"]

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from warp_sg.core.errors import InputError, InputWarning, MeshError, SceneError
+from warp_sg.core.errors import InputError, InputWarning, MeshError, SceneError, reason
 from warp_sg.core.meshcheck import check_mesh, closed_and_oriented, signed_volume, weld_ids, winding_number
 from warp_sg.scene.primitives import MeshData, make_primitive
 from warp_sg.core.watchdog import MAX_TRIANGLES, check_size
@@ -195,7 +195,7 @@ def _load_mesh_file(path: Path, where: str) -> MeshData:
             simple = _read_simple_obj(path)
             if simple is not None:
                 validate_mesh(simple.vertices, simple.triangles, where=str(path))
-        raise MeshError(f"cannot read mesh ({type(e).__name__}: {e})", where=str(path)) from None
+        raise MeshError(f"cannot read mesh ({reason(e)})", where=str(path)) from None
     if not hasattr(m, "faces") or len(getattr(m, "faces", [])) == 0:
         raise MeshError("file contains no triangles", where=str(path))
     v = np.asarray(m.vertices)
@@ -238,9 +238,14 @@ def object_mesh(ob, index: int, base: Path | None, eye=None) -> MeshData:
     else:
         raise SceneError("needs 'mesh', 'primitive' or vertices + triangles", where=where)
     label = ob.label(index)
-    at = f"{where} ({label})"
+    file = Path(ob.mesh).name if ob.mesh is not None else None
+    at = f"{where} ({label}{f', {file}' if file and file != label else ''})"
     n_tri = np.size(mesh.triangles) // 3
     check_size("the mesh", n_tri, MAX_TRIANGLES, "too large", "triangles", where=at, error=MeshError)
+    raw = np.asarray(mesh.vertices, np.float64)
+    far = np.isfinite(raw).all(axis=1) & (np.abs(raw) > MAX_COORDINATE).any(axis=1) if raw.ndim == 2 else None
+    if far is not None and far.any():  # (before the zero-area test, whose tolerance the far vertex sets)
+        check_extent(raw[far], at)
     v, t, keep = validate_mesh(mesh.vertices, mesh.triangles, where=at)
     n = mesh.normals
     if n is None or n.shape != v.shape or not np.all(np.isfinite(n)) or np.any(np.linalg.norm(n, axis=1) < 1e-12):

@@ -52,10 +52,15 @@ class _Builder:
         return Camera(**c.model_dump())  # the table is the record's own check: nothing left to fail
 
     def objects(self, objs) -> list:
-        out = []
+        out, named = [], {}
         for i, ob in enumerate(objs):
             tab = f"[[objects]] #{i + 1}"
             given = ob.model_dump(exclude_unset=True)
+            if given.get("name") is not None:  # objects are found by name (moving objects, batch variants)
+                if given["name"] in named:
+                    raise self.err(tab, f"name '{given['name']}' is also the name of [[objects]] "
+                                        f"#{named[given['name']]}: object names must be unique")
+                named[given["name"]] = i + 1
             prim = given.get("primitive")
             params = {k: v for k, v in given.items() if prim is not None and k in PRIMITIVE_PARAMS[prim]}
             tr = Transform()

@@ -66,9 +66,15 @@ def _res(value, n: int, name: str, lo: int = 1) -> tuple:
         v = np.repeat(v, n)
     if v.shape != (n,) or not np.all(np.isfinite(v.astype(float))) or np.any(v.astype(float) != np.round(v.astype(float))):
         raise InputError(f"expected {n} integer(s), got {value!r}", where=name)
-    v = v.astype(int)
+    if np.any(np.abs(v.astype(float)) > 2.0 ** 31):
+        raise InputError(f"expected {n} integer(s) of at most 2^31, got {value!r}", where=name)
+    v = v.astype(np.int64)
     if np.any(v < lo):
         raise InputError(f"must be >= {lo}, got {v.tolist()}", where=name)
+    from warp_sg.core.watchdog import MAX_TRIANGLES, check_size
+
+    check_size("the primitive", 2 * int(np.prod(v + 1)), MAX_TRIANGLES, f"too finely divided ({' × '.join(map(str, v))})",
+               "triangles", where=name)
     return tuple(int(x) for x in v)
 
 
@@ -89,6 +95,8 @@ def _positive(value, name) -> float:
         raise InputError(f"expected a number, got {value!r}", where=name) from None
     if not np.isfinite(v) or v <= 0:
         raise InputError(f"must be > 0, got {value!r}", where=name)
+    if v > 1e12:  # (MAX_COORDINATE of warp_sg.scene.geometry: float32 shading loses larger objects)
+        raise InputError(f"must be at most 1e12, got {value!r}", where=name)
     return v
 
 

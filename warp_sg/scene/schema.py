@@ -71,8 +71,8 @@ class FresnelTable(Table):
 
     model_config = ConfigDict(json_schema_extra={"anyOf": [{"required": ["schlick"], "maxProperties": 1},
                                                            {"required": ["eta"], "not": {"required": ["schlick"]}}]})
-    schlick: rgb(raw=True, description="Schlick F0 (number or RGB)") = None
-    eta: rgb(raw=True, description="index of refraction η (number or RGB)") = None
+    schlick: rgb(raw=True, hi=1.0, description="Schlick F0 (number or RGB)") = None
+    eta: rgb(raw=True, lo_open=True, description="index of refraction η (number or RGB)") = None
     k: rgb(raw=True, description="extinction coefficient k of a conductor (number or RGB)") = None
 
     @model_validator(mode="after")

@@ -152,18 +152,19 @@ def number_or_vector(n, lo=0, lo_open=True, description=None):
     return _leaf(check, {"anyOf": [_num_schema(lo, lo_open), _vec_schema(n, lo, lo_open)]}, description)
 
 
-def rgb(raw=False, hi=None, description=None):
-    """A colour: a number (grey) or 3 numbers, all >= 0 (and <= ``hi``); ``raw`` keeps the value as written."""
+def rgb(raw=False, hi=None, description=None, lo_open=False):
+    """A colour: a number (grey) or 3 numbers, all >= 0 (> 0 with ``lo_open``; <= ``hi``); ``raw``
+    keeps the value as written."""
     def check(v):
         if _is_num(v):
-            out = (_check_num(v, 0, hi=hi),) * 3
+            out = (_check_num(v, 0, lo_open=lo_open, hi=hi),) * 3
         else:
             if not isinstance(v, list) or len(v) != 3 or not all(_is_num(x) for x in v):
                 fail(f"must be a number or a list of 3 numbers (RGB), got {v!r}")
-            out = _check_vec(v, 3, 0, hi=hi)
+            out = _check_vec(v, 3, 0, lo_open=lo_open, hi=hi)
         return v if raw else out
 
-    return _leaf(check, {"anyOf": [_num_schema(0, hi=hi), _vec_schema(3, 0, hi=hi)]}, description)
+    return _leaf(check, {"anyOf": [_num_schema(0, lo_open, hi=hi), _vec_schema(3, 0, lo_open, hi=hi)]}, description)
 
 
 def int_or_ints(n, lo=1, description=None):

@@ -434,7 +434,13 @@ def run_bench(device="cpu", quick=False, sections=None, print_fn=print, cluster=
     """Run every section (or those named in ``sections``) and print the tables; returns them.
     ``cluster``: also time the SSDF precompute on this Dask cluster (precompute section)."""
     from warp_sg.core.device import resolve_device
+    from warp_sg.core.suggest import did_you_mean
 
+    for s in sections or ():
+        if not any(s in name for name in SECTIONS):
+            words = {w for name in SECTIONS for w in name.replace(":", " ").split()}
+            raise InputError(f"no section's name contains {s!r}{did_you_mean(s, words)} (sections: "
+                             f"{'; '.join(SECTIONS)})", where="--section")
     device = resolve_device(device)
     t0 = time.perf_counter()
     res = BenchResult(device=device, quick=quick)

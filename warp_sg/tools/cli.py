@@ -304,9 +304,18 @@ def _missing_module(name, mod, err):
     return main
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with a one-line error: ``warp-sg: error: <command>: argument --width: ...`` and exit
+    status 2 (argparse prints its usage first: seven lines before the one that matters)."""
+
+    def error(self, message):
+        cmd = self.prog.split(" ", 1)[1] + ": " if " " in self.prog else ""
+        self.exit(2, f"warp-sg: error: {cmd}{message} (see {self.prog} --help)\n")
+
+
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     """The parser; only the external module of ``command`` (if it is one) is imported."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="warp-sg",
         description="All-frequency rendering of dynamic, spatially-varying reflectance with spherical Gaussians "
                     "(Wang et al. 2009) on NVIDIA Warp.")
@@ -375,6 +384,10 @@ def main(argv=None) -> int:
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("default")  # each warning once per place it is raised
+            # numpy's floating-point notes (overflow, 0/0 in a masked-out branch): the results are
+            # checked where they matter (finite images, one-line refusals); not the user's business
+            warnings.filterwarnings("ignore", category=RuntimeWarning,
+                                    message=r".*(encountered in|Mean of empty slice|Degrees of freedom <= 0)")
             warnings.showwarning = _show_warning
             rc = args.func(args)
         return int(rc or 0)

@@ -162,8 +162,11 @@ class Measured(SpecularBRDF):
               "pca_terms": Param("integer", "PCA terms of the shadowing fit", lo=0)}
 
     def __init__(self, file=None, lobes=1, eta=1.33, pca_terms=8, *, table=None, cache=True):
-        if (file is None) == (table is None):
-            raise InputError("give exactly one of 'file' (a MERL .binary) or 'table'", where="file")
+        if file is None and table is None:
+            raise InputError("is required: a MERL .binary file (from Python, Measured(table=array) also works)",
+                             where="file")
+        if file is not None and table is not None:
+            raise InputError("give a file or, from Python, a table, not both", where="file")
         try:
             n = int(lobes)
         except (TypeError, ValueError):

@@ -237,7 +237,10 @@ def _read_gltf(path: Path, images: bool) -> GltfAsset:
         g = sc.geometry[gname]
         if not isinstance(g, trimesh.Trimesh) or len(g.faces) == 0:
             continue
-        parts.append(_part(path, node, g, np.asarray(M, np.float64)))
+        part = _part(path, node, g, np.asarray(M, np.float64))
+        if part is None:
+            continue
+        parts.append(part)
         mat = getattr(getattr(g, "visual", None), "material", None)
         idx = parts[-1].material = _material_index(mat)
         if idx is not None and idx not in imgs:
@@ -311,8 +314,9 @@ def _material_index(mat) -> int | None:
     return None
 
 
-def _part(path: Path, node: str, g, M: np.ndarray) -> GltfPart:
-    """Apply the node's world matrix: P' = M P, n' ∝ M⁻ᵀ n, t' ∝ M t (winding flipped when det M < 0)."""
+def _part(path: Path, node: str, g, M: np.ndarray) -> GltfPart | None:
+    """Apply the node's world matrix: P' = M P, n' ∝ M⁻ᵀ n, t' ∝ M t (winding flipped when det M < 0);
+    None for a singular one (a zero scale: the primitive collapses, nothing is drawn)."""
     A, t = M[:3, :3], M[:3, 3]
     try:  # before trimesh touches the triangles (its normals index the vertices by them)
         v, f, _ = check_mesh(g.vertices, g.faces)
@@ -335,7 +339,7 @@ def _part(path: Path, node: str, g, M: np.ndarray) -> GltfPart:
         col = None
     det = np.linalg.det(A)
     if abs(det) < 1e-30:
-        raise MeshError(f"node '{node}' has a singular transform", where=str(path))
+        return None  # a zero scale collapses the primitive (a way files hide a node): nothing to draw
     vw = v @ A.T + t
     nw = n @ np.linalg.inv(A)  # (A⁻ᵀ n)ᵀ = nᵀ A⁻¹
     nw /= np.maximum(np.linalg.norm(nw, axis=1, keepdims=True), 1e-30)

@@ -42,7 +42,7 @@ import math
 
 import numpy as np
 
-from warp_sg.core.errors import ImageError
+from warp_sg.core.errors import ImageError, reason
 from warp_sg.scene.material_layers import MaterialLayers
 from warp_sg.scene.textures import Texture, sample_bilinear_np, srgb_to_linear
 
@@ -125,7 +125,7 @@ def image_array(img, where: str) -> np.ndarray:
             a = np.asarray(img.convert("RGBA") if img.mode not in ("L", "LA", "RGB", "RGBA") else img,
                            np.float32) / 255.0
     except (OSError, ValueError, SyntaxError) as e:
-        raise ImageError(f"cannot decode the image ({type(e).__name__}: {e})", where=where) from None
+        raise ImageError(f"cannot decode the image ({reason(e)})", where=where) from None
     return to_rgba(a, where)
 
 

@@ -186,6 +186,9 @@ def check_nodes(path: Path, header: dict) -> None:
         if "rotation" in n and math.hypot(*n["rotation"]) < 1e-12:
             raise MeshError(f"{at}.rotation = {n['rotation']}: not a rotation (a unit quaternion x, y, z, w)",
                             where=str(path))
+        if "matrix" in n and n["matrix"][3::4] != [0, 0, 0, 1]:
+            raise MeshError(f"{at}.matrix: its last row is {n['matrix'][3::4]}, not [0, 0, 0, 1] (a glTF matrix is an "
+                            f"affine transform, §3.5.3)", where=str(path))
         if "matrix" in n and any(k in n for k in ("translation", "rotation", "scale")):
             raise MeshError(f"{at} has both matrix and translation/rotation/scale: one or the other (glTF 2.0 "
                             f"§3.5.3)", where=str(path))

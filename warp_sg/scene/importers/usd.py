@@ -260,9 +260,28 @@ def _material_keys(prim, tri_face, UsdGeom, UsdShade) -> list[tuple[object, np.n
     return out
 
 
+#: a USD diagnostic as the library prints it: ``Warning: in F at line N of FILE -- message``
+_DIAGNOSTIC = re.compile(r"^(?:[A-Za-z ]+: )?in \S+ at line \d+ of \S+ -- (.*?)(?: \(instantiating stage on .*\))?$")
+
+
 def load_usd(path) -> UsdAsset:
-    """Every mesh of a USD stage in scene units and axes (module docstring)."""
+    """Every mesh of a USD stage in scene units and axes (module docstring). What USD prints on
+    stderr meanwhile (a sublayer it cannot load, a binding it ignores) becomes one note line."""
+    from warp_sg.core.native_stderr import native_stderr
+
     path = Path(path)
+    lines: list = []
+    with native_stderr(lines):
+        asset = _load_usd(path)
+    said = list(dict.fromkeys(m.group(1).strip() if (m := _DIAGNOSTIC.match(ln.strip())) else ln.strip()
+                              for ln in lines if ln.strip()))
+    if said:
+        more = f" (and {len(said) - 1} more)" if len(said) > 1 else ""
+        asset.notes.append(f"{path.name}: USD reports: {said[0][:300]}{more}")
+    return asset
+
+
+def _load_usd(path: Path) -> UsdAsset:
     stage, Usd, UsdGeom, UsdShade = open_stage(path)
     time = Usd.TimeCode.EarliestTime()
     S = stage_matrix(stage, UsdGeom, path)
