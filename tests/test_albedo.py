@@ -42,7 +42,7 @@ def _furnace(model, params, textures=None):
 def _ring_bias(scene):
     r = Renderer(scene, device="cpu")
     img = r.render()
-    ref = box_reference(scene, spp=256, supersample=1, max_depth=2)  # direct light: the paper's transport
+    ref = box_reference(scene, spp=256, supersample=1)
     cov = r.rasterize().tri_id.numpy() >= 0
     h, w = cov.shape
     yy, xx = np.mgrid[0:h, 0:w]

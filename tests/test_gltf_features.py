@@ -59,7 +59,7 @@ def scene_of(path, lights, floor=False, shadows=False, **cam):
 
 def errors_against_reference(scene, spp=128):
     img = Renderer(scene).render()
-    ref, se = reference(scene, spp=spp, progress=False, return_stderr=True, max_depth=2)  # direct light
+    ref, se = reference(scene, spp=spp, progress=False, return_stderr=True)
     return img, ref, region_errors(img, ref, scene_regions(scene), se)
 
 
@@ -371,7 +371,7 @@ def test_an_asset_renders_the_same_in_any_unit(tmp_path):
         sc, _ = asset_scene(w.glb(tmp_path / f"s{scale:g}.glb"), width=32, height=24)
         sc.render.ssdf_resolution = 16
         imgs.append(Renderer(sc).render())
-        refs.append(reference(sc, spp=32, progress=False, seed=1, max_depth=2))
+        refs.append(reference(sc, spp=32, progress=False, seed=1))
     assert imgs[1].std() > 0.05  # a real image: the quads, their shadows and the sky
     for img, ref in zip(imgs[::2], refs[::2]):
         np.testing.assert_allclose(img, imgs[1], rtol=1e-4, atol=1e-5)

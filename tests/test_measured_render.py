@@ -45,7 +45,7 @@ def test_measured_material_renders_close_to_the_reference(tmp_path):
     scene = ws.load_scene(tmp_path / "scene.toml")
     assert scene.materials["meas"].brdf.NAME == "measured"
     img = ws.render(scene, device="cpu")
-    ref = ws.reference(scene, spp=32, device="cpu", progress=False, max_depth=2)  # direct light
+    ref = ws.reference(scene, spp=32, device="cpu", progress=False)
     assert img.shape == (32, 32, 3) and np.all(np.isfinite(img))
     lit = ref.sum(-1) > 0
     assert lit.mean() > 0.3

@@ -170,7 +170,9 @@ def test_supersampling_is_the_box_average_of_the_finer_image():
 
 
 def test_renderer_rerenders_material_light_and_camera_changes_without_precompute(cache_dir):
-    r = Renderer(shadow_scene(True, size=16))
+    sc = shadow_scene(True, size=16)
+    sc.render.bounces = 0  # direct light: with bounces the ball's light comes back from the floor (kd²)
+    r = Renderer(sc)
     ssdf, t_pre = r.ssdf, r.timings["precompute"]
     base = r.render()
     r.set_material("floor", kd=0.4)  # half as bright (kd > 1 is refused: it would not conserve energy)

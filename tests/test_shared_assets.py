@@ -222,7 +222,7 @@ def test_clearcoat_test_labels_glow_as_in_the_reference():
     label = g.material_names.index("asset/LabelMaterial")
     lab = (tri >= 0) & (g.tri_material[np.maximum(tri, 0)] == label)
     assert lab.sum() >= 20
-    ref = reference(scene, spp=16, progress=False, max_depth=2)  # direct light
+    ref = reference(scene, spp=16, progress=False)
     assert ref[lab].max() > 0.5  # the white labels
     np.testing.assert_allclose(img[lab].mean(0), ref[lab].mean(0), rtol=0.03)
 

@@ -131,7 +131,7 @@ def test_cached_frame_matches_the_per_pixel_frame_and_the_reference(renderer):
 
     img_v = renderer.render()
     img_p = Renderer(_scene(mode="pixel"), device="cpu").render()
-    ref = reference(_scene(), spp=512, seed=1, device="cpu", max_depth=2)  # direct light
+    ref = reference(_scene(), spp=512, seed=1, device="cpu")
     hit = renderer.rasterize(1).tri_id.numpy() >= 0
     mean = img_v[hit].mean()
     assert np.abs(img_v - img_p)[hit].mean() < 0.03 * mean

@@ -316,6 +316,27 @@ def test_moving_the_light_handle_moves_the_shadow_and_the_shadows_toggle_removes
     _no_precompute(v, calls)
 
 
+def test_the_bounces_toggle_shows_the_direct_light_alone_and_back(setup):
+    import copy
+
+    from warp_sg.renderer.renderer import Renderer
+
+    v, path, calls = setup
+    with_bounces = v.image.copy()
+    _checkbox(v, "bounces", False)
+    before = dict(calls)  # (the fresh renderer's own precompute is not the viewer's)
+    sc = copy.deepcopy(v.renderer.scene)  # the viewer's scene as the earlier tests left it
+    sc.render.bounces = 0
+    direct = Renderer(sc, precomputed=v.renderer.precomputed()).render()  # (the same refined mesh and SSDFs)
+    calls.clear()
+    calls.update(before)
+    np.testing.assert_allclose(v.image, direct, rtol=1e-5, atol=1e-6)
+    assert v.image.sum() < with_bounces.sum()  # the floor's and the sphere's light on each other gone
+    _checkbox(v, "bounces", True)
+    np.testing.assert_array_equal(v.image, with_bounces)
+    _no_precompute(v, calls)
+
+
 def test_keys_write_an_exr_and_png_screenshot_and_print_timings(setup, capsys):
     v, path, calls = setup
     vp = v.viewport

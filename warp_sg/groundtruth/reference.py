@@ -53,7 +53,8 @@ from warp_sg.scene.culling import camera_mesh
 from warp_sg.core.errors import InputError
 from warp_sg.scene.lights import DirectionalLight, PointLight
 from warp_sg.scene.lights import LIGHT_DIRECTIONAL, LIGHT_POINT
-from warp_sg.groundtruth.path_wp import DEFAULT_MAX_DEPTH, _reference_pass
+from warp_sg.groundtruth.depth import DEFAULT_MAX_DEPTH, check_max_depth, matching_transport
+from warp_sg.groundtruth.path_wp import _reference_pass
 from warp_sg.groundtruth.reference_wp import Geometry, LightTable
 from warp_sg.shading.cutout import no_cutouts
 from warp_sg.shading.surface import N_SLOTS, MaterialTextures
@@ -383,18 +384,6 @@ def inputs_from_scene(scene, device="cpu") -> ReferenceInputs:
     return inp
 
 
-def check_max_depth(max_depth, where: str = "max_depth") -> int:
-    """``max_depth`` as an int: −1 (no cap) or ≥ 1 (1: emission and background only, 2: direct light
-    only, 2 + n: n indirect bounces); anything else is an :class:`InputError`."""
-    try:
-        d = int(max_depth)
-    except (TypeError, ValueError):
-        raise InputError(f"must be an integer (-1 or >= 1), got {max_depth!r}", where=where) from None
-    if d != max_depth or not (d == -1 or d >= 1):
-        raise InputError(f"must be -1 (no cap) or >= 1 (2: direct light only), got {max_depth!r}", where=where)
-    return d
-
-
 def render_reference(scene, spp=256, device="cpu", progress=True, seed=0, pass_spp=None, callback=None,
                      threads=None, max_depth: int = DEFAULT_MAX_DEPTH) -> ReferenceResult:
     """:func:`reference` returning a :class:`ReferenceResult` (image, stderr, timings)."""
@@ -472,6 +461,7 @@ __all__ = [
     "ReferenceResult",
     "Light",
     "check_max_depth",
+    "matching_transport",
     "DEFAULT_MAX_DEPTH",
     "inputs_from_scene",
     "add_cli_arguments",

@@ -107,6 +107,7 @@ class FramePaths:
         its shadows if they have become ready (:meth:`poll`)."""
         self.poll()
         self._move()
+        self.timings["bounce"] = 0.0  # (light that bounces: this frame's seconds, summed over its launches)
         try:
             return self._render()
         finally:
@@ -251,12 +252,17 @@ class FramePaths:
         kern, n, args, _ = self._shade_args(tri_id, bary, bg, eye, out)
         parallel.launch(kern, n, args, self.device, min_chunk=2048, per_thread=S.PIXELS_PER_THREAD)
 
-    def _shade_args(self, tri_id, bary, bg, eye, out):
+    def _shade_args(self, tri_id, bary, bg, eye, out, f=None, materials=None, textures=None, ind=None):
         """``(kernel, samples, arguments after (base, per), EnvSG)`` of one shading launch: the
-        variant of the current state, the per-vertex caches brought up to date."""
+        variant of the current state, the per-vertex caches brought up to date; or the variant
+        ``f`` with these materials, textures and indirect light ``ind`` (the vertices' direct light
+        of :mod:`warp_sg.renderer.interreflection`)."""
         d = self.device
-        self._ensure_gamma()  # a material may have become specular
-        f = self.features()
+        if f is None:
+            self._ensure_gamma()  # a material may have become specular
+            f = self.features()
+            ind = self._indirect(f)  # (light that bounces: shades the vertices first when the light changed)
+            materials, textures = self.material_table.materials, self.material_textures
         from raster import parallel
 
         # a new variant is built and its module loaded beside the vertex caches
@@ -271,8 +277,8 @@ class FramePaths:
         n = int(tri_id.shape[0]) * int(tri_id.shape[1])
         self.layers.n_local = len(self.scene.local_lights)  # (the rest are the environment's peaks)
         args = [tri_id, bary, *self._bg.kernel_args(bg), wp.vec3(*np.asarray(eye, np.float32)), self.geo_arrays,
-                self.material_table.materials, self.material_textures, self.irr_table, self.light_arrays, es, gamma,
-                self.vis, self._proxies, self.layers, self.cut.arrays, self.cut.mesh_id, self._bg.params(*self._bg_args(1)), out]
+                materials, textures, self.irr_table, self.light_arrays, es, gamma, self.vis, self._proxies,
+                self.layers, self.cut.arrays, self.cut.mesh_id, self._bg.params(*self._bg_args(1)), ind, out]
         return kern, n, args, es
 
 

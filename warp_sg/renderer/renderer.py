@@ -42,6 +42,7 @@ from warp_sg.renderer.costs import check_frame_costs
 from warp_sg.renderer.environment_setup import EnvironmentSetup
 from warp_sg.renderer.frame import FramePaths
 from warp_sg.renderer.gradients import GradientPaths
+from warp_sg.renderer.interreflection import Interreflection
 from warp_sg.renderer.resources import ResourceSetup
 from warp_sg.renderer.variant import VariantChoice
 from warp_sg.scene.lights import DirectionalLight, EnvironmentLight, PointLight
@@ -50,7 +51,7 @@ from warp_sg.shading.background import BackgroundCache
 from warp_sg.shading.vertex_visibility import caches
 
 
-class Renderer(FramePaths, VariantChoice, ResourceSetup, EnvironmentSetup, GradientPaths):
+class Renderer(FramePaths, VariantChoice, ResourceSetup, EnvironmentSetup, GradientPaths, Interreflection):
     """Stateful renderer: precompute once, then ``render()`` any number of frames.
 
     ``progress``: show progress bars for the precompute steps. ``ssdf_compute``: replaces
@@ -150,12 +151,14 @@ class Renderer(FramePaths, VariantChoice, ResourceSetup, EnvironmentSetup, Gradi
             self._setup_materials()
 
     def set_terms(self, diffuse: bool | None = None, specular: bool | None = None,
-                  shadows: bool | None = None) -> None:
+                  shadows: bool | None = None, bounces: bool | None = None) -> None:
         """Show or hide terms of eq. 36 without precompute (None: unchanged). ``diffuse`` /
         ``specular`` off zero every material's kd / ks (and unbind kd / ks textures): the same
         kernel variant runs. A measured (tabulated) BRDF has no kd / ks split for local lights.
-        ``shadows`` off selects the kernel variant without SSDF visibility (V = 1)."""
-        for name, v in (("show_diffuse", diffuse), ("show_specular", specular), ("show_shadows", shadows)):
+        ``shadows`` off selects the kernel variant without SSDF visibility (V = 1); ``bounces`` off the
+        one without interreflected light (the paper's direct light; :mod:`warp_sg.renderer.interreflection`)."""
+        for name, v in (("show_diffuse", diffuse), ("show_specular", specular), ("show_shadows", shadows),
+                        ("show_bounces", bounces)):
             if v is not None:
                 setattr(self, name, bool(v))
         with wp.ScopedDevice(self.device):

@@ -38,7 +38,7 @@ class ResourceSetup:
     methods in its constructor and again after an edit)."""
 
     def precomputed(self) -> dict:
-        """The mesh refinement and SSDFs of this renderer (plain numpy data, picklable), for
+        """The mesh refinement, SSDFs and gather rows of this renderer (plain numpy data, picklable), for
         ``Renderer(scene', precomputed=...)`` of a scene with the same geometry and visibility
         settings (camera, materials, lights and environment may differ)."""
         self.wait()
@@ -47,7 +47,7 @@ class ResourceSetup:
         dynamic = [bool(ob.dynamic) for ob in self.scene.objects]
         key = refine_key(g, rs.visibility_budget, self._refine_lights(), dynamic, rs.moving_visibility_budget)
         return {"refine_key": key if self._refined is not None else None,
-                "refinement": self._refined, "ssdf": self.ssdf}
+                "refinement": self._refined, "ssdf": self.ssdf, "gather": self.gather}
 
     def _setup_geometry(self):
         """The scene's flattened mesh; with shadows, refined where the visibility changes
@@ -95,6 +95,7 @@ class ResourceSetup:
         self.cut = CutoutScene(g, self.scene.materials, ga.positions, d)
         self.cutouts = self.cut.data
         self.vis = visibility_arrays(None, ga.normals, len(g.vertices), d)
+        self._reset_bounces(None)
         self._setup_dynamic()
 
     def _setup_dynamic(self):
@@ -112,7 +113,7 @@ class ResourceSetup:
     def _install_shadows(self, result):
         """Install :func:`warp_sg.renderer.visibility_setup.compute_visibility`'s result: the refined mesh,
         its SSDFs and the shading visibility."""
-        ref, g, ssdf, parts = result
+        ref, g, ssdf, parts, gather = result
         for name, (w, c) in parts.items():
             self.timings["precompute_parts"][name] = w
             self.timings["precompute_cpu"][name] = c
@@ -121,6 +122,7 @@ class ResourceSetup:
         self.shadows = True
         self.ssdf = ssdf
         self.vis = visibility_arrays(ssdf, self.geo_arrays.normals, len(g.vertices), self.device)
+        self._reset_bounces(gather)
         if self.dynamic is not None:
             self.dynamic.attach(self)  # the vertices' SSDF frames, which turn with their objects
 

@@ -6,7 +6,8 @@ environment's diffuse and specular modes, local lights, specular materials, SSDF
 ``Renderer.show_shadows``), textures and normal maps, the ``fh`` form, the per-vertex visibility
 paths (``[render] visibility_sampling = "vertex"``), the material models, the material layers
 (emission, occlusion, clear coat, vertex colours, cut-outs), an environment given as its SG mixture
-(``Renderer.set_environment_mixture``) and the adjoint (``Renderer(requires_grad=True)``).
+(``Renderer.set_environment_mixture``), the adjoint (``Renderer(requires_grad=True)``) and light
+that bounces (:mod:`warp_sg.renderer.interreflection`; not in the adjoint's frames).
 """
 from __future__ import annotations
 
@@ -44,6 +45,7 @@ class VariantChoice:
             vertex_colors=self.geometry.colors is not None, cutouts=self.cutouts is not None,
             moving=self.dynamic is not None and self.shadows and self.show_shadows,
             env_mixture=self.env_mixture and self.env_diffuse_mode == S.ENV_SG, grad=self.requires_grad,
+            bounce=self._bounces_on() and not self.requires_grad,
         )
 
 

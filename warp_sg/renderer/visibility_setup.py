@@ -72,7 +72,7 @@ def _timed(parts: dict, name: str, fn):
 
 def compute_visibility(scene, g, device, *, progress=False, compute=None, precomputed=None, lights=(),
                        cutouts=None, dynamic=()):
-    """``(refinement or None, refined geometry, SSDFData, parts)`` of the flattened input mesh ``g``
+    """``(refinement or None, refined geometry, SSDFData, parts, gather rows or None)`` of the flattened input mesh ``g``
     of ``scene`` (shadows assumed on). ``precomputed``: :meth:`Renderer.precomputed` data to reuse
     (checked against the mesh and settings: a mismatch is an :class:`InputError`). ``parts``:
     ``{name: (wall s, CPU s)}`` of ``refine`` and ``ssdf`` (CPU: the whole process's). ``lights``:
@@ -80,7 +80,9 @@ def compute_visibility(scene, g, device, *, progress=False, compute=None, precom
     ``cutouts``: a function of a geometry returning its alpha cut-outs
     (:func:`warp_sg.shading.cutout.cutout_data`), whose holes the refinement's and the SSDFs' rays pass.
     ``dynamic``: per object, whether it may move (``SceneObject.dynamic``); with any, the SSDFs are
-    computed per group, each dynamic object alone (:mod:`precompute.visibility.ssdf_groups`)."""
+    computed per group, each dynamic object alone (:mod:`precompute.visibility.ssdf_groups`). With
+    ``[render] bounces`` > 0 also the refined mesh's gather rows (:mod:`precompute.visibility.gather`,
+    part ``gather``; reused from ``precomputed`` when it holds them for this mesh)."""
     cut_of = cutouts if cutouts is not None else (lambda geo: None)
     import precompute
 
@@ -137,7 +139,21 @@ def compute_visibility(scene, g, device, *, progress=False, compute=None, precom
                                             occluders=(g.vertices, g.triangles) if gr is not g else None)
 
         data = _timed(parts, "ssdf", ssdf)
-    return ref, gr, data, parts
+        rows = None
+        if rs.bounces > 0:
+            from precompute.visibility.gather import gather_for_mesh, gather_key
+
+            def gather():
+                # (SSDFs at representatives: the rows there too, blended as the maps were)
+                reps = np.unique(data.representative) if len(getattr(data, "blend_index", ())) else None
+                kw = {"cutouts": cut, "groups": groups, "receivers": reps}
+                old = (precomputed or {}).get("gather")
+                if old is not None and old.key == gather_key(gr.vertices, gr.triangles, gr.normals, **kw):
+                    return old
+                return gather_for_mesh(gr.vertices, gr.triangles, gr.normals, device=device, progress=progress, **kw)
+
+            rows = _timed(parts, "gather", gather)
+    return ref, gr, data, parts, rows
 
 
 def visibility_arrays(ssdf, normals, n_vertices: int, device) -> S.Visibility:

@@ -15,7 +15,7 @@ from functools import cache
 #: the integer keys and their ranges [lo, hi]
 RENDER_INT_RANGES = {"supersampling": (1, 16), "antialias": (1, 8), "lobes": (1, 16), "env_lobes": (1, 64),
                      "env_peaks": (0, 16), "visibility_budget": (0, 10_000_000),
-                     "moving_visibility_budget": (0, 10_000_000), "pca_terms": (1, 256),
+                     "moving_visibility_budget": (0, 10_000_000), "pca_terms": (1, 256), "bounces": (0, 64),
                      "ssdf_resolution": (4, 1024), "gamma_levels": (0, 64), "gamma_resolution": (4, 1024)}
 #: the string keys with a fixed set of choices
 RENDER_CHOICES = {"fh": ("table", "sigmoid"), "visibility_sampling": ("vertex", "pixel")}
@@ -47,6 +47,9 @@ RENDER_DOC = {
     "visibility_sampling": "SSDF of the directions that do not depend on the view (environment lobes, lights) "
                            "and the diffuse environment sum: 'vertex' (once per vertex, cached, interpolated; "
                            "warp_sg.shading.vertex_visibility) or 'pixel' (one SSDF lookup per lobe and light per pixel)",
+    "bounces": "light that bounces between surfaces (warp_sg.shading.bounce): at most this many bounces of "
+               "interreflected light from the per-vertex gather, fewer once one adds under 1 %; 0 = the paper's "
+               "direct light only. Needs shadows",
     "background": "pixels that see no object show the environment",
     "device": "default device: 'cpu', 'cuda', 'cuda:N' or 'auto'",
 }
@@ -71,6 +74,7 @@ class RenderSettings:
     gamma_resolution: int = 128
     fh: str = "table"
     visibility_sampling: str = "vertex"
+    bounces: int = 4
     background: bool = True
     device: str = "cpu"
 

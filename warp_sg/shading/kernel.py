@@ -65,6 +65,7 @@ the exact table's rest, and ``L̄`` in eq. 41 the lobes' closed form (:mod:`warp
 Layers (:mod:`warp_sg.shading.surface_layers`): ``a(o)·(R + Le) + Rcoat``, the coat's GGX lobe shaded like the
 specular terms in its frame; occlusion on the environment's diffuse term; cut-outs' holes seen through.
 Moving objects (``Features.moving``, :mod:`warp_sg.shading.motion_wp`): each visibility is capped by the proxies' own.
+Light that bounces (``Features.bounce``, :mod:`warp_sg.shading.bounce`): the vertices' indirect light, diffuse and per slice lobe.
 
 Kernel variants: the kernel is specialised by scene content (``Features``): environment diffuse
 (SG mixture | none), environment specular (ΓL | none), lights, specular materials, shadows
@@ -87,6 +88,7 @@ from dataclasses import dataclass
 import warp as wp
 
 from warp_sg.shading.background import Background, background_along, background_at
+from warp_sg.shading.bounce import Indirect, indirect_irradiance, indirect_specular_func, lobe_mean_radiance
 from warp_sg.shading.cutout import Cutouts, see_behind
 from warp_sg.shading.env_mixture import mixture_mean
 from warp_sg.brdf.kernel.albedo import albedo_correction
@@ -151,6 +153,7 @@ class Features:
     env_mixture: bool = False
     #: the kernel is compiled with its adjoint (``Renderer(requires_grad=True)``, :mod:`warp_sg.renderer.gradients`)
     grad: bool = False
+    bounce: bool = False  # light that bounces (warp_sg.shading.bounce); not with grad (the direct light's)
 
     def __post_init__(self):
         object.__setattr__(self, "models", tuple(sorted({int(m) for m in self.models})))
@@ -212,8 +215,10 @@ def shade_kernel(f: Features):
     MF = material_funcs(f.models)  # the material switch reduced to the scene's models
     brdf_eval, diffuse_at, slice_lobe_count = MF.brdf_eval, MF.diffuse_at, MF.slice_lobe_count
     shading_slice_lobe = MF.shading_slice_lobe
+    indirect_specular = indirect_specular_func(MF)  # (the slice lobes' indirect light without ΓL's loop)
     USE_GAMMA = ENV_S == ENV_PREFILTERED
     MIX = bool(f.env_mixture)
+    BOUNCE = bool(f.bounce and not f.grad)  # (the gradient variant differentiates the direct light)
     EMIT, OCC, COAT, VCOL, CUT, MOVING = (bool(f.emission), bool(f.occlusion), bool(f.coat),
                                           bool(f.vertex_colors), bool(f.cutouts), bool(f.moving))
     brdf_diffuse = MF.brdf_diffuse
@@ -222,7 +227,7 @@ def shade_kernel(f: Features):
     else:  # the mixture's own lobes (ENV_MIXTURE: the EnvSG passed again), or a placeholder
         GammaT, gamma_mean = EnvSG, mixture_mean
     key = "shade_" + "_".join(str(int(v)) for v in (ENV_D, ENV_S, LIGHTS, SPEC, SHADOWS, TEX, NMAP, FH, VVIS, LVIS,
-                                                      EVIS, EMIT, OCC, COAT, VCOL, CUT, MOVING, MIX, f.grad)) + MF.tag
+                                                      EVIS, EMIT, OCC, COAT, VCOL, CUT, MOVING, MIX, f.grad, BOUNCE)) + MF.tag
 
     # Each loop over lights or lobes is a function that returns its sums: Warp's reverse pass
     # replays a function's forward body whole but not a dynamic loop's, so a value summed in a loop
@@ -295,9 +300,10 @@ def shade_kernel(f: Features):
     @wp.func(name=key + "_specular")
     def specular_sum(mat: Material, o_l: wp.vec3, ts: wp.vec3, bs: wp.vec3, ns: wp.vec3, n: int,
                      irr: wp.array2d(dtype=float), vis: Visibility, q: SSDFPoint, px: Proxies, gamma: GammaT,
-                     t: int, P: wp.vec3, ng: wp.vec3) -> wp.vec3:
+                     t: int, P: wp.vec3, ng: wp.vec3, ind: Indirect, iv: wp.vec3i, bw: wp.vec3,
+                     bounce: int) -> wp.vec3:
         """Σ_k [μ_k ∫G_k e(n·pW, λW)] · L̄ · V over the first ``n`` slice lobes of the material in the
-        frame (ts, bs, ns) (eq. 41; the module docstring)."""
+        frame (ts, bs, ns) (eq. 41; the module docstring), with ``bounce`` + the indirect light where the SSDF cuts."""
         spec = wp.vec3(0.0, 0.0, 0.0)
         for k in range(n):
             pw_l, lw, mw = shading_slice_lobe(mat, o_l, k)
@@ -315,12 +321,14 @@ def shade_kernel(f: Features):
                         if vd[0] < 1.0:  # the mean radiance of the lobe's visible part
                             pv, lv = visible_lobe(vis, q, pa, lam, vd[1])
                     spec += wp.cw_mul(mw, gamma_mean(gamma, pv, lv)) * (e * vr)  # L̄ = ΓL(p, λ)/∫G(λ)
+                    if wp.static(BOUNCE):  # the indirect light where the SSDF cuts the lobe (shading.bounce)
+                        if bounce != 0 and vr < 1.0: spec += wp.cw_mul(mw, lobe_mean_radiance(ind, iv[0], iv[1], iv[2], bw[0], bw[1], bw[2], ns, pa, lam)) * e  # noqa: E701,E501
         return spec
 
     def shade(base: int, per: int, tri_id: wp.array2d(dtype=int), bary: wp.array2d(dtype=wp.vec2), background: wp.array2d(dtype=wp.vec3),
               rays: Background, use_rays: int, cam: wp.vec3, geo: GeometryArrays, mats: wp.array(dtype=Material), tex: MaterialTextures,
               irr: wp.array2d(dtype=float), lights: LightArrays, env: EnvSG, gamma: GammaT, vis: Visibility, px: Proxies,
-              lay: Layers, cut: Cutouts, mesh: wp.uint64, env_bg: Background, out: wp.array2d(dtype=wp.vec3)):
+              lay: Layers, cut: Cutouts, mesh: wp.uint64, env_bg: Background, ind: Indirect, out: wp.array2d(dtype=wp.vec3)):
         W = tri_id.shape[1]
         p0 = base + wp.tid() * per  # the thread's first row-major pixel index
         ny = p0 // W  # (row, column) of the next pixel: one division per thread, then steps
@@ -435,6 +443,10 @@ def shade_kernel(f: Features):
                         rest = visible_irradiance(env_irradiance(env.exact, ns), unocc, seen) - seen
                         cd += wp.cw_mul(rest, rho_d)
             col += cd * occ
+            if wp.static(BOUNCE):  # light that bounces: the vertices' indirect irradiance (shading.bounce)
+                if has_kd: col += wp.cw_mul(indirect_irradiance(ind, i0, i1, i2, b0, b1, b2), diffuse_at(mat, o_l, wp.vec3(0.0, 0.0, 1.0)))  # noqa: E701,E501
+                if wp.static(SPEC and ENV_S < 2):  # (with the environment's loop: read there)
+                    col += indirect_specular(mat, o_l, ts, bs, ns, irr, ind, wp.vec3i(i0, i1, i2), wp.vec3(b0, b1, b2))
 
             # ---------------- environment, specular (eq. 41) ----------------
             # per slice lobe G_k: [μ_k ∫G_k e(n·pW, λW)] · L̄, the lobe's exact cosine-weighted mass times
@@ -448,11 +460,12 @@ def shade_kernel(f: Features):
                 if wp.static(SHADOWS == 1 and not Q_EARLY):
                     if nspec > 0 or ncoat > 0:
                         q = ssdf_point_framed(vis.normals, vis.frame_t, vis.frame_b, i0, i1, i2, b0, b1, b2, ng)
-                spec = specular_sum(mat, o_l, ts, bs, ns, nspec, irr, vis, q, px, gamma, t, P, ng)
+                iv, bw = wp.vec3i(i0, i1, i2), wp.vec3(b0, b1, b2)
+                spec = specular_sum(mat, o_l, ts, bs, ns, nspec, irr, vis, q, px, gamma, t, P, ng, ind, iv, bw, 1)
                 if nspec > 0:  # the slice's energy made the BRDF's: A(o)/A*(o) (brdf.kernel.albedo)
                     col += wp.cw_mul(spec, albedo_correction(mat, o_l))
                 if wp.static(COAT):  # the coat's lobes, the same way in the coat's frame
-                    cspec = specular_sum(cm, oc_l, ts_c, bs_c, ns_c, ncoat, irr, vis, q, px, gamma, t, P, ng)
+                    cspec = specular_sum(cm, oc_l, ts_c, bs_c, ns_c, ncoat, irr, vis, q, px, gamma, t, P, ng, ind, iv, bw, 0)
                     ccol += wp.cw_mul(cspec, albedo_correction(cm, oc_l))  # (zero without a coat)
             if wp.static(EMIT):
                 col += emission_at(lay, tex, mi, uv)

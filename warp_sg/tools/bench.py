@@ -25,6 +25,9 @@ ratios are meant to carry over between machines):
    (:mod:`warp_sg.tools.bench_first_image`).
 9. **objects that move** — a frame after ``set_object_transform`` against a static frame and
    against a new ``Renderer`` with a cold cache (:mod:`warp_sg.tools.bench_motion`).
+10. **light that bounces** — warm and edit frames with ``[render] bounces`` against without, the
+    cold precompute with the gather against without, the gather's bytes per reference
+    (:mod:`warp_sg.tools.bench_bounce`).
 
 The bench scene (:func:`bench_scene`) is a Torrance-Sparrow sphere, a Ward torus and a Lambert
 floor under the procedural sky with one point light and one directional light.
@@ -255,6 +258,17 @@ def _cached(key, make):
     return _CASES[key]
 
 
+#: the ground truths' path segments (``run_bench(max_depth=...)``): the full path tracer's by default;
+#: 2 compares the scenes rendered with ``bounces = 0`` with direct light only (the paper's part)
+_MAX_DEPTH = [None]
+
+
+def _depth() -> int:
+    from warp_sg.groundtruth.reference import DEFAULT_MAX_DEPTH
+
+    return DEFAULT_MAX_DEPTH if _MAX_DEPTH[0] is None else int(_MAX_DEPTH[0])
+
+
 def _equal_error_case(scene, label, device, quick, truth_spp, progress, seed) -> dict:
     """Truth, the SG renderer's error and frame time, and our MC error curve of one scene (the
     renderer's measurement cached per run under ``label``, the truth and curve per ``truth_spp``).
@@ -266,9 +280,11 @@ def _equal_error_case(scene, label, device, quick, truth_spp, progress, seed) ->
 
     from warp_sg.core.cache import fresh_cache
 
-    from warp_sg.groundtruth.reference import render_reference
+    from warp_sg.groundtruth.reference import matching_transport, render_reference
     from warp_sg.renderer.renderer import Renderer
     from warp_sg.groundtruth.region_error import image_errors
+
+    scene = matching_transport(scene, _depth())
 
     def measure():
         with fresh_cache():
@@ -285,7 +301,7 @@ def _equal_error_case(scene, label, device, quick, truth_spp, progress, seed) ->
         ref_scene.render.supersampling = k
         per = k * k  # samples per pixel for one sample per sub-pixel
         truth = render_reference(ref_scene, spp=max(1, truth_spp // per), device=device, progress=progress,
-                                 seed=seed)
+                                 seed=seed, max_depth=_depth())
         curve = []
 
         def cb(spp, seconds, im, se):
@@ -293,7 +309,7 @@ def _equal_error_case(scene, label, device, quick, truth_spp, progress, seed) ->
                 curve.append((spp * per, image_errors(im, truth.image)["rel_mse"], seconds))
 
         render_reference(ref_scene, spp=max(1, truth_spp // (8 * per)), device=device, progress=progress,
-                         seed=seed + 1, callback=cb)
+                         seed=seed + 1, callback=cb, max_depth=_depth())
         floor = float(np.sum(truth.stderr.astype(np.float64) ** 2) /
                       max(np.sum(truth.image.astype(np.float64) ** 2), 1e-300))
         return truth, curve, floor
@@ -365,38 +381,14 @@ def _net_of_floor(curve, floor):
     return [(spp, max(e - floor, 1e-30), t) for spp, e, t in curve]
 
 
-def mitsuba_section(device="cpu", quick=False, truth_spp=None, progress=False):
-    """Equal error against Mitsuba 3 (``warp_sg.tools.peer_mitsuba``; optional ``[compare]`` extra) on
-    the scenes of :func:`equal_error_section` that Mitsuba renders identically, with the same
-    metric, one truth per scene for all three renderers, and the same SG frames. The truth has 8×
-    the samples of the MC section's (our error is now close to a 1024-spp truth's own noise), and
-    every error is taken net of the truth's noise floor before the log-log interpolation; Mitsuba
-    renders 1, 2, 4, … spp until its error is below ours (at most 4096)."""
-    from warp_sg.tools import peer_mitsuba as pm
+def _lazy(module: str, name: str):
+    """The section ``name`` of ``warp_sg.tools.<module>``, imported when it runs."""
+    def run(**kw):
+        import importlib
 
-    ok, status = pm.mitsuba_status(device)
-    if not ok:
-        return [{"case": "Mitsuba 3", "note": f"skipped: {status}"}]
-    truth_spp = truth_spp or (256 if quick else 8192)
-    rows, top = [], 1
-    for label, scene, seed in _equal_error_scenes(quick, mitsuba=True):
-        c = _equal_error_case(scene, label, device, quick, truth_spp, progress, seed)
-        err, floor, frame = c["err"]["rel_mse"], c["floor"], c["frame"]
-        curve = pm.mitsuba_curve(scene, c["truth"].image, device=device, seed=seed, repeats=1 if quick else 3,
-                                 stop_below=err, max_spp=16 if quick else 4096, progress=progress)
-        top = max(top, curve[-1][0])
-        row = {"case": label, "rel_mse": err, "truth_floor": floor, "frame_s": frame}
-        if err - floor < 0.25 * floor:
-            rows.append({**row, "note": f"our error is within the {truth_spp}-spp truth's noise: raise truth_spp"})
-            continue
-        m_spp, m_t = spp_for_error(_net_of_floor(curve, floor), err - floor)
-        mc_spp, mc_t = spp_for_error(_net_of_floor(c["curve"], floor), err - floor)
-        note = (f"Mitsuba at {curve[0][0]} spp is already below our error" if curve[0][1] <= err else
-                f"extrapolated past {curve[-1][0]} spp" if curve[-1][1] > err else "")
-        rows.append({**row, "mitsuba_spp": m_spp, "mitsuba_s": m_t, "mitsuba_ratio": m_t / frame, "mc_spp": mc_spp,
-                     "mc_s": mc_t, "mc_ratio": mc_t / frame, "note": note})
-    return rows + [{"case": "setup", "note": f"{status}; path tracer max_depth=2 (direct lighting), box filter, "
-                                             f"1–{top} spp, scene load excluded; truth {truth_spp} spp"}]
+        return getattr(importlib.import_module(f"warp_sg.tools.{module}"), name)(**kw)
+
+    return run
 
 
 SECTIONS = {
@@ -404,35 +396,21 @@ SECTIONS = {
     "shading cost by scene feature": shading_section,
     "precompute cost": precompute_section,
     "equal error: SG renderer vs Monte-Carlo reference": equal_error_section,
-    "frame scaling: pixels and triangles": lambda **kw: _scaling(**kw),
-    "equal error: SG renderer vs Mitsuba 3": mitsuba_section,
-    "SSDF error vs ray budget": lambda **kw: _first_image("ray_budget_section", **kw),
-    "time to first image": lambda **kw: _first_image("first_image_section", **kw),
-    "objects that move": lambda **kw: _motion(**kw),
+    "frame scaling: pixels and triangles": _lazy("bench_scaling", "scaling_section"),
+    "equal error: SG renderer vs Mitsuba 3": _lazy("bench_mitsuba", "mitsuba_section"),
+    "SSDF error vs ray budget": _lazy("bench_first_image", "ray_budget_section"),
+    "time to first image": _lazy("bench_first_image", "first_image_section"),
+    "objects that move": _lazy("bench_motion", "motion_section"),
+    "light that bounces": _lazy("bench_bounce", "bounce_section"),
 }
 
 
-def _motion(**kw):
-    from warp_sg.tools.bench_motion import motion_section
-
-    return motion_section(**kw)
-
-
-def _first_image(name, **kw):
-    from warp_sg.tools import bench_first_image
-
-    return getattr(bench_first_image, name)(**kw)
-
-
-def _scaling(**kw):
-    from warp_sg.tools.bench_scaling import scaling_section
-
-    return scaling_section(**kw)
-
-
-def run_bench(device="cpu", quick=False, sections=None, print_fn=print, cluster=None) -> BenchResult:
+def run_bench(device="cpu", quick=False, sections=None, print_fn=print, cluster=None,
+              max_depth: int | None = None) -> BenchResult:
     """Run every section (or those named in ``sections``) and print the tables; returns them.
-    ``cluster``: also time the SSDF precompute on this Dask cluster (precompute section)."""
+    ``cluster``: also time the SSDF precompute on this Dask cluster (precompute section).
+    ``max_depth``: the equal-error sections' ground truths (default the full path tracer; 2: direct
+    light only, against the scenes rendered with ``bounces = 0``)."""
     from warp_sg.core.device import resolve_device
     from warp_sg.core.suggest import did_you_mean
 
@@ -441,6 +419,11 @@ def run_bench(device="cpu", quick=False, sections=None, print_fn=print, cluster=
             words = {w for name in SECTIONS for w in name.replace(":", " ").split()}
             raise InputError(f"no section's name contains {s!r}{did_you_mean(s, words)} (sections: "
                              f"{'; '.join(SECTIONS)})", where="--section")
+    from warp_sg.groundtruth.reference import check_max_depth
+
+    if max_depth is not None:
+        check_max_depth(max_depth, "--max-depth")
+    _MAX_DEPTH[0] = max_depth
     device = resolve_device(device)
     t0 = time.perf_counter()
     res = BenchResult(device=device, quick=quick)
@@ -473,6 +456,9 @@ def add_cli_arguments(p) -> None:
     p.add_argument("-o", "--output", default=None, help="also write the tables (markdown) to this file")
     p.add_argument("--cluster", default=None, metavar="local:N|tcp://HOST:PORT",
                    help="also time the SSDF precompute on a Dask cluster (docs/distributed.md)")
+    p.add_argument("--max-depth", type=int, default=None, metavar="N",
+                   help="the equal-error ground truths' path segments (default: a full path tracer; 2: direct "
+                        "light only, compared with the scenes rendered with bounces = 0)")
 
 
 def cli_main(args) -> int:
@@ -482,7 +468,7 @@ def cli_main(args) -> int:
         if out.is_dir() or not out.parent.is_dir():
             raise InputError("cannot write the bench tables here", where=str(out))
     res = run_bench(device=device_for(args.device), quick=args.quick, sections=args.section,
-                    cluster=getattr(args, "cluster", None))
+                    cluster=getattr(args, "cluster", None), max_depth=getattr(args, "max_depth", None))
     print(f"bench finished in {res.seconds:.1f} s on {res.device}")
     if out is not None:
         from warp_sg.core.files import atomic_output

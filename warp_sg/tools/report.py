@@ -200,10 +200,12 @@ class Report:
     files: dict
 
 
-def mc_curve(scene, truth, device="cpu", max_spp=64, seed=2, progress=True, per_sample: int = 1):
+def mc_curve(scene, truth, device="cpu", max_spp=64, seed=2, progress=True, per_sample: int = 1,
+             max_depth: int | None = None):
     """Error-vs-time rows of a progressive reference run at every power of two up to ``max_spp``
     samples per sub-pixel of ``scene``; ``per_sample``: sub-pixels per pixel (the rows' ``spp``
-    count samples per pixel)."""
+    count samples per pixel); ``max_depth``: its paths' (default the full path tracer's)."""
+    from warp_sg.groundtruth.reference import DEFAULT_MAX_DEPTH
     from warp_sg.groundtruth.reference import render_reference
 
     rows = []
@@ -213,12 +215,14 @@ def mc_curve(scene, truth, device="cpu", max_spp=64, seed=2, progress=True, per_
             rows.append({"knob": "mc_reference", "value": spp * per_sample, "precompute_s": 0.0, "frame_s": seconds,
                          "total_s": seconds, "spp": spp * per_sample, **image_errors(img, truth)})
 
-    render_reference(scene, spp=max_spp, device=device, progress=progress, seed=seed, callback=cb)
+    render_reference(scene, spp=max_spp, device=device, progress=progress, seed=seed, callback=cb,
+                     max_depth=DEFAULT_MAX_DEPTH if max_depth is None else max_depth)
     return rows
 
 
 def run_report(scene, out_dir, device=None, quick=False, truth_spp=None, mc_max_spp=None, knobs=None,
-               progress=True, frames=None, width=None, height=None, cluster=None, reuse=True) -> Report:
+               progress=True, frames=None, width=None, height=None, cluster=None, reuse=True,
+               max_depth: int | None = None) -> Report:
     """Run the sweep for ``scene`` (a Scene or a path) and write the report into ``out_dir``.
 
     ``reuse`` (default): the settings share one fresh cache, so each precompute stage is built
@@ -232,10 +236,13 @@ def run_report(scene, out_dir, device=None, quick=False, truth_spp=None, mc_max_
     samples are split across its workers (same image bit for bit); ``None``: all local, no Dask.
 
     ``width``/``height`` override the camera's resolution (the reference's cost grows with it);
-    ``device=None`` is the scene's ``[render] device``."""
-    from warp_sg.groundtruth.reference import render_reference
+    ``device=None`` is the scene's ``[render] device``. ``max_depth``: the ground truth's paths
+    (default the full path tracer; 2: direct light only, against the scene rendered with ``bounces
+    = 0``: the paper's part alone, :func:`warp_sg.groundtruth.reference.matching_transport`)."""
+    from warp_sg.groundtruth.reference import DEFAULT_MAX_DEPTH, check_max_depth, matching_transport, render_reference
 
-    scene = with_resolution(_load(scene), width, height)
+    max_depth = check_max_depth(DEFAULT_MAX_DEPTH if max_depth is None else max_depth, "--max-depth")
+    scene = matching_transport(with_resolution(_load(scene), width, height), max_depth)
     device = device_for(device, scene)
     out = output_folder(out_dir)
     truth_spp = int(truth_spp or (64 if quick else DEFAULT_TRUTH_SPP))
@@ -260,13 +267,15 @@ def run_report(scene, out_dir, device=None, quick=False, truth_spp=None, mc_max_
         from warp_sg.distributed.rendering import render_reference_distributed
 
         truth = render_reference_distributed(truth_scene, spp=sub_spp, cluster=cluster, device=device,
-                                             progress=progress, seed=1)
+                                             progress=progress, seed=1, max_depth=max_depth)
     else:
-        truth = render_reference(truth_scene, spp=sub_spp, device=device, progress=progress, seed=1)
+        truth = render_reference(truth_scene, spp=sub_spp, device=device, progress=progress, seed=1,
+                                 max_depth=max_depth)
     truth_time = time.perf_counter() - t0
     floor = float(np.sum(truth.stderr.astype(np.float64) ** 2) / max(np.sum(truth.image.astype(np.float64) ** 2),
                                                                         1e-300))
-    rows = mc_curve(truth_scene, truth.image, device, max(1, mc_max_spp // per), progress=progress, per_sample=per)
+    rows = mc_curve(truth_scene, truth.image, device, max(1, mc_max_spp // per), progress=progress, per_sample=per,
+                    max_depth=max_depth)
     write_rows_csv(out, rows)
     base_img = None
     bar = None
@@ -314,6 +323,9 @@ def add_cli_arguments(p) -> None:
     p.add_argument("--width", type=int, default=None, help="override the camera width (keeps the aspect)")
     p.add_argument("--height", type=int, default=None, help="override the camera height")
     p.add_argument("--no-progress", action="store_true")
+    p.add_argument("--max-depth", type=int, default=None, metavar="N",
+                   help="the ground truth's path segments (default: a full path tracer; 2: direct light only, "
+                        "compared with the scene rendered with bounces = 0, the paper's part alone)")
     p.add_argument("--cluster", default=None, metavar="local:N|tcp://HOST:PORT",
                    help="split the ground truth's samples across a Dask cluster (docs/distributed.md)")
     p.add_argument("--animation", default=None, metavar="JOB.toml",
@@ -323,6 +335,10 @@ def add_cli_arguments(p) -> None:
 
 
 def cli_main(args) -> int:
+    if getattr(args, "max_depth", None) is not None:
+        from warp_sg.groundtruth.reference import check_max_depth
+
+        check_max_depth(args.max_depth, "--max-depth")
     if args.truth_spp is not None and args.truth_spp < 1:
         raise InputError(f"must be >= 1, got {args.truth_spp}", where="--truth-spp")
     for k in ("width", "height"):
@@ -341,7 +357,7 @@ def cli_main(args) -> int:
         return 0
     rep = run_report(args.scene, args.output, device=args.device, quick=args.quick, truth_spp=args.truth_spp,
                      progress=not args.no_progress, width=args.width, height=args.height,
-                     cluster=getattr(args, "cluster", None))
+                     cluster=getattr(args, "cluster", None), max_depth=getattr(args, "max_depth", None))
     print(f"report written to {rep.files['markdown']}")
     return 0
 

@@ -16,7 +16,8 @@ drag), full when it is released.
   the environment's rotation (degrees about +Y) and scale; the display exposure (stops).
 * A sphere handle per local light: a point light's position, or, for a directional light, a
   point on the ray from the scene centre whose direction is the light's.
-* Check boxes (lower left): shadows (when the scene has SSDF visibility), diffuse, specular.
+* Check boxes (lower left): shadows (when the scene has SSDF visibility), diffuse, specular, and
+  bounces (light that bounces, ``[render] bounces`` > 0: off shows the paper's direct light).
 * Keys: ``s`` screenshot (EXR linear + PNG tone-mapped, atomic), ``r`` reset the view to the
   scene camera, ``t`` print timings, ``l`` next light, ``h`` hide/show the widgets.
 
@@ -240,7 +241,9 @@ class Editor:
                      self.viewport.set_exposure)
 
     def _toggles(self) -> None:
-        names = (["shadows"] if self.renderer.shadows else []) + ["diffuse", "specular"]
+        r = self.renderer
+        names = (["shadows"] if r.shadows else []) + ["diffuse", "specular"] + \
+            (["bounces"] if r.shadows and r.scene.render.bounces > 0 else [])  # light that bounces
         for i, name in enumerate(names):
             y = 10 + 28 * i
             self._values[f"toggle.{name}"] = True
