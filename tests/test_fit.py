@@ -77,6 +77,7 @@ ssdf_resolution = 16
 pca_terms = 8
 visibility_budget = 0
 env_peaks = 0
+bounces = 0  # the fit differentiates the direct light (no bounces in its frames): the photographs too
 """
 
 
