@@ -53,7 +53,7 @@ def _toml_value(v) -> str:
     return repr(float(v)) if isinstance(v, (float, np.floating)) else str(v)
 
 
-def _table(name: str, d: dict, array: bool = False) -> str:
+def toml_table(name: str, d: dict, array: bool = False) -> str:
     """A TOML table ``[name]``, or an entry ``[[name]]`` of an array of tables."""
     head = f"[[{name}]]" if array else f"[{name}]"
     return head + "\n" + "".join(f"{k} = {_toml_value(v)}\n" for k, v in d.items()) + "\n"
@@ -138,26 +138,26 @@ def write_plain_scene(folder, obj: str = "sphere", light: str = "sky", material:
         raise ValueError(f"unknown object {obj!r}")
     if dynamic:
         ob["dynamic"] = True
-    parts = [_table("camera", {"origin": [0.0, 2.2, 3.6], "target": [0.0, 0.35, 0.0], "fov": 40.0,
+    parts = [toml_table("camera", {"origin": [0.0, 2.2, 3.6], "target": [0.0, 0.35, 0.0], "fov": 40.0,
                                "width": size, "height": size})]
-    parts.append(_table("objects", ob, array=True))
-    parts.append(_table("objects", {"mesh": "floor.obj", "material": "floor", "name": "floor"}, array=True))
-    parts.append(_table("materials.object", material if isinstance(material, dict) else MATERIALS[material]))
-    parts.append(_table("materials.floor", MATERIALS[floor_material]))
+    parts.append(toml_table("objects", ob, array=True))
+    parts.append(toml_table("objects", {"mesh": "floor.obj", "material": "floor", "name": "floor"}, array=True))
+    parts.append(toml_table("materials.object", material if isinstance(material, dict) else MATERIALS[material]))
+    parts.append(toml_table("materials.floor", MATERIALS[floor_material]))
     if "sky" in light:
         write_sky_exr(folder / "sky.exr")
-        parts.append(_table("lights", {"type": "environment", "file": "sky.exr"}, array=True))
+        parts.append(toml_table("lights", {"type": "environment", "file": "sky.exr"}, array=True))
     if "point" in light:
-        parts.append(_table("lights", {"type": "point", "position": [1.6, 3.0, 1.4], "radius": 0.15,
+        parts.append(toml_table("lights", {"type": "point", "position": [1.6, 3.0, 1.4], "radius": 0.15,
                                        "intensity": [9.0, 9.0, 9.0]}, array=True))
     if light == "sun":
-        parts.append(_table("lights", {"type": "directional", "direction": sun_direction().tolist(),
+        parts.append(toml_table("lights", {"type": "directional", "direction": sun_direction().tolist(),
                                        "radius": 0.03, "intensity": [3.0, 2.9, 2.7]}, array=True))
     if render:
-        parts.append(_table("render", render))
+        parts.append(toml_table("render", render))
     path = folder / "scene.toml"
     path.write_text("".join(parts))
     return path
 
 
-__all__ = ["write_plain_scene", "warp_bunny", "BUNNY_PLACEMENT", "write_floor_obj", "write_sphere_ply", "write_sky_exr", "sun_direction", "MATERIALS"]
+__all__ = ["write_plain_scene", "toml_table", "warp_bunny", "BUNNY_PLACEMENT", "write_floor_obj", "write_sphere_ply", "write_sky_exr", "sun_direction", "MATERIALS"]
