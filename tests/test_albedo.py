@@ -27,6 +27,10 @@ MODELS = {
     "phong": ("phong", {"ks": [0.4] * 3, "n": 30.0}),
     "ward": ("ward", {"ks": [0.5] * 3, "alpha": 0.2}),
     "ashikhmin_shirley": ("ashikhmin_shirley", {"ks": [0.5] * 3, "nu": 100.0, "nv": 20.0}),
+    # isotropic: its table once took the first parameter as 1 (nu = 1 against nv = 200): +100 % under a sky
+    "ashikhmin_shirley_iso": ("ashikhmin_shirley", {"ks": [0.5] * 3, "nu": 200.0, "nv": 200.0,
+                                                    "fresnel": {"schlick": 0.5}}),
+    "lafortune": ("lafortune", {"ks": [1.0] * 3, "lobes": [{"cx": -1.0, "cy": -1.0, "cz": 1.0, "n": 30.0}]}),
 }
 RINGS = (0.0, 0.5, 0.7, 0.85, 0.95, 1.01)  # radius on the sphere's disk ≈ sin θ_o
 

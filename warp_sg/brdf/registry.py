@@ -138,5 +138,23 @@ def analytic_codes() -> frozenset:
     return frozenset(c for c, cls in BY_CODE.items() if cls.KERNEL.analytic_lobe is not None)
 
 
+def specular_codes() -> frozenset:
+    """The codes of the models with a specular lobe (the class's ``is_specular``)."""
+    return frozenset(c for c, cls in BY_CODE.items() if getattr(cls, "is_specular", False))
+
+
+def textured_lobe_codes() -> frozenset:
+    """The codes of the models whose first kernel parameter (``kernel_params()[0]``) is the lobe's
+    width and may come from a texture: the first scalar of their ``PARAMS`` (after the colours) is
+    texturable (``Param.texture``). What a textured roughness changes per texel (the albedo table's
+    second axis, :mod:`warp_sg.brdf.kernel.albedo`)."""
+    out = set()
+    for c, cls in BY_CODE.items():
+        scalars = [p for p in cls.PARAMS.values() if p.kind == "number"]
+        if getattr(cls, "is_specular", False) and scalars and scalars[0].texture:
+            out.add(c)
+    return frozenset(out)
+
+
 __all__ = ["BY_CODE", "Kernel", "MAX_CODES", "MODELS", "analytic_codes", "code_of", "codes", "constant_diffuse",
-           "model_of", "register", "unregister"]
+           "model_of", "register", "specular_codes", "textured_lobe_codes", "unregister"]

@@ -112,7 +112,7 @@ def albedo_kernel(models):
         phi = float(0.0)
         if m.albedo_kind == KIND_ANISO:
             phi = _HALF_PI * float(q) / float(NQ - 1)
-        elif m.albedo_kind == KIND_ISO:
+        elif m.albedo_kind == KIND_ISO and m.albedo_nq > 1:  # a textured width: the q-th value of its range
             v = _q_value(m.albedo_q0, m.albedo_q1, q, m.albedo_nq)
             p1 = m.params[1]
             if m.model == _GGX and m.params[1] == m.params[0]:  # isotropic GGX: a roughness map sets αx = αy
@@ -151,18 +151,21 @@ def albedo_kernel(models):
 def layout(records, p0_ranges):
     """Per material ``(kind, nq, q0, q1)`` from its packed record (``model``, ``params``,
     ``anisotropic``) and the range of its textured first parameter (``None``: constant)."""
+    from ..registry import specular_codes, textured_lobe_codes
+
+    specular, textured = specular_codes(), textured_lobe_codes()
     out = []
     for rec, rng in zip(records, p0_ranges):
         m = int(rec["model"])
-        if m < 2:
+        if m not in specular:
             out.append((KIND_NONE, 0, 1.0, 1.0))
         elif rec.get("anisotropic"):
             out.append((KIND_ANISO, NQ, 1.0, 1.0))
-        elif rng is not None and m in (2, 3, 4, 5, 6, 10) and rng[1] > rng[0] > 0:
+        elif rng is not None and m in textured and rng[1] > rng[0] > 0:
             out.append((KIND_ISO, NQ, float(rng[0]), float(rng[1])))
-        else:
-            p0 = float(rec["params"][0]) if m in (2, 3, 4, 5, 6, 10) else 1.0
-            out.append((KIND_ISO, 1, max(p0, 1e-4), max(p0, 1e-4)))
+        else:  # one entry at the material's own first parameter (the kernel sets it back unchanged)
+            p0 = float(rec["params"][0])
+            out.append((KIND_ISO, 1, p0, p0))
     return out
 
 
@@ -182,9 +185,9 @@ def attach(table, p0_ranges, irr, device, samples: int = SAMPLES):
     out = wp.ones(max(off, 1), dtype=wp.vec3, device=device)
     for s, (kind, nq, q0, q1, o) in zip(table.structs, meta):
         # the struct holds ln q0 and 1/ln(q1/q0) (one log per pixel for a textured parameter)
-        span = math.log(q1 / q0) if q1 > q0 else 0.0
+        span = math.log(q1 / q0) if q1 > q0 > 0 else 0.0
         s.albedo_kind, s.albedo_nq, s.albedo_offset = kind, nq, o
-        s.albedo_q0, s.albedo_q1 = math.log(q0), (1.0 / span if span > 0 else 0.0)
+        s.albedo_q0, s.albedo_q1 = math.log(max(q0, 1e-30)), (1.0 / span if span > 0 else 0.0)
         s.albedo = out
     table.rebuild()
     if off > 0:
