@@ -85,10 +85,12 @@ DIFFUSE = ("lambert", "oren_nayar_0.3", "oren_nayar_0.8")
 #: radius (0.27°, less than a texel) and radiance 2e5 at 30° elevation, a halo and a blue gradient
 SUNSKY = {"width": 1024, "height": 512, "elevation": 30.0, "azimuth": 40.0, "sun_radius": 0.00465,
           "sun_radiance": 2.0e5, "halo": 0.1, "sky_intensity": 0.8}
+#: the same sky with the sun low and behind the object (backlit: grazing glints, the sun hidden by the object)
+BACKLIT = {**SUNSKY, "elevation": 14.0, "azimuth": 155.0}
 #: the Poly Haven HDRIs of shared/assets
 HDRIS = ("venice_sunset_1k.hdr", "pedestrian_overpass_1k.hdr", "moonless_golf_1k.hdr", "blouberg_sunrise_2_1k.hdr",
          "spot1Lux.hdr")
-LIGHTS = ("sunsky", "point", "sun", *(f"hdr:{h}" for h in HDRIS))
+LIGHTS = ("sunsky", "backlit", "point", "sun", *(f"hdr:{h}" for h in HDRIS))
 #: poses of a dynamic object: translations applied after the precompute
 POSES = {0: (0.0, 0.0, 0.0), 1: (0.9, 0.0, 0.0), 2: (-0.7, 0.0, 0.6)}
 #: scanned head placement: LeePerrySmith.glb's bounds are ±(4.28, 3.97, 2.59); 1 unit tall on the floor
@@ -124,6 +126,8 @@ def _cases() -> list[Case]:
     out = [Case("sphere", "sunsky", m) for m in MATERIALS]
     out += [Case("bunny", "sunsky", m) for m in ("lambert", "blinn_phong_50", "measured", "ggx_gold_0.3",
                                                  "ward_aniso", "cook_torrance_0.25")]
+    out += [Case("sphere", "backlit", m) for m in ("ggx_gold_0.3", "cook_torrance_0.25", "lambert")]
+    out += [Case("bunny", "backlit", m) for m in ("blinn_phong_50", "ggx_gold_0.3", "measured")]
     out += [Case("head", f"hdr:{h}", "lambert") for h in HDRIS]
     out += [Case("head", f"hdr:{h}", "ggx_gold_0.3") for h in ("pedestrian_overpass_1k.hdr", "venice_sunset_1k.hdr")]
     out += [Case("head", "sunsky", m) for m in ("lambert", "blinn_phong_50")]
@@ -169,12 +173,11 @@ def needs_shared(case: Case) -> bool:
     return case.obj == "head" or case.light.startswith("hdr:")
 
 
-def write_sunsky(path: Path) -> Path:
-    """The matrix's sun-sky EXR (:data:`SUNSKY`)."""
+def write_sunsky(path: Path, s: dict = SUNSKY) -> Path:
+    """The matrix's sun-sky EXR (:data:`SUNSKY`, or :data:`BACKLIT`)."""
     from warp_sg.core.image_io import save_image
     from warp_sg.scene.sky import procedural_sky
 
-    s = SUNSKY
     sky = procedural_sky(s["width"], s["height"], sun_direction=tuple(sun_direction(s["elevation"], s["azimuth"])),
                          sun_angular_radius=s["sun_radius"], sun_intensity=s["sun_radiance"], halo=s["halo"],
                          sky_intensity=s["sky_intensity"])
@@ -221,10 +224,11 @@ def write_case(case: Case, folder) -> Path:
              toml_table("objects", ob, array=True),
              toml_table("objects", {"mesh": "floor.obj", "material": "floor", "name": "floor"}, array=True),
              toml_table("materials.object", mat), toml_table("materials.floor", PLAIN_MATERIALS["lambert"])]
-    if case.light == "sunsky":
-        if not (folder / "sunsky.exr").is_file():
-            write_sunsky(folder / "sunsky.exr")
-        parts.append(toml_table("lights", {"type": "environment", "file": "sunsky.exr"}, array=True))
+    if case.light in ("sunsky", "backlit"):
+        sky = f"{case.light}.exr"
+        if not (folder / sky).is_file():
+            write_sunsky(folder / sky, SUNSKY if case.light == "sunsky" else BACKLIT)
+        parts.append(toml_table("lights", {"type": "environment", "file": sky}, array=True))
     elif case.light.startswith("hdr:"):
         parts.append(toml_table("lights", {"type": "environment", "file": (shared / case.light[4:]).as_posix()},
                             array=True))
@@ -272,6 +276,10 @@ REGIONS = ("object", "lit_floor", "shadow", "silhouette")
 #: targets per region (|bias|), and object rel. MSE (diffuse, glossy)
 TARGET_BIAS = {"object": 0.03, "lit_floor": 0.02, "shadow": 0.10, "silhouette": 0.10}
 TARGET_OBJECT_REL_MSE = {True: 0.01, False: 0.03}
+#: a shadow whose relative bias is over its target still passes when its mean error is at most this
+#: fraction of the lit floor's mean (``leak``): the shadow of a lone light is near black, and a
+#: relative bias of a near-black region says little (10 % of a shadow at 6 % of the lit floor is 0.6 %)
+TARGET_SHADOW_LEAK = 0.01
 #: a region is worse when its |bias| grew by more than this (absolute) or its rel. MSE by this factor
 GATE_BIAS = 0.01
 GATE_REL_MSE = 1.2
@@ -312,8 +320,11 @@ def errors(case: Case, image: np.ndarray, ref: dict | None = None) -> dict:
 
     ref = load_reference(case) if ref is None else ref
     e = region_errors(np.asarray(image, np.float32), ref["image"], ref["masks"], stderr=ref["stderr"])
-    return {r: {"bias": float(e[r]["bias"]), "rel_mse": float(e[r]["rel_mse"]), "pixels": int(e[r]["pixels"])}
-            for r in REGIONS if r in e and e[r]["pixels"] > 0}
+    out = {r: {"bias": float(e[r]["bias"]), "rel_mse": float(e[r]["rel_mse"]), "pixels": int(e[r]["pixels"])}
+           for r in REGIONS if r in e and e[r]["pixels"] > 0}
+    if "shadow" in out and "leak" in e["shadow"]:
+        out["shadow"]["leak"] = float(e["shadow"]["leak"])
+    return out
 
 
 def target_failures(case: Case, errs: dict) -> list[str]:
@@ -321,6 +332,9 @@ def target_failures(case: Case, errs: dict) -> list[str]:
     out = []
     for r, lim in TARGET_BIAS.items():
         if r in errs and errs[r]["pixels"] >= 20 and abs(errs[r]["bias"]) > lim:
+            leak = errs[r].get("leak")
+            if r == "shadow" and leak is not None and abs(leak) <= TARGET_SHADOW_LEAK:
+                continue  # a dark shadow: its error is within 1 % of the lit floor's brightness
             out.append(f"{case.name} {r}: bias {errs[r]['bias']:+.1%} (target ±{lim:.0%})")
     lim = TARGET_OBJECT_REL_MSE[case.diffuse]
     if "object" in errs and errs["object"]["rel_mse"] > lim:

@@ -29,6 +29,7 @@ from warp_sg.scene.model import COLOUR_PARAMS
 from warp_sg.scene.textures import build_atlas
 from warp_sg.shading import kernel as S
 from warp_sg.shading.cutout import CutoutScene, cutout_data
+from warp_sg.shading.light_rays import LightOccluders
 from warp_sg.shading.surface import MaterialTextures, SLOT_KD, SLOT_KS, SLOT_NORMAL, SLOT_OCCLUSION, SLOT_P0, SLOT_TANGENT, material_texture_slots
 from warp_sg.shading.vertex_visibility import CacheInputs, caches
 
@@ -94,6 +95,9 @@ class ResourceSetup:
         # alpha cut-outs of the (refined) geometry: camera rays continue through their holes
         self.cut = CutoutScene(g, self.scene.materials, ga.positions, d)
         self.cutouts = self.cut.data
+        # the static objects, for the lights' ray-cast visibility at the vertices (built on first use)
+        self.light_occluders = LightOccluders(g, ga.positions, ga.tris, self.cut,
+                                              [not ob.dynamic for ob in self.scene.objects], d)
         self.vis = visibility_arrays(None, ga.normals, len(g.vertices), d)
         self._reset_bounces(None)
         self._setup_dynamic()
@@ -235,7 +239,8 @@ class ResourceSetup:
                            ssdf=self.ssdf, vis=self.vis, irr_table=self.irr_table,
                            positions=self.geo_arrays.positions, shading_lights=tuple(self.shading_lights),
                            light_arrays=self.light_arrays, env_key=self._env_arrays_key,
-                           env_scale=float(env.scale) if env is not None else 0.0)
+                           env_scale=float(env.scale) if env is not None else 0.0,
+                           occluders=self.light_occluders if self.shadows else None)
 
 
 __all__ = ["ResourceSetup"]

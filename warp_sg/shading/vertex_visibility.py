@@ -66,7 +66,7 @@ from warp_sg.numeric.fastmath import fast_asin
 from warp_sg.numeric.onb import frame_bitangent, frame_tangent, local_to_world
 from warp_sg.scene.lights import LightArrays, light_irradiance
 from warp_sg.scene.envmap import env_lookup
-from warp_sg.shading.visibility_terms import EnvSG, Visibility, lookup_skip
+from warp_sg.shading.visibility_terms import EnvSG, Visibility, lookup_skip, vertex_frame
 from warp_sg.sg.irradiance import sg_irradiance_norm_at
 from warp_sg.sg.algebra_wp import sg_integral
 
@@ -83,15 +83,6 @@ def texel_ssdf(vis: Visibility, v: int, y: int, x: int) -> float:
     for k in range(nv):
         sd += vis.weights[v, k] * vis.basis[y, x, k]
     return sd
-
-
-@wp.func
-def vertex_frame(vis: Visibility, v: int, n: wp.vec3):
-    """(t, b) of the frame vertex v's SSDF is stored in: the stored frame of a moving object's vertex
-    (``Visibility.frame_t``, ``frame_b``), else the frame of its normal."""
-    if vis.frame_t.shape[0] == vis.normals.shape[0]:
-        return vis.frame_t[v], vis.frame_b[v]
-    return frame_tangent(n), frame_bitangent(n)
 
 
 @wp.func
@@ -432,6 +423,9 @@ class CacheInputs:
     light_arrays: LightArrays
     env_key: tuple | None
     env_scale: float
+    #: the static objects' triangles for the lights' ray-cast deficits (:mod:`warp_sg.shading.light_rays`);
+    #: None: the SSDF's deficits (:func:`light_vertex_deficit`)
+    occluders: object = None
 
 
 def update_caches(caches: tuple, inputs: CacheInputs, f, es: EnvSG) -> tuple[EnvSG, float]:
@@ -468,6 +462,10 @@ def update_caches(caches: tuple, inputs: CacheInputs, f, es: EnvSG) -> tuple[Env
                         blend_rows_kernel, lambda o: [o], nv, d)
 
     def deficit():  # (every vertex from its own map, transferred or not: one lookup per light)
+        if r.occluders is not None:  # exact at the vertices: rays over each light's cone
+            from warp_sg.shading.light_rays import light_vertex_rays
+
+            return light_vertex_rays(r.occluders, r.vis, r.positions, r.light_arrays, nv, fh == "sigmoid", d)
         return light_vertex_deficit(r.vis, r.positions, r.light_arrays, nv, fh == "sigmoid", d)
 
     def visible():
@@ -480,7 +478,7 @@ def update_caches(caches: tuple, inputs: CacheInputs, f, es: EnvSG) -> tuple[Env
     es.vis = env_vis.array(key, env_lobes, d)
     where = tuple((li.type, *np.ravel(getattr(li, "position", getattr(li, "direction", ()))).tolist(),
                    float(li.radius)) for li in r.shading_lights)
-    key = (where, r.ssdf, r.vis.cones, fh) if f.light_vis_vertex else None
+    key = (where, r.ssdf, r.vis.cones, fh, r.occluders) if f.light_vis_vertex else None
     r.vis.light_deficit = light_vis.array(key, deficit, d)
     key = (r.env_key[:2], r.ssdf, r.vis.cones) if f.env_visible_vertex else None
     es.visible, es.irr_vertex = env_visible.array(key, visible, d)

@@ -22,6 +22,7 @@ from precompute.visibility.occluder_cone import occluder_clearance
 from precompute.visibility.ssdf_wp import SSDFPoint, ssdf_at
 from warp_sg.brdf.kernel.material_wp import lum
 from warp_sg.numeric.fastmath import fast_asin
+from warp_sg.numeric.onb import frame_bitangent, frame_tangent
 from warp_sg.sg import CLAMPED_COSINE_SHARPNESS
 from warp_sg.sg.algebra_wp import FA_NUMERATOR, TWO_PI
 from warp_sg.sg.fh import fh_ratio_table_pair, fh_theta_max_wp
@@ -102,6 +103,15 @@ class EnvSG:
 # --------------------------------------------------------------------------------------------
 # building blocks (@wp.func)
 # --------------------------------------------------------------------------------------------
+@wp.func
+def vertex_frame(vis: Visibility, v: int, n: wp.vec3):
+    """(t, b) of the frame vertex v's SSDF is stored in: the stored frame of a moving object's vertex
+    (``Visibility.frame_t``, ``frame_b``), else the frame of its normal."""
+    if vis.frame_t.shape[0] == vis.normals.shape[0]:
+        return vis.frame_t[v], vis.frame_b[v]
+    return frame_tangent(n), frame_bitangent(n)
+
+
 @wp.func
 def lookup_skip(fh_mode: int, vis: Visibility, q: SSDFPoint, p: wp.vec3, th_h: float, lam: float) -> float:
     """How far the SSDF lookup of lobe (p, λ) at point ``q`` may be skipped, ``s ∈ [0, 1]``
@@ -228,7 +238,7 @@ def light_cap_visible(th: float, lam: float) -> float:
     λ = fa⁻¹(2π sin²α), so sin α = √(fa(λ)/2π)). Evaluated in float64: the numerator is O(α²)
     out of O(1) terms."""
     sa = light_sin_radius(lam)
-    return _cap_visible(th, sa, wp.asin(sa))
+    return cap_visible(th, sa, wp.asin(sa))
 
 
 @wp.func
@@ -238,7 +248,7 @@ def light_sin_radius(lam: float) -> float:
 
 
 @wp.func
-def _cap_visible(th: float, sa: float, alpha: float) -> float:
+def cap_visible(th: float, sa: float, alpha: float) -> float:
     """:func:`light_cap_visible` of the light's ``sin α`` and ``α``."""
     if th >= alpha:
         return 1.0
@@ -266,7 +276,7 @@ def light_fraction(fh_mode: int, vis: Visibility, th: float, th_h: float, lam: f
         return fh_fraction(fh_mode, vis, th, th_h, lam)
     sa = light_sin_radius(lam)  # (the light's radius once for both sides of the ratio)
     alpha = wp.asin(sa)
-    return wp.clamp(_cap_visible(th, sa, alpha) / wp.max(_cap_visible(th_h, sa, alpha), 1.0e-8), 0.0, 1.0)
+    return wp.clamp(cap_visible(th, sa, alpha) / wp.max(cap_visible(th_h, sa, alpha), 1.0e-8), 0.0, 1.0)
 
 
 @wp.func
