@@ -145,13 +145,21 @@ class LightOccluders:
         self.mesh = None
         scale = float(np.linalg.norm(np.ptp(np.asarray(geometry.vertices, np.float64), axis=0))) or 1.0
         self.eps = 1.0e-4 * scale
+        static = np.asarray(static_objects, bool)
+        self._static_tris = static[np.asarray(geometry.tri_object)] if len(static) else np.ones(0, bool)
+        #: the vertices of static objects (None: every vertex): a moving object's vertices keep their
+        #: SSDF's deficits, which turn with it (its rows are patched per frame from them)
+        self.static_vertices = None
+        if not static.all():
+            moving = np.zeros(len(geometry.vertices), bool)
+            moving[np.asarray(geometry.triangles)[~self._static_tris].ravel()] = True
+            self.static_vertices = wp.array(np.flatnonzero(~moving).astype(np.int32), dtype=int, device=device)
 
     def arrays(self):
         """``(mesh id, Cutouts struct)``."""
         if self.mesh is None:
             g, positions, tris, cut, static_objects = self._args
-            keep = np.isin(np.asarray(g.tri_object), np.flatnonzero(static_objects))
-            t = np.asarray(g.triangles, np.int32)[keep]
+            t = np.asarray(g.triangles, np.int32)[self._static_tris]
             if len(t) == 0:
                 t = np.zeros((1, 3), np.int32)
             self.mesh = wp.Mesh(points=positions, indices=wp.array(t.ravel(), dtype=wp.int32, device=self.device))
@@ -159,19 +167,22 @@ class LightOccluders:
 
 
 def light_vertex_rays(occluders: LightOccluders, vis: Visibility, positions, lights: LightArrays, n_vertices: int,
-                      fh_sigmoid: bool, device, ids=None, into=None) -> wp.array2d:
-    """(V, lights) deficits of :func:`light_rays_kernel` (as
-    :func:`warp_sg.shading.vertex_visibility.light_vertex_deficit`, whose place it takes)."""
+                      fh_sigmoid: bool, device, into=None) -> wp.array2d:
+    """(V, lights) deficits of :func:`light_rays_kernel` at the static objects' vertices
+    (``occluders.static_vertices``; every vertex when no object moves), written into ``into`` (the
+    SSDF's deficits, which a moving object's vertices keep) or a new zero array."""
     from raster import parallel
 
-    ida = wp.zeros(0, dtype=int, device=device) if ids is None else ids
+    ids = occluders.static_vertices
     n = int(n_vertices) if ids is None else int(ids.shape[0])
+    if ids is None:
+        ids = wp.zeros(0, dtype=int, device=device)
     out = wp.zeros((max(int(n_vertices), 1), max(int(lights.count), 1)), dtype=float, device=device) \
         if into is None else into
     if lights.count > 0 and n > 0:
         mesh, cut = occluders.arrays()
         parallel.launch(light_rays_kernel, n * int(lights.count),
-                        [ida, 1 if fh_sigmoid else 0, vis, positions, lights, mesh, cut, occluders.eps, out], device,
+                        [ids, 1 if fh_sigmoid else 0, vis, positions, lights, mesh, cut, occluders.eps, out], device,
                         min_chunk=256, chunks=4 * parallel.cpu_workers())
     return out
 

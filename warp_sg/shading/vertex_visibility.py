@@ -465,7 +465,9 @@ def update_caches(caches: tuple, inputs: CacheInputs, f, es: EnvSG) -> tuple[Env
         if r.occluders is not None:  # exact at the vertices: rays over each light's cone
             from warp_sg.shading.light_rays import light_vertex_rays
 
-            return light_vertex_rays(r.occluders, r.vis, r.positions, r.light_arrays, nv, fh == "sigmoid", d)
+            into = None if r.occluders.static_vertices is None else \
+                light_vertex_deficit(r.vis, r.positions, r.light_arrays, nv, fh == "sigmoid", d)  # (moving vertices)
+            return light_vertex_rays(r.occluders, r.vis, r.positions, r.light_arrays, nv, fh == "sigmoid", d, into=into)
         return light_vertex_deficit(r.vis, r.positions, r.light_arrays, nv, fh == "sigmoid", d)
 
     def visible():
