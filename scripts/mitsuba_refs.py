@@ -19,28 +19,18 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
 from tqdm import tqdm
 
 from warp_sg.groundtruth import accuracy_matrix as AM
 
 
 def render_reference(case, folder, spp: int, batches: int, variant: str, max_depth: int = 2, seed: int = 0):
-    import mitsuba as mi
-
-    mi.set_variant(variant)
     from warp_sg.groundtruth.region_error import scene_regions
-    from warp_sg.tools.mitsuba.scene_dict import independent_scene_dict
+    from warp_sg.tools.mitsuba.render import mitsuba_reference
 
     scene, _ = AM.load_case(case, folder)
-    per = max(1, spp // batches)
-    msc = mi.load_dict(independent_scene_dict(scene, spp=per, max_depth=max_depth))
-    imgs = np.stack([np.array(mi.render(msc, spp=per, seed=seed + 7919 * b), dtype=np.float64)
-                     for b in range(batches)])
-    mean = imgs.mean(0)
-    se = imgs.std(0, ddof=1) / np.sqrt(batches)
-    masks = scene_regions(scene)
-    return mean, se, masks, per * batches
+    ref = mitsuba_reference(scene, spp, max_depth=max_depth, batches=batches, seed=seed, variant=variant)
+    return ref.image, ref.stderr, scene_regions(scene), ref.spp
 
 
 def main(argv=None) -> int:

@@ -17,7 +17,10 @@ ratios are meant to carry over between machines):
    scene and on a plain-input scene (2-triangle floor, sun-sky EXR).
 5. **frame scaling** — warm frame time by pixel count and by triangle count, full shading
    (:mod:`warp_sg.tools.bench_scaling`).
-6. **equal error vs Mitsuba 3** — with the optional ``[compare]`` extra.
+6. **equal error vs Mitsuba 3** — on the scenes Mitsuba renders with its own plugins; and **every
+   model** — the accuracy matrix's sphere per BRDF model at 512², Mitsuba through the independent
+   peer, Mitsuba's time to our error from its measured per-sample variance
+   (:mod:`warp_sg.tools.bench_matrix`).
 7. **SSDF error vs ray budget** — adaptive visibility rays against a ray per texel
    (:mod:`warp_sg.tools.bench_first_image`).
 8. **time to first image** — cold first image (final and progressive) and warm frame of the
@@ -398,6 +401,7 @@ SECTIONS = {
     "equal error: SG renderer vs Monte-Carlo reference": equal_error_section,
     "frame scaling: pixels and triangles": _lazy("bench_scaling", "scaling_section"),
     "equal error: SG renderer vs Mitsuba 3": _lazy("bench_mitsuba", "mitsuba_section"),
+    "equal error vs Mitsuba 3: every model (accuracy matrix)": _lazy("bench_matrix", "matrix_equal_error_section"),
     "SSDF error vs ray budget": _lazy("bench_first_image", "ray_budget_section"),
     "time to first image": _lazy("bench_first_image", "first_image_section"),
     "objects that move": _lazy("bench_motion", "motion_section"),
