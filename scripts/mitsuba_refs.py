@@ -38,7 +38,7 @@ def main(argv=None) -> int:
     ap.add_argument("--spp", type=int, default=4096)
     ap.add_argument("--batches", type=int, default=8)
     ap.add_argument("--variant", default="llvm_ad_rgb")
-    ap.add_argument("--max-depth", type=int, default=2)
+    ap.add_argument("--max-depth", type=int, default=None, help="override every case's own depth (2: direct light)")
     ap.add_argument("--only", nargs="*", help="case names (default: every case)")
     ap.add_argument("--missing", action="store_true", help="only cases without a stored reference")
     a = ap.parse_args(argv)
@@ -55,12 +55,12 @@ def main(argv=None) -> int:
                 print(f"skipped {case.name}: shared/assets is absent", file=sys.stderr)
                 continue
             t0 = time.perf_counter()
-            mean, se, masks, spp = render_reference(case, Path(tmp) / case.name, a.spp, a.batches, a.variant,
-                                                    a.max_depth)
+            depth = case.depth if a.max_depth is None else a.max_depth
+            mean, se, masks, spp = render_reference(case, Path(tmp) / case.name, a.spp, a.batches, a.variant, depth)
             AM.save_reference(case, mean, se, masks, spp)
             manifest[case.name] = {"object": case.obj, "light": case.light, "material": AM.MATERIALS[case.material],
                                    "pose": case.pose, "size": case.size, "mitsuba": mi.__version__,
-                                   "variant": a.variant, "spp": spp, "max_depth": a.max_depth,
+                                   "variant": a.variant, "spp": spp, "max_depth": depth,
                                    "seconds": round(time.perf_counter() - t0, 1),
                                    "pixels": {r: int(m.sum()) for r, m in masks.items()}}
             man_path.write_text(json.dumps(dict(sorted(manifest.items())), indent=1) + "\n")

@@ -31,6 +31,7 @@ def test_every_case_has_a_stored_reference_with_its_manifest_entry():
         entry = manifest[c.name]
         assert entry["material"] == AM.MATERIALS[c.material] and entry["light"] == c.light, c.name
         assert entry["spp"] >= 1024 and entry["mitsuba"].startswith("3."), c.name
+        assert entry["max_depth"] == c.depth, c.name
     base = AM.load_baseline()
     assert set(base) == {c.name for c in AM.CASES}, "the baseline file covers exactly the matrix"
 

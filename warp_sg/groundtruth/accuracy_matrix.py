@@ -91,6 +91,8 @@ BACKLIT = {**SUNSKY, "elevation": 14.0, "azimuth": 155.0}
 HDRIS = ("venice_sunset_1k.hdr", "pedestrian_overpass_1k.hdr", "moonless_golf_1k.hdr", "blouberg_sunrise_2_1k.hdr",
          "spot1Lux.hdr")
 LIGHTS = ("sunsky", "backlit", "point", "sun", *(f"hdr:{h}" for h in HDRIS))
+#: Mitsuba's max_depth of the cases with interreflection (as warp_sg.groundtruth.reference's full depth)
+FULL_DEPTH = 8
 #: poses of a dynamic object: translations applied after the precompute
 POSES = {0: (0.0, 0.0, 0.0), 1: (0.9, 0.0, 0.0), 2: (-0.7, 0.0, 0.6)}
 #: scanned head placement: LeePerrySmith.glb's bounds are ±(4.28, 3.97, 2.59); 1 unit tall on the floor
@@ -106,16 +108,20 @@ class Case:
     material: str
     pose: int | None = None
     size: int = 64
+    #: path segments of the reference (Mitsuba's max_depth): 2 = direct light, the paper's transport
+    #: (the scene gets ``[render] bounces = 0``); FULL_DEPTH = with interreflection (default bounces)
+    depth: int = 2
 
     @property
     def name(self) -> str:
         light = self.light.replace("hdr:", "").replace("_1k.hdr", "").replace(".hdr", "")
         pose = "" if self.pose is None else f"-pose{self.pose}"
-        return f"{self.obj}-{light}-{self.material}{pose}"
+        full = "" if self.depth == 2 else "-full"
+        return f"{self.obj}-{light}-{self.material}{pose}{full}"
 
     @property
     def group(self) -> tuple:
-        return self.obj, self.light, self.pose, self.size
+        return self.obj, self.light, self.pose, self.size, self.depth
 
     @property
     def diffuse(self) -> bool:
@@ -140,6 +146,12 @@ def _cases() -> list[Case]:
     out += [Case("bunny", "point", m) for m in ("lambert", "ggx_gold_0.3")]
     out += [Case("sphere", "sunsky", "lambert", pose=p) for p in POSES]
     out += [Case("sphere", "point", "lambert", pose=1)]
+    # with interreflection, against Mitsuba at full depth (the renderer's default bounces)
+    out += [Case("head", f"hdr:{h}", "lambert", depth=FULL_DEPTH)
+            for h in ("moonless_golf_1k.hdr", "pedestrian_overpass_1k.hdr", "venice_sunset_1k.hdr")]
+    out += [Case("head", "hdr:pedestrian_overpass_1k.hdr", "ggx_gold_0.3", depth=FULL_DEPTH)]
+    out += [Case("bunny", "sunsky", m, depth=FULL_DEPTH) for m in ("lambert", "blinn_phong_50")]
+    out += [Case("sphere", "point", "lambert", depth=FULL_DEPTH)]
     return out
 
 
@@ -149,7 +161,7 @@ BY_NAME: dict[str, Case] = {c.name: c for c in CASES}
 
 
 def groups(cases=None) -> dict[tuple, list[Case]]:
-    """Cases by (object, light, pose, size), in case order."""
+    """Cases by (object, light, pose, size, depth), in case order."""
     out: dict[tuple, list[Case]] = {}
     for c in CASES if cases is None else cases:
         out.setdefault(c.group, []).append(c)
@@ -240,6 +252,8 @@ def write_case(case: Case, folder) -> Path:
                                        "radius": 0.03, "intensity": [3.0, 2.9, 2.7]}, array=True))
     else:
         raise ValueError(f"unknown light {case.light!r}")
+    if case.depth == 2:  # the direct light of a max_depth = 2 reference
+        parts.append(toml_table("render", {"bounces": 0}))
     path = folder / "scene.toml"
     path.write_text("".join(parts))
     return path
