@@ -147,3 +147,22 @@ def test_reused_precompute_gives_the_rows_of_a_fresh_cache_per_setting(tmp_path,
     assert builds.count("ssdf") == 4
     assert builds.count("ssdf_raw") == 2  # rays and distance search at 16² and 32² only
     assert builds.count("env_sg_fit") == 3  # 4 (default), 2 and 6 lobes
+
+
+def test_a_report_against_mitsuba_takes_its_truth_from_the_independent_peer(tmp_path, cache_dir):
+    """``truth="mitsuba"``: the ground truth is Mitsuba 3 through warp_sg.tools.mitsuba; the scene's own
+    setting is then close to it (a Lambert sphere under a point light, direct light) and the report
+    names its truth."""
+    pytest.importorskip("mitsuba")
+    import warp_sg as ws
+    from warp_sg.scene.plain_scenes import write_plain_scene
+
+    sc = ws.load_scene(write_plain_scene(tmp_path / "s", obj="sphere", light="point", material="lambert", size=16))
+    rep = run_report(sc, tmp_path / "rep", quick=True, truth_spp=256, mc_max_spp=8, knobs=["antialias"],
+                     progress=False, max_depth=2, truth="mitsuba")
+    default = [r for r in rep.rows if r["knob"] == "default"][0]
+    assert default["rel_mse"] < 0.02, default
+    md = rep.files["markdown"].read_text()
+    assert "Ground truth: Mitsuba 3" in md
+    with pytest.raises(ws.InputError, match="--truth"):
+        run_report(sc, tmp_path / "rep2", quick=True, truth="ours", progress=False)

@@ -222,7 +222,7 @@ def mc_curve(scene, truth, device="cpu", max_spp=64, seed=2, progress=True, per_
 
 def run_report(scene, out_dir, device=None, quick=False, truth_spp=None, mc_max_spp=None, knobs=None,
                progress=True, frames=None, width=None, height=None, cluster=None, reuse=True,
-               max_depth: int | None = None) -> Report:
+               max_depth: int | None = None, truth: str = "reference") -> Report:
     """Run the sweep for ``scene`` (a Scene or a path) and write the report into ``out_dir``.
 
     ``reuse`` (default): the settings share one fresh cache, so each precompute stage is built
@@ -238,7 +238,10 @@ def run_report(scene, out_dir, device=None, quick=False, truth_spp=None, mc_max_
     ``width``/``height`` override the camera's resolution (the reference's cost grows with it);
     ``device=None`` is the scene's ``[render] device``. ``max_depth``: the ground truth's paths
     (default the full path tracer; 2: direct light only, against the scene rendered with ``bounces
-    = 0``: the paper's part alone, :func:`warp_sg.groundtruth.reference.matching_transport`)."""
+    = 0``: the paper's part alone, :func:`warp_sg.groundtruth.reference.matching_transport`).
+    ``truth``: ``"reference"`` (our Monte-Carlo reference, which shares the BRDF code) or ``"mitsuba"``
+    (Mitsuba 3 through the independent peer, :mod:`warp_sg.tools.mitsuba`: the BRDFs from their
+    published formulas; its box filter needs no sub-pixel grid)."""
     from warp_sg.groundtruth.reference import DEFAULT_MAX_DEPTH, check_max_depth, matching_transport, render_reference
 
     max_depth = check_max_depth(DEFAULT_MAX_DEPTH if max_depth is None else max_depth, "--max-depth")
@@ -262,8 +265,17 @@ def run_report(scene, out_dir, device=None, quick=False, truth_spp=None, mc_max_
 
     per = k_truth * k_truth  # the spp counts are per pixel, spread over the k×k sub-pixels
     sub_spp = max(1, truth_spp // per)
+    if truth not in ("reference", "mitsuba"):
+        raise InputError(f"must be 'reference' or 'mitsuba', got {truth!r}", where="--truth")
     t0 = time.perf_counter()
-    if cluster is not None:
+    label = None
+    if truth == "mitsuba":
+        from warp_sg.tools.mitsuba.render import mitsuba_reference
+
+        truth = mitsuba_reference(scene, spp=truth_spp, max_depth=max_depth, seed=1)
+        label = (f"Mitsuba 3 ({truth.variant}, the BRDFs from their published formulas: warp_sg.tools.mitsuba) "
+                 f"with {truth.spp} samples per pixel, box filter, max_depth {max_depth}")
+    elif cluster is not None:
         from warp_sg.distributed.rendering import render_reference_distributed
 
         truth = render_reference_distributed(truth_scene, spp=sub_spp, cluster=cluster, device=device,
@@ -306,7 +318,7 @@ def run_report(scene, out_dir, device=None, quick=False, truth_spp=None, mc_max_
 
     regions = region_errors(base_img, truth.image, scene_regions(scene, device=device)) if base_img is not None else None
     files = write_outputs(out, rows, truth.image, base_img, sub_spp * per, floor, truth_time, scene, k_truth,
-                          regions=regions)
+                          regions=regions, truth_label=label)
     return Report(out, rows, sub_spp * per, floor, files)
 
 
@@ -323,6 +335,9 @@ def add_cli_arguments(p) -> None:
     p.add_argument("--width", type=int, default=None, help="override the camera width (keeps the aspect)")
     p.add_argument("--height", type=int, default=None, help="override the camera height")
     p.add_argument("--no-progress", action="store_true")
+    p.add_argument("--truth", choices=("reference", "mitsuba"), default="reference",
+                   help="the ground truth: our Monte-Carlo reference, or Mitsuba 3 with the BRDFs written from their "
+                        "published formulas (warp_sg.tools.mitsuba; independent of our BRDF code)")
     p.add_argument("--max-depth", type=int, default=None, metavar="N",
                    help="the ground truth's path segments (default: a full path tracer; 2: direct light only, "
                         "compared with the scene rendered with bounces = 0, the paper's part alone)")
@@ -357,7 +372,8 @@ def cli_main(args) -> int:
         return 0
     rep = run_report(args.scene, args.output, device=args.device, quick=args.quick, truth_spp=args.truth_spp,
                      progress=not args.no_progress, width=args.width, height=args.height,
-                     cluster=getattr(args, "cluster", None), max_depth=getattr(args, "max_depth", None))
+                     cluster=getattr(args, "cluster", None), max_depth=getattr(args, "max_depth", None),
+                     truth=getattr(args, "truth", "reference"))
     print(f"report written to {rep.files['markdown']}")
     return 0
 

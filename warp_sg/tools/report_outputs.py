@@ -127,7 +127,7 @@ def write_rows_csv(out: Path, rows) -> Path:
 
 
 def write_outputs(out: Path, rows, truth, base_img, truth_spp, floor, truth_time, scene=None, k_truth=1,
-                  regions=None) -> dict:
+                  regions=None, truth_label: str | None = None) -> dict:
     files = {"csv": write_rows_csv(out, rows)}
     plot_error_vs_time(rows, out / "error_vs_time.png", floor)
     files["plot"] = out / "error_vs_time.png"
@@ -144,9 +144,10 @@ def write_outputs(out: Path, rows, truth, base_img, truth_spp, floor, truth_time
         lines += [f"Scene: `{name}`, {w}×{h} pixels.", ""]
     else:
         lines += [f"Image: {w}×{h} pixels.", ""]
+    source = truth_label or (f"Monte-Carlo reference with {truth_spp} samples per pixel "
+                              f"({truth_spp // (k_truth * k_truth)} per sub-pixel of a {k_truth}×{k_truth} grid)")
     lines += [
-        f"Ground truth: Monte-Carlo reference with {truth_spp} samples per pixel ({truth_spp // (k_truth * k_truth)} "
-        f"per sub-pixel of a {k_truth}×{k_truth} grid) "
+        f"Ground truth: {source} "
         f"({truth_time:.1f} s); its noise floor (Σ stderr² / Σ ref²) is {floor:.3g} in relative MSE. "
         f"The MC curve is an independent progressive run at the same supersampling.",
         "Precompute times are those of an empty cache with the stages one after the other (each stage built "
