@@ -55,6 +55,8 @@ def markdown(cases, res, fails) -> str:
         cells = [f"{e[r]['bias']:+.1%} / {e[r]['rel_mse']:.4f} ({e[r]['pixels']})" if r in e else "" for r in AM.REGIONS]
         lines.append(f"| {c.name} | " + " | ".join(cells) + " |")
     lines += ["", f"Targets missed: {len(fails)}", ""] + [f"- {f}" for f in fails]
+    lines += ["", "Why (`warp_sg.groundtruth.accuracy_matrix.KNOWN_MISSES`):", ""]
+    lines += [f"- **{k}**: {v}." for k, v in AM.KNOWN_MISSES.items()]
     return "\n".join(lines) + "\n"
 
 

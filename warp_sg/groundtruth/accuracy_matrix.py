@@ -299,6 +299,23 @@ GATE_BIAS = 0.01
 GATE_REL_MSE = 1.2
 
 
+#: scenes that miss a target, and why (measured; tests/test_accuracy_matrix.py fails if one starts to meet it)
+KNOWN_MISSES: dict[str, str] = {
+    "bunny-venice_sunset-blinn_phong_50": (
+        "glossy lobes that straddle the floor's horizon under a sunset whose brightest band lies just above "
+        "it: the half-space cut (eq. 25-31) and the visible part's mean radiance read from ΓL one lobe "
+        "(visible_lobe) take too little of that band. Against our reference (512 spp): -5.0 % with the "
+        "floor, -0.8 % without it; reading the visible part as two lobes moved it to -4.7 % only"),
+    "head-venice_sunset-ggx_gold_0.3": (
+        "the same cut on a concave scan under the same sunset: with shadows off the object is +16 %, the "
+        "lobes' visibility takes about 4.5 % too much (red, the sunset's band; our reference agrees with "
+        "Mitsuba within 0.4 %)"),
+    "head-pedestrian_overpass-ggx_gold_0.3-full": (
+        "direct light -2.8 % (within the target) plus the glossy receivers' indirect light, gathered through "
+        "64 fixed world lobes (warp_sg.shading.bounce), about 1.3 points short"),
+}
+
+
 def reference_path(case: Case) -> Path:
     return REFERENCES / f"{case.name}.npz"
 
@@ -403,4 +420,5 @@ def render_group(cases: list[Case], folder, device: str = "cpu") -> dict[str, np
 
 __all__ = ["Case", "CASES", "BY_NAME", "MATERIALS", "LIGHTS", "POSES", "groups", "write_case", "load_case",
            "pose_matrix", "shared_assets", "needs_shared", "reference_path", "load_reference", "save_reference",
-           "errors", "target_failures", "gate_failures", "load_baseline", "render_group", "REGIONS", "TARGET_BIAS"]
+           "errors", "target_failures", "gate_failures", "load_baseline", "render_group", "REGIONS", "TARGET_BIAS",
+           "KNOWN_MISSES", "FULL_DEPTH"]
