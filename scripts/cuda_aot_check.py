@@ -38,12 +38,12 @@ def shading_variants():
     full = S.Features(env_diffuse=S.ENV_SG, env_specular=S.ENV_PREFILTERED, lights=True, specular=True,
                       shadows=True, textures=True, normal_maps=True, fh_sigmoid=False, env_vis_vertex=True,
                       light_vis_vertex=True, env_visible_vertex=True, emission=True, occlusion=True, coat=True,
-                      vertex_colors=True, cutouts=True, moving=True)
+                      vertex_colors=True, cutouts=True, moving=True, bounce=True)
     off = {"env_diffuse": S.ENV_NONE, "env_specular": S.ENV_NONE, "lights": False, "specular": False,
            "shadows": False, "textures": False, "normal_maps": False, "fh_sigmoid": True,
            "env_vis_vertex": False, "light_vis_vertex": False, "env_visible_vertex": False, "models": (0,),
            "emission": False, "occlusion": False, "coat": False, "vertex_colors": False, "cutouts": False,
-           "moving": False, "env_mixture": False, "grad": False}
+           "moving": False, "env_mixture": False, "grad": False, "bounce": False}
     variants = [full] + [replace(full, **{f.name: off[f.name]}) for f in fields(S.Features)]
     # an environment given as its SG mixture (ENV_MIXTURE), and the gradient variant (its adjoint,
     # warp_sg.shading.kernel_grad) of the features a fit uses

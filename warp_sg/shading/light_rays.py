@@ -34,11 +34,12 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from precompute.visibility.ssdf_wp import SSDFPoint, ssdf_eval_vertex, world_to_local
+from precompute.visibility.ssdf_wp import ssdf_eval_vertex, world_to_local
 from warp_sg.numeric.fastmath import fast_asin
 from warp_sg.scene.lights import LIGHT_POINT, LightArrays, light_irradiance
 from warp_sg.shading.cutout import Cutouts, blocked
-from warp_sg.shading.visibility_terms import Visibility, cap_visible, light_sin_radius, lookup_skip, vertex_frame
+from warp_sg.shading.visibility_terms import (Visibility, cap_visible, light_sin_radius, lookup_skip, vertex_frame,
+                                              vertex_point)
 
 #: rays per vertex and light: RINGS × SECTORS
 RINGS = 4
@@ -97,12 +98,7 @@ def light_rays_kernel(base: int, ids: wp.array(dtype=int), fh_mode: int, vis: Vi
     x = positions[v]
     la, ll, E = light_irradiance(lights, j, x)
     th_h = fast_asin(wp.clamp(wp.dot(la, n), -1.0, 1.0))
-    q = SSDFPoint()  # the vertex alone, for the occluder-cone test
-    q.i0 = v
-    q.i1 = v
-    q.i2 = v
-    q.c0 = 1.0
-    q.n0 = n
+    q = vertex_point(v, n)  # the vertex alone, for the occluder-cone test
     deficit = float(0.0)
     if lookup_skip(fh_mode, vis, q, la, th_h, ll) < 1.0:  # the light's cone meets the vertex's occluders
         sa = light_sin_radius(ll)

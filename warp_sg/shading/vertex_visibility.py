@@ -60,13 +60,13 @@ import numpy as np
 import warp as wp
 
 from precompute.environment.irradiance import irradiance_unscaled
-from precompute.visibility.ssdf_wp import SSDFPoint, ssdf_eval_vertex, texel_direction_array, world_to_local
+from precompute.visibility.ssdf_wp import ssdf_eval_vertex, texel_direction_array, world_to_local
 
 from warp_sg.numeric.fastmath import fast_asin
-from warp_sg.numeric.onb import frame_bitangent, frame_tangent, local_to_world
+from warp_sg.numeric.onb import local_to_world
 from warp_sg.scene.lights import LightArrays, light_irradiance
 from warp_sg.scene.envmap import env_lookup
-from warp_sg.shading.visibility_terms import EnvSG, Visibility, lookup_skip, vertex_frame
+from warp_sg.shading.visibility_terms import EnvSG, Visibility, lookup_skip, vertex_frame, vertex_point
 from warp_sg.sg.irradiance import sg_irradiance_norm_at
 from warp_sg.sg.algebra_wp import sg_integral
 
@@ -161,12 +161,7 @@ def light_vertex_deficit_kernel(base: int, ids: wp.array(dtype=int), fh_mode: in
         v = ids[v]
     n = wp.normalize(vis.normals[v])
     la, ll, E = light_irradiance(lights, j, positions[v])
-    q = SSDFPoint()  # the vertex alone, for the cone test
-    q.i0 = v
-    q.i1 = v
-    q.i2 = v
-    q.c0 = 1.0
-    q.n0 = n
+    q = vertex_point(v, n)  # the vertex alone, for the occluder-cone test
     th_h = fast_asin(wp.clamp(wp.dot(la, n), -1.0, 1.0))
     s = lookup_skip(fh_mode, vis, q, la, th_h, ll)
     d = float(0.0)

@@ -104,6 +104,19 @@ class EnvSG:
 # building blocks (@wp.func)
 # --------------------------------------------------------------------------------------------
 @wp.func
+def vertex_point(v: int, n: wp.vec3) -> SSDFPoint:
+    """The SSDF lookup point of vertex ``v`` alone (weight 1, normal ``n``): a per-vertex cache's cone
+    test and lookups."""
+    q = SSDFPoint()
+    q.i0 = v
+    q.i1 = v
+    q.i2 = v
+    q.c0 = 1.0
+    q.n0 = n
+    return q
+
+
+@wp.func
 def vertex_frame(vis: Visibility, v: int, n: wp.vec3):
     """(t, b) of the frame vertex v's SSDF is stored in: the stored frame of a moving object's vertex
     (``Visibility.frame_t``, ``frame_b``), else the frame of its normal."""
