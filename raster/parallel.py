@@ -25,7 +25,7 @@ _POOL: ThreadPoolExecutor | None = None
 _LOADED: set = set()
 
 
-def _ensure_loaded(kernel, device) -> None:
+def ensure_loaded(kernel, device) -> None:
     """Load (compile) the kernel's module once, before threads race to do it."""
     key = (id(kernel.module), str(device))
     if key not in _LOADED:
@@ -39,7 +39,7 @@ def is_loaded(kernel, device) -> bool:
 
 
 def load_beside(make_kernel, device):
-    """A future of ``make_kernel()`` with its module loaded on ``device`` (:func:`_ensure_loaded`),
+    """A future of ``make_kernel()`` with its module loaded on ``device`` (:func:`ensure_loaded`),
     made on a thread of its own: a frame whose kernel variant is new (built from its source and its
     module hashed: Python work, a few hundred ms for the shading kernel) prepares it while its other
     launches keep the pool's threads busy. Warp serialises its code generation itself."""
@@ -51,7 +51,7 @@ def load_beside(make_kernel, device):
     def run():
         try:
             k = make_kernel()
-            _ensure_loaded(k, device)
+            ensure_loaded(k, device)
             fut.set_result(k)
         except BaseException as e:  # (re-raised by fut.result() in the caller)
             fut.set_exception(e)
@@ -119,7 +119,7 @@ def launch(kernel, n: int, inputs: list, device: str, chunks: int | None = None,
     n = int(n)
     if n <= 0:
         return
-    _ensure_loaded(kernel, device)
+    ensure_loaded(kernel, device)
     cpu = str(device).startswith("cpu")
     per = max(int(per_thread), 1) if (per_thread is not None and cpu) else 1
     head = [] if per_thread is None else [per]
@@ -149,7 +149,7 @@ def launch_split(kernel, bounds, inputs: list, device: str):
     ranges = [(lo, hi - lo) for lo, hi in zip(b[:-1], b[1:]) if hi > lo]
     if not ranges:
         return
-    _ensure_loaded(kernel, device)
+    ensure_loaded(kernel, device)
     if len(ranges) == 1 or not str(device).startswith("cpu"):
         wp.launch(kernel, dim=b[-1] - b[0], inputs=[b[0], *inputs], device=device)
         return
@@ -162,7 +162,7 @@ def launch_rows(kernel, n: int, rows: int, inputs: list, device: str):
     n = int(n)
     if n <= 0:
         return
-    _ensure_loaded(kernel, device)
+    ensure_loaded(kernel, device)
     if rows == 1 or not str(device).startswith("cpu"):
         wp.launch(kernel, dim=n, inputs=[0, *inputs], device=device)
         return

@@ -18,6 +18,11 @@ Stages: ``load`` (asset file → scene → flattened mesh), then the renderer's 
 ``env_fit``, ``env_prefilter``), ``first frame`` (the first ``render()``: its kernels load or
 compile there) and ``warm frame``. ``kernels`` is the sum of Warp's module load times printed
 while it ran (compilation included; it overlaps the stages above).
+
+Per thread and per phase (:class:`warp_sg.core.thread_sampler.ThreadSampler`, every 10 ms): the CPU
+seconds of each thread by name, and for the phases load / constructor / first frame the mean number
+of the process's runnable threads, the share of the time every core would be busy on an idle
+machine and the core-seconds it would leave idle — what "both cores busy" means on a shared machine.
 """
 from __future__ import annotations
 
@@ -77,6 +82,7 @@ def main(argv=None) -> int:
         wp.config.kernel_cache_dir = os.path.join(tmp, "kernels")
     from warp_sg.core.device import resolve_device
     from warp_sg.core.stage_clock import StageClock, load_average
+    from warp_sg.core.thread_sampler import ThreadSampler
 
     tee = _Tee(sys.stdout)
     old = sys.stdout
@@ -102,6 +108,8 @@ def main(argv=None) -> int:
 
         asset = str(textured_helmet(Path(tmp) / "helmet.glb"))
     sys.stdout = tee
+    sampler = ThreadSampler().start()
+    marks = {"start": time.perf_counter()}
     try:
         with clock.stage("load"):
             from warp_sg.scene.importers.asset import asset_scene
@@ -118,9 +126,11 @@ def main(argv=None) -> int:
                 setattr(scene.render, k, type(getattr(scene.render, k))(v))
             geo = scene.geometry()
         w0, c0 = time.perf_counter(), time.process_time()
+        marks["load"] = w0
         Renderer.overlap_precompute = not a.sequential  # sequential: each part's CPU is its own
         r = Renderer(scene, device="cpu")
         pre_wall, pre_cpu = time.perf_counter() - w0, time.process_time() - c0
+        marks["constructor"] = time.perf_counter()
         for k, w in r.timings["precompute_parts"].items():
             clock.add(k, w, r.timings["precompute_cpu"].get(k, 0.0))
         counts = {}
@@ -132,10 +142,12 @@ def main(argv=None) -> int:
                     counts[k] = v
         with clock.stage("first frame"):
             r.render()
+        marks["first frame"] = time.perf_counter()
         with clock.stage("warm frame"):
             r.render()
     finally:
         sys.stdout = old
+        sampler.stop()
     stages = clock.as_dict()
     total_wall = stages["load"][0] + pre_wall + stages["first frame"][0]
     total_cpu = stages["load"][1] + pre_cpu + stages["first frame"][1]
@@ -152,12 +164,24 @@ def main(argv=None) -> int:
     print(f"| precompute (all parts) | {pre_wall:.2f} | {pre_cpu:.2f} |")
     print(f"| kernels (module loads, {tee.compiled} compiled) | {tee.ms / 1000:.2f} | |")
     print(f"peak resident memory {peak_rss_gib():.2f} GiB")
+    phases = {}
+    names = list(marks)
+    for a0, a1 in zip(names[:-1], names[1:]):
+        phases[a1] = sampler.summary(marks[a0], marks[a1])
+    phases["cold first image"] = sampler.summary(marks["start"], marks["first frame"])
+    print(f"| phase ({sampler.cores} cores) | runnable threads | all cores busy | idle core-s |\n|---|---:|---:|---:|")
+    for k, v in phases.items():
+        if v:
+            print(f"| {k} | {v['runnable']:.2f} | {100 * v['all_busy']:.0f} % | {v['idle_core_s']:.2f} |")
+    threads = sampler.thread_cpu()
+    print("CPU s per thread: " + ", ".join(f"{k} {v:.2f}" for k, v in threads.items() if v >= 0.05))
     print(f"| **cold first image** | **{total_wall:.2f}** | **{total_cpu:.2f}** |")
     if a.json:
         Path(a.json).write_text(json.dumps({"asset": Path(asset).name, "triangles": int(len(geo.triangles)),
                                             "vertices": int(nv), "stages": stages, "precompute": [pre_wall, pre_cpu],
                                             "kernels_s": tee.ms / 1000, "total": [total_wall, total_cpu],
                                             "load": [load0, load_average()], "counts": counts,
+                                            "phases": phases, "thread_cpu": threads, "compiled": tee.compiled,
                                             "peak_rss_gib": peak_rss_gib()}, indent=1))
     return 0
 

@@ -182,3 +182,13 @@ def test_moved_frames_are_compared_with_static_frames_of_the_same_run(quick):
     assert _close(cold["cold_over_moved"], cold["frame_s"] / moved["frame_s"])
     assert 0 < moved["raster_s"] < moved["frame_s"] and moved["motion_s"] > 0
     assert rows[-1]["case"] == "setup" and "load average" in rows[-1]["note"]
+
+
+def test_first_run_rows_come_from_fresh_processes_first_frame_before_final(quick):
+    """"first run": a fresh process per run (its CPU seconds include the imports), the progressive
+    first frame before the final one in both runs, and the compile columns of Warp's own records."""
+    row = quick[0].sections["first run"][0]
+    assert row["case"].startswith("generated textured helmet")
+    assert 0 < row["first_frame_s"] <= row["final_s"] and 0 < row["first_frame_compiled_s"] <= row["final_compiled_s"]
+    assert row["cpu_s"] > 0 and row["cpu_compiled_s"] > 0
+    assert row["modules"] >= 0 and row["compile_s"] >= 0 and (row["modules"] > 0) == (row["compile_s"] > 0)

@@ -6,6 +6,7 @@ Each case is a fresh ``python -m warp_sg.tools.cli`` process (Warp initialises o
 and the warning is written by native code straight to file descriptor 2)."""
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -72,3 +73,20 @@ def test_cuda_asked_for_without_a_gpu_is_one_error_line(tmp_path):
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("warp-sg: error:") and "cuda" in lines[0].lower(), r.stderr
     assert not (tmp_path / "o.png").exists()
+
+
+def test_an_unreadable_asset_is_one_error_line_and_leaves_no_half_built_module(tmp_path):
+    """The CLI starts compiling the frames' modules while it reads an asset (kernel_preload): an
+    asset that fails to load exits at once with one line, and the compiles under way finish first
+    (no ``*_p<pid>_t<thread>`` build folder left in Warp's kernel cache, no line from Warp)."""
+    bad = tmp_path / "bad.glb"
+    bad.write_bytes(b"garbage")
+    kernels = tmp_path / "kernels"
+    env = {**os.environ, "WARP_CACHE_PATH": str(kernels), "WARP_SG_CACHE_DIR": str(tmp_path / "cache")}
+    r = subprocess.run([sys.executable, "-m", "warp_sg.tools.cli", "render", str(bad), "-o", str(tmp_path / "o.png")],
+                       capture_output=True, text=True, timeout=300, env=env)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("warp-sg: error:") and "bad.glb" in lines[0], r.stderr
+    left = [p.name for p in kernels.rglob("*_p*_t*")] if kernels.exists() else []
+    assert not left, left

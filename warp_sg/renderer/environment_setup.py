@@ -13,6 +13,7 @@ import warp as wp
 
 from precompute.environment.irradiance import placeholder_table
 
+from warp_sg.renderer.kernel_preload import ENV_MODULES, GAMMA_MODULES
 from warp_sg.renderer.progressive import ShadowJob
 from warp_sg.shading import kernel as S
 from warp_sg.shading.visibility_terms import lobe_constants
@@ -119,6 +120,7 @@ class EnvironmentSetup:
         t = self._tick()
         from precompute.environment.irradiance import cell_radiance, irradiance_cubemap
 
+        self.load_modules(ENV_MODULES)  # (compiled on the pool: kernel_preload)
         self.env_irradiance = irradiance_cubemap(self.env_residual, device=self.device)
         self.env_texel_radiance = wp.array(cell_radiance(self.env_residual).astype(np.float32), dtype=wp.vec3,
                                            device=self.device)
@@ -183,6 +185,7 @@ class EnvironmentSetup:
     def _prefilter(self, **kw):
         import precompute
 
+        self.load_modules(GAMMA_MODULES)
         return precompute.prefilter_environment(self.env_residual, device=self.device,
                                                 base_face=self.scene.render.gamma_resolution,
                                                 progress=self.progress, **kw)

@@ -15,7 +15,10 @@ import time
 import numpy as np
 import warp as wp
 
+from warp_sg.renderer.kernel_preload import FRAME_MODULES, SHADOW_FRAME_MODULES
 from warp_sg.shading import kernel as S
+
+_FRAME_MODULES = FRAME_MODULES + SHADOW_FRAME_MODULES
 from warp_sg.shading.vertex_visibility import update_caches
 
 
@@ -105,6 +108,7 @@ class FramePaths:
         disagree, at every sub-pixel (:mod:`warp_sg.renderer.antialias`) — antialiased silhouettes at a
         fraction of the cost of shading every sub-pixel. A ``progressive`` renderer first installs
         its shadows if they have become ready (:meth:`poll`)."""
+        self.load_modules(_FRAME_MODULES, queued_only=True)  # (compiling ahead on the pool: kernel_preload)
         self.poll()
         self._move()
         self.timings["bounce"] = 0.0  # (light that bounces: this frame's seconds, summed over its launches)
@@ -112,6 +116,8 @@ class FramePaths:
             return self._render()
         finally:
             self._start_gamma_job()  # (a progressive renderer's ΓL ladder: after its first frame)
+            if self.shadows_pending:  # (and the variant its shadowed frames will run)
+                self._preload_final_shade()
 
     def _adaptive(self) -> bool:
         """Whether frames take the edge- and contrast-adaptive path (:meth:`render`): no
@@ -266,7 +272,8 @@ class FramePaths:
         from raster import parallel
 
         # a new variant is built and its module loaded beside the vertex caches
-        loading = None if S.shade_kernel_ready(f, d) else parallel.load_beside(lambda: S.shade_kernel(f), d)
+        loading = None if S.shade_kernel_ready(f, d) else (
+            self._preload.shade(f, priority=0) if self._preload is not None else parallel.load_beside(lambda: S.shade_kernel(f), d))
         es = self._vertex_visibility(self._env_arrays(), f)
         kern = S.shade_kernel(f) if loading is None else loading.result()
         if f.env_specular == S.ENV_PREFILTERED:

@@ -36,7 +36,7 @@ import numpy as np
 import warp as wp
 
 from warp_sg.shading import kernel as S
-from warp_sg.shading.bounce import Indirect, Transfer, no_indirect, sender_arrays, specular_albedo
+from warp_sg.shading.bounce import Indirect, Transfer, no_indirect, sender_arrays, sender_kernel, specular_albedo
 from warp_sg.shading.vertex_visibility import VertexCache
 
 
@@ -116,10 +116,14 @@ class Interreflection:
                 self.dynamic.reads = reads
         return wp.array(out.numpy().reshape(nv, 3), dtype=wp.vec3, device=self.device)
 
+    def _sender_kernels(self):
+        return sender_kernel(self.material_table.models)
+
     def _senders(self):
         """(albedo, emission) of every vertex as a sender (:func:`warp_sg.shading.bounce.sender_arrays`)."""
         _, _, owner, bary = self._vertex_samples()
         mt = self.material_table
+        self.load_kernels(self._sender_kernels())  # (compiled on the pool: warp_sg.renderer.kernel_preload)
         spec = specular_albedo(mt.materials, mt.models, self.device)
         return sender_arrays(owner, bary, self.geo_arrays, mt.materials, mt.models, self.material_textures,
                              self.layers, spec, self.device)

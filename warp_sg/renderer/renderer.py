@@ -40,6 +40,7 @@ from warp_sg.core.device import resolve_device
 from warp_sg.core.errors import InputError, SceneError
 from warp_sg.renderer.costs import check_frame_costs
 from warp_sg.renderer.environment_setup import EnvironmentSetup
+from warp_sg.renderer import kernel_preload
 from warp_sg.renderer.frame import FramePaths
 from warp_sg.renderer.gradients import GradientPaths
 from warp_sg.renderer.interreflection import Interreflection
@@ -47,6 +48,7 @@ from warp_sg.renderer.resources import ResourceSetup
 from warp_sg.renderer.variant import VariantChoice
 from warp_sg.scene.lights import DirectionalLight, EnvironmentLight, PointLight
 from warp_sg.scene.model import Scene
+from warp_sg.shading import kernel as S
 from warp_sg.shading.background import BackgroundCache
 from warp_sg.shading.vertex_visibility import caches
 
@@ -93,6 +95,7 @@ class Renderer(FramePaths, VariantChoice, ResourceSetup, EnvironmentSetup, Gradi
         self.progress = progress
         self.progressive = bool(progressive)
         self.requires_grad = bool(requires_grad)  # (warp_sg.renderer.gradients)
+        self._preload = kernel_preload.get(self.device)  # the compile pool (CPU: modules compiled ahead)
         self.env_mixture = False  # the environment is its SG mixture (set_environment_mixture)
         self._grad = None  # the last taped frame (GradientPaths)
         self._job = None  # the background shadow precompute (progressive)
@@ -109,23 +112,60 @@ class Renderer(FramePaths, VariantChoice, ResourceSetup, EnvironmentSetup, Gradi
         self.dynamic = None  # objects that move (warp_sg.renderer.dynamic_objects; _setup_dynamic)
         self._rest_motions = {k: ob.motion for k, ob in enumerate(scene.objects) if ob.dynamic}  # the built pose
         t0 = time.perf_counter()
+        specular = any(getattr(m.brdf, "is_specular", True) for m in scene.materials.values())
         check_frame_costs(scene, scene.geometry(), shadows=scene.render.shadows,  # the watchdog, before any work
-                          specular=any(getattr(m.brdf, "is_specular", True) for m in scene.materials.values()))
+                          specular=specular)
+        if self._preload is not None:
+            self._preload.tables()
+            self._preload.prefetch(kernel_preload.modules_for(scene.environment is not None, specular))
         with wp.ScopedDevice(self.device):
+            if self._preload is not None:  # (the tables every renderer reads, built beside the above)
+                self._preload.tables(wait=True)
             self._setup_env_peaks()
             self._setup_geometry()
+            if self._job is not None:  # (frames with shadows read the per-vertex caches, and bounce)
+                self.prefetch_modules(kernel_preload.SHADOW_FRAME_MODULES + (
+                    kernel_preload.BOUNCE_FRAME_MODULES if scene.render.bounces > 0 else ()))
             if self.progressive:  # culling's and the contours' per-mesh work beside the environment setup
                 self._start_mesh_caches()
             self._setup_materials()
+            if self._job is not None and scene.render.bounces > 0:  # (the senders' albedo kernels, queued)
+                self.load_kernels(self._sender_kernels(), wait=False)
             self._setup_environment()
             self._ensure_gamma()
             self._setup_lights()
         if self.progressive and self._job is not None:  # the shadows now get the cores the setup had
             self._job = self._job()  # (the scene's ΓL ladder starts after the first frame: _start_gamma_job)
         elif self._job is not None:  # computed beside the environment setup: install them now
+            self._preload_final_shade()  # (its variant compiles while the shadows finish)
             self.wait()
         wp.synchronize_device(self.device)
         self.timings["precompute"] = time.perf_counter() - t0
+
+    def prefetch_modules(self, names, priority: int = 30) -> None:
+        """Queue Warp modules on the compile pool (:mod:`warp_sg.renderer.kernel_preload`; CPU)."""
+        if self._preload is not None:
+            self._preload.prefetch([(n, priority) for n in names])
+
+    def load_modules(self, names, priority: int = 0, queued_only: bool = False) -> None:
+        """Warp modules loaded before this thread launches their kernels: compiled on the pool
+        (:meth:`warp_sg.renderer.kernel_preload.KernelPreload.load`), never twice; no-op on CUDA."""
+        if self._preload is not None:
+            self._preload.load(names, queued_only=queued_only, priority=priority)
+
+    def load_kernels(self, kernels, wait: bool = True) -> None:
+        """Kernels built per content loaded on the compile pool (``wait=False``: queued)."""
+        if self._preload is not None:
+            for k in kernels:
+                self._preload.kernel(k, wait=wait)
+
+    def _preload_final_shade(self) -> None:
+        """Start compiling the shading variant of the frames with shadows (:meth:`final_features`)
+        on the compile pool, if it is not built yet."""
+        if self._preload is not None and not self.requires_grad:
+            f = self.final_features()
+            if not S.shade_kernel_ready(f, self.device):
+                self._preload.shade(f)
 
     @staticmethod
     def _tick():

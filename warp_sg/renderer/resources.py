@@ -21,6 +21,7 @@ import warp as wp
 
 from warp_sg.brdf.kernel.term_mask import TermMask
 from warp_sg.core.errors import InputError, SceneError
+from warp_sg.renderer.kernel_preload import BOUNCE_MODULES, SHADOW_MODULES
 from warp_sg.renderer.progressive import ShadowJob
 from warp_sg.renderer.visibility_setup import refine_key, visibility_arrays
 from warp_sg.scene.lights import light_arrays
@@ -72,12 +73,19 @@ class ResourceSetup:
         kw = {"progress": self.progress, "compute": self._ssdf_compute, "precomputed": self._precomputed,
               "lights": self._refine_lights(), "cutouts": lambda geo: cutout_data(geo, self.scene.materials),
               "dynamic": [bool(ob.dynamic) for ob in self.scene.objects]}  # (per-group SSDFs where any)
+
+        def shadows():  # (their modules compiled on the pool first, a progressive renderer's behind its frames')
+            if self._precomputed is None:
+                self.load_modules(SHADOW_MODULES + (BOUNCE_MODULES if self.scene.render.bounces > 0 else ()),
+                                  priority=50 if self.progressive else 0)
+            return compute_visibility(*args, **kw)
+
         if self.progressive:  # started once the first frame's own precompute is done (__init__)
-            self._job = lambda: ShadowJob(lambda: compute_visibility(*args, **kw), background=True)
+            self._job = lambda: ShadowJob(shadows, background=True)
         elif self.overlap_precompute:  # beside the environment fit and ΓL (single-threaded parts)
-            self._job = ShadowJob(lambda: compute_visibility(*args, **kw))
+            self._job = ShadowJob(shadows)
         else:
-            self._install_shadows(compute_visibility(*args, **kw))
+            self._install_shadows(shadows())
 
     def _install_geometry(self, g, ref):
         self.refinement = ref if ref is not None and len(ref.vertices) > len(self.input_geometry.vertices) else None
@@ -222,6 +230,8 @@ class ResourceSetup:
                       for s in slots[:len(mats), SLOT_P0]]
             if self.requires_grad:  # ranges that stay put between edits (warp_sg.renderer.gradients)
                 ranges = self._fixed_albedo_ranges(names, ranges)
+            if self._preload is not None:  # (the material set's albedo kernel: compiled on the pool)
+                self._preload.kernel(albedo.albedo_kernel(self.material_table.models))
             albedo.attach(self.material_table, ranges, irradiance_table_array(self.device), self.device)
 
     def _setup_lights(self):

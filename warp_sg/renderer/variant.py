@@ -11,6 +11,8 @@ that bounces (:mod:`warp_sg.renderer.interreflection`; not in the adjoint's fram
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 from warp_sg.shading import kernel as S
 
 
@@ -26,6 +28,20 @@ class VariantChoice:
         """The diffuse environment term as the exact irradiance times the per-vertex visible fraction
         (``visibility_sampling = "vertex"`` with shadows shown; needs ρd = kd/π, no Oren–Nayar)."""
         return self.features().env_visible_vertex  # (gated by shading.Features)
+
+    def final_features(self) -> S.Features:
+        """The variant of the frames once the shadows are installed: :meth:`features` as it will be
+        when a pending shadow precompute (``progressive``, or beside the environment setup) is done."""
+        if self.shadows or getattr(self, "_job", None) is None:
+            return self.features()
+        self.shadows = True
+        try:
+            f = self.features()
+        finally:
+            self.shadows = False
+        bounce = (self.scene.render.bounces > 0 and self.show_shadows and getattr(self, "show_bounces", True)
+                  and not self.requires_grad)  # (the job's gather rows: light that bounces)
+        return f if f.bounce == bounce else replace(f, bounce=bounce)
 
     def features(self) -> S.Features:
         return S.Features(

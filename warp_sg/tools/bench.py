@@ -404,6 +404,7 @@ SECTIONS = {
     "equal error vs Mitsuba 3: every model (accuracy matrix)": _lazy("bench_matrix", "matrix_equal_error_section"),
     "SSDF error vs ray budget": _lazy("bench_first_image", "ray_budget_section"),
     "time to first image": _lazy("bench_first_image", "first_image_section"),
+    "first run": _lazy("bench_first_image", "first_run_section"),
     "objects that move": _lazy("bench_motion", "motion_section"),
     "light that bounces": _lazy("bench_bounce", "bounce_section"),
 }

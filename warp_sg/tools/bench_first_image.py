@@ -22,6 +22,17 @@ load and the first render at the sample count that reaches our error, JIT includ
 ``mitsuba_warm_s`` (that render warm), with ``cold_ratio`` and ``warm_ratio`` (Mitsuba's time over
 ours).
 
+**first run** (:func:`first_run_section`): what a new installation meets, per asset of the same list,
+each in a fresh process (Warp compiles a module once per process and machine) with an empty Warp
+kernel cache and an empty precompute cache: ``first_frame_s`` (process start to the progressive
+first frame: imports, asset, constructor, frame), ``final_s`` (to the shadowed frame), ``cpu_s``,
+``compile_s`` (the summed load time of the modules Warp compiled, :mod:`warp_sg.core.module_loads`;
+loads on parallel threads overlap, so it can exceed the wall time they took) and ``modules`` (how
+many); then the same with the kernels that first run compiled and the asset-independent tables it
+built (``first_frame_compiled_s``, ``final_compiled_s``, ``cpu_compiled_s``): a new asset on a
+machine that has rendered before.
+Quick: the 2 k-triangle helmet at 64×48 with the machine's own kernel cache (a smoke test).
+
 **SSDF error vs ray budget** (:func:`ray_budget_section`): the adaptive visibility rays
 (:mod:`precompute.visibility.adaptive_rays`) at several budgets against a ray per texel on the same vertices:
 rays per vertex, CPU ms per vertex, the SSDF's mean difference from the full-ray SSDF near
@@ -204,6 +215,85 @@ def first_image_section(device="cpu", quick=False):
     return rows
 
 
+def first_run_child(path, size, quick, device) -> dict:
+    """One progressive render of ``path`` in this (fresh) process, timed from ``FIRST_RUN_T0`` (the
+    parent's record of the process start, else now): :func:`first_run_section`'s columns."""
+    t0 = float(os.environ.get("FIRST_RUN_T0", time.time()))
+    from warp_sg.core.device import resolve_device
+    from warp_sg.core.module_loads import ModuleLoads
+
+    dev = resolve_device(device)
+    with ModuleLoads() as loads:
+        from warp_sg.renderer.renderer import Renderer
+
+        r = Renderer(_asset_scene(path, size, quick), device=dev, progressive=True)
+        r.render()
+        first = time.time() - t0
+        r.wait()
+        r.render()
+        final = time.time() - t0
+    return {"first_frame_s": first, "final_s": final, "cpu_s": time.process_time(),
+            "compile_s": loads.compile_seconds, "modules": len(loads.compiled)}
+
+
+def _first_run(path, size, quick, device, kernels, tables) -> dict:
+    """:func:`first_run_child` in a new interpreter with ``kernels`` as Warp's kernel cache and an
+    empty precompute cache but for the asset-independent tables in ``tables`` when it exists (a
+    machine that has rendered before has them; the first run's are kept there)."""
+    import json
+    import shutil
+    import subprocess
+    import sys
+
+    code = ("import json, sys; from warp_sg.tools.bench_first_image import first_run_child; "
+            "print(json.dumps(first_run_child(sys.argv[1], (int(sys.argv[2]), int(sys.argv[3])), "
+            "sys.argv[4] == '1', sys.argv[5])))")
+    with tempfile.TemporaryDirectory() as cache:
+        if Path(tables).is_dir():
+            shutil.copytree(tables, Path(cache) / "tables")
+        env = {**os.environ, "WARP_SG_CACHE_DIR": cache, "FIRST_RUN_T0": repr(time.time())}
+        if kernels is not None:
+            env["WARP_CACHE_PATH"] = str(kernels)
+        out = subprocess.run([sys.executable, "-c", code, str(path), str(size[0]), str(size[1]), "1" if quick else "0",
+                              str(device)], env=env, capture_output=True, text=True, timeout=3600)
+        if not Path(tables).exists() and (Path(cache) / "tables").is_dir():
+            shutil.copytree(Path(cache) / "tables", tables)
+    if out.returncode != 0:
+        raise RuntimeError(out.stderr.strip().splitlines()[-1] if out.stderr.strip() else f"exit {out.returncode}")
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def first_run_section(device="cpu", quick=False):
+    """Rows of "first run" (module docstring)."""
+    from warp_sg.tools.bench_assets import textured_helmet
+
+    size = (64, 48) if quick else SIZE
+    rows = []
+    with tempfile.TemporaryDirectory() as d:
+        items = [(textured_helmet(Path(d) / "helmet.glb", triangles=2000 if quick else 16000),
+                  "generated textured helmet" + (" (2 k triangles)" if quick else " (17 k triangles)"))]
+        if not quick:
+            items += [(SHARED_ASSETS / n if (SHARED_ASSETS / n).is_file() else None,
+                       lb if (SHARED_ASSETS / n).is_file() else f"{lb}: skipped (no {SHARED_ASSETS / n})")
+                      for n, lb in ASSETS]
+        for k, (path, label) in enumerate(items):
+            if path is None:
+                rows.append({"case": label})
+                continue
+            row = {"case": label + (" (kernels as cached here)" if quick else ""), "load": load_average()}
+            kernels = None if quick else Path(d) / f"kernels{k}"
+            try:
+                tables = Path(d) / f"tables{k}"
+                row.update(_first_run(path, size, quick, device, kernels, tables))
+                again = _first_run(path, size, quick, device, kernels, tables)
+                row.update(first_frame_compiled_s=again["first_frame_s"], final_compiled_s=again["final_s"],
+                           cpu_compiled_s=again["cpu_s"])
+            except Exception as e:  # noqa: BLE001 - one asset that cannot load must not hide the rest
+                row["note"] = f"skipped: {type(e).__name__}: {e}"
+            rows.append(row)
+    return rows
+
+
 def ray_budget_section(device="cpu", quick=False):
     """Rows of "SSDF error vs ray budget" (module docstring): the plane-and-box mesh of
     ``warp_sg.tools.bench_precompute`` (floor vertices around the box), and the scanned head of the shared
@@ -248,4 +338,5 @@ def ray_budget_section(device="cpu", quick=False):
     return rows
 
 
-__all__ = ["first_image_section", "ray_budget_section", "SHARED_ASSETS", "ASSETS"]
+__all__ = ["first_image_section", "first_run_section", "first_run_child", "ray_budget_section", "SHARED_ASSETS",
+           "ASSETS"]

@@ -173,6 +173,15 @@ def _render_scene(args, width=None, height=None):
     return scene, text
 
 
+def _compile_ahead(args) -> None:
+    """An asset rendered on the CPU: the frames' Warp modules start compiling while it is read
+    (:func:`warp_sg.renderer.kernel_preload.prefetch_early`)."""
+    if not str(args.scene).lower().endswith(".toml") and args.device in (None, "cpu") and not getattr(args, "cluster", None):
+        from warp_sg.renderer.kernel_preload import prefetch_early
+
+        prefetch_early("cpu")
+
+
 def render_main(args) -> int:
     from warp_sg.core.image_io import save_image
     from warp_sg.renderer.renderer import Renderer
@@ -187,6 +196,8 @@ def render_main(args) -> int:
         if args.cluster:
             raise _Fail("--first-frame computes the shadows on this machine; it cannot be combined with --cluster")
         first = check_output_path(args.first_frame, create_parents=True)
+    if out is not None:
+        _compile_ahead(args)
     scene, text = _render_scene(args, args.width, args.height)
     if args.print_scene:
         print(text, end="" if text.endswith("\n") else "\n")
@@ -263,6 +274,7 @@ def preview_main(args) -> int:
     if not math.isfinite(args.exposure):
         raise InputError(f"must be a finite number, got {args.exposure}", where="--exposure")
     size = tuple(args.window_size) if args.window_size else (None, None)
+    _compile_ahead(args)
     scene, _ = _render_scene(args, *size)  # an asset: the scene `warp-sg render` makes for it
     preview(scene, screenshot=args.screenshot, device=args.device,
             window_size=tuple(args.window_size) if args.window_size else None, exposure=args.exposure)
