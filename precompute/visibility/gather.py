@@ -170,22 +170,38 @@ def compress_rows(sender: np.ndarray, weight: np.ndarray, direction: np.ndarray,
     return counts, usnd.astype(np.int32), ws, ds
 
 
-def _merged_weight(row, w, d, kept, start, refs: int, chunk: int = 1 << 22) -> np.ndarray:
+@wp.kernel(enable_backward=False)
+def merge_kernel(start: wp.array(dtype=int), count: wp.array(dtype=int), refs: int, w: wp.array(dtype=float),
+                 d: wp.array(dtype=wp.vec3), extra: wp.array(dtype=float)):
+    """Row ``tid`` (its references ``start .. start + count − 1``, heaviest first): each reference
+    past the first ``refs`` adds its weight to ``extra`` of the kept one nearest in direction."""
+    r = wp.tid()
+    s = start[r]
+    for j in range(s + refs, s + count[r]):
+        best = s
+        bd = float(-2.0)
+        for k in range(s, s + refs):
+            c = wp.dot(d[j], d[k])
+            if c > bd:
+                bd = c
+                best = k
+        extra[best] = extra[best] + w[j]
+
+
+def _merged_weight(row, w, d, kept, start, refs: int) -> np.ndarray:
     """The weight each kept reference takes over from the dropped ones of its row: every dropped
     sender's weight goes to the kept sender of its row nearest in direction (the largest ``d·d'``;
-    references sorted per row, heaviest first, the first ``refs`` kept)."""
-    extra = np.zeros(len(w))
-    drop = np.flatnonzero(~kept)
-    rows = row[drop]
-    # (dropped reference, each of its row's kept ones): in chunks of at most `chunk` pairs
-    step = max(1, chunk // refs)
-    for s in range(0, len(drop), step):
-        dd, rr = drop[s:s + step], rows[s:s + step]
-        cand = start[rr][:, None] + np.arange(refs)[None, :]  # (n, refs): the row's kept references
-        dots = np.einsum("nc,nkc->nk", d[dd], d[cand])
-        best = cand[np.arange(len(dd)), np.argmax(dots, axis=1)]
-        np.add.at(extra, best, w[dd])
-    return extra
+    references sorted per row, heaviest first, the first ``refs`` kept): :func:`merge_kernel` on
+    the rows that drop any."""
+    counts = np.bincount(row, minlength=len(start))
+    rows = np.flatnonzero(counts > refs)
+    extra = wp.zeros(len(w), dtype=float, device="cpu")
+    wp.launch(merge_kernel, dim=len(rows), device="cpu",
+              inputs=[wp.array(start[rows].astype(np.int32), dtype=int, device="cpu"),
+                      wp.array(counts[rows].astype(np.int32), dtype=int, device="cpu"), int(refs),
+                      wp.array(w.astype(np.float32), dtype=float, device="cpu"),
+                      wp.array(d.astype(np.float32), dtype=wp.vec3, device="cpu"), extra])
+    return extra.numpy().astype(np.float64)
 
 
 @dataclass
