@@ -75,7 +75,7 @@ def test_glossy_object_is_unbiased_under_a_sky_with_a_sun(tmp_path, sky_file, na
     e = _object_bias(tmp_path, MATERIALS[name], sky_file if sky == "clear_day" else None, SIZES.get(name, SIZE))
     assert e["pixels"] > 100
     # against the full path tracer, with the light that bounces: a near-mirror shows the floor and its
-    # contact shadow sharply, which the indirect light's 64 fixed lobes blur (−3.7 % measured; the
+    # contact shadow sharply, which the indirect light's 32 fixed lobes blur (−3.7 % measured; the
     # direct light alone within 3 %, as are the rougher lobes with their bounces)
     tol = 0.04 if (name, sky) == ("ggx_0.02", "clear_day") else 0.03
     assert abs(e["bias"]) <= tol, (name, sky, e["bias_rgb"])

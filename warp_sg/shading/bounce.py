@@ -58,8 +58,8 @@ from warp_sg.sg.fh import fh_table_wp
 #: a bounce that adds less than this share of the light gathered so far ends the iteration
 STOP = 0.01
 #: fixed world-space lobes of the indirect radiance seen by glossy receivers, and their sharpness
-LOBES = 64
-LOBE_SHARPNESS = 12.0
+LOBES = 32
+LOBE_SHARPNESS = 8.0
 #: lobes whose product with a BRDF lobe is below e^-CUT_EXPONENT of its peak are skipped
 CUT_EXPONENT = wp.constant(5.0)
 #: the smallest cosine a reference's solid angle is computed with (grazing rays: dω = π w / cos)
