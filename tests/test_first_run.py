@@ -81,10 +81,16 @@ def test_a_renderer_without_the_compile_pool_renders_the_same_frame(cache_dir, m
 def test_the_thread_sampler_sees_busy_threads_and_their_cpu():
     from warp_sg.core.thread_sampler import ThreadSampler
 
+    import hashlib
+
+    block = bytes(1 << 20)
+
     def spin(seconds):
+        # hashing a large buffer releases the GIL: both threads run at once, as compiler threads do
+        # (two pure-Python loops take turns holding the GIL, and starve the sampler's thread)
         end = time.thread_time() + seconds  # (CPU seconds: the same work on a loaded machine)
         while time.thread_time() < end:
-            pass
+            hashlib.sha256(block).digest()
 
     with ThreadSampler(interval=0.005, cores=2) as s:
         time.sleep(0.2)  # nobody works
@@ -96,6 +102,7 @@ def test_the_thread_sampler_sees_busy_threads_and_their_cpu():
             t.join()
         t1 = time.perf_counter()
     idle, busy = s.summary(None, t0), s.summary(t0 + 0.05, t1 - 0.05)
+    assert idle and busy, f"the sampler took {len(s.samples)} samples, none in a window"
     assert idle["runnable"] < 0.5 and idle["all_busy"] < 0.2
     assert busy["runnable"] > 1.5 and busy["all_busy"] > 0.8
     cpu = s.thread_cpu()

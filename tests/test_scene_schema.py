@@ -107,12 +107,17 @@ def test_committed_schema_equals_the_generated_one():
 
 def test_every_example_scene_validates_against_the_json_schema(validator):
     """Every ``examples/*.toml`` but the ``warp-sg batch`` job files (``*_job.toml``, which name a
-    scene instead of being one; ``.taplo.toml`` excludes them the same way)."""
+    scene instead of being one) and the photographs of ``warp-sg fit`` (``*_views.toml``: cameras and
+    images); ``.taplo.toml`` excludes them the same way."""
     files = sorted((ROOT / "examples").glob("*.toml"))
     jobs = [f for f in files if f.name.endswith("_job.toml")]
     for f in jobs:
         assert {"scene", "output"} <= set(tomllib.loads(f.read_text())), f"{f.name} is not a batch job"
-    files = [f for f in files if f not in jobs]
+    views = [f for f in files if f.name.endswith("_views.toml")]
+    for f in views:
+        assert set(tomllib.loads(f.read_text())) == {"views"}, f"{f.name} is not a list of photographs"
+    assert views, "examples/fit_views.toml (the fit example's photographs) is gone"
+    files = [f for f in files if f not in jobs and f not in views]
     assert len(files) >= 5
     for f in files:
         data = tomllib.loads(f.read_text())

@@ -422,8 +422,8 @@ def run_bench(device="cpu", quick=False, sections=None, print_fn=print, cluster=
     for s in sections or ():
         if not any(s in name for name in SECTIONS):
             words = {w for name in SECTIONS for w in name.replace(":", " ").split()}
-            raise InputError(f"no section's name contains {s!r}{did_you_mean(s, words)} (sections: "
-                             f"{'; '.join(SECTIONS)})", where="--section")
+            raise InputError(f"no section's name contains {s!r}{did_you_mean(s, words)} (`warp-sg bench "
+                             f"--help` lists the {len(SECTIONS)} sections)", where="--section")
     from warp_sg.groundtruth.reference import check_max_depth
 
     if max_depth is not None:
@@ -457,7 +457,8 @@ def add_cli_arguments(p) -> None:
     add_device_argument(p, scene=False)
     p.add_argument("--quick", action="store_true", help="tiny sizes (smoke test)")
     p.add_argument("--section", action="append", default=None,
-                   help="run only sections whose name contains this (repeatable)")
+                   help="run only sections whose name contains this (repeatable); sections: "
+                        + "; ".join(SECTIONS))
     p.add_argument("-o", "--output", default=None, help="also write the tables (markdown) to this file")
     p.add_argument("--cluster", default=None, metavar="local:N|tcp://HOST:PORT",
                    help="also time the SSDF precompute on a Dask cluster (docs/distributed.md)")
