@@ -239,7 +239,7 @@ def test_moved_ball_matches_the_reference_per_region(tmp_path):
     ball there (``r.scene``): object, lit floor and the ball's shadow."""
     from warp_sg.groundtruth.region_error import box_reference, region_errors, scene_regions
 
-    r = ws.Renderer(_scene(tmp_path, size=48))
+    r = ws.Renderer(_scene(tmp_path, size=48, bounces=0))  # (the direct light: bounces in test_interreflection_moving)
     r.set_object_transform("object", _roll(0.9, 0.3))
     img = r.render()
     ref = box_reference(r.scene, spp=256, supersample=4, max_depth=2)  # direct light
@@ -299,7 +299,8 @@ def test_a_glossy_moving_ball_sees_the_sky_past_the_floors_edge(tmp_path):
     from warp_sg.groundtruth.region_error import box_reference, region_errors, scene_regions
 
     sc = ws.load_scene(write_plain_scene(tmp_path, material="blinn_phong", size=40, dynamic=True,
-                                         render={"ssdf_resolution": 16, "pca_terms": 16, "visibility_budget": 4000}))
+                                         render={"ssdf_resolution": 16, "pca_terms": 16, "visibility_budget": 4000,
+                                                 "bounces": 0}))
     r = ws.Renderer(sc)
     img = r.render()
     ref = box_reference(r.scene, spp=256, supersample=4, max_depth=2)  # direct light

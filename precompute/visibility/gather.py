@@ -30,7 +30,9 @@ offsets).
 **Objects that move** (``groups``, as the SSDFs' :mod:`precompute.visibility.ssdf_groups`): the
 vertices of each group — the static objects together, each dynamic object alone — gather from
 their own group's triangles only. A group's rows then hold under any rigid motion of it (its
-directions turn with it); the light between groups is left out.
+directions turn with it); the light between groups is left out of them: after each move the
+renderer casts the rows that see a moving object again at the current pose
+(:mod:`precompute.visibility.gather_pose`).
 
 Cached on disk (:func:`warp_sg.core.cache.load_or_build`, kind ``gather``) under a content hash of
 the mesh, the parameters and this code, beside the SSDF entry of the same mesh: light,

@@ -15,9 +15,11 @@ A frame then needs, per vertex (:mod:`warp_sg.shading.bounce`):
 
 **Objects that move** (``dynamic = true``): the rows are per group (:mod:`precompute.visibility.gather`),
 so a moving object keeps the light it throws on itself (its rows' directions turned with it) and
-the static objects theirs; the light that bounces between a moving object and the rest is left
-out — no stale light, but a contact's bounce is missing (docs/rendering.md gives the error). A
-move re-shades the vertices' direct light (its shadow moved) and runs the bounces again.
+the static objects theirs. A move (and the first frame) casts the rows of the moving objects'
+vertices and of the vertices whose hemisphere sees one again, against the scene as it stands
+(:meth:`_pose_rows`, :mod:`precompute.visibility.gather_pose`), in place of theirs: the light
+between a moving object and the rest, and no stale light (the rows are a function of the
+transforms). A move re-shades the vertices' direct light (its shadow moved) and runs the bounces again.
 
 A camera move reuses all three, so does a frame with nothing changed: the kernel only reads the
 vertices' indirect irradiance (and, for glossy materials, the lobes' amplitudes). ``timings``
@@ -45,6 +47,9 @@ class Interreflection:
 
     #: light that bounces shown (:meth:`set_terms`; the viewer's check box)
     show_bounces = True
+    #: rays per vertex of the rows cast again after a move (None: the gather's own, 256; docs/benchmarks.md
+    #: "Light that bounces" measures both)
+    pose_rays = 64
 
     def _reset_bounces(self, gather=None) -> None:
         """Forget the frame state of the bounces; ``gather``: the installed geometry's rows (None: none)."""
@@ -137,8 +142,10 @@ class Interreflection:
         c_direct, c_send, c_solve = self._bounce_caches
         dyn = None if self.dynamic is None else self.dynamic.version
         if dyn is not None and getattr(self, "_turned", None) != (self._transfer, dyn):
-            # the moved objects' rows point where their objects turned (their own group's senders)
-            self._transfer.turn([(ids, self.dynamic._delta(k)[0]) for k, ids in self.dynamic.ids.items()])
+            # the moved objects' rows point where their objects turned (their own group's senders),
+            # and the rows the move changes are cast again at the current pose (_pose_rows)
+            self._transfer.turn([(ids, self.dynamic._delta(k)[0]) for k, ids in self.dynamic.ids.items()],
+                                rows=self._pose_rows())
             self._turned = (self._transfer, dyn)
         key_d = (self.light_arrays, self._env_arrays_key, self.vis, self.geometry, dyn, astuple(f))
         g_direct = c_direct.array(key_d, lambda: self._direct_irradiance(f), self.device)
@@ -156,6 +163,28 @@ class Interreflection:
         ind = c_solve.array(key, solve, self.device)
         self.timings["bounce"] = self.timings.get("bounce", 0.0) + time.perf_counter() - t0
         return ind
+
+    def _pose_rows(self):
+        """``(ids, counts, senders, weights, directions)``: the gather rows a move changes, cast at
+        the current pose (:mod:`precompute.visibility.gather_pose`: the moving objects' vertices and
+        the vertices whose hemisphere sees one; at :attr:`pose_rays` rays each, default the gather's
+        own). ``timings["pose_rows"]``, ``["pose_rows_cpu"]``: their wall and CPU seconds."""
+        from precompute.visibility.gather_pose import PoseGather
+
+        w0, c0 = time.perf_counter(), time.process_time()
+        dyn, ga, t = self.dynamic, self.geo_arrays, self._transfer
+        pg = getattr(self, "_pose_gather", None)
+        if pg is None or pg[0] is not t or pg[1].points is not ga.positions:
+            pg = (t, PoseGather(ga.positions, ga.normals, self.geometry.triangles, dyn.rest_v, self.device))
+            self._pose_gather = pg
+        ids = pg[1].receivers(dyn.vertex_object, dyn.flags, dyn.px.bounds)
+        if t.blend is not None:  # (rows at representatives: the others are blended from theirs)
+            ids = ids[t.blend[0].numpy()[ids, 0] == ids]
+        rays = self.pose_rays or self.gather.rays
+        rows = (ids, *pg[1].rows(ids, rays, self.gather.refs))
+        self.timings["pose_rows"] = time.perf_counter() - w0
+        self.timings["pose_rows_cpu"] = time.process_time() - c0
+        return rows
 
     def indirect_irradiance(self) -> np.ndarray:
         """(V, 3) float32: each vertex's indirect irradiance of the current state (zeros when the

@@ -421,18 +421,19 @@ class Transfer:
         self.l2 = wp.array(l2, dtype=int, device=self.device)
         self.k1 = wp.array(k1, dtype=float, device=self.device)
 
-    def turn(self, turns) -> None:
+    def turn(self, turns, rows=None) -> None:
         """``turns``: ``[(vertex ids, R)]``: the references of those vertices' rows point along their
-        rest direction turned by ``R`` (3×3); the others along their rest direction."""
-        d = self.rest_dirs.copy()
-        off = self.data.offsets.astype(np.int64)
-        for ids, R in turns:
-            ids = np.asarray(ids, np.int64)
-            start, cnt = off[ids], off[ids + 1] - off[ids]
-            refs = np.repeat(start - np.concatenate([[0], np.cumsum(cnt)[:-1]]), cnt) + np.arange(int(cnt.sum()))
-            d[refs] = self.rest_dirs[refs] @ np.asarray(R, np.float32).T
-        self.dirs = wp.array(d, dtype=wp.vec3, device=self.device)
-        self._split(d)
+        rest direction turned by ``R`` (3×3), the others' along their rest direction; ``rows``: rows
+        cast at the current pose that replace those vertices' own
+        (:func:`precompute.visibility.gather_pose.posed_rows`)."""
+        from precompute.visibility.gather_pose import posed_rows
+
+        off, snd, w, d = posed_rows(self.data, self.rest_dirs, turns, rows)
+        one = lambda a, z, t: wp.array(a if len(a) else z, dtype=t, device=self.device)  # noqa: E731
+        self.offsets = wp.array(off, dtype=int, device=self.device)
+        self.senders, self.weights = one(snd, np.zeros(1, np.int32), int), one(w, np.zeros(1, np.float32), float)
+        self.dirs = one(d, np.zeros((1, 3), np.float32), wp.vec3)
+        self.l1 = None  # (the lobe split of the new directions: at the next solve that reads the lobes)
 
     def _launch(self, kernel, inputs):
         from raster import parallel
@@ -476,6 +477,8 @@ class Transfer:
         ind.axis = self.axis
         ind.lam = LOBE_SHARPNESS
         if lobes:
+            if self.l1 is None:
+                self._split(self.dirs.numpy())
             ind.lobes = wp.empty((n, int(self.axis.shape[0])), dtype=wp.vec3, device=d)
             self._launch(lobes_kernel, [self.offsets, self.senders, self.weights, self.dirs, self.l1, self.l2,
                                         self.k1, normals, total, ind.lobes])
