@@ -10,7 +10,9 @@ alone, 32²). Per scene, after a first frame:
 
 * a frame after ``set_object_transform`` (a new pose each time) alternates with a static frame
   shaded again (nothing changed: the visibility buffer reused), so that both see the same load;
-  ``vs_reshade`` is the ratio of their medians (the target: ≤ 1.5);
+  ``vs_reshade`` is the ratio of their medians (the target: ≤ 1.5 with ``[render] bounces = 0``; with
+  bounces a move also casts the gather rows it changes again, :mod:`precompute.visibility.gather_pose`:
+  4–6× at 256², docs/benchmarks.md "Light that bounces");
 * static frames with the camera nudged (raster and shading again): ``vs_nudged``;
 * a new ``Renderer`` of the scene at the last pose, the object static, with an empty cache (its
   construction and first frame: what each frame would cost without dynamic objects):
