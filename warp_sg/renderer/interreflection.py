@@ -167,7 +167,7 @@ class Interreflection:
     def _pose_rows(self):
         """``(ids, counts, senders, weights, directions)``: the gather rows a move changes, cast at
         the current pose (:mod:`precompute.visibility.gather_pose`: the moving objects' vertices and
-        the vertices whose hemisphere sees one; at :attr:`pose_rays` rays each, default the gather's
+        the vertices whose hemisphere sees one; :attr:`pose_rays` rays each, None: the gather's
         own). ``timings["pose_rows"]``, ``["pose_rows_cpu"]``: their wall and CPU seconds."""
         from precompute.visibility.gather_pose import PoseGather
 
