@@ -226,7 +226,8 @@ def _read_gltf(path: Path, images: bool) -> GltfAsset:
     failed = _TrimeshFailures()
     try:
         with failed:
-            sc = trimesh.load(io.BytesIO(glb), file_type="glb", force="scene", skip_materials=not images)
+            # (materials always: trimesh drops the UVs with them; without images they cost nothing)
+            sc = trimesh.load(io.BytesIO(glb), file_type="glb", force="scene", skip_materials=False)
     except Exception as e:  # noqa: BLE001 - the checks above leave trimesh nothing it cannot read
         raise MeshError(f"cannot read glTF file (trimesh: {e})", where=str(path)) from None
     if failed.messages:  # e.g. a Draco blob that does not decode: trimesh would go on with zeros
