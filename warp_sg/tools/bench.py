@@ -31,6 +31,11 @@ ratios are meant to carry over between machines):
 10. **light that bounces** — warm and edit frames with ``[render] bounces`` against without, the
     cold precompute with the gather against without, the gather's bytes per reference
     (:mod:`warp_sg.tools.bench_bounce`).
+11. **inverse rendering: relighting** — ``ws.fit`` of the environment and the base-colour and
+    roughness textures from path-traced photographs under one environment, relit under another
+    from novel views: relighting PSNR, albedo PSNR, roughness error, fit time; Mitsuba 3's ``prb``
+    at equal wall time where installed (:mod:`warp_sg.tools.bench_inverse`; full size:
+    ``scripts/inverse_bench.py``).
 
 The bench scene (:func:`bench_scene`) is a Torrance-Sparrow sphere, a Ward torus and a Lambert
 floor under the procedural sky with one point light and one directional light.
@@ -407,6 +412,7 @@ SECTIONS = {
     "first run": _lazy("bench_first_image", "first_run_section"),
     "objects that move": _lazy("bench_motion", "motion_section"),
     "light that bounces": _lazy("bench_bounce", "bounce_section"),
+    "inverse rendering: relighting": _lazy("bench_inverse", "inverse_section"),
 }
 
 

@@ -87,16 +87,49 @@ def _fitted_textures(scene) -> tuple[np.ndarray, np.ndarray]:
     return kd, al
 
 
-def coarse_to_fine(start: Path, views: Path, folder: Path, levels, *, env_lobes: int, progress: bool, device,
-                   log) -> "FitResult":
+def indirect_light(scene_path: Path, cams, device) -> list[np.ndarray]:
+    """Per camera table: the light that bounces in our renderer's frame of the scene file
+    ``scene_path`` (its ``[render] bounces`` set to 4): the frame with bounces less the frame without."""
+    from dataclasses import replace
+
+    from warp_sg.renderer.renderer import Renderer
+    from warp_sg.scene.loader import load_scene
+
+    scene = load_scene(scene_path)
+    scene.render = replace(scene.render, bounces=4)
+    r = Renderer(scene, device, progress=False)
+    out = []
+    for c in cams:
+        r.set_camera(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in c.items()})
+        r.set_terms(bounces=True)
+        full = np.asarray(r.render(), np.float64)
+        r.set_terms(bounces=False)
+        out.append(full - np.asarray(r.render(), np.float64))
+    return out
+
+
+def coarse_to_fine(start: Path, cams, photos, masks, folder: Path, levels, *, env_lobes: int, progress: bool,
+                   device, log) -> "FitResult":
     """``ws.fit`` of :data:`FREE` in ``levels`` — ``(texture_size, iterations)`` each, ``None``: the
     textures at their own sizes — each level starting from the last one's fitted scene (its textures
-    resampled up, its environment projected on the basis again). Returns the last level's result
-    with ``seconds`` and ``losses`` of all levels together."""
+    resampled up, its environment projected on the basis again). The fit shades direct light only;
+    from the second level on it matches the photographs less the light that bounces in our frames of
+    the last level's result (:func:`indirect_light`), so that the base colour does not take the
+    interreflection in. Returns the last level's result with ``seconds`` (the indirect light's
+    frames included) and ``losses`` of all levels together."""
     import warp_sg as ws
+    from warp_sg.tools.inverse_problem import write_views
 
+    folder.mkdir(parents=True, exist_ok=True)
     scene, seconds, losses, res = Path(start), 0.0, [], None
+    views = write_views(folder, cams, photos, "views_level0", masks)
     for k, (size, its) in enumerate(levels):
+        if k > 0:
+            t = time.perf_counter()
+            ind = indirect_light(scene, cams, device)
+            views = write_views(folder, cams, [np.maximum(p - i, 0.0) for p, i in zip(photos, ind)],
+                                f"views_level{k}", masks)
+            seconds += time.perf_counter() - t
         res = ws.fit(scene, views, list(FREE), folder / f"level{k}" / "fitted.toml", iterations=its,
                      texture_size=size, env_lobes=env_lobes, progress=progress, restart=True, device=device,
                      checkpoint_every=10 ** 6)
@@ -140,12 +173,11 @@ def run_relighting(p: Problem, *, truth: str = "mitsuba", photo_spp: int = 128, 
     info["photographs_s"] = time.perf_counter() - t
     log(f"photographs: {info['photographs_s']:.1f} s")
     fit_masks = [ip.fit_mask(f, floor_stride) for f in full]
-    views = ip.write_views(p.folder, cams, photos, "views_a", fit_masks)
     seen = ip.seen_texels(uvs, p.texture)
     info["seen_texels"] = float(seen.mean())
 
-    res = coarse_to_fine(p.folder / "start.toml", views, p.folder / "fit", levels, env_lobes=env_lobes,
-                         progress=progress, device=device, log=log)
+    res = coarse_to_fine(p.folder / "start.toml", cams, photos, fit_masks, p.folder / "fit", levels,
+                         env_lobes=env_lobes, progress=progress, device=device, log=log)
     rows, images = [], {"truth": truth_b}
 
     def row(case, imgs, kd, al, seconds, its, **extra):

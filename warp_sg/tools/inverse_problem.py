@@ -57,14 +57,13 @@ class Problem:
     seed: int = 0
 
     def cameras(self, novel: bool) -> list[dict]:
-        """The camera tables of the fit views (a ring at 20° elevation) or of the novel views
-        (between them, at 38°)."""
+        """The camera tables of the fit views (a ring, every other one at 12° and 42° elevation) or
+        of the novel views (at 28°, at other azimuths)."""
         n = self.novel_views if novel else self.fit_views
         az = (np.arange(n) + (0.5 if novel else 0.0)) * (2 * math.pi / n) + (0.3 if novel else 0.0)
-        el = math.radians(38.0 if novel else 20.0)
+        el = np.radians(np.full(n, 28.0) if novel else np.where(np.arange(n) % 2 == 0, 12.0, 42.0))
         t = np.asarray(self.target, np.float64)
-        o = t + self.distance * np.stack([np.sin(az) * math.cos(el), np.full(n, math.sin(el)),
-                                          np.cos(az) * math.cos(el)], 1)
+        o = t + self.distance * np.stack([np.sin(az) * np.cos(el), np.sin(el), np.cos(az) * np.cos(el)], 1)
         return [{"origin": [round(float(x), 6) for x in p], "target": list(self.target), "fov": self.fov,
                  "width": self.size, "height": self.size} for p in o]
 
