@@ -4,7 +4,7 @@ targets met or missed, the sizes and timings), ``inverse.json`` and ``inverse_re
 views under environment B: the path tracer, our fit relit, Mitsuba's fit relit, the fit's start).
 
     python scripts/inverse_bench.py [--assets ../shared/assets] [--out docs/report] [--no-peer]
-                                    [--photo-spp 128] [--levels 8:15,32:15,own:30]
+                                    [--photo-spp 256] [--levels 8:15,32:15,own:20,own:20]
 
 The scanned head (``LeePerrySmith.glb``) and the HDRIs are read from ``--assets`` (default the
 shared folder beside the checkout), never copied; the work files go to a temporary folder.
@@ -27,6 +27,8 @@ sys.path.insert(0, str(ROOT))
 
 #: the issue's targets (2 cores): relighting and albedo PSNR, the fit's wall time
 TARGET_RELIGHT_DB, TARGET_ALBEDO_DB, TARGET_SECONDS = 30.0, 30.0, 600.0
+#: a PSNR difference under this is a tie (the truth's own noise and the views' choice move it as much)
+TIE_DB = 0.5
 
 
 def _levels(text: str):
@@ -70,7 +72,8 @@ def _markdown(out: dict, load: tuple, wall: float) -> str:
              "relighting\", `warp_sg/tools/bench_inverse.py`). Photographs of the scanned head "
              f"(`LeePerrySmith.glb`, {info['triangles']} triangles with its floor) with a known SVBRDF — GGX, "
              f"base colour a {info['texture']}² texture, roughness a {info['texture']}² texture in [0.2, 0.6], a "
-             "dielectric Fresnel term (index 1.5), on a Lambert floor of known albedo 0.5 — made by "
+             "dielectric Fresnel term (index 1.5), on a Lambert floor beside a grey ball, both of known albedo 0.5 "
+             "— made by "
              f"{'Mitsuba 3 (its own BSDFs, `path` at max depth 8)' if info['truth'] == 'mitsuba' else 'our Monte-Carlo reference (full depth)'}"
              f" at {info['photo_spp']} spp under `{info['env_a']}` from {info['fit_views']} views of "
              f"{info['size']}²; `ws.fit` recovers the environment ({info['env_lobes']} SG lobes) and the base "
@@ -107,11 +110,32 @@ def _markdown(out: dict, load: tuple, wall: float) -> str:
              f"| fit ≤ {TARGET_SECONDS / 60:.0f} min (2 shared cores) | {ours['fit_s']:.0f} s "
              f"| {_verdict(ours['fit_s'] <= TARGET_SECONDS)} |"]
     if peer is not None:
-        lines.append(f"| relighting better than Mitsuba 3 prb at equal time | {ours['relight_psnr_db']:.1f} vs "
-                     f"{peer['relight_psnr_db']:.1f} dB | {_verdict(ours['relight_psnr_db'] > peer['relight_psnr_db'])} |")
+        d = ours["relight_psnr_db"] - peer["relight_psnr_db"]
+        verdict = _verdict(d > 0) if abs(d) >= TIE_DB else \
+            f"**tie** (within {TIE_DB} dB: not clearly met; {'ours' if d > 0 else 'Mitsuba'} ahead by {abs(d):.2f} dB)"
+        lines.append(f"| relighting better than Mitsuba 3 prb at equal time | {ours['relight_psnr_db']:.2f} vs "
+                     f"{peer['relight_psnr_db']:.2f} dB (rel. MSE {ours['relight_rel_mse']:.4f} vs "
+                     f"{peer['relight_rel_mse']:.4f}) | {verdict} |")
     else:
         lines.append("| relighting better than Mitsuba 3 prb at equal time | not run | — |")
-    lines += ["", "![novel views under the new light](inverse_relight.png)", "",
+    lines += ["", "## What limits the fit", "",
+              "* **The irradiance of each normal.** A diffuse texel says only its colour times the light its "
+              "normal receives: an unknown light and an unknown texture trade per normal, and only surfaces of "
+              "known albedo facing every way pin the light (the floor pins the light from above; the grey ball "
+              "the rest, as far as its few pixels weigh in the loss). Without the ball the fitted base colour "
+              "was 10–19 % too bright per channel.",
+              "* **Light that bounces.** `ws.fit` shades direct light only; the photographs hold every bounce "
+              "(the head's own and the floor's: −12 % on a head, [benchmarks.md](../benchmarks.md#light-that-bounces)). "
+              "From the second level on the fit matches the photographs less the light that bounces in our "
+              "frames of the last level's result; without that the base colour took the bounces in "
+              "(albedo PSNR 18.8 dB instead of 20.7 dB before the ball).",
+              "* **Texels seen by few pixels.** 8 views of 256² see the head's texture with about 3 pixels per "
+              "texel at 256²: the base colour is fitted at 128² (the true 1024² texture resampled to 128² and "
+              "back is within 57 dB of itself, so the resolution costs nothing measurable here).",
+              "* **The environment basis** (64 SG lobes, about 25° apart) blurs the low sun of environment A, so "
+              "its shadows and their edges are softer than in the photographs; the texels there take the "
+              "difference in.",
+              "", "![novel views under the new light](inverse_relight.png)", "",
               "Figure: two novel views under the new light; columns: the path tracer (truth), our fit relit"
               + (", Mitsuba's fit relit" if "mitsuba" in out["images"] else "") + ", the fit's start relit.", ""]
     return "\n".join(lines)
@@ -122,8 +146,8 @@ def main(argv=None) -> int:
     ap.add_argument("--assets", default=None, help="the shared assets folder (default: beside the checkout)")
     ap.add_argument("--out", default=str(ROOT / "docs" / "report"))
     ap.add_argument("--no-peer", action="store_true", help="skip Mitsuba's prb fit")
-    ap.add_argument("--photo-spp", type=int, default=128)
-    ap.add_argument("--levels", default="8:15,32:15,own:30", help="texture size:iterations per level (own: own size)")
+    ap.add_argument("--photo-spp", type=int, default=256)
+    ap.add_argument("--levels", default="8:15,32:15,own:20,own:20", help="texture size:iterations per level (own: own size)")
     args = ap.parse_args(argv)
 
     from warp_sg.groundtruth.accuracy_matrix import shared_assets

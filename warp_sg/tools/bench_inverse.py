@@ -142,8 +142,8 @@ def coarse_to_fine(start: Path, cams, photos, masks, folder: Path, levels, *, en
     return res
 
 
-#: the full run's levels: (texture size, L-BFGS iterations); None: base colour 256², roughness 64²
-LEVELS = ((8, 15), (32, 15), (None, 30))
+#: the full run's levels: (texture size, L-BFGS iterations); None: base colour 128², roughness 64²
+LEVELS = ((8, 15), (32, 15), (None, 20), (None, 20))
 
 
 def run_relighting(p: Problem, *, truth: str = "mitsuba", photo_spp: int = 128, levels=LEVELS,

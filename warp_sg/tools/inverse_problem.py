@@ -4,8 +4,11 @@ environment (A) from ``fit`` views and, for the check, under another (B) from ``
 
 * **The true SVBRDF** (:func:`true_textures`): GGX, base colour ``kd`` a texture (smooth colour
   blotches on a skin tone, made by code), roughness ``α`` a texture in [0.2, 0.6], ``ks`` = 1 and
-  the Fresnel term of a dielectric of index 1.5. The floor is Lambert 0.5 and known: it fixes the
-  scale an unknown light and an unknown albedo otherwise share.
+  the Fresnel term of a dielectric of index 1.5. The floor and a grey ball beside the object (a
+  "grey probe", as photographers put one in the frame) are Lambert 0.5 and known: an unknown
+  light and an unknown base colour share the irradiance of each normal (a texel's colour times the
+  light its normal receives is all a diffuse pixel says), and surfaces of known albedo facing every
+  way pin it down — the floor alone pins only the light from above.
 * **The scene files** (:func:`write_scenes`): ``true.toml`` (the true textures, environment A) and
   ``start.toml`` — what the fit starts from: a grey base colour, α = 0.4 and a constant
   environment, its textures at the fit's resolutions.
@@ -49,12 +52,14 @@ class Problem:
     fit_views: int = 8
     novel_views: int = 4
     texture: int = 1024
-    kd_fit: int = 256
+    kd_fit: int = 128
     alpha_fit: int = 64
     target: tuple = (0.0, 0.5, 0.0)
     distance: float = 2.6
     fov: float = 30.0
     seed: int = 0
+    #: the grey probe: centre and radius of a Lambert 0.5 sphere (None: none)
+    probe: tuple | None = ((0.4, 0.2, 0.65), 0.2)
 
     def cameras(self, novel: bool) -> list[dict]:
         """The camera tables of the fit views (a ring, every other one at 12° and 42° elevation) or
@@ -102,6 +107,9 @@ def _scene_text(p: Problem, kd: str, alpha: str, env: str | None, camera: dict, 
              toml_table("materials.object", {"model": "ggx", "kd": {"texture": kd}, "ks": [KS, KS, KS],
                                              "alpha": {"texture": alpha}, "fresnel": {"eta": ETA}}),
              toml_table("materials.floor", {"model": "lambert", "kd": [0.5, 0.5, 0.5]}),
+             *([toml_table("objects", {"primitive": "sphere", "center": list(p.probe[0]), "radius": p.probe[1],
+                                       "resolution": [24, 48], "material": "probe", "name": "probe"}, array=True),
+                toml_table("materials.probe", {"model": "lambert", "kd": [0.5, 0.5, 0.5]})] if p.probe else []),
              toml_table("lights", light, array=True),
              toml_table("render", {"bounces": bounces})]
     return "".join(parts)
@@ -240,22 +248,24 @@ def write_views(folder: Path, cams: list[dict], images: list[np.ndarray], stem: 
 def object_masks(scene, cams: list[dict]) -> tuple[list, list, list, list]:
     """Per camera: the pixels that see the object, less a one-pixel band along its silhouette
     (H, W) bool; the object's (u, v) at those pixels (N, 2) (rasterized pixel centres); every pixel
-    that sees the object (H, W) bool; the pixels that see any surface, less the band (H, W) bool
-    (those ``ws.fit`` matches)."""
+    that sees the object or the probe (H, W) bool; the pixels that see any surface, less the band
+    (H, W) bool (those ``ws.fit`` matches)."""
     from warp_sg.inverse.fit import _erode
     from warp_sg.renderer.renderer import Renderer
 
     r = Renderer(scene, "cpu", progress=False)
     g = r.geometry  # (the installed geometry: refined where the shadows asked for it)
     obj = g.material_names.index("object")
+    probe = g.material_names.index("probe") if "probe" in g.material_names else -2
     masks, uvs, full, surface = [], [], [], []
     for c in cams:
         r.set_camera(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in c.items()})
         vb = r.rasterize(1)
         tri = vb.tri_id.numpy().reshape(c["height"], c["width"])
-        full.append((tri >= 0) & (g.tri_material[np.maximum(tri, 0)] == obj))
+        mat = np.where(tri >= 0, g.tri_material[np.maximum(tri, 0)], -1)
+        m = _erode(mat == obj)
+        full.append((mat == obj) | (mat == probe))
         surface.append(_erode(tri >= 0))
-        m = _erode(full[-1])
         b = vb.bary.numpy().reshape(c["height"], c["width"], 2)[m]
         t = g.triangles[tri[m]]
         w = np.stack([1.0 - b[:, 0] - b[:, 1], b[:, 0], b[:, 1]], 1)
@@ -265,8 +275,8 @@ def object_masks(scene, cams: list[dict]) -> tuple[list, list, list, list]:
 
 
 def fit_mask(full: np.ndarray, stride: int) -> np.ndarray:
-    """The pixels a fit matches: the object's, and elsewhere one pixel in ``stride`` × ``stride``
-    (the known floor fixes the light's scale; its every pixel is not needed)."""
+    """The pixels a fit matches: the object's and the probe's (``full``), and elsewhere one pixel in
+    ``stride`` × ``stride`` (of the known floor, every pixel is not needed)."""
     grid = np.zeros_like(full)
     grid[::stride, ::stride] = True
     return full | grid
