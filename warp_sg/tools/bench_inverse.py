@@ -15,7 +15,7 @@ pixels of the novel views, :func:`~warp_sg.tools.inverse_problem.relight_errors`
 
 Full size (``scripts/inverse_bench.py``): the scanned head of ``shared/assets/LeePerrySmith.glb``
 with 1024² textures, 8 views of 256², Mitsuba's photographs; ``quick``: a sphere, 4 views of 32²,
-generated skies, our Monte-Carlo reference as the truth, 5 iterations, no peer (seconds).
+generated skies, our Monte-Carlo reference as the truth, 6 iterations in two levels, no peer (seconds).
 """
 from __future__ import annotations
 
@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from warp_sg.inverse.fit import FitResult
 from warp_sg.tools.inverse_problem import Problem
 
 FREE = ("materials.object.kd", "materials.object.alpha", "lights.0")
@@ -53,7 +54,7 @@ def quick_problem(folder: Path, size: int = 32, views: int = 4) -> Problem:
 def head_problem(folder: Path, shared: Path, env_a: str = "blouberg_sunrise_2_1k.hdr",
                  env_b: str = "venice_sunset_1k.hdr") -> Problem:
     """The scanned head (``LeePerrySmith.glb``, placed as the accuracy matrix places it), 8 views of 256²,
-    1024² true textures fitted at 256² (base colour) and 64² (roughness)."""
+    1024² true textures fitted at 128² (base colour) and 64² (roughness), a grey ball beside it."""
     from warp_sg.groundtruth.accuracy_matrix import HEAD_PLACEMENT
 
     return Problem(folder, {"mesh": (shared / "LeePerrySmith.glb").as_posix(), **HEAD_PLACEMENT},
@@ -109,7 +110,7 @@ def indirect_light(scene_path: Path, cams, device) -> list[np.ndarray]:
 
 
 def coarse_to_fine(start: Path, cams, photos, masks, folder: Path, levels, *, env_lobes: int, progress: bool,
-                   device, log) -> "FitResult":
+                   device, log) -> FitResult:
     """``ws.fit`` of :data:`FREE` in ``levels`` — ``(texture_size, iterations)`` each, ``None``: the
     textures at their own sizes — each level starting from the last one's fitted scene (its textures
     resampled up, its environment projected on the basis again). The fit shades direct light only;
@@ -152,7 +153,6 @@ def run_relighting(p: Problem, *, truth: str = "mitsuba", photo_spp: int = 128, 
     """The whole benchmark on problem ``p`` (module docstring). Returns ``{"rows": [...], "info": {...},
     "images": {...}}``: the table's rows, the sizes and timings of the parts, and the novel views
     (truth under B; ours, the start's and Mitsuba's relit) for a figure."""
-    import warp_sg as ws
     from warp_sg.scene.loader import load_scene
     from warp_sg.tools import inverse_problem as ip
 
