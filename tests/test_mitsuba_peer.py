@@ -172,3 +172,18 @@ def test_a_stored_reference_is_still_mitsubas_answer(tmp_path):
         a, b = mine[m].mean(0), ref["image"][win][m].mean(0)
         se = np.sqrt((mine_se[m] ** 2).sum(0)) / m.sum() + np.sqrt((ref["stderr"][win][m] ** 2).sum(0)) / m.sum()
         assert np.all(np.abs(a - b) <= 5 * se + 0.01 * b), (r, a, b, se)
+
+
+def test_an_old_system_llvm_is_refused_before_mitsuba_can_abort_the_process(monkeypatch):
+    # LLVM 14/15 (Debian 12's default) abort the process in Dr.Jit's first kernel that takes a minimum
+    # ("Cannot select fminimum"); the version is checked first and the scalar variant taken instead
+    import drjit as dr
+
+    from warp_sg.tools.mitsuba import render as R
+
+    monkeypatch.setattr(dr.detail, "llvm_version", lambda: (15, 0, 6), raising=False)
+    why = R.llvm_problem()
+    assert why is not None and "15.0.6" in why and "libllvm19" in why
+    assert R.set_fastest_variant() == "scalar_rgb"
+    with pytest.raises(RuntimeError, match="15.0.6"):
+        R.set_fastest_variant("llvm_ad_rgb")

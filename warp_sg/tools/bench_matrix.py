@@ -43,17 +43,10 @@ QUICK_CASES = ("sphere-sunsky-lambert", "sphere-sunsky-blinn_phong_50", "sphere-
 
 def _variant(quick: bool) -> str | None:
     """The Mitsuba variant to time with (None: none usable at this size)."""
-    import mitsuba as mi
+    from warp_sg.tools.mitsuba.render import set_fastest_variant
 
-    try:
-        mi.set_variant("llvm_ad_rgb")
-        import drjit as dr
-
-        dr.eval(mi.Float([1.0]) * 2.0)
-        return "llvm_ad_rgb"
-    except Exception:  # noqa: BLE001 - no usable system libLLVM (any exception type)
-        mi.set_variant("scalar_rgb")
-        return "scalar_rgb" if quick else None
+    v = set_fastest_variant()  # (llvm_ad_rgb where a recent enough system libLLVM runs it)
+    return v if v.startswith("llvm") or quick else None
 
 
 def equal_error_row(case_name: str, size: int, batches: int, spp: int, device: str = "cpu",

@@ -106,6 +106,12 @@ def mitsuba_status(device: str = "cpu") -> tuple[bool, str]:
     if err is not None:
         return False, f"Mitsuba 3 not importable ({type(err).__name__}: {err}); {INSTALL_HINT}"
     var = _variant(device)
+    if var.startswith("llvm"):
+        from warp_sg.tools.mitsuba.render import llvm_problem
+
+        why = llvm_problem(var)
+        if why is not None:
+            return False, f"Mitsuba {mi.__version__} variant {var} unusable ({why}); {INSTALL_HINT}"
     try:
         mi.set_variant(var)
         if var.startswith("llvm"):

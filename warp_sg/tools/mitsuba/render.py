@@ -11,6 +11,32 @@ import numpy as np
 
 #: the variants tried, fastest first (llvm needs a system libLLVM; scalar runs anywhere)
 VARIANTS = ("llvm_ad_rgb", "scalar_rgb")
+#: the oldest system libLLVM the LLVM variants are used with: with LLVM 14 and 15 (Debian 12's default)
+#: Dr.Jit's first kernel that takes a minimum aborts the whole process ("Cannot select fminimum"),
+#: which no exception reports; 19 (Debian: libllvm19) runs every kernel here
+MIN_LLVM = (19, 0, 0)
+
+
+def llvm_problem(variant: str = "llvm_ad_rgb") -> str | None:
+    """None when Mitsuba's LLVM ``variant`` can be set and runs here; else why not, in a few words
+    (no libLLVM found, one older than :data:`MIN_LLVM`, or a kernel that fails)."""
+    import mitsuba as mi
+
+    try:
+        mi.set_variant(variant)
+        import drjit as dr
+
+        version = getattr(dr.detail, "llvm_version", lambda: None)()
+        if version is not None and tuple(version)[:1] == (0,):
+            return "no system libLLVM found"
+        if version is not None and tuple(version) < MIN_LLVM:
+            return (f"system libLLVM {'.'.join(map(str, version))} is older than {MIN_LLVM[0]}, with which "
+                    f"Mitsuba's kernels abort the process (Debian: apt install libllvm19; DRJIT_LIBLLVM_PATH "
+                    f"names the library)")
+        dr.eval(mi.Float([1.0]) * 2.0)
+    except Exception as e:  # noqa: BLE001 - a missing or unusable libLLVM, in any exception type
+        return f"{type(e).__name__}: {e}"
+    return None
 
 
 @dataclass
@@ -27,16 +53,15 @@ def set_fastest_variant(preferred: str | None = None) -> str:
     import mitsuba as mi
 
     for v in (preferred,) if preferred else VARIANTS:
-        try:
-            mi.set_variant(v)
-            if v.startswith("llvm"):
-                import drjit as dr
-
-                dr.eval(mi.Float([1.0]) * 2.0)  # a missing or old libLLVM fails here
-            return v
-        except Exception:  # noqa: BLE001 - any exception type: the variant is unusable here
+        if v.startswith("llvm"):
+            why = llvm_problem(v)
+            if why is None:
+                return v
             if preferred:
-                raise
+                raise RuntimeError(f"Mitsuba variant {v} unusable: {why}")
+            continue
+        mi.set_variant(v)
+        return v
     raise RuntimeError("no Mitsuba variant is usable")
 
 
@@ -59,4 +84,4 @@ def mitsuba_reference(scene, spp: int, max_depth: int = 2, batches: int = 8, see
     return MitsubaImage(mean.astype(np.float32), se.astype(np.float32), per * batches, time.perf_counter() - t0, v)
 
 
-__all__ = ["MitsubaImage", "mitsuba_reference", "set_fastest_variant", "VARIANTS"]
+__all__ = ["MitsubaImage", "mitsuba_reference", "set_fastest_variant", "llvm_problem", "VARIANTS", "MIN_LLVM"]
