@@ -33,7 +33,11 @@ def project_modules() -> list[str]:
 
 
 def shading_variants():
+    from warp_sg.brdf.registry import code_of
     from warp_sg.shading import kernel as S
+
+    def codes(*names):
+        return tuple(code_of(n) for n in names)
 
     full = S.Features(env_diffuse=S.ENV_SG, env_specular=S.ENV_PREFILTERED, lights=True, specular=True,
                       shadows=True, textures=True, normal_maps=True, fh_sigmoid=False, env_vis_vertex=True,
@@ -41,7 +45,7 @@ def shading_variants():
                       vertex_colors=True, cutouts=True, moving=True, bounce=True)
     off = {"env_diffuse": S.ENV_NONE, "env_specular": S.ENV_NONE, "lights": False, "specular": False,
            "shadows": False, "textures": False, "normal_maps": False, "fh_sigmoid": True,
-           "env_vis_vertex": False, "light_vis_vertex": False, "env_visible_vertex": False, "models": (0,),
+           "env_vis_vertex": False, "light_vis_vertex": False, "env_visible_vertex": False, "models": codes("lambert"),
            "emission": False, "occlusion": False, "coat": False, "vertex_colors": False, "cutouts": False,
            "moving": False, "env_mixture": False, "grad": False, "bounce": False}
     variants = [full] + [replace(full, **{f.name: off[f.name]}) for f in fields(S.Features)]
@@ -51,9 +55,11 @@ def shading_variants():
     variants += [mixture, replace(mixture, grad=True, moving=False, coat=False, cutouts=False)]
     # material-model variants (brdf.kernel.material_variants): Oren–Nayar, Cook–Torrance, Lafortune,
     # measured, GGX, and Lambert + Blinn–Phong + Ward + Ashikhmin–Shirley
-    variants += [replace(full, models=ms) for ms in ((1,), (4,), (8,), (9,), (10,), (0, 3, 6, 7))]
+    variants += [replace(full, models=ms) for ms in (codes("oren_nayar"), codes("cook_torrance"), codes("lafortune"),
+                                                     codes("measured"), codes("ggx"),
+                                                     codes("lambert", "blinn_phong", "ward", "ashikhmin_shirley"))]
     # the per-vertex diffuse environment sum needs ρd = kd/π and no normal maps (shading.EVTX)
-    variants += [replace(full, normal_maps=False, models=(0, 4))]
+    variants += [replace(full, normal_maps=False, models=codes("lambert", "cook_torrance"))]
     return [S.shade_kernel(f) for f in variants]
 
 

@@ -64,10 +64,11 @@ def main(argv=None) -> int:
     wp.init()
     from warp_sg.shading import kernel as S
     from warp_sg.brdf.kernel.material_variants import ALL_MODELS
+    from warp_sg.brdf.registry import code_of
 
     ct = S.Features(env_diffuse=S.ENV_SG, env_specular=S.ENV_PREFILTERED, lights=True, specular=True, shadows=True,
-                    env_vis_vertex=True, models=(0, 4))
-    lam = replace(ct, specular=False, env_specular=S.ENV_NONE, models=(0,))
+                    env_vis_vertex=True, models=(code_of("lambert"), code_of("cook_torrance")))
+    lam = replace(ct, specular=False, env_specular=S.ENV_NONE, models=(code_of("lambert"),))
     rows = [("cook_torrance", ct), ("cook_torrance, all Lambert", lam)]
     print("| scene features | kernel | models | registers | spill stores / loads B | stack B |")
     print("|---|---|---|---|---|---|")

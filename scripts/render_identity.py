@@ -1,7 +1,7 @@
 """Render the examples small and compare the images bit for bit with an earlier run.
 
 A restructuring (modules moved, files split) must not change a single pixel. This script renders
-every scene of ``examples/*.toml`` (the batch job aside) and the example asset
+every scene of ``examples/*.toml`` (the batch jobs and the fit's views aside) and the example asset
 ``examples/assets/still_life.glb`` with the command line at a small size into EXR (linear HDR,
 float32, so every bit survives), and with ``--compare DIR`` checks each image against the one of
 the same name in ``DIR`` (an earlier run of this script):
@@ -28,8 +28,8 @@ def jobs() -> list[tuple[str, list[str]]]:
     """(image name, command-line arguments after ``render``) for every example."""
     out = []
     for toml in sorted((ROOT / "examples").glob("*.toml")):
-        if toml.stem.endswith("_job"):
-            continue  # a batch job (``warp-sg batch``), not a scene
+        if toml.stem.endswith(("_job", "_views")):
+            continue  # a batch job (``warp-sg batch``) or a fit's photographs (``warp-sg fit``), not a scene
         out.append((toml.stem, [str(toml)]))
     out.append(("still_life_glb", [str(ROOT / "examples" / "assets" / "still_life.glb")]))
     return out

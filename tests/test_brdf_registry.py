@@ -1,12 +1,19 @@
 """The BRDF registry (warp_sg.brdf.registry): a model is one class, and the kernel switch, the
-packing and the fits follow it.
+packing, the fits and everything that asks what a model can do follow it.
 
-A throw-away model defined in this file only — the energy-conserving Blinn–Phong
-``ρs = (n+8)/(8π) (n·h)^n`` (Akenine-Möller et al., "Real-Time Rendering", normalised Blinn–Phong)
-with its kernel hooks — is registered with a new code; nothing else in the project is edited, and
-``make_model``, ``pack_materials``, the generated ``brdf_eval`` / ``slice_lobe`` / ``brdf_sample`` /
-``brdf_pdf`` (generic and specialised) must serve it, checked against the closed form written
-here in numpy.
+Throw-away models defined in this file only are registered with new codes; nothing else in the
+project is edited:
+
+* a specular one, the energy-conserving Blinn–Phong ``ρs = (n+8)/(8π) (n·h)^n`` (Akenine-Möller
+  et al., "Real-Time Rendering", normalised Blinn–Phong) with its kernel hooks: ``make_model``,
+  ``pack_materials``, the generated ``brdf_eval`` / ``slice_lobe`` / ``brdf_sample`` /
+  ``brdf_pdf`` (generic and specialised) must serve it, checked against the closed form written
+  here in numpy;
+* a diffuse one (``kd/π`` under another name) and an anisotropic one (Ward's kernel functions
+  under another name and code, not energy-normalised): with the specular one they check that the
+  albedo table (:mod:`warp_sg.brdf.kernel.albedo`), the energy check (:mod:`warp_sg.brdf.energy`)
+  and the renderer's kernel variant read the models' declared capabilities (``is_specular``,
+  ``ROUGHNESS``, ``ENERGY_NORMALISED``), not their codes.
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the @wp.func annotations.
 import numpy as np
@@ -16,7 +23,7 @@ import warp as wp
 from warp_sg import brdf as B
 from warp_sg.brdf.kernel import material_wp as M
 from warp_sg.brdf import registry
-from warp_sg.brdf.base import SpecularBRDF, as_rgb, as_scalar, dirs, half_vector
+from warp_sg.brdf.base import BRDF, Roughness, SpecularBRDF, as_rgb, as_scalar, dirs, half_vector
 from warp_sg.brdf.params import KD, KS, Param
 from warp_sg.brdf.kernel.material_eval_wp import cos_pow, log_cos_theta
 from warp_sg.brdf.kernel.material_sample_wp import reflect_about
@@ -64,6 +71,8 @@ class NormalisedBlinnPhong(SpecularBRDF):
     NAME = "normalised_blinn_phong_test"
     PARAMS = {"kd": KD, "ks": KS, "n": Param("number", "exponent", lo=0, texture=True)}
     KERNEL = registry.Kernel(ndf=_nbp_ndf, mo=_nbp_mo, analytic_lobe=_nbp_lobe, sample=_nbp_sample, pdf_h=_nbp_pdf_h)
+    ROUGHNESS = Roughness("n")
+    ENERGY_NORMALISED = True
 
     def __init__(self, kd=(0.0, 0.0, 0.0), ks=(1.0, 1.0, 1.0), n=30.0):
         self.kd = as_rgb(kd, "kd")
@@ -234,3 +243,138 @@ def test_every_shipped_model_declares_its_kernel_and_a_distinct_code():
     # Oren–Nayar's directional ρd is the only non-constant diffuse part
     assert registry.constant_diffuse([c.CODE for c in B.MODELS.values() if c.NAME != "oren_nayar"])
     assert not registry.constant_diffuse([B.MODELS["oren_nayar"].CODE])
+
+
+# ---------------------------------------------------------------------------------------------
+# capabilities: a diffuse, a specular and an anisotropic model that the rest of the code has never
+# heard of, served by what they declare
+# ---------------------------------------------------------------------------------------------
+class FlatDiffuse(BRDF):
+    """``kd/π`` under another name: no specular lobe, no width, no energy normalisation."""
+
+    NAME = "flat_diffuse_test"
+    PARAMS = {"kd": KD}
+    KERNEL = registry.Kernel()
+
+    def __init__(self, kd=(0.8, 0.8, 0.8)):
+        self.kd = as_rgb(kd, "kd")
+        self.ks = np.zeros(3)
+
+
+class WardTwin(B.Ward):
+    """Ward's functions (isotropic or anisotropic) under another name and code, declared not
+    energy-normalised: its α map sets αx and αy (``ROUGHNESS`` inherited: kernel (0, 1))."""
+
+    NAME = "ward_twin_test"
+    ENERGY_NORMALISED = False
+
+
+@pytest.fixture
+def three_models():
+    done = []
+    try:
+        for cls in (FlatDiffuse, NormalisedBlinnPhong, WardTwin):
+            cls.CODE = _free_code()
+            registry.register(cls)
+            done.append(cls)
+        yield FlatDiffuse, NormalisedBlinnPhong, WardTwin
+    finally:
+        for cls in done:
+            registry.unregister(cls)
+
+
+def test_capabilities_are_the_models_declarations(three_models):
+    diffuse, specular, aniso = three_models
+    assert diffuse.CODE not in registry.specular_codes() and {specular.CODE, aniso.CODE} <= registry.specular_codes()
+    assert not registry.has_specular([B.Lambert.CODE, diffuse.CODE])
+    assert registry.has_specular([diffuse.CODE, specular.CODE]) and registry.has_specular([aniso.CODE])
+    assert registry.textured_lobe_codes() >= {specular.CODE, aniso.CODE}
+    assert diffuse.CODE not in registry.textured_lobe_codes()
+    assert registry.roughness_of(specular.CODE) == Roughness("n", (0,))
+    assert registry.roughness_of(aniso.CODE).kernel == (0, 1)
+    assert registry.constant_diffuse([diffuse.CODE])
+    # every shipped specular model with a texturable first width declares it
+    for cls in B.MODELS.values():
+        r = cls.ROUGHNESS
+        assert r is None or (cls.is_specular and cls.PARAMS[r.param].texture), cls.NAME
+
+
+def test_the_energy_check_reads_energy_normalised(three_models):
+    from warp_sg.brdf.energy import energy_excess, normal_incidence_reflectance, normalised_models
+
+    diffuse, specular, aniso = three_models
+    assert specular.NAME in normalised_models() and aniso.NAME not in normalised_models()
+    assert "ward" in normalised_models() and diffuse.NAME not in normalised_models()
+    hot = B.make_model(specular.NAME, kd=[0.5] * 3, ks=[0.7] * 3, n=20.0)
+    np.testing.assert_allclose(normal_incidence_reflectance(hot), 1.2)
+    assert f"the '{specular.NAME}' material reflects more light" in energy_excess(hot)
+    # the same numbers on Ward's lobe: a warning for Ward, none for its twin that does not declare it
+    assert energy_excess(B.make_model("ward", kd=[0.5] * 3, ks=[0.7] * 3, alpha=0.2)) is not None
+    assert energy_excess(B.make_model(aniso.NAME, kd=[0.5] * 3, ks=[0.7] * 3, alpha=0.2)) is None
+    assert energy_excess(B.make_model(diffuse.NAME, kd=[0.9] * 3)) is None
+    with pytest.raises(InputError, match="diffuse albedo above 1"):  # kd <= 1 for every model
+        B.make_model(diffuse.NAME, kd=[1.5, 0.5, 0.5])
+
+
+def test_the_albedo_table_follows_the_declared_capabilities(three_models):
+    """One table of the three models and Ward: the diffuse model has none; the specular model's
+    textured exponent runs the table over the texture's range (row q = the table of a material whose
+    exponent is the q-th value); the anisotropic model's α map sets αx and αy (``Roughness.kernel``),
+    and its anisotropic table is Ward's own."""
+    from warp_sg.brdf.kernel import albedo
+    from warp_sg.sg.irradiance import irradiance_table_array
+
+    diffuse, specular, aniso = three_models
+    lo, hi = 8.0, 200.0
+    q = [float(np.exp(np.log(lo) + k / (albedo.NQ - 1) * np.log(hi / lo))) for k in range(albedo.NQ)]
+    a_lo, a_hi = 0.05, 0.5
+    qa = [float(np.exp(np.log(a_lo) + k / (albedo.NQ - 1) * np.log(a_hi / a_lo))) for k in range(albedo.NQ)]
+    mats = [(B.make_model(diffuse.NAME, kd=[0.5] * 3), None),
+            (B.make_model(specular.NAME, n=40.0), (lo, hi)),
+            *[(B.make_model(specular.NAME, n=v), None) for v in (q[0], q[3], q[-1])],
+            (B.make_model(aniso.NAME, alpha=0.2), (a_lo, a_hi)),
+            *[(B.make_model(aniso.NAME, alpha=v), None) for v in (qa[0], qa[5])],
+            (B.make_model(aniso.NAME, alpha_x=0.3, alpha_y=0.08), None),
+            (B.make_model("ward", alpha_x=0.3, alpha_y=0.08), None)]
+    table = M.pack_materials([m for m, _ in mats], n_lobes=1, device="cpu")
+    kinds = albedo.layout(table.records, [r for _, r in mats])
+    assert [k[0] for k in kinds] == [albedo.KIND_NONE, albedo.KIND_ISO] + [albedo.KIND_ISO] * 3 + [
+        albedo.KIND_ISO] * 3 + [albedo.KIND_ANISO] * 2
+    assert kinds[1][1] == albedo.NQ and kinds[5][1] == albedo.NQ and kinds[2][1] == 1
+    out = albedo.attach(table, [r for _, r in mats], irradiance_table_array("cpu"), "cpu", samples=256).numpy()
+    offs = [s.albedo_offset for s in table.structs]
+    n = albedo.NMU
+
+    def rows(i, k=0):
+        return out[offs[i] + k * n: offs[i] + (k + 1) * n]
+
+    assert table.structs[0].albedo_nq == 0
+    assert np.abs(rows(1) - 1.0).max() > 1e-3  # a correction that is not 1 (so the rows below compare something)
+    for k, i in ((0, 2), (3, 3), (albedo.NQ - 1, 4)):
+        np.testing.assert_allclose(rows(1, k), rows(i), rtol=2e-3, err_msg=f"exponent row {k}")
+    for k, i in ((0, 6), (5, 7)):
+        np.testing.assert_allclose(rows(5, k), rows(i), rtol=2e-3, err_msg=f"alpha row {k}")
+    np.testing.assert_array_equal(out[offs[8]: offs[8] + albedo.NQ * n], out[offs[9]: offs[9] + albedo.NQ * n])
+
+
+def test_the_renderer_picks_its_kernel_variant_from_the_capabilities(three_models):
+    """A scene of the diffuse model alone gets the variant without specular paths (no environment
+    specular); one with the specular or the anisotropic model gets them, and its models' switch."""
+    from warp_sg.renderer.renderer import Renderer
+    from warp_sg.scene.camera import Camera
+    from warp_sg.scene.lights import PointLight
+    from warp_sg.scene.model import Material, Scene, SceneObject
+    from warp_sg.scene.render_settings import RenderSettings
+    from warp_sg.shading import kernel as S
+
+    diffuse, specular, aniso = three_models
+    for cls, params, spec in ((diffuse, {"kd": [0.5] * 3}, False), (specular, {"n": 30.0}, True),
+                              (aniso, {"alpha_x": 0.3, "alpha_y": 0.1}, True)):
+        scene = Scene(camera=Camera(origin=(0.0, 0.0, 3.0), target=(0.0, 0.0, 0.0), fov=30.0, width=8, height=8),
+                      objects=[SceneObject(material="b", primitive="sphere", params={"radius": 0.5})],
+                      materials={"b": Material(cls.NAME, params)}, lights=[PointLight(position=(1.0, 2.0, 2.0))],
+                      render=RenderSettings(shadows=False))
+        f = Renderer(scene, device="cpu").features()
+        assert f.models == (cls.CODE,)
+        assert f.specular is spec, cls.NAME
+        assert (f.env_specular == S.ENV_NONE) if not spec else True

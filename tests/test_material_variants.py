@@ -20,6 +20,7 @@ import warp_sg.brdf as B
 from warp_sg.shading import kernel as S
 from warp_sg.brdf.kernel import material_wp as M
 from warp_sg.brdf.kernel.material_variants import ALL_MODELS, material_funcs
+from warp_sg.brdf.registry import code_of, codes
 from warp_sg.core.errors import InputError
 from warp_sg.renderer.renderer import Renderer
 from warp_sg.scene.camera import Camera
@@ -118,10 +119,11 @@ def test_specialised_brdf_functions_match_the_numpy_models(codes):
 
 def test_material_funcs_reject_unknown_model_codes():
     with pytest.raises(InputError, match="material model codes"):
-        material_funcs({3, 11})
+        material_funcs({code_of("blinn_phong"), max(codes()) + 1})
     with pytest.raises(InputError, match="material model codes"):
         material_funcs(())
-    assert material_funcs([4, 0]) is material_funcs((0, 4))  # cached per set
+    lam, ct = code_of("lambert"), code_of("cook_torrance")
+    assert material_funcs([ct, lam]) is material_funcs((lam, ct))  # cached per set
 
 
 # ---------------------------------------------------------------------------------------------
@@ -201,8 +203,8 @@ def kernel_source(kernel) -> str:
 def test_one_model_variant_holds_no_other_models_code():
     full = dict(env_diffuse=S.ENV_SG, env_specular=S.ENV_PREFILTERED, lights=True, specular=True)
     generic = kernel_source(S.shade_kernel(S.Features(**full)))
-    lam = kernel_source(S.shade_kernel(S.Features(**full, models=(0,))))
-    ct = kernel_source(S.shade_kernel(S.Features(**full, models=(4,))))
+    lam = kernel_source(S.shade_kernel(S.Features(**full, models=(code_of("lambert"),))))
+    ct = kernel_source(S.shade_kernel(S.Features(**full, models=(code_of("cook_torrance"),))))
     other = ["merl_eval", "measured_mo", "lafortune_lobe", "ggx_", "as_exponent_log", "ggx_table_lobe"]
     for s in other + ["fresnel_eval", "g_over_cos"]:
         assert s in generic, s  # the generic kernel has every model (the check can fail)

@@ -13,16 +13,36 @@ Numerical forms used by every model (float64 here, same forms in ``material_wp``
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .helpers import (COS_EPS, INV_PI, as_rgb, as_roughness, as_scalar, dirs, half_vector, log_cos_theta,  # noqa: F401
                       reflect_z, sin2_theta, suggest, theta_of, upper)
 
 
+@dataclass(frozen=True)
+class Roughness:
+    """A model's lobe width that a texture may set per texel (its ``ROUGHNESS``): ``param``, the
+    scene-file parameter (a texturable number of its ``PARAMS``), and ``kernel``, the indices of
+    ``kernel_params()`` one texel value sets — ``(0,)``, or ``(0, 1)`` where the parameter stands for
+    two (``alpha`` sets both αx and αy). The albedo table's second axis
+    (:mod:`warp_sg.brdf.kernel.albedo`) runs over the texture's range of it."""
+
+    param: str
+    kernel: tuple = (0,)
+
+
 class BRDF:
     """Base class. A model (:mod:`warp_sg.brdf.registry`) sets ``NAME``, ``CODE``, ``PARAMS`` and
     ``KERNEL`` (its ``@wp.func`` functions) and implements ``diffuse`` and, for specular models, ``mo`` and
-    ``ndf``."""
+    ``ndf``.
+
+    What the rest of the code asks of a model it reads from these class attributes, never from the
+    model's code (:mod:`warp_sg.brdf.registry` collects them per code): ``is_specular`` (a specular
+    lobe: the environment's specular term, its albedo table, the kernel variant's specular paths),
+    ``ROUGHNESS`` (:class:`Roughness`, or None) and ``ENERGY_NORMALISED`` (the energy check of
+    :mod:`warp_sg.brdf.energy`)."""
 
     NAME = "base"
     #: the kernel code (``Material.model``), unique per registered model
@@ -31,7 +51,13 @@ class BRDF:
     PARAMS: dict = {}
     #: the kernel side (:class:`warp_sg.brdf.registry.Kernel`), set by the model's module
     KERNEL = None
+    #: a specular lobe (``ks ρs``); False: the diffuse part alone
     is_specular = False
+    #: the lobe width a texture may set per texel (:class:`Roughness`); None: none
+    ROUGHNESS: Roughness | None = None
+    #: the specular lobe reflects at most all the light for ``ks = 1`` and ``F = 1`` (its
+    #: normalisation), so ``kd + ks·F(0°) > 1`` is worth a warning (:mod:`warp_sg.brdf.energy`)
+    ENERGY_NORMALISED = False
 
     kd = np.zeros(3)
     ks = np.zeros(3)

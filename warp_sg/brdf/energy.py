@@ -4,9 +4,10 @@ r"""Energy conservation: how much of the light it receives a material may reflec
   (``∫ kd/π cos θ dω = kd``), so ``kd > 1`` in any channel is refused (:func:`check_diffuse_albedo`,
   an :class:`~warp_sg.core.errors.InputError` naming ``kd``). Such a value is a mistake of units
   (0–255, per cent): ``kd = 5`` makes a surface brighter than the light falling on it.
-* **Normalised models, a warning.** For the models whose specular lobe is normalised
-  (:data:`NORMALISED`: with ``ks = 1`` and ``F = 1`` the lobe reflects at most all the light —
-  Phong's ``(n+2)/2π``, the normalised Beckmann of Torrance–Sparrow, Ward, GGX with Smith masking)
+* **Normalised models, a warning.** For the models whose specular lobe is normalised (they declare
+  ``ENERGY_NORMALISED``, :func:`~warp_sg.brdf.registry.energy_normalised`: with ``ks = 1`` and
+  ``F = 1`` the lobe reflects at most all the light — Phong's ``(n+2)/2π``, the normalised Beckmann
+  of Torrance–Sparrow, Ward, GGX with Smith masking)
   the reflectance at normal incidence is at most ``R₀ = kd + ks · F(0°)`` per channel
   (``F(0°)`` = 1 without a Fresnel term). :func:`energy_excess` says so when ``R₀ > 1``; the scene
   loader turns it into one ``InputWarning`` line for the values a scene file states. It is not an
@@ -15,18 +16,22 @@ r"""Energy conservation: how much of the light it receives a material may reflec
   dielectric has ``kd = 1``, ``F0 = 0.04``; glTF's own BRDF weights the diffuse term by
   ``1 − F``, which this model does not).
 
-``cook_torrance`` (its ``D`` peaks at 1, so ``ks`` is not an albedo: the gold example has
-``ks = 10``), ``blinn_phong`` (the supplement's normalisation: albedo up to 4), ``lafortune``,
-``ashikhmin_shirley`` and ``measured`` are not checked beyond ``kd``.
+The other models are not checked beyond ``kd``: ``cook_torrance`` (its ``D`` peaks at 1, so ``ks``
+is not an albedo: the gold example has ``ks = 10``), ``blinn_phong`` (the supplement's
+normalisation: albedo up to 4), ``lafortune``, ``ashikhmin_shirley`` and ``measured``.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from ..core.errors import InputError
+from .registry import MODELS, energy_normalised
 
-#: models whose specular lobe reflects at most all the light for ks = 1, F = 1
-NORMALISED = ("phong", "torrance_sparrow", "ward", "ggx")
+
+def normalised_models() -> tuple:
+    """The names of the registered models whose specular lobe reflects at most all the light for
+    ``ks = 1``, ``F = 1`` (``ENERGY_NORMALISED``)."""
+    return tuple(name for name, cls in MODELS.items() if energy_normalised(cls))
 
 
 def check_diffuse_albedo(model) -> None:
@@ -38,8 +43,8 @@ def check_diffuse_albedo(model) -> None:
 
 
 def normal_incidence_reflectance(model) -> np.ndarray | None:
-    """``R₀ = kd + ks · F(0°)`` (RGB) of a :data:`NORMALISED` model, else None."""
-    if getattr(model, "NAME", None) not in NORMALISED:
+    """``R₀ = kd + ks · F(0°)`` (RGB) of a model that declares ``ENERGY_NORMALISED``, else None."""
+    if not energy_normalised(model):
         return None
     f = getattr(model, "fresnel", None)
     f0 = np.ones(3) if f is None else np.asarray(f(np.ones(1)), np.float64).reshape(-1, 3)[0]
@@ -47,7 +52,7 @@ def normal_incidence_reflectance(model) -> np.ndarray | None:
 
 
 def energy_excess(model) -> str | None:
-    """One line when a :data:`NORMALISED` model reflects more than it receives at normal incidence
+    """One line when an ``ENERGY_NORMALISED`` model reflects more than it receives at normal incidence
     (``R₀ > 1`` in a channel), else None."""
     r0 = normal_incidence_reflectance(model)
     if r0 is None or not np.any(r0 > 1.0 + 1e-9):
@@ -58,4 +63,4 @@ def energy_excess(model) -> str | None:
             f"receives at normal incidence (energy is not conserved)")
 
 
-__all__ = ["NORMALISED", "check_diffuse_albedo", "normal_incidence_reflectance", "energy_excess"]
+__all__ = ["normalised_models", "check_diffuse_albedo", "normal_incidence_reflectance", "energy_excess"]

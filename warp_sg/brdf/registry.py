@@ -12,6 +12,12 @@ A model is one class (a :class:`~warp_sg.brdf.base.BRDF` subclass in a module of
   :mod:`warp_sg.brdf.fitting.fit`);
 * ``KERNEL`` — a :class:`Kernel` of its ``@wp.func``\ s: what the kernel switch
   (:mod:`warp_sg.brdf.kernel.material_variants`) calls for a material of this code;
+* its capabilities (:class:`~warp_sg.brdf.base.BRDF`): ``is_specular`` (a specular lobe),
+  ``ROUGHNESS`` (the lobe width a texture may set, :class:`~warp_sg.brdf.base.Roughness`: the
+  albedo table's second axis) and ``ENERGY_NORMALISED`` (the energy check) — what the renderer,
+  the albedo table and the energy check ask (:func:`specular_codes`, :func:`textured_lobe_codes`,
+  :func:`roughness_of`, :func:`energy_normalised`), so no module outside this one compares model
+  codes;
 
 and is registered by :func:`register` (a class decorator). Everything that switches on the model
 — the kernel functions ``brdf_eval``, ``brdf_sample``, ``brdf_pdf``, ``slice_lobe`` ..., the
@@ -93,6 +99,7 @@ def register(cls):
     if not isinstance(getattr(cls, "KERNEL", None), Kernel):
         raise ValueError(f"{cls.__name__}: KERNEL must be a warp_sg.brdf.registry.Kernel")
     check_params(cls)
+    _check_capabilities(cls)
     for other in (MODELS.get(name), BY_CODE.get(code)):
         if other is not None and other is not cls:
             raise ValueError(f"{cls.__name__}: model name '{name}' or code {code} is taken by {other.__name__}")
@@ -102,6 +109,26 @@ def register(cls):
     MODELS.clear()
     MODELS.update((c.NAME, c) for c in order)
     return cls
+
+
+def _check_capabilities(cls) -> None:
+    """A model's ``ROUGHNESS`` names a texturable number of its ``PARAMS`` that sets kernel parameter
+    0 (and maybe 1: the texture slots a parameter drives, ``warp_sg.shading.surface``), on a
+    specular model; ``is_specular`` and ``ENERGY_NORMALISED`` are booleans."""
+    for flag in ("is_specular", "ENERGY_NORMALISED"):
+        if not isinstance(getattr(cls, flag, False), bool):
+            raise ValueError(f"{cls.__name__}: {flag} must be True or False")
+    r = getattr(cls, "ROUGHNESS", None)
+    if r is None:
+        return
+    p = cls.PARAMS.get(getattr(r, "param", None))
+    if p is None or p.kind != "number" or not p.texture or not hasattr(r, "kernel"):
+        raise ValueError(f"{cls.__name__}: ROUGHNESS must be a Roughness naming a texturable number of PARAMS, "
+                         f"got {r!r}")
+    if tuple(r.kernel) not in ((0,), (0, 1)):
+        raise ValueError(f"{cls.__name__}: ROUGHNESS.kernel must be (0,) or (0, 1), got {r.kernel!r}")
+    if not getattr(cls, "is_specular", False):
+        raise ValueError(f"{cls.__name__}: ROUGHNESS needs a specular lobe (is_specular)")
 
 
 def unregister(cls) -> None:
@@ -143,18 +170,29 @@ def specular_codes() -> frozenset:
     return frozenset(c for c, cls in BY_CODE.items() if getattr(cls, "is_specular", False))
 
 
+def has_specular(model_codes) -> bool:
+    """True when a model of ``model_codes`` has a specular lobe (the kernel variant's specular paths)."""
+    return any(int(c) in specular_codes() for c in model_codes)
+
+
+def roughness_of(code: int):
+    """The :class:`~warp_sg.brdf.base.Roughness` of the model of ``code`` (None: none)."""
+    return getattr(BY_CODE[int(code)], "ROUGHNESS", None)
+
+
 def textured_lobe_codes() -> frozenset:
-    """The codes of the models whose first kernel parameter (``kernel_params()[0]``) is the lobe's
-    width and may come from a texture: the first scalar of their ``PARAMS`` (after the colours) is
-    texturable (``Param.texture``). What a textured roughness changes per texel (the albedo table's
-    second axis, :mod:`warp_sg.brdf.kernel.albedo`)."""
-    out = set()
-    for c, cls in BY_CODE.items():
-        scalars = [p for p in cls.PARAMS.values() if p.kind == "number"]
-        if getattr(cls, "is_specular", False) and scalars and scalars[0].texture:
-            out.add(c)
-    return frozenset(out)
+    """The codes of the models whose lobe width may come from a texture (``ROUGHNESS``): its value
+    sets ``kernel_params()[0]`` per texel (and ``[1]`` where ``ROUGHNESS.kernel`` says so), the
+    albedo table's second axis (:mod:`warp_sg.brdf.kernel.albedo`)."""
+    return frozenset(c for c in BY_CODE if roughness_of(c) is not None)
+
+
+def energy_normalised(model) -> bool:
+    """True when the model (class or instance) declares its specular lobe normalised
+    (``ENERGY_NORMALISED``: :mod:`warp_sg.brdf.energy` checks ``kd + ks·F(0°) <= 1``)."""
+    return bool(getattr(model, "ENERGY_NORMALISED", False))
 
 
 __all__ = ["BY_CODE", "Kernel", "MAX_CODES", "MODELS", "analytic_codes", "code_of", "codes", "constant_diffuse",
-           "model_of", "register", "specular_codes", "textured_lobe_codes", "unregister"]
+           "energy_normalised", "has_specular", "model_of", "register", "roughness_of", "specular_codes",
+           "textured_lobe_codes", "unregister"]

@@ -20,6 +20,7 @@ import numpy as np
 import warp as wp
 
 from warp_sg.brdf.kernel.term_mask import TermMask
+from warp_sg.brdf.registry import has_specular
 from warp_sg.core.errors import InputError, SceneError
 from warp_sg.renderer.kernel_preload import BOUNCE_MODULES, SHADOW_MODULES
 from warp_sg.renderer.progressive import ShadowJob
@@ -202,7 +203,7 @@ class ResourceSetup:
             self.material_table = pack_materials(models, rs.lobes, self.device)
         except InputError as e:
             raise SceneError(f"materials: {e}") from None
-        self.has_specular = any(r["model"] >= 2 for r in self.material_table.records)
+        self.has_specular = has_specular(self.material_table.models)  # (the models' capability: the registry)
         # textures (atlas layout shared with the reference: warp_sg.shading.surface)
         slots, images = material_texture_slots(mats, COLOUR_PARAMS)
         self.has_textures = bool(np.any(slots[:, :SLOT_NORMAL] >= 0))

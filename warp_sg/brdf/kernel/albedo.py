@@ -45,12 +45,9 @@ import warp as wp
 
 from ...sg.irradiance import sg_irradiance_norm
 from ...sg.algebra_wp import sg_integral
+from ..registry import roughness_of, specular_codes, textured_lobe_codes
 from .material_struct import Material
-from .material_variants import brdf_pdf, brdf_sample, material_funcs
-from ..models.ggx import GGX
-
-#: GGX's code: an isotropic GGX material's roughness map sets αx = αy (``textured_material``)
-_GGX = GGX.CODE
+from .material_variants import material_funcs
 
 NMU = 32
 NQ = 8
@@ -100,6 +97,10 @@ def albedo_kernel(models):
         return _KERNELS[key]
     MF = material_funcs(key)
     brdf_specular, shading_slice_lobe, slice_lobe_count = MF.brdf_specular, MF.shading_slice_lobe, MF.slice_lobe_count
+    brdf_sample, brdf_pdf = MF.brdf_sample, MF.brdf_pdf  # (the set's own: a model registered after the import too)
+    # the models whose textured width sets kernel parameter 1 too (``Roughness.kernel``: an isotropic
+    # α map sets αx = αy, as ``textured_material`` does), as bits of the model code
+    PAIRED = sum(1 << c for c in key if 1 in getattr(roughness_of(c), "kernel", ()))
 
     def albedo(mats: wp.array(dtype=Material), entry_mat: wp.array(dtype=int), entry_q: wp.array(dtype=int),
                entry_mu: wp.array(dtype=int), irr: wp.array2d(dtype=float), samples: int,
@@ -115,7 +116,7 @@ def albedo_kernel(models):
         elif m.albedo_kind == KIND_ISO and m.albedo_nq > 1:  # a textured width: the q-th value of its range
             v = _q_value(m.albedo_q0, m.albedo_q1, q, m.albedo_nq)
             p1 = m.params[1]
-            if m.model == _GGX and m.params[1] == m.params[0]:  # isotropic GGX: a roughness map sets αx = αy
+            if ((wp.static(PAIRED) >> m.model) & 1) == 1 and m.params[1] == m.params[0]:  # αx = αy = the texel's
                 p1 = v
             m.params = wp.vec4(v, p1, m.params[2], m.params[3])
         m.ks = wp.vec3(1.0, 1.0, 1.0)
@@ -151,8 +152,6 @@ def albedo_kernel(models):
 def layout(records, p0_ranges):
     """Per material ``(kind, nq, q0, q1)`` from its packed record (``model``, ``params``,
     ``anisotropic``) and the range of its textured first parameter (``None``: constant)."""
-    from ..registry import specular_codes, textured_lobe_codes
-
     specular, textured = specular_codes(), textured_lobe_codes()
     out = []
     for rec, rng in zip(records, p0_ranges):

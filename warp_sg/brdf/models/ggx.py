@@ -49,7 +49,7 @@ import numpy as np
 import warp as wp
 
 from ...core.errors import InputError
-from ..base import SpecularBRDF, as_rgb, as_roughness, dirs, half_vector
+from ..base import Roughness, SpecularBRDF, as_rgb, as_roughness, dirs, half_vector
 from ..fresnel import parse_fresnel
 from ..kernel.material_eval_wp import (_aniso_overlap, aniso_axis, fresnel_eval, ggx_extent, ggx_g2_over_cos, ggx_ndf_peak1,
                                 ggx_table_lobe, half_vec)
@@ -251,6 +251,8 @@ def ggx_pdf(mat: Material, o: wp.vec3, i: wp.vec3) -> float:
 class GGX(SpecularBRDF):
     NAME = "ggx"
     CODE = 10
+    ROUGHNESS = Roughness("alpha", (0, 1))  # an isotropic α map (glTF's roughness) sets αx = αy
+    ENERGY_NORMALISED = True  # with Smith masking
     KERNEL = Kernel(ndf=ggx_ndf, mo=ggx_mo, analytic_lobe=ggx_lobe, table_lobe=ggx_fitted_lobe, sample=ggx_sample,
                     pdf=ggx_pdf)
     PARAMS = {"kd": KD, "ks": KS,

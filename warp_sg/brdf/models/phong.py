@@ -19,7 +19,7 @@ direction; Blinn–Phong samples ``cos θh = u^{1/(n+2)}``, ``p(h) = (n+2)/(2π)
 import numpy as np
 import warp as wp
 
-from ..base import SpecularBRDF, as_rgb, as_scalar, dirs, log_cos_theta
+from ..base import Roughness, SpecularBRDF, as_rgb, as_scalar, dirs, log_cos_theta
 from ..kernel.material_eval_wp import cos_pow, log1p_f, reflect_z
 from ..kernel.material_eval_wp import log_cos_theta as log_cos_theta_f
 from ..kernel.material_sample_wp import cos_power_dir, cos_power_pdf, reflect_about
@@ -99,6 +99,7 @@ class _CosinePower(SpecularBRDF):
     sharpness ``λ = n`` and the kernel parameters."""
 
     PARAMS = {"kd": KD, "ks": KS, "n": Param("number", "Phong exponent", lo=0, texture=True, slider=(1.0, 1000.0))}
+    ROUGHNESS = Roughness("n")
 
     def __init__(self, kd=(0.0, 0.0, 0.0), ks=(1.0, 1.0, 1.0), n=50.0):
         self.kd = as_rgb(kd, "kd")
@@ -133,6 +134,7 @@ class BlinnPhong(_CosinePower):
 class Phong(_CosinePower):
     NAME = "phong"
     CODE = 2
+    ENERGY_NORMALISED = True  # (n+2)/2π
     KERNEL = Kernel(ndf=cosine_power_ndf, mo=cosine_power_mo, analytic_lobe=cosine_power_lobe, specular=phong_specular,
                     slice_of_lobe=phong_slice_of_lobe, sample=phong_sample, pdf=phong_pdf)
     #: the numpy slice (``spherical_warp.slice_lobes_numpy``): the NDF lobes moved to the mirror direction
