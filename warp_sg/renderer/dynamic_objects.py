@@ -476,13 +476,14 @@ class DynamicObjects:
         already holds them), and the visible fraction of the environment's irradiance, which the
         moving vertices always take from the sky table (:meth:`_visible`; after a rebuild too, so
         that a frame is a function of the transforms)."""
+        from warp_sg.scene.render_settings import uses_sigmoid
         from warp_sg.shading.vertex_visibility import env_vertex_visibility, light_vertex_deficit
 
         d, nv, rows = r.device, len(r.geometry.vertices), self.rows
         needed = rows.needed(self.reads, r.geo_arrays.tris)
         jobs = (("light", r.light_vis_cache, True,
                  lambda v, s, ids: light_vertex_deficit(r.vis, r.geo_arrays.positions, r.light_arrays, nv,
-                                                        r.scene.render.fh == "sigmoid", d, ids=ids, into=v)),
+                                                        uses_sigmoid(r.scene.render.fh), d, ids=ids, into=v)),
                 ("visible", r.env_visible_cache, False, lambda v, s, ids: self._visible(r, es, v, s)),
                 ("lobes", r.env_vis_cache, True,
                  lambda v, s, ids: env_vertex_visibility(r.irr_table, r.vis, es, nv, d, ids=ids, into=v)))

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+from warp_sg.scene.render_settings import uses_sigmoid
 from warp_sg.shading import kernel as S
 
 
@@ -52,7 +53,7 @@ class VariantChoice:
             shadows=self.shadows and self.show_shadows,
             textures=self.has_textures,
             normal_maps=self.has_normal_maps,
-            fh_sigmoid=self.scene.render.fh == "sigmoid",
+            fh_sigmoid=uses_sigmoid(self.scene.render.fh),
             env_vis_vertex=self._vertex_sampled() and self.env_diffuse_mode == S.ENV_SG,
             light_vis_vertex=self._vertex_sampled() and len(self.shading_lights) > 0,
             env_visible_vertex=self._vertex_sampled(),

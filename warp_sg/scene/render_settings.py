@@ -11,7 +11,6 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, fields
 from functools import cache
 
-
 #: the integer keys and their ranges [lo, hi]
 RENDER_INT_RANGES = {"supersampling": (1, 16), "antialias": (1, 8), "lobes": (1, 16), "env_lobes": (1, 64),
                      "env_peaks": (0, 16), "visibility_budget": (0, 10_000_000),
@@ -19,6 +18,16 @@ RENDER_INT_RANGES = {"supersampling": (1, 16), "antialias": (1, 8), "lobes": (1,
                      "ssdf_resolution": (4, 1024), "gamma_levels": (0, 64), "gamma_resolution": (4, 1024)}
 #: the string keys with a fixed set of choices
 RENDER_CHOICES = {"fh": ("table", "sigmoid"), "visibility_sampling": ("vertex", "pixel")}
+
+
+def uses_sigmoid(fh: str) -> bool:
+    """The one reading of the ``fh`` choice (``[render] fh``, :data:`RENDER_CHOICES`): True when the
+    kernels use the paper's sigmoid (``warp_sg.sg.fh.fh_ratio_sigmoid``), False for the exact table."""
+    if fh not in RENDER_CHOICES["fh"]:
+        raise ValueError(f"fh must be one of {', '.join(RENDER_CHOICES['fh'])}, got {fh!r}")
+    return fh == "sigmoid"
+
+
 #: what every key means
 RENDER_DOC = {
     "shadows": "SSDF soft shadows, eq. 23–31 (off: visibility 1, no SSDF precompute)",
@@ -112,4 +121,4 @@ def render_table():
                         **{f.name: (rule(f.name, f.default), f.default) for f in fields(RenderSettings)})
 
 
-__all__ = ["RenderSettings", "render_table", "RENDER_INT_RANGES", "RENDER_CHOICES", "RENDER_DOC"]
+__all__ = ["RenderSettings", "render_table", "uses_sigmoid", "RENDER_INT_RANGES", "RENDER_CHOICES", "RENDER_DOC"]

@@ -65,6 +65,7 @@ from precompute.visibility.ssdf_wp import ssdf_eval_vertex, texel_direction_arra
 from warp_sg.numeric.fastmath import fast_asin
 from warp_sg.numeric.onb import local_to_world
 from warp_sg.scene.lights import LightArrays, light_irradiance
+from warp_sg.scene.render_settings import uses_sigmoid
 from warp_sg.scene.envmap import env_lookup
 from warp_sg.shading.visibility_terms import EnvSG, Visibility, lookup_skip, vertex_frame, vertex_point
 from warp_sg.sg.irradiance import sg_irradiance_norm_at
@@ -447,7 +448,7 @@ def update_caches(caches: tuple, inputs: CacheInputs, f, es: EnvSG) -> tuple[Env
     Camera and material edits reuse all three. Returns ``es`` and this call's rebuild seconds."""
     env_vis, light_vis, env_visible = caches
     r = inputs
-    d, nv, fh = r.device, r.n_vertices, r.fh
+    d, nv, sigmoid = r.device, r.n_vertices, uses_sigmoid(r.fh)
     bl = _blend(r.ssdf, nv, d)  # SSDFs at representatives: the quadratures there, then blended
 
     def env_lobes():
@@ -461,9 +462,9 @@ def update_caches(caches: tuple, inputs: CacheInputs, f, es: EnvSG) -> tuple[Env
             from warp_sg.shading.light_rays import light_vertex_rays
 
             into = None if r.occluders.static_vertices is None else \
-                light_vertex_deficit(r.vis, r.positions, r.light_arrays, nv, fh == "sigmoid", d)  # (moving vertices)
-            return light_vertex_rays(r.occluders, r.vis, r.positions, r.light_arrays, nv, fh == "sigmoid", d, into=into)
-        return light_vertex_deficit(r.vis, r.positions, r.light_arrays, nv, fh == "sigmoid", d)
+                light_vertex_deficit(r.vis, r.positions, r.light_arrays, nv, sigmoid, d)  # (moving vertices)
+            return light_vertex_rays(r.occluders, r.vis, r.positions, r.light_arrays, nv, sigmoid, d, into=into)
+        return light_vertex_deficit(r.vis, r.positions, r.light_arrays, nv, sigmoid, d)
 
     def visible():
         if bl is None:
