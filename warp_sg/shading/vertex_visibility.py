@@ -476,7 +476,7 @@ def update_caches(caches: tuple, inputs: CacheInputs, f, es: EnvSG) -> tuple[Env
     es.vis = env_vis.array(key, env_lobes, d)
     where = tuple((li.type, *np.ravel(getattr(li, "position", getattr(li, "direction", ()))).tolist(),
                    float(li.radius)) for li in r.shading_lights)
-    key = (where, r.ssdf, r.vis.cones, fh, r.occluders) if f.light_vis_vertex else None
+    key = (where, r.ssdf, r.vis.cones, r.fh, r.occluders) if f.light_vis_vertex else None
     r.vis.light_deficit = light_vis.array(key, deficit, d)
     key = (r.env_key[:2], r.ssdf, r.vis.cones) if f.env_visible_vertex else None
     es.visible, es.irr_vertex = env_visible.array(key, visible, d)
