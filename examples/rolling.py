@@ -28,8 +28,8 @@ import numpy as np
 
 import warp_sg as ws
 from warp_sg.core.image_io import save_image
-from warp_sg.scene.plain_scenes import write_plain_scene
 from warp_sg.numeric.rigid_motion import motion_about, rolling, rotation_about
+from warp_sg.scene.plain_scenes import write_plain_scene
 
 HERE = Path(__file__).resolve().parent
 

@@ -7,6 +7,7 @@ Stages: triangle_setup.py → bin.py → coarse.py → fine.py, orchestrated by 
 the scene's (:mod:`warp_sg.scene.camera`, a plain data class).
 """
 from warp_sg.scene.camera import Camera
+
 from .interpolate import interpolate
 from .rasterize import VisibilityBuffer, rasterize, tile_grid
 

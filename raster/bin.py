@@ -21,10 +21,11 @@ from __future__ import annotations
 
 import warp as wp
 
-wp.set_module_options({"enable_backward": False})
-
 from .fixed import TILE, count_tiles, pixel_bbox, sample_bbox, tile_overlaps  # noqa: F401
 from .triangle_setup import SubTri
+
+wp.set_module_options({"enable_backward": False})
+
 
 @wp.kernel
 def bin_count_kernel(

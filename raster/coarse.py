@@ -17,10 +17,10 @@ from __future__ import annotations
 
 import warp as wp
 
-wp.set_module_options({"enable_backward": False})
-
 from .fixed import TILE_BITS, sample_bbox, tile_overlaps
 from .triangle_setup import SubTri
+
+wp.set_module_options({"enable_backward": False})
 
 
 @wp.kernel

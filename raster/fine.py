@@ -23,10 +23,10 @@ from __future__ import annotations
 
 import warp as wp
 
-wp.set_module_options({"enable_backward": False})
-
 from .fixed import SUBPIXEL, TILE, edge_eval, edge_topleft, eval_plane, eval_plane_at, pixel_bbox, sample_fixed
 from .triangle_setup import SubTri
+
+wp.set_module_options({"enable_backward": False})
 
 
 @wp.func

@@ -9,9 +9,9 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-wp.set_module_options({"enable_backward": False})
-
 from warp_sg.core.errors import InputError
+
+wp.set_module_options({"enable_backward": False})
 
 
 @wp.kernel

@@ -43,8 +43,8 @@ def load_beside(make_kernel, device):
     made on a thread of its own: a frame whose kernel variant is new (built from its source and its
     module hashed: Python work, a few hundred ms for the shading kernel) prepares it while its other
     launches keep the pool's threads busy. Warp serialises its code generation itself."""
-    from concurrent.futures import Future
     import threading
+    from concurrent.futures import Future
 
     fut: Future = Future()
 
@@ -53,7 +53,7 @@ def load_beside(make_kernel, device):
             k = make_kernel()
             ensure_loaded(k, device)
             fut.set_result(k)
-        except BaseException as e:  # (re-raised by fut.result() in the caller)
+        except BaseException as e:  # noqa: BLE001  (re-raised by fut.result() in the caller)
             fut.set_exception(e)
 
     threading.Thread(target=run, name="warp-sg-kernel-load", daemon=True).start()

@@ -28,10 +28,10 @@ import warp as wp
 from warp_sg.core.device import resolve_device
 from warp_sg.core.errors import InputError
 from warp_sg.core.meshcheck import check_mesh
+from warp_sg.scene.camera import Camera
 
 from . import parallel
 from .bin import TILE, bin_count_kernel, scan_counts
-from warp_sg.scene.camera import Camera
 from .coarse import coarse_scatter_kernel, relabel_kernel
 from .fine import fine_pixel_kernel, fine_tile_kernel, resolve_kernel, resolve_pixel_kernel
 from .triangle_setup import MAX_RESOLUTION, SubTri, guard_factors, setup_extra_kernel, setup_kernel, vertex_kernel
@@ -352,7 +352,7 @@ def rasterize(vertices, triangles, camera: Camera, device="cpu", supersample: in
         box = vb.queue_bounds()
         vb._drawn_rows = (0, 0) if box is None else (box[1], box[3])
     if profile:
-        vb.depth
+        _ = vb.depth  # (resolved now, for its time)
         clock.lap("resolve")
     return vb
 

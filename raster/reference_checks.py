@@ -18,9 +18,9 @@ import warp as wp
 wp.set_module_options({"enable_backward": False})
 
 from warp_sg.core.device import resolve_device  # noqa: E402
+from warp_sg.scene.camera import Camera  # noqa: E402
 
 from . import parallel  # noqa: E402
-from warp_sg.scene.camera import Camera  # noqa: E402
 
 
 @wp.kernel

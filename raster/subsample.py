@@ -21,12 +21,12 @@ from __future__ import annotations
 
 import warp as wp
 
-wp.set_module_options({"enable_backward": False})
+from . import parallel
+from .fine import barycentrics_at, closer
+from .fixed import SUBPIXEL, TILE, TILE_BITS, edge_eval, edge_topleft, eval_plane_at, sample_bbox
+from .triangle_setup import SubTri
 
-from . import parallel  # noqa: E402
-from .fine import barycentrics_at, closer  # noqa: E402
-from .fixed import SUBPIXEL, TILE, TILE_BITS, edge_eval, edge_topleft, eval_plane_at, sample_bbox  # noqa: E402
-from .triangle_setup import SubTri  # noqa: E402
+wp.set_module_options({"enable_backward": False})
 
 
 @wp.func

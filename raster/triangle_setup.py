@@ -39,8 +39,20 @@ from __future__ import annotations
 
 import warp as wp
 
-from raster.fixed import (HALF, SUBPIXEL, SUBPIXEL_BITS, count_tiles, edge_eval, edge_topleft,  # noqa: F401
-                    eval_plane, lower_px, pixel_bbox, sample_bbox, sample_fixed, upper_px)
+from raster.fixed import (  # noqa: F401
+    HALF,
+    SUBPIXEL,
+    SUBPIXEL_BITS,
+    count_tiles,
+    edge_eval,
+    edge_topleft,
+    eval_plane,
+    lower_px,
+    pixel_bbox,
+    sample_bbox,
+    sample_fixed,
+    upper_px,
+)
 
 wp.set_module_options({"enable_backward": False})
 

@@ -23,7 +23,7 @@ def measure(cases, tmp) -> dict:
     out = {}
     todo = [c for c in cases if AM.reference_path(c).is_file()]
     bar = tqdm(total=len(todo), desc="renderer", unit="scene")
-    for key, group in AM.groups(todo).items():
+    for group in AM.groups(todo).values():
         imgs = AM.render_group(group, tmp)
         for c in group:
             out[c.name] = AM.errors(c, imgs[c.name])
@@ -33,8 +33,9 @@ def measure(cases, tmp) -> dict:
 
 
 def markdown(cases, res, fails) -> str:
-    import mitsuba
     import platform
+
+    import mitsuba
 
     from warp_sg.groundtruth import accuracy_matrix as AM
 

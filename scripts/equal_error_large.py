@@ -25,9 +25,9 @@ import numpy as np
 
 
 def scenes(size: int, which):
-    from warp_sg.tools.bench import bench_scene
-    from warp_sg.scene.plain_scenes import write_plain_scene
     from warp_sg.scene.loader import load_scene
+    from warp_sg.scene.plain_scenes import write_plain_scene
+    from warp_sg.tools.bench import bench_scene
 
     out = []
     with tempfile.TemporaryDirectory() as d:
@@ -45,11 +45,11 @@ def scenes(size: int, which):
 
 
 def measure(label, scene, truth_spp, seed=5):
+    from warp_sg.groundtruth.region_error import image_errors
+    from warp_sg.renderer.renderer import Renderer
     from warp_sg.tools import peer_mitsuba as pm
     from warp_sg.tools.bench import _frames, _net_of_floor
     from warp_sg.tools.spp_curve import spp_for_error
-    from warp_sg.groundtruth.region_error import image_errors
-    from warp_sg.renderer.renderer import Renderer
 
     t = time.perf_counter()
     truth, se = pm.mitsuba_mean(pm.mitsuba_scene(scene), spp=max(1, truth_spp // 4), batches=4, seed=seed)

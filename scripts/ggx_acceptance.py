@@ -20,10 +20,10 @@ import numpy as np
 from tqdm import tqdm
 
 import warp_sg as ws
-from warp_sg.core.files import atomic_output
 from warp_sg.brdf.models.ggx import DEFAULT_LOBES
-from warp_sg.scene.plain_scenes import write_plain_scene
+from warp_sg.core.files import atomic_output
 from warp_sg.groundtruth.region_error import box_reference, region_errors, scene_regions
+from warp_sg.scene.plain_scenes import write_plain_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 

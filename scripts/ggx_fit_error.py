@@ -24,10 +24,10 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from warp_sg.core.files import atomic_output
 from warp_sg.brdf import GGX
 from warp_sg.brdf.fitting.fit import eq11_error
 from warp_sg.brdf.helpers import half_vector
+from warp_sg.core.files import atomic_output
 
 ROOT = Path(__file__).resolve().parents[1]
 QUAD = dict(n_o=24, n_th=256, n_ph=48, theta_max=np.pi / 2)

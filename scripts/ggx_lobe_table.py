@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from warp_sg.brdf.models.ggx import TABLE_A0, TABLE_N, TABLE_STEP, node_fit
 from warp_sg.core.files import atomic_output
-from warp_sg.brdf.models.ggx import GGX, TABLE_A0, TABLE_N, TABLE_STEP, node_fit
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "warp_sg" / "brdf" / "fitting" / "ggx_lobe_table.py"

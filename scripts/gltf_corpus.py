@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from outcomes import Runner, summary  # noqa: E402
+from outcomes import Runner, summary
 
 #: the refusals a valid file may get: it has nothing this renderer draws, or the specification
 #: asks a loader to refuse it (a newer ``minVersion``, a required extension it does not implement)

@@ -40,8 +40,8 @@ def fps() -> int:
     import trimesh
 
     import warp_sg as ws
-    from warp_sg.scene.lights import EnvironmentLight, PointLight
     from warp_sg.scene.camera import Camera
+    from warp_sg.scene.lights import EnvironmentLight, PointLight
     from warp_sg.scene.model import Scene, SceneObject
     from warp_sg.scene.render_settings import RenderSettings
 

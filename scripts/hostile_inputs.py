@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from outcomes import Runner, summary  # noqa: E402
+from outcomes import Runner, summary
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = ["--width", "16", "--height", "12", "--no-progress"]
@@ -137,7 +137,7 @@ def scene_cases(c: Cases) -> None:
         ("fov = 40.0", "fov = nan", ["fov"]), ("fov = 40.0", "fov = inf", ["fov"]), ("fov = 40.0", "fov = 0.0", ["fov"]),
         ("fov = 40.0", "fov = 180.0", ["fov"]), ("fov = 40.0", 'fov = "wide"', ["fov"]),
         ("width = 16", "width = 0", ["width"]), ("width = 16", "width = -4", ["width"]),
-        ("width = 16", "width = 1e9", ["width"]), 
+        ("width = 16", "width = 1e9", ["width"]),
         ("origin = [0.0, 1.0, 3.0]", "origin = [0.0, 1.0]", ["origin"]),
         ("origin = [0.0, 1.0, 3.0]", "origin = [nan, 1.0, 3.0]", ["origin"]),
         ("target = [0.0, 0.3, 0.0]", "target = [0.0, 1.0, 3.0]", ["target"]),
@@ -223,8 +223,9 @@ def mesh_cases(c: Cases) -> None:
            b"property float z\nend_header\n"
     c.scene("mesh ply: header claims 4e9 vertices", sub(SPHERE, 'mesh = "h.ply"'), "refuse", ["h.ply"],
             files={"h.ply": huge})
-    from PIL import Image
     import io
+
+    from PIL import Image
 
     def png(a, mode=None):
         b = io.BytesIO()

@@ -62,9 +62,9 @@ def main(argv=None) -> int:
         return 1
     wp.config.quiet = True
     wp.init()
-    from warp_sg.shading import kernel as S
     from warp_sg.brdf.kernel.material_variants import ALL_MODELS
     from warp_sg.brdf.registry import code_of
+    from warp_sg.shading import kernel as S
 
     ct = S.Features(env_diffuse=S.ENV_SG, env_specular=S.ENV_PREFILTERED, lights=True, specular=True, shadows=True,
                     env_vis_vertex=True, models=(code_of("lambert"), code_of("cook_torrance")))

@@ -32,7 +32,7 @@ SWEEP = {"lobes": [1, 2, 3], "env_lobes": [2, 4, 12], "gamma_resolution": [32, 6
 
 def scenes() -> list:
     out = []
-    for group, cases in AM.groups().items():
+    for cases in AM.groups().values():
         glossy = [c for c in cases if not c.diffuse]
         out.append((glossy or cases)[0])
     return out

@@ -23,8 +23,8 @@ import time
 import numpy as np
 
 import warp_sg as ws
-from warp_sg.scene.plain_scenes import write_plain_scene
 from warp_sg.numeric.rigid_motion import motion_about, rolling, rotation_about
+from warp_sg.scene.plain_scenes import write_plain_scene
 from warp_sg.tools.report_animation import run_animation_report
 
 OBJECTS = {"ball": "sphere", "blob": "blob", "bunny": "bunny"}

@@ -88,7 +88,7 @@ def _run_case(case: dict) -> dict:
             from warp_sg.core.errors import InputError
 
             try:
-                exec(case["python"], {"ws": ws, "np": __import__("numpy"), "__name__": "case"})  # noqa: S102
+                exec(case["python"], {"ws": ws, "np": __import__("numpy"), "__name__": "case"})
                 rc = 0
             except InputError as e:
                 rc, exc = 2, ("InputError", str(e))

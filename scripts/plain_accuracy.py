@@ -14,8 +14,8 @@ import time
 import numpy as np
 
 import warp_sg as ws
-from warp_sg.scene.plain_scenes import write_plain_scene
 from warp_sg.groundtruth.region_error import box_reference, format_region_table, region_errors, scene_regions
+from warp_sg.scene.plain_scenes import write_plain_scene
 
 DEFAULT = "sphere:sky:lambert,sphere:point:lambert,blob:sky:lambert,blob:sky:blinn_phong,sphere:sky:cook_torrance,sphere:point:ward"
 

@@ -112,8 +112,8 @@ def main(argv=None) -> int:
     marks = {"start": time.perf_counter()}
     try:
         with clock.stage("load"):
-            from warp_sg.scene.importers.asset import asset_scene
             from warp_sg.renderer.renderer import Renderer
+            from warp_sg.scene.importers.asset import asset_scene
 
             if asset.endswith(".toml"):
                 from warp_sg.scene.loader import load_scene

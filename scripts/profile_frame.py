@@ -24,7 +24,6 @@ CPU time, not wall time, because these machines are shared: other processes infl
 from __future__ import annotations
 
 import argparse
-import statistics
 import time
 from dataclasses import replace
 
@@ -56,7 +55,6 @@ def _wall_new_view(r, repeat):
 
 
 def profile(path, size, repeat, visibility_sampling=None):
-    import warp as wp
 
     import raster
     import warp_sg as ws
@@ -84,7 +82,8 @@ def profile(path, size, repeat, visibility_sampling=None):
     compile_s = _compile_times(f)
     n_env = r._env_arrays().count if f.env_diffuse else 0
     n_lights = len(r.shading_lights)
-    print(f"\n### {path} at {size}², visibility_sampling {scene.render.visibility_sampling}: {len(g.triangles)} triangles, {len(g.vertices)} vertices; "
+    print(f"\n### {path} at {size}², visibility_sampling {scene.render.visibility_sampling}: "
+          f"{len(g.triangles)} triangles, {len(g.vertices)} vertices; "
           f"{n_env} environment lobes, {n_lights} lights (incl. sun peaks), "
           f"{r.ssdf.pca_terms if r.ssdf else 0} PCA terms\n")
     print("| antialias | frame ms | raster ms | shade ms | resolve ms | shaded samples | raster stages (ms) |")

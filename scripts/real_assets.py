@@ -8,7 +8,8 @@ Each case puts one object on a 2-triangle floor (the floor is named ``floor``: t
 the shadow are regions of :mod:`warp_sg.groundtruth.region_error`) under one HDRI, frames it as ``warp-sg render
 ASSET --env SKY`` does (:mod:`warp_sg.scene.importers.asset`) and compares the default render with the
 box-filtered reference (:func:`warp_sg.groundtruth.region_error.box_reference`): a full path tracer by default
-(``--max-depth 2``: direct light only, against renders with ``[render] bounces = 0``, the paper's part alone). Objects: ``sphere`` (a 1280-triangle
+(``--max-depth 2``: direct light only, against renders with ``[render] bounces = 0``, the paper's part alone).
+Objects: ``sphere`` (a 1280-triangle
 icosphere, written by the script) or a file of the assets folder by its stem (``LeePerrySmith``,
 ``ShaderBall``, ...). Materials: a key of :data:`MATERIALS` overrides the file's (``own`` keeps a
 glTF's own materials). It writes ``real_assets.md`` with the per-region table (bias, relative MSE)

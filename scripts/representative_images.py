@@ -12,7 +12,8 @@ precompute CPU seconds. ``--reference SPP``: also both against the Monte-Carlo r
 (``box_reference``, SPP paths per pixel; the relative MSEs are corrected for its noise, its
 per-pixel standard error saved beside it as ``reference_stderr.npy``); ``--reference-file EXR``: an
 earlier run's reference (and its ``reference_stderr.npy``). The floor of the regions is the object
-named ``floor`` or ``ground`` (the ground plane an asset scene adds; ``--floor`` other names). Uses ``WARP_SG_CACHE_DIR`` as it is (a second run reuses
+named ``floor`` or ``ground`` (the ground plane an asset scene adds; ``--floor`` other names). Uses
+``WARP_SG_CACHE_DIR`` as it is (a second run reuses
 the SSDFs; ``--own EXR`` takes the first image from an earlier run). Writes ``own.exr``, ``reps.exr`` (and ``reference.exr``) to ``--out``.
 """
 from __future__ import annotations

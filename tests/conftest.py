@@ -20,7 +20,7 @@ import pytest
 os.environ.setdefault("WARP_SG_CACHE_DIR", tempfile.mkdtemp(prefix="warp-sg-test-cache-"))
 os.environ.setdefault("PYVISTA_OFF_SCREEN", "true")
 
-from warp_sg.core.device import cuda_available  # noqa: E402
+from warp_sg.core.device import cuda_available
 
 DEVICES = ["cpu"] + (["cuda:0"] if cuda_available() else [])
 

@@ -7,9 +7,9 @@ import pytest
 
 from precompute.visibility import ssdf as S
 from precompute.visibility.adaptive_rays import levels
-from warp_sg.tools.bench_precompute import ssdf_error
 from precompute.visibility.reference_checks import plane_box_scene
 from warp_sg.core.stage_clock import StageClock
+from warp_sg.tools.bench_precompute import ssdf_error
 
 
 def _plates_scene(gap: float, near: float = 1.0, far: float = 4.0):

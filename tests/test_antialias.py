@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import warp_sg as ws
-from warp_sg.scene.lights import DirectionalLight, EnvironmentLight
 from warp_sg.scene.camera import Camera
+from warp_sg.scene.lights import DirectionalLight, EnvironmentLight
 from warp_sg.scene.model import Scene, SceneObject
 from warp_sg.scene.render_settings import RenderSettings
 
@@ -187,8 +187,8 @@ def test_contrast_pixels_are_probed_then_refined_at_every_sub_pixel_where_the_pr
 
     import raster
     from warp_sg.renderer import antialias as A
-    from warp_sg.shading.background import background_params
     from warp_sg.scene.camera import Camera
+    from warp_sg.shading.background import background_params
 
     W, H = 4, 3
     cam = Camera(origin=(0.0, 0.0, 1.0), target=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov=40.0, width=W, height=H)
@@ -240,8 +240,8 @@ def test_contrast_pixels_are_probed_then_refined_at_every_sub_pixel_where_the_pr
 
 def _background(a, W):
     """A disabled background (no environment): samples that see no object get 0."""
-    from warp_sg.shading.background import background_params
     from warp_sg.scene.camera import Camera
+    from warp_sg.shading.background import background_params
 
     return background_params(Camera(width=W, height=1), a, None, None, 1.0, "cpu")
 
@@ -297,8 +297,8 @@ def test_contour_marks_are_the_pixels_the_projected_edges_cross():
     sample falls in is marked, and nothing farther than ``MARK_EPS`` (+ 0.01 px) from an edge."""
     import warp as wp
 
-    from warp_sg.shading import silhouette as SIL
     from warp_sg.scene.camera import Camera
+    from warp_sg.shading import silhouette as SIL
 
     cam = Camera(origin=(0.1, 0.3, 2.0), target=(0.0, 0.0, 0.0), fov=50.0, width=37, height=29)
     V = np.array([[-0.7, -0.2, 0.1], [0.6, -0.5, -0.3], [0.05, 0.65, 0.2]], np.float32)
@@ -340,8 +340,8 @@ def test_contours_hidden_behind_a_nearer_surface_are_not_marked():
     import warp as wp
 
     import raster
-    from warp_sg.shading import silhouette as SIL
     from warp_sg.scene.camera import Camera
+    from warp_sg.shading import silhouette as SIL
 
     cam = Camera(origin=(0.0, 0.0, 3.0), target=(0.0, 0.0, 0.0), fov=50.0, width=48, height=40)
     quad = np.array([[-1.0, -0.8, 0.0], [1.0, -0.8, 0.0], [1.0, 0.8, 0.0], [-1.0, 0.8, 0.0]], np.float32)

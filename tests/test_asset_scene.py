@@ -10,8 +10,8 @@ import pytest
 import trimesh
 
 from warp_sg.scene.importers.asset import asset_scene
-from warp_sg.tools.cli import main
 from warp_sg.scene.loader import load_scene
+from warp_sg.tools.cli import main
 
 
 @pytest.fixture

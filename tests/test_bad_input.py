@@ -187,8 +187,8 @@ def test_bad_mesh_raises_mesh_or_scene_error_naming_the_file_or_element(tmp_path
 
 def test_nan_vertices_through_the_python_api_name_the_object_and_vertex():
     from warp_sg.scene.camera import Camera
-    from warp_sg.scene.model import Scene, SceneObject
     from warp_sg.scene.lights import DirectionalLight
+    from warp_sg.scene.model import Scene, SceneObject
 
     v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [np.nan, 1, 1]], float)
     t = np.array([[0, 1, 2], [1, 2, 3]])
@@ -820,8 +820,8 @@ def test_draco_asset_is_decoded_or_refused_naming_the_extension():
 
 
 def test_zero_scale_names_the_file_and_the_object(tmp_path):
-    from warp_sg.scene.lights import DirectionalLight
     from warp_sg.scene.camera import Camera
+    from warp_sg.scene.lights import DirectionalLight
     from warp_sg.scene.model import Scene, SceneObject, Transform
 
     ob = SceneObject(material="a", vertices=QUAD_V, triangles=QUAD_F, name="blob", transform=Transform(scale=(1, 0, 1)))
@@ -1368,12 +1368,13 @@ def test_light_or_material_value_that_overflows_float32_is_refused_naming_it(tmp
 
 def test_closed_room_around_the_camera_keeps_its_inward_faces(tmp_path):
     # a room seen from inside faces inwards by design: no flip, no warning (winding number of the eye: 1)
-    import trimesh
     import warnings
 
-    from warp_sg.scene.lights import PointLight
+    import trimesh
+
     from warp_sg.core.meshcheck import winding_number
     from warp_sg.scene.camera import Camera
+    from warp_sg.scene.lights import PointLight
     from warp_sg.scene.model import Scene, SceneObject
 
     room = trimesh.creation.box(extents=(4.0, 4.0, 4.0))

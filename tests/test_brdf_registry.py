@@ -21,12 +21,12 @@ import pytest
 import warp as wp
 
 from warp_sg import brdf as B
-from warp_sg.brdf.kernel import material_wp as M
 from warp_sg.brdf import registry
 from warp_sg.brdf.base import BRDF, Roughness, SpecularBRDF, as_rgb, as_scalar, dirs, half_vector
-from warp_sg.brdf.params import KD, KS, Param
+from warp_sg.brdf.kernel import material_wp as M
 from warp_sg.brdf.kernel.material_eval_wp import cos_pow, log_cos_theta
 from warp_sg.brdf.kernel.material_sample_wp import reflect_about
+from warp_sg.brdf.params import KD, KS, Param
 from warp_sg.core.errors import InputError
 
 TWO_PI = 2.0 * np.pi

@@ -169,8 +169,8 @@ def test_cached_producers_key_on_a_code_hash_not_a_version_number():
     """Every producer of a cache kind keys on :func:`cache.code_key` of its own module (a hand-kept
     version would be a small int or a literal string)."""
     import precompute.environment.irradiance as ei
-    import precompute.environment.sg_fit as es
     import precompute.environment.prefilter as pf
+    import precompute.environment.sg_fit as es
     import precompute.visibility.refine as rf
     import precompute.visibility.ssdf as ss
     from warp_sg.brdf.fitting import measured_fit as mf

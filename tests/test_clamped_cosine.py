@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from warp_sg.sg import cosine_lobes as C
 from warp_sg.core.errors import InputError
+from warp_sg.sg import cosine_lobes as C
 
 
 def quad_rel_error(lam, mu):

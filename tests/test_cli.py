@@ -1,7 +1,6 @@
 """The warp-sg command line: render writes images, bad input exits 2 with one line and no output."""
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from warp_sg.tools.cli import main
@@ -165,9 +164,9 @@ def test_reference_creates_missing_output_folders_and_leaves_nothing_when_it_fai
 def test_device_default_is_the_scenes_render_device_in_every_subcommand(scene_file, tmp_path, capsys):
     import argparse
 
-    from warp_sg.tools.cli import build_parser
     from warp_sg.core.device import device_for
     from warp_sg.scene.loader import load_scene
+    from warp_sg.tools.cli import build_parser
 
     for cmd in ("render", "preview", "reference", "report", "bench"):
         parser = build_parser(cmd)

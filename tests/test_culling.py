@@ -8,8 +8,8 @@ import trimesh
 
 import raster
 import warp_sg as ws
-from warp_sg.scene.culling import BackfaceCulling
 from warp_sg.scene.camera import Camera
+from warp_sg.scene.culling import BackfaceCulling
 from warp_sg.scene.lights import EnvironmentLight
 from warp_sg.scene.model import Scene, SceneObject
 from warp_sg.scene.render_settings import RenderSettings

@@ -219,10 +219,10 @@ def _edited_scene(scene, variant):
 def test_a_batch_of_8_frames_equals_8_local_renders(cluster, workdir):
     import tomllib  # noqa: F401  (the job file below is TOML)
 
-    from warp_sg.tools.cli import main
     from warp_sg.core.image_io import load_image
     from warp_sg.renderer.renderer import Renderer
     from warp_sg.scene.loader import load_scene
+    from warp_sg.tools.cli import main
 
     _fresh_cache(workdir, "cache-batch")
     scene = load_scene(workdir / "scene.toml")
@@ -324,8 +324,8 @@ print("RC", rc, "DASK", bad)
     ('scene = "s.toml"\noutput = "f{index}.png"\n[animate]\nframes = 0\n', "frames"),
 ])
 def test_bad_job_files_name_the_key(tmp_path, text, needle):
-    from warp_sg.distributed.batch import load_job
     from warp_sg.core.errors import InputError
+    from warp_sg.distributed.batch import load_job
 
     p = tmp_path / "job.toml"
     p.write_text(text)

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from gltf_files import GltfWriter, quad
+
 from warp_sg.groundtruth.reference import reference
 from warp_sg.renderer.renderer import Renderer
 from warp_sg.scene.camera import Camera

@@ -10,8 +10,8 @@ import warp as wp
 
 import warp_sg as ws
 from warp_sg.core.errors import SceneError
-from warp_sg.scene.plain_scenes import write_plain_scene
 from warp_sg.numeric.rigid_motion import check_motion, motion_matrix, rotation_about
+from warp_sg.scene.plain_scenes import write_plain_scene
 
 
 def _scene(tmp_path, obj="sphere", light="sky", size=32, **render):
@@ -347,8 +347,8 @@ def test_outline_cosine_solid_angle_matches_quadrature():
 def test_batch_variants_move_objects_like_the_setter(ball):
     """A job's ``objects.NAME`` fields (translate/rotate/pivot) are the motion of
     ``set_object_transform``: the same frame; a static object or an unknown field is refused."""
-    from warp_sg.distributed.rendering import apply_variant, normalize_variants
     from warp_sg.core.errors import InputError
+    from warp_sg.distributed.rendering import apply_variant, normalize_variants
     from warp_sg.numeric.rigid_motion import motion_from_fields
 
     fields = {"translate": [0.4, 0.0, 0.2], "rotate": [0.0, 30.0, 0.0], "pivot": [0.0, 0.5, 0.0]}

@@ -15,13 +15,12 @@ import pytest
 
 from precompute.environment.sg_fit import _fibonacci_normals, irradiance_reference
 from precompute.visibility.rays import ray_visibility
-from warp_sg.scene.envmap import env_lookup_numpy
 from warp_sg.renderer.renderer import Renderer
 from warp_sg.scene.camera import Camera
+from warp_sg.scene.envmap import env_lookup_numpy
 from warp_sg.scene.lights import EnvironmentLight
-from warp_sg.scene.model import Material, Scene
+from warp_sg.scene.model import Material, Scene, SceneObject
 from warp_sg.scene.render_settings import RenderSettings
-from warp_sg.scene.model import SceneObject
 
 KD = np.array([0.6, 0.5, 0.4])
 

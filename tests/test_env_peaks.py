@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from warp_sg.core.image_io import LUMINANCE
 from precompute.environment.peaks import extract_peaks
+from warp_sg.core.image_io import LUMINANCE
 from warp_sg.scene.envmap import dir_to_uv, row_solid_angles, texel_directions
 
 ASSETS = Path(__file__).resolve().parents[2] / "shared" / "assets"
@@ -84,7 +84,7 @@ def test_a_sun_on_the_horizon_and_several_lamps_at_night_are_all_found():
     res, peaks = extract_peaks(env)
     _conserved(env, res, peaks)
     assert len(peaks) == len(lamps)
-    for (d, s), p in zip(lamps, peaks):  # brightest first
+    for (d, _), p in zip(lamps, peaks):  # brightest first
         assert math.acos(min(1.0, float(p.direction @ d))) < 2 * math.pi / h
 
 

@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from warp_sg.scene import envmap as em
-from warp_sg.scene import sky as sk
 from precompute.environment.sg_fit import fit_environment_sgs, irradiance_reference, sg_irradiance
 from warp_sg.core.errors import ImageError
+from warp_sg.scene import envmap as em
+from warp_sg.scene import sky as sk
 
 SUN = np.array([0.45, 0.55, -0.70]) / np.linalg.norm([0.45, 0.55, -0.70])
 

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_sg.scene import envmap as em
-from warp_sg.scene import sky as sk
 from warp_sg.core.errors import ImageError
 from warp_sg.core.image_io import save_image
+from warp_sg.scene import envmap as em
+from warp_sg.scene import sky as sk
 
 
 def test_convention_matches_mitsuba_axes():

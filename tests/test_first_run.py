@@ -79,9 +79,9 @@ def test_a_renderer_without_the_compile_pool_renders_the_same_frame(cache_dir, m
 
 
 def test_the_thread_sampler_sees_busy_threads_and_their_cpu():
-    from warp_sg.core.thread_sampler import ThreadSampler
-
     import hashlib
+
+    from warp_sg.core.thread_sampler import ThreadSampler
 
     block = bytes(1 << 20)
 

@@ -9,10 +9,9 @@ import numpy as np
 import pytest
 
 import raster
-from warp_sg.scene.lights import DirectionalLight
 from warp_sg.renderer.renderer import Renderer
 from warp_sg.scene.camera import Camera
-from warp_sg.scene.lights import EnvironmentLight
+from warp_sg.scene.lights import DirectionalLight, EnvironmentLight
 from warp_sg.scene.model import Material, Scene, SceneObject
 from warp_sg.scene.render_settings import RenderSettings
 
@@ -79,8 +78,8 @@ def test_environment_lobes_without_energy_are_left_out_and_change_nothing(render
 
 
 def test_background_kernel_matches_the_camera_rays_and_the_numpy_environment_lookup():
-    from warp_sg.shading.background import background_image, background_params
     from warp_sg.scene.envmap import env_lookup_numpy, rotation_y
+    from warp_sg.shading.background import background_image, background_params
 
     rng = np.random.default_rng(5)
     env = rng.uniform(0.0, 2.0, (16, 32, 3)).astype(np.float32)

@@ -3,12 +3,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from warp_sg.tools.bench import bench_scene
-from warp_sg.scene.lobe_extent import MIN_REACH, gamma_reach, sharpest_ndf_lobe
 from warp_sg.groundtruth.region_error import image_errors
 from warp_sg.renderer.renderer import Renderer
+from warp_sg.scene.lobe_extent import MIN_REACH, gamma_reach, sharpest_ndf_lobe
 from warp_sg.scene.model import Material
 from warp_sg.scene.textures import Texture
+from warp_sg.tools.bench import bench_scene
 
 
 def _scene():

@@ -9,8 +9,8 @@ import warp as wp
 
 import warp_sg.brdf as B
 from warp_sg.brdf import GGX, make_model
-from warp_sg.brdf.kernel import material_wp as M
 from warp_sg.brdf.fitting.fit import fit_error
+from warp_sg.brdf.kernel import material_wp as M
 from warp_sg.core.errors import InputError
 
 

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 import warp_sg as ws
+from warp_sg.groundtruth.region_error import box_reference, region_errors, scene_regions
 from warp_sg.scene.envmap import texel_directions
 from warp_sg.scene.plain_scenes import write_plain_scene
-from warp_sg.groundtruth.region_error import box_reference, region_errors, scene_regions
 
 SIZE = 40
 #: a near-mirror's sun glint is a pixel wide at 40² (its energy then rides on one pixel's sampling):

@@ -14,15 +14,15 @@ from PIL import Image
 from trimesh.visual import TextureVisuals
 from trimesh.visual.material import PBRMaterial
 
-from warp_sg.scene.camera import Camera
-from warp_sg.tools.cli import main
 from warp_sg.core.errors import MeshError
-from warp_sg.scene.importers.gltf_material import ALPHA_MIN
+from warp_sg.scene.camera import Camera
 from warp_sg.scene.importers.gltf import AssetWarning, load_gltf
+from warp_sg.scene.importers.gltf_material import ALPHA_MIN
 from warp_sg.scene.lights import EnvironmentLight
-from warp_sg.scene.model import Scene, SceneObject, Transform
 from warp_sg.scene.loader import load_scene
+from warp_sg.scene.model import Scene, SceneObject, Transform
 from warp_sg.scene.textures import sample_bilinear_np
+from warp_sg.tools.cli import main
 
 SKY = [EnvironmentLight(procedural="constant")]
 QUAD_V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)

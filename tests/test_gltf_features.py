@@ -11,15 +11,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from gltf_files import GltfWriter, quad
-from warp_sg.scene.camera import Camera
-from warp_sg.scene.importers.gltf import AssetWarning, load_gltf
-from warp_sg.scene.lights import DirectionalLight, EnvironmentLight
+
+from warp_sg.core.errors import SceneError
 from warp_sg.groundtruth.reference import reference
 from warp_sg.groundtruth.region_error import region_errors, scene_regions
 from warp_sg.renderer.renderer import Renderer
-from warp_sg.core.errors import SceneError
+from warp_sg.scene.camera import Camera
+from warp_sg.scene.importers.gltf import AssetWarning, load_gltf
+from warp_sg.scene.lights import DirectionalLight, EnvironmentLight
 from warp_sg.scene.model import Material, Scene, SceneObject
 from warp_sg.scene.render_settings import RenderSettings
 

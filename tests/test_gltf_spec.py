@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from gltf_files import FLOAT, U16, GltfWriter, png, quad
+
 from warp_sg.core.errors import MeshError
 from warp_sg.scene.importers.gltf import AssetWarning, gltf_object_parts, load_gltf
 from warp_sg.tools.cli import main

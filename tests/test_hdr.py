@@ -10,12 +10,12 @@ import cv2
 import numpy as np
 import pytest
 
-from warp_sg.tools.cli import main
-from warp_sg.scene.envmap import load_envmap
 from warp_sg.core.errors import ImageError
 from warp_sg.core.image_io import load_image, save_image
+from warp_sg.scene.envmap import load_envmap
 from warp_sg.scene.lights import EnvironmentLight
 from warp_sg.scene.loader import load_scene
+from warp_sg.tools.cli import main
 
 
 def radiance(h=16, w=32, seed=0):

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_bad_input import assert_clean_failure, replace, run_cli, write_scene
 
-from test_bad_input import BASE, assert_clean_failure, replace, run_cli, write_scene
 from warp_sg.core.errors import InputError, MeshError
 
 

@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-
-from test_bad_input import BASE, replace
+from test_bad_input import replace
 from test_hostile_inputs import write_hdr
+
 from warp_sg.core.errors import InputError
 
 INTERNAL = re.compile(r"\b[A-Z][A-Za-z]*(Error|Exception)\b|Traceback")

@@ -8,8 +8,7 @@ import pytest
 import warp as wp
 
 from warp_sg.sg.algebra_wp import FA_NUMERATOR
-from warp_sg.shading.visibility_terms import fh_fraction, light_cap_visible, light_fraction
-from warp_sg.shading.visibility_terms import Visibility
+from warp_sg.shading.visibility_terms import Visibility, fh_fraction, light_cap_visible, light_fraction
 
 
 @wp.kernel

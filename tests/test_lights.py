@@ -7,8 +7,17 @@ import warp as wp
 from scipy import integrate, optimize
 
 from warp_sg.core.errors import InputError
-from warp_sg.scene.lights import (DirectionalLight, EnvironmentLight, LightArrays, PointLight, directional_light_sg,
-                            light_arrays, light_sg, point_light_sg, rotate_equirect)
+from warp_sg.scene.lights import (
+    DirectionalLight,
+    EnvironmentLight,
+    LightArrays,
+    PointLight,
+    directional_light_sg,
+    light_arrays,
+    light_sg,
+    point_light_sg,
+    rotate_equirect,
+)
 
 
 @wp.kernel

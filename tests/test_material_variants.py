@@ -17,7 +17,6 @@ import pytest
 import warp as wp
 
 import warp_sg.brdf as B
-from warp_sg.shading import kernel as S
 from warp_sg.brdf.kernel import material_wp as M
 from warp_sg.brdf.kernel.material_variants import ALL_MODELS, material_funcs
 from warp_sg.brdf.registry import code_of, codes
@@ -27,6 +26,7 @@ from warp_sg.scene.camera import Camera
 from warp_sg.scene.lights import DirectionalLight, EnvironmentLight
 from warp_sg.scene.model import Scene, SceneObject
 from warp_sg.scene.render_settings import RenderSettings
+from warp_sg.shading import kernel as S
 
 #: one material per model family: (model name, parameters, model code)
 FAMILIES = [

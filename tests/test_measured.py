@@ -7,10 +7,18 @@ import pytest
 import warp as wp
 
 import warp_sg.brdf as B
-from warp_sg.brdf.kernel import material_wp as M
 from warp_sg.brdf import merl
-from warp_sg.brdf.models.measured import (D_THETA, S_THETA, Measured, compress_shadowing, fit_ndf_sg,
-                                   fit_ndf_sg_anisotropic, fresnel_eq14, fresnel_normalised)
+from warp_sg.brdf.kernel import material_wp as M
+from warp_sg.brdf.models.measured import (
+    D_THETA,
+    S_THETA,
+    Measured,
+    compress_shadowing,
+    fit_ndf_sg,
+    fit_ndf_sg_anisotropic,
+    fresnel_eq14,
+    fresnel_normalised,
+)
 from warp_sg.core.errors import InputError
 
 ETA = 1.33

@@ -13,8 +13,8 @@ import pytest
 import warp as wp
 
 import warp_sg as ws
+from warp_sg.numeric.rigid_motion import motion_about, rotation_about
 from warp_sg.scene.plain_scenes import write_plain_scene
-from warp_sg.numeric.rigid_motion import motion_about, motion_matrix, rotation_about
 
 
 def _torus_scene(tmp_path):

@@ -9,11 +9,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import warp as wp
+from motion_helpers import apply_step
 
 import warp_sg as ws
-from motion_helpers import apply_step
-from warp_sg.scene.plain_scenes import write_plain_scene
 from warp_sg.numeric.rigid_motion import motion_matrix, rotation_about
+from warp_sg.scene.plain_scenes import write_plain_scene
 
 
 def _mesh(rng, n=300):
@@ -68,7 +68,7 @@ def test_a_part_drawn_over_the_others_equals_a_raster_of_the_union(seed, cull, d
     assert np.isin(np.arange(40, 70), tri).any() and not np.isin(np.arange(len(T) - 30, len(T)), tri).any()
     # sub-samples: walking both queues, and the static part's kept by pixel under the moving one
     kept = KeptSubsamples(static)
-    for trial in range(3):
+    for _ in range(3):
         pix = np.sort(rng.choice(72 * 56, size=400, replace=False)).astype(np.int32)
         idx = wp.array(pix, dtype=int, device=device)
         want = subsample(full, idx)

@@ -6,9 +6,9 @@ the last frames did not — each row it reads holds the current transforms."""
 from __future__ import annotations
 
 import numpy as np
+from motion_helpers import apply_step
 
 import warp_sg as ws
-from motion_helpers import apply_step
 from warp_sg.numeric.rigid_motion import motion_about, rotation_about
 from warp_sg.scene.plain_scenes import write_plain_scene
 

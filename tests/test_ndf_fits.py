@@ -13,7 +13,6 @@ import warp_sg.brdf as B
 from warp_sg.brdf.fitting.fit import EPSILON, fit_error
 from warp_sg.core.errors import InputError
 
-
 # exact NDFs written out here from the supplement / lecture (ln D(θh), peak-normalised, isotropic)
 LN_NDF = {
     "ct": lambda t, m: -(t / m) ** 2,  # Cook–Torrance as in docs/math.md: exp(−(θh/m)²)
@@ -165,7 +164,7 @@ MIN_DROP_2 = {"ct.15": 150.0, "ct.05": 300.0, "ward.1": 60.0, "ward.3": 10.0, "b
 
 
 def _ndf_theta(model):
-    return lambda t: model.ndf(np.stack([np.sin(t), 0 * t, np.cos(t)], -1))  # noqa: E731
+    return lambda t: model.ndf(np.stack([np.sin(t), 0 * t, np.cos(t)], -1))
 
 
 def _quad(f, lam):
@@ -176,7 +175,7 @@ def _quad(f, lam):
 
 
 def _mixture(lam, mu):
-    return lambda t: np.exp(-np.multiply.outer(2 * np.sin(np.asarray(t) / 2) ** 2, lam)) @ mu  # noqa: E731
+    return lambda t: np.exp(-np.multiply.outer(2 * np.sin(np.asarray(t) / 2) ** 2, lam)) @ mu
 
 
 def _rel_l2(model, lam, mu):

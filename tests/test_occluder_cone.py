@@ -8,17 +8,17 @@ import pytest
 import warp as wp
 
 from precompute.visibility.occluder_cone import no_cones, occluder_cones, texel_half_diagonal
+from precompute.visibility.rays import hemisphere_visibility
 from precompute.visibility.ssdf import compute_ssdf
 from precompute.visibility.ssdf_wp import texel_directions
-from precompute.visibility.rays import hemisphere_visibility
-from warp_sg.sg.fh import fh_theta_max
 from warp_sg.numeric.onb import frame_from_normal
-from warp_sg.scene.primitives import plane, sphere
 from warp_sg.renderer.renderer import Renderer
 from warp_sg.scene.camera import Camera
 from warp_sg.scene.lights import DirectionalLight, EnvironmentLight
 from warp_sg.scene.model import Material, Scene, SceneObject
+from warp_sg.scene.primitives import plane, sphere
 from warp_sg.scene.render_settings import RenderSettings
+from warp_sg.sg.fh import fh_theta_max
 
 R, RR = 16, 32
 

@@ -12,8 +12,8 @@ field looked up in the object's frame against a ray cast of the turned mesh.
 """
 import numpy as np
 import pytest
-from motion_helpers import bunny_mesh
 import warp as wp
+from motion_helpers import bunny_mesh
 
 trimesh = pytest.importorskip("trimesh")
 

@@ -38,8 +38,8 @@ def plain_folder(tmp_path_factory):
 
 
 def _scene(folder, light):
-    from warp_sg.scene.plain_scenes import write_plain_scene
     from warp_sg.scene.loader import load_scene
+    from warp_sg.scene.plain_scenes import write_plain_scene
 
     return load_scene(write_plain_scene(folder / light, obj="sphere", light=light, material="lambert", size=SIZE))
 
@@ -116,8 +116,8 @@ def test_mitsuba_envmap_lookup_equals_our_bilinear_lookup_with_rotation():
 
 
 def test_glossy_and_textured_materials_are_refused_with_the_material_named(plain_folder):
-    from warp_sg.scene.plain_scenes import write_plain_scene
     from warp_sg.scene.loader import load_scene
+    from warp_sg.scene.plain_scenes import write_plain_scene
 
     scene = load_scene(write_plain_scene(plain_folder / "ct", obj="sphere", light="sky", material="cook_torrance",
                                          size=8))

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 import warp_sg as ws
-from warp_sg.scene.plain_scenes import write_plain_scene
 from warp_sg.groundtruth.region_error import box_reference, region_errors, scene_regions
+from warp_sg.scene.plain_scenes import write_plain_scene
 
 SIZE = 48
 SPP = 2048

@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_sg.scene import envmap as em
-from warp_sg.scene import sky as sk
-from precompute.environment import prefilter as pf
 from precompute.environment import cubemap
+from precompute.environment import prefilter as pf
 from precompute.environment import prefilter_numpy as pfn
 from precompute.environment.prefilter_wp import GammaTable, gamma_lookup, gamma_mean
 from warp_sg import sg
+from warp_sg.scene import envmap as em
+from warp_sg.scene import sky as sk
 
 SUN = np.array([0.45, 0.55, -0.70]) / np.linalg.norm([0.45, 0.55, -0.70])
 

@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import sys
 import threading
+
 import numpy as np
 import pytest
 
 from precompute.visibility.ssdf import compute_ssdf
-from warp_sg.tools.bench import bench_scene
 from warp_sg.core.errors import InputError
 from warp_sg.renderer.renderer import Renderer
+from warp_sg.tools.bench import bench_scene
 
 
 def _scene(shadows=True):
@@ -129,8 +130,8 @@ def test_a_scene_without_shadows_has_nothing_pending(cache_dir):
 
 
 def test_cli_first_frame_writes_the_unshadowed_frame_then_the_final_one(cache_dir, tmp_path):
-    from warp_sg.tools.cli import main
     from warp_sg.core.image_io import load_image
+    from warp_sg.tools.cli import main
 
     scene_file = tmp_path / "s.toml"
     scene_file.write_text('''

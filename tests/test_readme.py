@@ -457,8 +457,8 @@ def test_render_your_own_asset_renders_and_prints_a_scene_that_loads(tmp_path):
     """The one-command glTF render under the ``.hdr`` sky, at 64×48 without shadows (the SSDF of the
     asset's ground takes minutes on a fresh cache; tests/test_asset_scene.py covers the scene), and
     ``--print-scene``, whose TOML loads back as a scene."""
-    from warp_sg.tools.cli import build_parser
     from warp_sg.scene.loader import load_scene
+    from warp_sg.tools.cli import build_parser
 
     render, printed, first, preview = _asset_commands()
     assert preview[0] == "preview" and preview[1:] == render[1:render.index("-o")]  # the same asset, the same sky

@@ -313,10 +313,10 @@ def test_reference_and_sg_renderer_agree_on_a_convex_object(case, cache_dir):
     """Same camera, lights, environment orientation and units: the SG renderer is within its
     approximation error of the reference (a convention mismatch would be off by far more)."""
     import warp_sg as ws
-    from warp_sg.scene.lights import EnvironmentLight, PointLight
     from warp_sg.groundtruth.reference import render_reference
     from warp_sg.groundtruth.region_error import image_errors
     from warp_sg.scene.camera import Camera
+    from warp_sg.scene.lights import EnvironmentLight, PointLight
     from warp_sg.scene.model import Scene, SceneObject
     from warp_sg.scene.render_settings import RenderSettings
 

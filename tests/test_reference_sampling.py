@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 import warp as wp
 
-from warp_sg.scene import envmap as em
 from warp_sg.groundtruth import sampling as S
+from warp_sg.scene import envmap as em
 
 
 @wp.kernel

@@ -6,8 +6,8 @@ import pytest
 import trimesh
 
 import raster
-from precompute.visibility.refine import refine_for_visibility
 from precompute.visibility.rays import ray_visibility
+from precompute.visibility.refine import refine_for_visibility
 
 UP = np.array([0.0, 1.0, 0.0])
 

@@ -8,9 +8,9 @@ import os
 import numpy as np
 import pytest
 
+from warp_sg.groundtruth.region_error import image_errors
 from warp_sg.tools.report import KNOBS, available_knobs, run_report, with_setting
 from warp_sg.tools.report_outputs import markdown_table
-from warp_sg.groundtruth.region_error import image_errors
 
 
 def test_image_errors_are_zero_for_identical_images_and_exact_for_a_known_offset():
@@ -126,8 +126,8 @@ def test_reused_precompute_gives_the_rows_of_a_fresh_cache_per_setting(tmp_path,
     """The sweep's settings share one cache (each stage built once per distinct input): the
     images, hence the error columns, are those of the slow path that rebuilds everything per
     setting, and every row still counts a whole precompute (what it reused at its build time)."""
-    from warp_sg.tools.bench import bench_scene
     from warp_sg.core.cache import record_builds
+    from warp_sg.tools.bench import bench_scene
 
     sc = bench_scene(12, 9, quick=True)
     knobs = ["ssdf_resolution", "pca_terms", "env_lobes", "lobes"]

@@ -8,10 +8,10 @@ import pytest
 
 import warp_sg as ws
 from warp_sg.core.errors import MeshError, SceneError
-from warp_sg.scene.primitives import plane, sphere, torus
-from warp_sg.scene.model import Material, Scene, SceneObject, Transform
-from warp_sg.scene.render_settings import RenderSettings
 from warp_sg.scene.loader import load_scene
+from warp_sg.scene.model import Material, Scene, SceneObject, Transform
+from warp_sg.scene.primitives import plane, sphere, torus
+from warp_sg.scene.render_settings import RenderSettings
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 

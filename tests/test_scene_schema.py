@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import json
 import math
-import tomllib
 from pathlib import Path
 
 import jsonschema
 import pytest
+import tomllib
 
 from warp_sg.brdf import MODELS, make_model
 from warp_sg.core.errors import InputError, SceneError

@@ -6,9 +6,9 @@ import itertools
 
 import numpy as np
 import pytest
+from sg_reference import ANGLES, LAMBDAS, axes_at_angle, random_rotation, ref_inner, ref_integral
 
 from warp_sg import sg
-from sg_reference import ANGLES, LAMBDAS, axes_at_angle, random_rotation, ref_inner, ref_integral
 
 TOL = {np.float64: 1e-5, np.float32: 1e-3}
 TINY = {np.float64: 1e-290, np.float32: 1e-30}
@@ -31,7 +31,7 @@ def _inner_cases():
 
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
 def test_inner_product_matches_quadrature(dtype):
-    ref, got = [], []
+    ref = []
     p1s, p2s, l1s, l2s = [], [], [], []
     for l1, l2, (_, g) in _inner_cases():
         p1, p2 = axes_at_angle(g, ROT)

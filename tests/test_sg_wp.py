@@ -6,10 +6,10 @@ import itertools
 
 import numpy as np
 import warp as wp
+from sg_reference import ANGLES, LAMBDAS, axes_at_angle, random_rotation, ref_inner, ref_integral
 
 from warp_sg import sg
 from warp_sg.sg import algebra_wp as S
-from sg_reference import ANGLES, LAMBDAS, axes_at_angle, random_rotation, ref_inner, ref_integral
 
 ROT = random_rotation(11)
 

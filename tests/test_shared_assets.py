@@ -117,8 +117,8 @@ def decoded_boxes_match_the_file(path: Path, atol: float):
 
 
 def render_small(path: Path, width=64, height=48):
-    from warp_sg.scene.importers.asset import asset_scene
     from warp_sg.renderer.renderer import Renderer
+    from warp_sg.scene.importers.asset import asset_scene
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", AssetWarning)
@@ -211,7 +211,6 @@ def test_clearcoat_test_labels_glow_as_in_the_reference():
     # the labels are emissive (emissiveFactor 1 × an emissive texture) on a black base: their
     # pixels are the emission, in the renderer as in the Monte-Carlo reference
     from warp_sg.groundtruth.reference import reference
-
     from warp_sg.renderer.renderer import Renderer
 
     path = asset("ClearcoatTest.glb")

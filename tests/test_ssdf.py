@@ -138,7 +138,7 @@ def test_ssdf_for_mesh_compresses_and_caches(cache_dir, monkeypatch):
     rms = np.sqrt(np.mean((d.reconstruct() - exact) ** 2))
     assert rms == pytest.approx(d.pca_rms_error[12], rel=1e-2)
     assert d.pca_rms_error[12] < 0.25 * d.pca_rms_error[0]
-    print(f"\n  PCA rms error (rad) by terms: " +
+    print("\n  PCA rms error (rad) by terms: " +
           ", ".join(f"{k}: {d.pca_rms_error[k]:.3f}" for k in (0, 2, 4, 8, 12)))
     np.testing.assert_allclose(d.reconstruct([3, 7]), d.reconstruct()[[3, 7]], atol=1e-6)
     # a second call is a cache hit (no recomputation), a parameter change is a miss

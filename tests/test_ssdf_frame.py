@@ -15,7 +15,6 @@ torus (equators across ``n.z = 0``) on a floor:
 """
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 import warp as wp
@@ -24,9 +23,9 @@ import precompute
 import raster
 from precompute.visibility import ssdf_wp
 from precompute.visibility.rays import ray_visibility
+from warp_sg.numeric.onb import frame_basis, frame_bitangent, frame_from_normal, frame_tangent, to_local, world_to_local
 from warp_sg.scene import primitives
 from warp_sg.sg.fh import fh_table_array
-from warp_sg.numeric.onb import frame_basis, frame_bitangent, frame_from_normal, frame_tangent, to_local, world_to_local
 from warp_sg.sg.ssdf_product import sg_visibility_scale
 
 

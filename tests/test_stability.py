@@ -458,8 +458,8 @@ def test_point_lights_at_the_surface_or_very_far_are_finite_and_exact(device, ca
 
 
 def _small_scene(scale):
-    from warp_sg.scene.lights import DirectionalLight, EnvironmentLight, PointLight
     from warp_sg.scene.camera import Camera
+    from warp_sg.scene.lights import DirectionalLight, EnvironmentLight, PointLight
     from warp_sg.scene.model import Scene, SceneObject, Transform
     from warp_sg.scene.render_settings import RenderSettings
 
@@ -509,8 +509,8 @@ def test_renderer_is_the_same_image_for_a_scene_scaled_by_1e_minus4_and_1e4(devi
 @draws(2 * 12 * 9)
 @pytest.mark.parametrize("material", ["cook_torrance_m1e-3", "blinn_phong_n1e5", "ashikhmin_shirley_1e5", "ward_1e-3"])
 def test_renderer_and_reference_stay_finite_with_extreme_materials_and_lights(device, cache_dir, material, drawn):
-    from warp_sg.scene.lights import PointLight
     from warp_sg.groundtruth.reference import render_reference
+    from warp_sg.scene.lights import PointLight
 
     sc = _small_scene(1.0)
     B = ws.brdf

@@ -7,7 +7,7 @@ import warp as wp
 from PIL import Image
 
 from warp_sg.core.errors import ImageError
-from warp_sg.scene.textures import Texture, build_atlas, sample_bilinear_np, srgb_to_linear, tex_sample, TextureAtlas
+from warp_sg.scene.textures import Texture, TextureAtlas, build_atlas, sample_bilinear_np, srgb_to_linear, tex_sample
 
 
 @wp.kernel

@@ -20,6 +20,7 @@ from warp_sg.scene.importers.usd import load_usd  # noqa: E402
 from warp_sg.scene.plain_scenes import warp_bunny  # noqa: E402
 from warp_sg.tools.cli import main  # noqa: E402
 
+
 def _scene_file(folder, mesh, material=None):
     """A scene holding ``mesh`` (the file's materials unless ``material``), written by ``scene_toml``."""
     from warp_sg.scene.importers.asset import scene_toml

@@ -10,8 +10,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from precompute.visibility.ssdf_wp import texel_directions
 from precompute.visibility.rays import hemisphere_visibility
+from precompute.visibility.ssdf_wp import texel_directions
 from warp_sg.numeric.onb import frame_from_normal
 from warp_sg.renderer.renderer import Renderer
 from warp_sg.scene.camera import Camera

@@ -359,8 +359,8 @@ def test_dragging_a_dynamic_objects_handle_moves_it_and_the_o_key_turns_it(tmp_p
     """A dynamic sphere's handle dragged 0.6 along +x: the frame is that of a fresh renderer with
     the object moved by set_object_transform; 'o' turns it 15° about the vertical (its texture-free
     sphere looks the same: its transform is checked), all without precompute."""
-    from warp_sg.tools.preview import open_viewer
     from warp_sg.renderer.renderer import Renderer
+    from warp_sg.tools.preview import open_viewer
 
     path = tmp_path / "scene.toml"
     path.write_text(SCENE.replace('material = "shiny"', 'material = "shiny"\ndynamic = true', 1))

@@ -8,8 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from precompute.visibility import ssdf_wp
-from precompute.visibility.reference_checks import plane_box_scene
 from precompute.visibility.rays import hemisphere_visibility, needs_visibility, ray_visibility
+from precompute.visibility.reference_checks import plane_box_scene
 from warp_sg.core.errors import InputError, MeshError
 from warp_sg.numeric.onb import to_world
 

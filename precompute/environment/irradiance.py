@@ -31,11 +31,10 @@ times the environment's scale. Cached on disk (kind ``env_irradiance``).
 import numpy as np
 import warp as wp
 
-from warp_sg.core.cache import code_key
-from warp_sg.scene.envmap import row_solid_angles, uv_to_dir
-
-from warp_sg.core.image_io import LUMINANCE
 from precompute.environment.cubemap import bordered_bilinear, cube_dir_numpy, cube_face_of, cube_face_of_numpy
+from warp_sg.core.cache import code_key
+from warp_sg.core.image_io import LUMINANCE
+from warp_sg.scene.envmap import row_solid_angles, uv_to_dir
 
 _VERSION = code_key(__name__, cube_dir_numpy, row_solid_angles)  # the producing code
 

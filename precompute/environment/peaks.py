@@ -49,9 +49,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from warp_sg.core.image_io import LUMINANCE
 from warp_sg.scene.envmap import row_solid_angles, uv_to_dir
 
-from warp_sg.core.image_io import LUMINANCE  # noqa: E402
 #: texels of the ring around a grown peak whose median is the background under it
 RING = 2
 

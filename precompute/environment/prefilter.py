@@ -74,15 +74,14 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
-from warp_sg.core.cache import code_key
-from warp_sg.core.device import resolve_device
-from warp_sg.scene.envmap import downsample_envmap, row_solid_angles, validate_envmap
-from warp_sg.core.image_io import LUMINANCE
-from warp_sg.core.workers import cpu_workers
-
 # the cube-map geometry and the kernel side (build kernel, table struct, lookups), re-exported here
 from precompute.environment.cubemap import cube_dir
 from precompute.environment.prefilter_wp import GammaTable, _prefilter_level_kernel, erf_filtered, gamma_lookup
+from warp_sg.core.cache import code_key
+from warp_sg.core.device import resolve_device
+from warp_sg.core.image_io import LUMINANCE
+from warp_sg.core.workers import cpu_workers
+from warp_sg.scene.envmap import downsample_envmap, row_solid_angles, validate_envmap
 
 #: Cap of the quadrature window: texels with λ (1 − p·d) > CUTOFF are skipped (mass e^{−14}).
 CUTOFF = 14.0

@@ -7,10 +7,9 @@ re-exports these names and builds the tables.
 # NOTE: no ``from __future__ import annotations`` — Warp reads the kernel annotations.
 import warp as wp
 
+from precompute.environment.cubemap import bordered_bilinear, cube_dir, cube_face_of
 from warp_sg.scene.envmap import wp_dir_to_uv
 from warp_sg.sg.algebra_wp import one_minus_dot, sg_integral
-
-from precompute.environment.cubemap import bordered_bilinear, cube_dir, cube_face_of
 
 PI = wp.constant(3.141592653589793)
 TWO_PI = wp.constant(6.283185307179586)
@@ -54,7 +53,6 @@ def _prefilter_level_kernel(
     d = wp.normalize(cube_dir(face, a, b))
 
     h_src = src.shape[0]
-    rows = cos_t.shape[0]
     cols = cos_p.shape[0]
     h_phi = TWO_PI / float(cols)
     cos_tp = wp.clamp(d[1], -1.0, 1.0)

@@ -46,13 +46,12 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
+from precompute.visibility.rays import OFFSET_SCALE, _MeshContext, _tqdm, run_batches, validate_mesh
 from warp_sg.core import cache as _cache
 from warp_sg.core.device import resolve_device
 from warp_sg.core.errors import InputError
 from warp_sg.numeric.onb import frame_bitangent, frame_tangent, local_to_world
 from warp_sg.shading.cutout import Cutouts, first_opaque_hit, no_cutouts
-
-from precompute.visibility.rays import OFFSET_SCALE, _MeshContext, _tqdm, run_batches, validate_mesh
 
 #: rays per vertex (a ``√N × √N`` stratified grid) and references kept per row, by default
 DEFAULT_RAYS = 256

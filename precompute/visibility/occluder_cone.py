@@ -16,7 +16,8 @@ the mean direction of the occluded texels and the largest angle from it, plus ``
 diagonal of a texel, for the texels' extent). Then ``dist(p, O) ≥ ∠(p, c) − α``. Texels count as
 occluded where the (uncompressed, :func:`precompute.visibility.ssdf.compute_ssdf`) SSDF is negative, or is
 below ``h`` and more than ``0.3 h`` below its horizon value ``θh``: an occluder inside the texel
-that does not cover its centre (the distance transform's own error on an open plane is up to 0.17 h). A vertex with no such texel stores ``α = −1`` (nothing occludes
+that does not cover its centre (the distance transform's own error on an open plane is up to 0.17 h). A vertex with
+no such texel stores ``α = −1`` (nothing occludes
 it); one whose occluders surround it gets ``α ≥ π`` (never skipped).
 
 Kernel side, :func:`occluder_clearance` returns ``s ∈ [0, 1]``: 1 when every vertex of the shading
@@ -32,10 +33,9 @@ import math
 import numpy as np
 import warp as wp
 
+from precompute.visibility.ssdf_wp import SSDFPoint, texel_directions
 from warp_sg.numeric.fastmath import fast_asin
 from warp_sg.numeric.onb import frame_from_normal
-
-from precompute.visibility.ssdf_wp import SSDFPoint, texel_directions
 
 _HALF_PI = wp.constant(0.5 * math.pi)
 

@@ -10,7 +10,8 @@ any-hit ray casts (``wp.mesh_query_ray_anyhit``) in one Warp kernel over (vertex
 The self-intersection offset ``ε = offset_scale · (bbox diagonal)`` (default ``1e-4``) scales with
 the mesh. A multi-object scene passes its merged mesh. With alpha cut-outs (``cutouts``, a
 :class:`warp_sg.shading.cutout.CutoutData` of the mesh) a ray passes through holes: the nearest-hit
-queries of :func:`warp_sg.shading.cutout.blocked` replace the any-hit query (``_visibility_cutout_kernel``). On the CPU disjoint vertex batches run in a
+queries of :func:`warp_sg.shading.cutout.blocked` replace the any-hit query (``_visibility_cutout_kernel``). On the
+CPU disjoint vertex batches run in a
 small thread pool (Warp CPU launches are serial per call; several launches scale over cores).
 """
 from __future__ import annotations
@@ -21,15 +22,13 @@ import threading
 import numpy as np
 import warp as wp
 
+from precompute.visibility.ssdf_wp import texel_direction_array
 from warp_sg.core.device import resolve_device
 from warp_sg.core.errors import InputError, MeshError
 from warp_sg.core.meshcheck import check_mesh
 from warp_sg.core.workers import RAY_THREADS, cpu_workers
 from warp_sg.numeric.onb import frame_bitangent, frame_tangent, local_to_world
-
 from warp_sg.shading.cutout import Cutouts, blocked
-
-from precompute.visibility.ssdf_wp import texel_direction_array
 
 #: Self-intersection offset along the normal, as a fraction of the bounding-box diagonal.
 OFFSET_SCALE = 1e-4

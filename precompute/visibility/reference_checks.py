@@ -15,12 +15,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from warp_sg.sg.fh import fh_hemisphere, fh_ratio_table_np
-from warp_sg.numeric.onb import to_world
-
-from precompute.visibility.ssdf_wp import lookup_np, texel_directions
 from precompute.visibility.rays import ray_visibility
-
+from precompute.visibility.ssdf_wp import lookup_np, texel_directions
+from warp_sg.numeric.onb import to_world
+from warp_sg.sg.fh import fh_hemisphere, fh_ratio_table_np
 
 # ---------------------------------------------------------------------------------------------
 # scenes

@@ -51,12 +51,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from precompute.visibility.bisection import EDGE_KEY_STRIDE as _S
+from precompute.visibility.bisection import BisectionMesh
+from precompute.visibility.rays import _tqdm, bbox_diagonal, hemisphere_visibility, validate_mesh
+from precompute.visibility.signature_wp import world_disagreement
 from warp_sg.core.cache import code_key
 from warp_sg.core.errors import InputError
-
-from precompute.visibility.bisection import EDGE_KEY_STRIDE as _S, BisectionMesh
-from precompute.visibility.signature_wp import world_disagreement
-from precompute.visibility.rays import _tqdm, bbox_diagonal, hemisphere_visibility, validate_mesh
 
 #: Default uniform pre-split edge length, as a fraction of the bounding-box diagonal.
 BASE_EDGE_FRACTION = 1.0 / 24.0

@@ -61,14 +61,13 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
+from precompute.visibility import probe as _probe
+from precompute.visibility.probe import probe_open_fraction
+from precompute.visibility.ssdf_wp import _texel_coords, texel_direction_array
 from warp_sg.core.cache import code_key
 from warp_sg.core.errors import InputError
 from warp_sg.numeric.fastmath import fast_asin
 from warp_sg.numeric.onb import frame_bitangent, frame_tangent, local_to_world, world_to_local
-
-from precompute.visibility import probe as _probe
-from precompute.visibility.probe import probe_open_fraction
-from precompute.visibility.ssdf_wp import _texel_coords, texel_direction_array
 
 #: SSDF vertices beyond which the maps are computed at representatives only (the default
 #: ``[render] visibility_budget``); 0 or None: every vertex its own map
@@ -389,11 +388,13 @@ def build_at_representatives(v, f, n, compute, *, resolution, ray_resolution, pc
     ``blend_index``, ``blend_weight`` (V, k): the representatives (vertex ids) and weights of each
     vertex's blend (a representative: itself, weight 1), which the renderer's per-vertex caches
     reuse (:mod:`warp_sg.shading.vertex_visibility`)."""
+    import time
+
+    from threadpoolctl import threadpool_limits
+
     from precompute.visibility.occluder_cone import occluder_cones
     from precompute.visibility.rays import run_batches
-    from threadpoolctl import threadpool_limits
     from warp_sg.core.stage_clock import thread_cpu
-    import time
 
     R = int(resolution)
     with clock.stage("probe"):

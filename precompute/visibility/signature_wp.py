@@ -16,9 +16,8 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from warp_sg.numeric.onb import frame_bitangent, frame_tangent, local_to_world, world_to_local
-
 from precompute.visibility.ssdf_wp import dir_to_concentric_wp
+from warp_sg.numeric.onb import frame_bitangent, frame_tangent, local_to_world, world_to_local
 
 
 @wp.kernel(enable_backward=False)
@@ -51,8 +50,8 @@ def world_disagreement(sig, normals, i, j, R: int, device="cpu", batch: int = 40
     """(E,) fraction of i's counted texel directions in which the maps of edges (i[e], j[e])
     disagree (module docstring). ``sig`` (V, R²) bool/uint8, ``normals`` (V, 3) unit. Batches of
     edges run on the CPU thread pool (:func:`precompute.visibility.rays.run_batches`)."""
-    from precompute.visibility.ssdf_wp import texel_direction_array
     from precompute.visibility.rays import run_batches
+    from precompute.visibility.ssdf_wp import texel_direction_array
 
     out = np.zeros(len(i))
     if not len(i):

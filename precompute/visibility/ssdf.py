@@ -41,22 +41,34 @@ import time
 import numpy as np
 import warp as wp
 
+from precompute.visibility.adaptive_rays import adaptive_visibility, levels
+from precompute.visibility.jump_flood import (
+    coarse_seed_kernel,
+    downsample_kernel,
+    fine_seed_kernel,
+    fine_signed_kernel,
+    jfa_steps,
+    jfa_texel_kernel,
+    run_length,
+    seed_at_kernel,
+    seed_kernel,
+    signed_kernel,
+)
+from precompute.visibility.occluder_cone import occluder_cones
+from precompute.visibility.rays import OFFSET_SCALE, _MeshContext, _tqdm, launch_visibility, run_batches, validate_mesh
+from precompute.visibility.representatives import (
+    DEFAULT_BUDGET,
+    DEFAULT_MAX_ANGLE,
+    build_at_representatives,
+    representative_params,
+)
+from precompute.visibility.ssdf_data import DEFAULT_RAY_RESOLUTION, SSDFData, decompress_budget, memory_budget
+from precompute.visibility.ssdf_wp import texel_direction_array, texel_directions
 from warp_sg.core import cache as _cache
 from warp_sg.core.device import resolve_device
 from warp_sg.core.errors import InputError
-from warp_sg.numeric.pca import pca
 from warp_sg.core.stage_clock import StageClock, thread_cpu
-
-from precompute.visibility.adaptive_rays import adaptive_visibility, levels
-from precompute.visibility.jump_flood import (coarse_seed_kernel, downsample_kernel, fine_seed_kernel,
-                                             fine_signed_kernel, jfa_steps, jfa_texel_kernel, run_length,
-                                             seed_at_kernel, seed_kernel, signed_kernel)
-from precompute.visibility.occluder_cone import occluder_cones
-from precompute.visibility.representatives import (DEFAULT_BUDGET, DEFAULT_MAX_ANGLE, build_at_representatives,
-                                                   representative_params)
-from precompute.visibility.ssdf_data import DEFAULT_RAY_RESOLUTION, SSDFData, decompress_budget, memory_budget
-from precompute.visibility.ssdf_wp import texel_direction_array, texel_directions
-from precompute.visibility.rays import OFFSET_SCALE, _MeshContext, _tqdm, launch_visibility, run_batches, validate_mesh
+from warp_sg.numeric.pca import pca
 
 #: Defaults (see docs/precompute.md for the error/time trade-off).
 DEFAULT_RESOLUTION = 32
@@ -67,7 +79,8 @@ RAYS = ("adaptive", "full")
 DEFAULT_RAYS = "adaptive"
 
 #: Part of the "ssdf" cache key: the hash of the code that computes the maps (``warp_sg.core.cache.code_key``).
-SSDF_VERSION = _cache.code_key(__name__, "precompute.visibility.jump_flood", occluder_cones, texel_directions, launch_visibility, pca)  # the producing code
+SSDF_VERSION = _cache.code_key(__name__, "precompute.visibility.jump_flood", occluder_cones, texel_directions,
+                               launch_visibility, pca)  # the producing code
 #: the hash of the adaptive ray schedule's code (precompute.visibility.adaptive_rays), part of the cache key
 ADAPTIVE_VERSION = _cache.code_key(adaptive_visibility, "precompute.visibility.horizon_ring")  # the adaptive ray cast's code
 

@@ -21,15 +21,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from warp_sg.core import cache as _cache
-from warp_sg.core.errors import InputError
-from warp_sg.numeric.pca import pca
-
 from precompute.visibility.occluder_cone import no_cones, occluder_cones
+from precompute.visibility.rays import needs_visibility, validate_mesh
 from precompute.visibility.ssdf import SSDF_VERSION, _ssdf_params, compute_ssdf
 from precompute.visibility.ssdf_data import SSDFData
 from precompute.visibility.ssdf_wp import texel_directions
-from precompute.visibility.rays import needs_visibility, validate_mesh
+from warp_sg.core import cache as _cache
+from warp_sg.core.errors import InputError
+from warp_sg.numeric.pca import pca
 
 #: the producing code (this module and the proxies' flatness test): a change rebuilds the entries
 _VERSION = _cache.code_key(__name__, "precompute.visibility.proxies")

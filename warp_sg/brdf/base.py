@@ -17,8 +17,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .helpers import (COS_EPS, INV_PI, as_rgb, as_roughness, as_scalar, dirs, half_vector, log_cos_theta,  # noqa: F401
-                      reflect_z, sin2_theta, suggest, theta_of, upper)
+from .helpers import (  # noqa: F401
+    COS_EPS,
+    INV_PI,
+    as_rgb,
+    as_roughness,
+    as_scalar,
+    dirs,
+    half_vector,
+    log_cos_theta,
+    reflect_z,
+    sin2_theta,
+    suggest,
+    theta_of,
+    upper,
+)
 
 
 @dataclass(frozen=True)

@@ -32,8 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.files import atomic_output
 from ..core.errors import InputError
+from ..core.files import atomic_output
 
 N_THETA_H = 90
 N_THETA_D = 90

@@ -33,22 +33,21 @@ import contextlib
 import functools
 import hashlib
 import importlib.util
-import sys
-import tokenize
 import json
 import os
+import sys
 import tempfile
 import threading
 import time
+import tokenize
 import warnings
-import zipfile
 from pathlib import Path
 from typing import Callable, Mapping
 
 import numpy as np
 
-from warp_sg.core.files import atomic_output
 from warp_sg.core.errors import CacheError
+from warp_sg.core.files import atomic_output
 
 #: Bump whenever the layout or meaning of any cached entry changes (old entries then miss).
 #: 2: entries record their key (``__key__``)

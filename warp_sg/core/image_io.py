@@ -45,8 +45,8 @@ from pathlib import Path
 
 import numpy as np
 
-from warp_sg.core.files import atomic_output
 from warp_sg.core.errors import ImageError, reason
+from warp_sg.core.files import atomic_output
 
 EXR_EXTS = (".exr",)
 HDR_EXTS = (".hdr",)
@@ -90,7 +90,7 @@ def tonemap_srgb(img, exposure: float = 0.0):
 def _as_hwc(img, path) -> np.ndarray:
     try:
         a = np.asarray(img)
-    except Exception as e:  # pragma: no cover - exotic inputs
+    except Exception as e:  # noqa: BLE001  pragma: no cover - exotic inputs: any failure is the input's
         raise ImageError(f"cannot convert image to an array ({e})", where=str(path)) from None
     if not (np.issubdtype(a.dtype, np.floating) or np.issubdtype(a.dtype, np.integer) or a.dtype == bool):
         raise ImageError(f"image array has non-numeric dtype {a.dtype}", where=str(path))
@@ -293,7 +293,7 @@ def save_image(path, img, exposure: float = 0.0, half: bool = False) -> Path:
         raise
     except PermissionError as e:
         raise ImageError(f"cannot write to folder '{folder}' ({e.strerror or e})", where=str(path)) from None
-    except Exception as e:
+    except Exception as e:  # noqa: BLE001  (any writer failure: one line naming the file)
         raise ImageError(f"cannot write image ({reason(e)})", where=str(path)) from None
     return path
 
@@ -307,7 +307,7 @@ def _exr_channels(path: Path) -> tuple[dict[str, np.ndarray], tuple[int, int]]:
     try:
         with OpenEXR.File(str(path), separate_channels=True) as f:
             chans = {name: np.asarray(ch.pixels) for name, ch in f.channels().items()}
-    except Exception as e:
+    except Exception as e:  # noqa: BLE001  (any reader failure: one line naming the file)
         raise ImageError(f"cannot read OpenEXR file ({reason(e)})", where=str(path)) from None
     if not chans:
         raise ImageError("OpenEXR file has no channels", where=str(path))

@@ -14,7 +14,8 @@
 * optionally ``mesh has no vertices`` / ``mesh has no triangles``.
 
 :func:`closed_and_oriented` and :func:`signed_volume` tell an inside-out closed mesh (negative
-volume) from a good one; :func:`winding_number` whether a point (the eye) is inside one. Like :mod:`warp_sg.core.errors` it imports nothing else from the project, so
+volume) from a good one; :func:`winding_number` whether a point (the eye) is inside one. Like
+:mod:`warp_sg.core.errors` it imports nothing else from the project, so
 ``raster`` and ``precompute`` can use it.
 """
 from __future__ import annotations

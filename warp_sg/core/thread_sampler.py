@@ -105,7 +105,7 @@ class ThreadSampler:
         """CPU seconds per thread name (pool threads, ``name_0``, ``name_1``, ..., merged by their
         prefix), the sampler itself left out; threads that ended count up to their last sample."""
         out: dict[str, float] = {}
-        for tid, (name, ticks) in self._cpu.items():
+        for name, ticks in self._cpu.values():
             head, sep, tail = name.rpartition("_")
             key = head if sep and tail.isdigit() else name
             out[key] = out.get(key, 0.0) + ticks / _TICK

@@ -171,8 +171,8 @@ def load_job(path) -> Job:
 def run_job(job: Job, cluster=None, device=None, progress: bool = True, skip_existing: bool = False) -> list[Path]:
     """Render a :class:`Job`; returns the frame paths (all frames, written or skipped)."""
     from warp_sg.core.files import check_output_path, make_parents
-    from warp_sg.distributed.rendering import check_variants, normalize_variants, render_many
     from warp_sg.core.image_io import save_image
+    from warp_sg.distributed.rendering import check_variants, normalize_variants, render_many
     from warp_sg.scene.loader import load_scene
 
     paths = [job.frame_path(i) for i in range(len(job.variants))]

@@ -41,8 +41,8 @@ _MESH_KEEP = 2
 def _mesh_context(mesh, mesh_key, ray_resolution, device):
     """The worker's ``(wp.Mesh context, texel directions)`` of ``mesh``: built once per worker
     process and kept (the two most recent meshes)."""
-    from precompute.visibility.ssdf_wp import texel_direction_array
     from precompute.visibility.rays import _MeshContext
+    from precompute.visibility.ssdf_wp import texel_direction_array
 
     k = (mesh_key, int(ray_resolution), str(device))
     with _MESH_LOCK:
@@ -105,9 +105,8 @@ class DaskSSDF:
 
     def __call__(self, vertices, triangles, normals, *, resolution, ray_resolution, device="cpu", progress=True,
                  vertex_ids=None, cutouts=None):
-        from precompute.visibility.ssdf import _check_resolutions
         from precompute.visibility.rays import _tqdm, validate_mesh
-
+        from precompute.visibility.ssdf import _check_resolutions
         from warp_sg.core.cache import content_key
         from warp_sg.distributed.cluster import gather_in_order, project_version
 

@@ -43,10 +43,14 @@ import uuid
 import numpy as np
 
 from warp_sg.core.errors import InputError
-
-from warp_sg.distributed.cluster import (RETRIES, connect, ensure_version, gather_in_order, project_version,
-                                         worker_object)
-
+from warp_sg.distributed.cluster import (
+    RETRIES,
+    connect,
+    ensure_version,
+    gather_in_order,
+    project_version,
+    worker_object,
+)
 
 # --------------------------------------------------------------------------------------------
 # batch renders
@@ -87,9 +91,9 @@ def _base_value(scene, section, name, key):
             raise InputError(f"unknown environment field (use {', '.join(_ENV_KEYS)})", where=where)
         return getattr(scene.environment, key)
     if section == "objects":  # a dynamic object's motion (warp_sg.numeric.rigid_motion.motion_from_fields)
-        from warp_sg.renderer.dynamic_objects import object_index
         from warp_sg.core.errors import SceneError
         from warp_sg.numeric.rigid_motion import MOTION_FIELDS
+        from warp_sg.renderer.dynamic_objects import object_index
 
         try:
             k = object_index(scene, name)
@@ -248,8 +252,8 @@ def render_many(scene, variants, cluster=None, *, device=None, progress: bool = 
     completion order), e.g. to write it atomically. ``resources`` (e.g. ``{"GPU": 1}``) restricts
     the render tasks to workers that declare them. The precompute (refinement, SSDFs with the
     SSDFs themselves computed on the cluster) is built once on the client and scattered."""
-    from warp_sg.renderer.renderer import Renderer
     from warp_sg.distributed.precompute import DaskSSDF
+    from warp_sg.renderer.renderer import Renderer
 
     check_variants(scene, variants)  # every value, before Dask starts (a worker would fail it, with retries)
     variants = normalize_variants(scene, variants)
@@ -340,8 +344,14 @@ def render_reference_distributed(scene, spp: int = 256, cluster=None, *, device=
     import time
 
     from warp_sg.core.device import resolve_device
-    from warp_sg.groundtruth.reference import (DEFAULT_MAX_DEPTH, ReferenceInputs, ReferenceResult, _resolve,
-                                               check_max_depth, inputs_from_scene)
+    from warp_sg.groundtruth.reference import (
+        DEFAULT_MAX_DEPTH,
+        ReferenceInputs,
+        ReferenceResult,
+        _resolve,
+        check_max_depth,
+        inputs_from_scene,
+    )
 
     max_depth = check_max_depth(DEFAULT_MAX_DEPTH if max_depth is None else max_depth)
     spp = int(spp)
@@ -371,7 +381,7 @@ def render_reference_distributed(scene, spp: int = 256, cluster=None, *, device=
     acc = np.zeros((kh * kw, 3))
     acc2 = np.zeros((kh * kw, 3))
     history = []
-    for (s, e), (a, a2) in zip(chunks, parts):  # in sample order: the local run's summation order
+    for (_, e), (a, a2) in zip(chunks, parts):  # in sample order: the local run's summation order
         acc += a
         acc2 += a2
         history.append((e, time.perf_counter() - t0))

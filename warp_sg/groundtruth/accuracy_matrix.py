@@ -25,9 +25,15 @@ from pathlib import Path
 
 import numpy as np
 
-from warp_sg.scene.plain_scenes import BUNNY_PLACEMENT, MATERIALS as PLAIN_MATERIALS, sun_direction, warp_bunny, \
-    write_floor_obj, write_sphere_ply
-from warp_sg.scene.plain_scenes import toml_table
+from warp_sg.scene.plain_scenes import (
+    BUNNY_PLACEMENT,
+    sun_direction,
+    toml_table,
+    warp_bunny,
+    write_floor_obj,
+    write_sphere_ply,
+)
+from warp_sg.scene.plain_scenes import MATERIALS as PLAIN_MATERIALS
 
 #: gold as users write it: per-channel η and k (Johnson & Christy 1972 at 650, 550, 450 nm)
 GOLD = {"eta": [0.143, 0.375, 1.442], "k": [3.983, 2.386, 1.603]}
@@ -200,8 +206,7 @@ def write_sunsky(path: Path, s: dict = SUNSKY) -> Path:
 def write_measured(path: Path) -> Path:
     """The measured material's MERL file: a tabulated glossy plastic (GGX α = 0.15 with a dielectric's
     Fresnel over an orange diffuse base), the kind of table a gonioreflectometer gives."""
-    from warp_sg.brdf import make_model
-    from warp_sg.brdf import merl
+    from warp_sg.brdf import make_model, merl
 
     m = make_model("ggx", kd=[0.35, 0.12, 0.04], ks=[1.0, 1.0, 1.0], alpha=0.15, fresnel={"eta": 1.5})
     merl.write_merl(path, merl.tabulate(m))

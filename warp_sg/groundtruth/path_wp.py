@@ -32,8 +32,15 @@ from warp_sg.groundtruth.reference_wp import Geometry, LightTable, SurfacePoint,
 from warp_sg.numeric.onb import world_to_local
 from warp_sg.shading.cutout import first_opaque_hit
 from warp_sg.shading.surface import MaterialTextures, apply_shading_maps, tangent_in_plane, textured_material
-from warp_sg.shading.surface_layers import (Layers, coat_at, coat_attenuation, coat_frame, emission_at, occlusion_at,
-                                            vertex_coloured)
+from warp_sg.shading.surface_layers import (
+    Layers,
+    coat_at,
+    coat_attenuation,
+    coat_frame,
+    emission_at,
+    occlusion_at,
+    vertex_coloured,
+)
 
 #: the depth from which Russian roulette may end a path (Mitsuba's ``rr_depth`` counts the same way)
 RR_DEPTH = wp.constant(4)

@@ -46,22 +46,20 @@ from typing import Callable
 import numpy as np
 import warp as wp
 
-from warp_sg.groundtruth import sampling as S
 from warp_sg.brdf.kernel import material_wp as M  # contract: Material, pack_materials, brdf_*
 from warp_sg.core.device import add_device_argument, device_for, resolve_device
-from warp_sg.scene.culling import camera_mesh
 from warp_sg.core.errors import InputError
-from warp_sg.scene.lights import DirectionalLight, PointLight
-from warp_sg.scene.lights import LIGHT_DIRECTIONAL, LIGHT_POINT
+from warp_sg.core.workers import RAY_THREADS, cpu_workers
+from warp_sg.groundtruth import sampling as S
 from warp_sg.groundtruth.depth import DEFAULT_MAX_DEPTH, check_max_depth, matching_transport
 from warp_sg.groundtruth.path_wp import _reference_pass
 from warp_sg.groundtruth.reference_wp import Geometry, LightTable
+from warp_sg.scene.culling import camera_mesh
+from warp_sg.scene.lights import LIGHT_DIRECTIONAL, LIGHT_POINT, DirectionalLight, PointLight
+from warp_sg.scene.textures import build_atlas
 from warp_sg.shading.cutout import no_cutouts
 from warp_sg.shading.surface import N_SLOTS, MaterialTextures
 from warp_sg.shading.surface_layers import coat_models, layer_arrays
-from warp_sg.scene.textures import build_atlas
-from warp_sg.core.workers import RAY_THREADS, cpu_workers
-
 
 #: Relative offset of shadow-ray origins (times the scene's diameter).
 RAY_EPS = 1.0e-4
@@ -353,9 +351,8 @@ def inputs_from_scene(scene, device="cpu") -> ReferenceInputs:
     materials (``Material.brdf``) plus the same textures / normal maps, the point and directional
     lights, the world-space environment (scale and rotation applied), and the renderer's
     background (bilinear environment lookup) for pixels that see no object."""
-    from warp_sg.shading.cutout import cutout_data
-
     from warp_sg.core.watchdog import MAX_SAMPLES, check_size
+    from warp_sg.shading.cutout import cutout_data
 
     k, cam = scene.render.supersampling, scene.camera
     check_size("the frame", cam.width * cam.height * k * k, MAX_SAMPLES, f"{cam.width}×{cam.height} pixels × "

@@ -15,13 +15,13 @@ the coat lobe with probability ``c/2``. Camera and shadow rays pass through alph
 # NOTE: no ``from __future__ import annotations`` — Warp reads the kernel annotations.
 import warp as wp
 
-from warp_sg.groundtruth import sampling as S
 from warp_sg.brdf.kernel import material_wp as M  # contract: Material, brdf_eval, brdf_sample, brdf_pdf
 from warp_sg.brdf.models.ggx import GGX
-from warp_sg.shading.cutout import Cutouts, blocked, first_opaque_hit
+from warp_sg.groundtruth import sampling as S
 from warp_sg.numeric.onb import local_to_world, world_to_local
+from warp_sg.scene.lights import LIGHT_DIRECTIONAL, LIGHT_POINT
+from warp_sg.shading.cutout import Cutouts, blocked, first_opaque_hit
 
-from warp_sg.scene.lights import LIGHT_DIRECTIONAL, LIGHT_POINT  # noqa: E402  (the light kinds' one source)
 #: the coat is a GGX lobe (warp_sg.scene.material_layers): its functions specialised to that model
 _COAT = M.material_funcs({GGX.CODE})
 coat_eval = _COAT.brdf_eval

@@ -10,7 +10,8 @@ reference treats the map as **piecewise constant** (texel ``(r, c)`` covers
 the file. Texel ``(r, c)`` is chosen with probability ``∝ (lum + ε) · Ω_rc`` where
 ``Ω_rc = (2π/W)(cos θ_r − cos θ_{r+1})`` is its solid angle (this is the sin θ factor, integrated
 exactly; the convention, the solid angles and the texel lookup are ``warp_sg.scene.envmap``'s:
-``row_solid_angles``, ``dir_to_texel``, ``wp_dir_to_uv``); inside the texel the direction is uniform in solid angle (uniform φ and cos θ), so the
+``row_solid_angles``, ``dir_to_texel``, ``wp_dir_to_uv``); inside the texel the direction is uniform in solid angle
+(uniform φ and cos θ), so the
 solid-angle pdf is constant per texel: ``pdf = P_rc / Ω_rc``. ``ε`` (a 1e-4 fraction of the mean
 luminance) keeps the pdf positive wherever the map may be non-zero.
 
@@ -27,8 +28,8 @@ import math
 import numpy as np
 import warp as wp
 
-from warp_sg.scene.envmap import row_solid_angles, wp_dir_to_uv
 from warp_sg.numeric.onb import frame_bitangent, frame_tangent, local_to_world
+from warp_sg.scene.envmap import row_solid_angles, wp_dir_to_uv
 from warp_sg.sg.algebra_wp import one_minus_dot
 
 PI = wp.constant(3.141592653589793)

@@ -24,7 +24,8 @@ visible fractions are computed once too (:mod:`warp_sg.inverse.env_basis`).
 Outputs (:mod:`warp_sg.inverse.outputs`): ``FITTED.toml`` with the fitted values, its textures and
 environment map as EXR beside it, ``FITTED_loss.png``; a checkpoint ``FITTED.fit.npz`` every
 ``checkpoint_every`` iterations (atomic): a fit started again with the same inputs goes on from it
-(``--restart``: from the start; Adam's state is in it, L-BFGS starts its curvature memory again). Bad input — a views file whose image size differs from its
+(``--restart``: from the start; Adam's state is in it, L-BFGS starts its curvature memory again). Bad input — a views
+file whose image size differs from its
 camera, a free key the scene does not have, a pixel that is not finite — is one line and exit
 status 2 (:class:`warp_sg.core.errors.InputError`), before any work.
 """

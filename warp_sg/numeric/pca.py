@@ -8,7 +8,8 @@ vertices (D = R²). ``mean`` is the row mean, ``𝕍_j`` the leading right singu
 centred data (orthonormal, D-vectors), ``w = (X − mean) 𝕍ᵀ``.
 
 Method: for ``D ≤ 4096`` the D×D covariance ``CᵀC`` is accumulated in float64 over row chunks and
-diagonalised (leading eigenpairs by block subspace iteration, exact ``eigh`` when small) — exact and cheap for any V; above, a randomized range finder
+diagonalised (leading eigenpairs by block subspace iteration, exact ``eigh`` when small) — exact and cheap for any V;
+above, a randomized range finder
 (Halko, Martinsson & Tropp 2011; 2 power iterations, oversampling 10) is used. Reconstruction
 RMS error for every number of terms 0..NV comes from the eigenvalues:
 ``rms(k) = sqrt((Σ_all σ² − Σ_{j≤k} σ²) / (V·D))``.

@@ -135,5 +135,6 @@ def apply_motion(matrix, vertices, normals=None, tangents=None):
     return v, n, tg
 
 
-__all__ = ["check_motion", "motion_matrix", "rotation_about", "apply_motion", "motion_from_fields", "euler_rotation", "motion_about", "rolling", "MOTION_FIELDS",
+__all__ = ["check_motion", "motion_matrix", "rotation_about", "apply_motion", "motion_from_fields", "euler_rotation",
+           "motion_about", "rolling", "MOTION_FIELDS",
            "ORTHO_TOL"]

@@ -64,10 +64,10 @@ the probes' mean.
 import numpy as np
 import warp as wp
 
-from warp_sg.shading.background import Background, background_at
 from warp_sg.brdf.kernel.material_wp import lum
+from warp_sg.renderer.antialias_cache import AntialiasCache, same_list
 from warp_sg.renderer.antialias_candidates import CAND_CONTRAST, LIST_MIN_CHUNK, Candidates, object_of
-from warp_sg.renderer.antialias_cache import AntialiasCache, same_list  # noqa: F401  (re-exported)
+from warp_sg.shading.background import Background, background_at
 
 #: relative residual of a block's 1/depth off its fitted plane that makes it an edge
 EDGE_DEPTH_RESIDUAL = 0.01

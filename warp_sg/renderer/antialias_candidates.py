@@ -12,7 +12,6 @@ import warp as wp
 
 from warp_sg.brdf.kernel.material_wp import lum
 
-
 #: relative luminance difference to a neighbour that makes an interior pixel supersampled
 CONTRAST = 0.2
 

@@ -1,7 +1,8 @@
 """The watchdog's checks of a whole frame (:mod:`warp_sg.core.watchdog`), run by
 :class:`warp_sg.renderer.renderer.Renderer` before its first precompute step: the raster samples of the frame,
 the SSDF matrix the precompute would build (at the refined vertex count) and the ΓL pyramid's cube
-texels, and the rasterizer's limit per axis (``raster.triangle_setup.MAX_RESOLUTION``). Each refusal is one :class:`~warp_sg.core.errors.SceneError` line naming the size and the
+texels, and the rasterizer's limit per axis (``raster.triangle_setup.MAX_RESOLUTION``). Each refusal is one
+:class:`~warp_sg.core.errors.SceneError` line naming the size and the
 settings that make it. (Triangles, textures and environment maps are bounded where they are read.)
 """
 from __future__ import annotations

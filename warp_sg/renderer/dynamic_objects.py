@@ -36,8 +36,8 @@ import numpy as np
 import warp as wp
 
 from warp_sg.core.errors import SceneError
-from warp_sg.numeric.onb import frame_from_normal
 from warp_sg.core.suggest import did_you_mean
+from warp_sg.numeric.onb import frame_from_normal
 from warp_sg.numeric.rigid_motion import check_motion
 
 
@@ -237,8 +237,8 @@ class DynamicObjects:
         self._sky = None
 
     def _proxies_struct(self, r):
-        from warp_sg.shading.motion_wp import Proxies
         from precompute.environment.irradiance import placeholder_table
+        from warp_sg.shading.motion_wp import Proxies
 
         d = r.device
         px = Proxies()
@@ -295,7 +295,6 @@ class DynamicObjects:
         if key == self._behind_key:
             return
         from precompute.environment.irradiance import irradiance_cubemap
-
         from warp_sg.scene.envmap import texel_directions
 
         m = self.planes[0, :3].astype(np.float64)

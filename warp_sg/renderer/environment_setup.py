@@ -7,18 +7,15 @@ rebuilt only when the environment's rotation or scale changes.
 """
 from __future__ import annotations
 
-
 import numpy as np
 import warp as wp
 
 from precompute.environment.irradiance import placeholder_table
-
 from warp_sg.renderer.kernel_preload import ENV_MODULES, GAMMA_MODULES
 from warp_sg.renderer.progressive import ShadowJob
+from warp_sg.scene.lights import DirectionalLight, PointLight
 from warp_sg.shading import kernel as S
 from warp_sg.shading.visibility_terms import lobe_constants
-from warp_sg.scene.lights import DirectionalLight, PointLight
-
 
 #: the sharpest ΓL level of a progressive renderer's first frames (σ = 1/√λ ≈ 3.6°); sharper lobes
 #: read the prefilter's blend towards the map's own Gaussian-filtered texels until the scene's

@@ -17,9 +17,9 @@ import warp as wp
 
 from warp_sg.renderer.kernel_preload import FRAME_MODULES, SHADOW_FRAME_MODULES
 from warp_sg.shading import kernel as S
+from warp_sg.shading.vertex_visibility import update_caches
 
 _FRAME_MODULES = FRAME_MODULES + SHADOW_FRAME_MODULES
-from warp_sg.shading.vertex_visibility import update_caches
 
 
 def _timer(device):

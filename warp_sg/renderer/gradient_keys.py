@@ -24,7 +24,7 @@ import numpy as np
 
 from warp_sg.scene.lights import DirectionalLight, EnvironmentLight, PointLight
 from warp_sg.scene.model import COLOUR_PARAMS
-from warp_sg.shading.surface import SLOT_NORMAL, _PARAM_SLOTS
+from warp_sg.shading.surface import _PARAM_SLOTS, SLOT_NORMAL
 
 #: the record's differentiable fields, in the order of :func:`record_vector`
 RECORD_FIELDS = (("kd", 3), ("ks", 3), ("params", 4), ("fresnel_a", 3), ("fresnel_b", 3))

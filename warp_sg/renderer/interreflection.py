@@ -85,8 +85,8 @@ class Interreflection:
         """A white Lambert material in every slot of the material table, and textures that bind none."""
         from warp_sg.brdf import Lambert
         from warp_sg.brdf.kernel.material_wp import pack_materials
-        from warp_sg.shading.surface import N_SLOTS, MaterialTextures
         from warp_sg.scene.textures import build_atlas
+        from warp_sg.shading.surface import N_SLOTS, MaterialTextures
 
         n = int(self.material_table.materials.shape[0])
         if getattr(self, "_white_tables", None) is None or self._white_tables[0] != n:

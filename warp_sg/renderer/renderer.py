@@ -38,9 +38,9 @@ import warp as wp
 
 from warp_sg.core.device import resolve_device
 from warp_sg.core.errors import InputError, SceneError
+from warp_sg.renderer import kernel_preload
 from warp_sg.renderer.costs import check_frame_costs
 from warp_sg.renderer.environment_setup import EnvironmentSetup
-from warp_sg.renderer import kernel_preload
 from warp_sg.renderer.frame import FramePaths
 from warp_sg.renderer.gradients import GradientPaths
 from warp_sg.renderer.interreflection import Interreflection

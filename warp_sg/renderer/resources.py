@@ -32,7 +32,16 @@ from warp_sg.scene.textures import build_atlas
 from warp_sg.shading import kernel as S
 from warp_sg.shading.cutout import CutoutScene, cutout_data
 from warp_sg.shading.light_rays import LightOccluders
-from warp_sg.shading.surface import MaterialTextures, SLOT_KD, SLOT_KS, SLOT_NORMAL, SLOT_OCCLUSION, SLOT_P0, SLOT_TANGENT, material_texture_slots
+from warp_sg.shading.surface import (
+    SLOT_KD,
+    SLOT_KS,
+    SLOT_NORMAL,
+    SLOT_OCCLUSION,
+    SLOT_P0,
+    SLOT_TANGENT,
+    MaterialTextures,
+    material_texture_slots,
+)
 from warp_sg.shading.vertex_visibility import CacheInputs, caches
 
 

@@ -160,7 +160,6 @@ def visibility_arrays(ssdf, normals, n_vertices: int, device) -> S.Visibility:
     """The shading kernel's visibility (``ssdf`` None: no shadows, V = 1) for a mesh of
     ``n_vertices`` vertices with the device normals ``normals``."""
     from precompute.visibility.occluder_cone import no_cones, texel_half_diagonal
-
     from warp_sg.sg.fh import fh_table_array
 
     d = device

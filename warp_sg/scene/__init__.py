@@ -1,7 +1,8 @@
 r"""Scenes: TOML files (``tomllib``) and the equivalent Python objects.
 
 ``ws.load_scene(path)`` reads a scene file (every key: docs/scene-keys.md; their use:
-docs/rendering.md "Scene files") and returns a :class:`Scene`; ``ws.Scene(camera=..., objects=[...], materials={...}, lights=[...])`` builds the
+docs/rendering.md "Scene files") and returns a :class:`Scene`; ``ws.Scene(camera=..., objects=[...], materials={...},
+lights=[...])`` builds the
 same thing in Python. Every mistake is a :class:`~warp_sg.core.errors.SceneError` (or
 ``MeshError``/``ImageError`` for unusable files) whose message names the file, the table and the
 key or element, e.g. ``scene.toml: [camera] key 'fvo' unknown — did you mean 'fov'?``.
@@ -48,10 +49,11 @@ in :mod:`warp_sg.scene.camera`.
 from warp_sg.scene.camera import Camera
 from warp_sg.scene.geometry import Geometry, build_geometry, object_mesh, uv_tangents, validate_mesh, vertex_normals
 from warp_sg.scene.lights import DirectionalLight, EnvironmentLight, PointLight
+from warp_sg.scene.loader import load_scene
 from warp_sg.scene.model import COLOUR_PARAMS, Light, Material, Scene, SceneObject, Transform
 from warp_sg.scene.render_settings import RenderSettings
-from warp_sg.scene.loader import load_scene
 from warp_sg.scene.textures import Texture
 
 __all__ = ["Scene", "SceneObject", "Material", "Transform", "RenderSettings", "Geometry", "Camera", "load_scene",
-           "PointLight", "DirectionalLight", "EnvironmentLight", "Texture", "validate_mesh", "build_geometry"]
+           "PointLight", "DirectionalLight", "EnvironmentLight", "Texture", "validate_mesh", "build_geometry",
+           "object_mesh", "uv_tangents", "vertex_normals", "COLOUR_PARAMS", "Light"]

@@ -21,7 +21,8 @@ Rotation is dynamic: an environment carries a rotation ``R`` (environment → wo
 ``R p``), so rotating the light needs no precomputation. :func:`rotate_envmap` bakes a rotation
 into a resampled map for tests and export.
 
-Public API: :func:`load_envmap`, :func:`~warp_sg.scene.sky.procedural_sky` (in :mod:`warp_sg.scene.sky`), :func:`dir_to_uv`, :func:`uv_to_dir`,
+Public API: :func:`load_envmap`, :func:`~warp_sg.scene.sky.procedural_sky` (in :mod:`warp_sg.scene.sky`),
+:func:`dir_to_uv`, :func:`uv_to_dir`,
 :func:`dir_to_texel`, :func:`texel_directions`, :func:`row_solid_angles`, :func:`texel_solid_angles`,
 :func:`downsample_envmap`, :func:`rotation_matrix`, :func:`rotation_y`, :func:`rotate_envmap`,
 :func:`env_lookup_numpy`, and the ``@wp.func`` twins ``wp_dir_to_uv(d) -> vec2``, ``wp_uv_to_dir(u, v) -> vec3``,
@@ -35,8 +36,8 @@ from pathlib import Path
 import numpy as np
 import warp as wp
 
-from warp_sg.core.errors import ImageError
 from warp_sg.core import watchdog
+from warp_sg.core.errors import ImageError
 from warp_sg.core.watchdog import MAX_ENV_TEXELS, check_size
 from warp_sg.numeric.fastmath import fast_asin, fast_atan2
 

@@ -14,8 +14,8 @@ import numpy as np
 
 from warp_sg.core.errors import InputError, InputWarning, MeshError, SceneError, reason
 from warp_sg.core.meshcheck import check_mesh, closed_and_oriented, signed_volume, weld_ids, winding_number
-from warp_sg.scene.primitives import MeshData, make_primitive
 from warp_sg.core.watchdog import MAX_TRIANGLES, check_size
+from warp_sg.scene.primitives import MeshData, make_primitive
 
 #: mesh files an object's ``mesh`` may name (read by trimesh; ``.glb``/``.gltf`` by :mod:`warp_sg.scene.importers.gltf`,
 #: USD by :mod:`warp_sg.scene.importers.usd`)
@@ -422,5 +422,6 @@ def build_geometry(scene) -> Geometry:
     )
 
 
-__all__ = ["Geometry", "validate_mesh", "check_moved_extent", "vertex_normals", "uv_tangents", "object_mesh", "build_geometry", "vertex_samples",
+__all__ = ["Geometry", "validate_mesh", "check_moved_extent", "vertex_normals", "uv_tangents", "object_mesh",
+           "build_geometry", "vertex_samples",
            "orient_outward", "check_extent", "MESH_SUFFIXES", "MAX_COORDINATE", "MIN_EXTENT"]

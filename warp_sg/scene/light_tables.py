@@ -15,7 +15,7 @@ from pydantic import Field, create_model
 
 from warp_sg.scene.envmap import MAX_RADIANCE
 from warp_sg.scene.sky import procedural_sky
-from warp_sg.scene.values import Table, anything, fail, integer, number, plain, require_tag, rgb, path, tagged, vector
+from warp_sg.scene.values import Table, anything, fail, integer, number, path, plain, require_tag, rgb, tagged, vector
 
 #: the built-in maps of an environment light (``procedural = ...``)
 ENV_PROCEDURAL = ("sky", "constant")

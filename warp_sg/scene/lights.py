@@ -32,8 +32,7 @@ import warp as wp
 
 from warp_sg.core.errors import InputError, SceneError
 from warp_sg.scene.envmap import check_envmap_shape, load_envmap, rotate_envmap, rotation_y, validate_envmap
-from warp_sg.scene.light_tables import (DirectionalLightTable, EnvironmentData, LightTable,
-                                        PointLightTable, default_of)
+from warp_sg.scene.light_tables import DirectionalLightTable, EnvironmentData, LightTable, PointLightTable, default_of
 from warp_sg.scene.sky import procedural_sky
 from warp_sg.scene.values import check_record
 from warp_sg.sg import EPSILON

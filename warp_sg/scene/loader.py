@@ -7,10 +7,10 @@ unknown (valid keys: ...)``); ``warp_sg.scene`` re-exports these names.
 """
 from __future__ import annotations
 
-import tomllib
 import warnings
 from pathlib import Path
 
+import tomllib
 from pydantic import ValidationError
 
 from warp_sg.brdf import MODELS

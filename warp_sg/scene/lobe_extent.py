@@ -19,8 +19,8 @@ import itertools
 
 import numpy as np
 
-from warp_sg.sg import CLAMPED_COSINE_SHARPNESS
 from warp_sg.scene.model import COLOUR_PARAMS
+from warp_sg.sg import CLAMPED_COSINE_SHARPNESS
 
 #: the ladder reaches at least this λ_D (broad lobes: the cost of the levels below is small)
 MIN_REACH = 8.0

@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 
 from warp_sg.brdf import MODELS
-from warp_sg.scene.camera import Camera
 from warp_sg.core.errors import SceneError
 from warp_sg.core.suggest import did_you_mean
+from warp_sg.scene.camera import Camera
 from warp_sg.scene.geometry import Geometry, build_geometry
 from warp_sg.scene.lights import DirectionalLight, EnvironmentLight, PointLight
 from warp_sg.scene.material_layers import MaterialLayers

@@ -82,9 +82,8 @@ def write_sphere_ply(path: Path, radius: float = 0.5, subdivisions: int = 3) -> 
 def write_sky_exr(path: Path, width: int = 256, height: int = 128, sun_radiance: float = 1000.0,
                   sun_radius: float = 0.03) -> Path:
     """Sky with a small bright sun (peak ~``sun_radiance``, angular radius ``sun_radius``)."""
-    from warp_sg.scene.sky import procedural_sky
-
     from warp_sg.core.image_io import save_image
+    from warp_sg.scene.sky import procedural_sky
 
     sky = procedural_sky(width, height, sun_direction=tuple(sun_direction()), sun_angular_radius=sun_radius,
                          sun_intensity=sun_radiance, halo=0.1, sky_intensity=0.8)
@@ -160,4 +159,5 @@ def write_plain_scene(folder, obj: str = "sphere", light: str = "sky", material:
     return path
 
 
-__all__ = ["write_plain_scene", "toml_table", "warp_bunny", "BUNNY_PLACEMENT", "write_floor_obj", "write_sphere_ply", "write_sky_exr", "sun_direction", "MATERIALS"]
+__all__ = ["write_plain_scene", "toml_table", "warp_bunny", "BUNNY_PLACEMENT", "write_floor_obj", "write_sphere_ply",
+           "write_sky_exr", "sun_direction", "MATERIALS"]

@@ -31,15 +31,31 @@ from typing import Annotated, Any, Literal
 from pydantic import ConfigDict, Field, create_model, model_validator
 
 from warp_sg.brdf import MODELS
-from warp_sg.core.suggest import did_you_mean
 from warp_sg.brdf.fresnel import PRESETS
+from warp_sg.core.suggest import did_you_mean
 from warp_sg.scene.camera import CameraTable
 from warp_sg.scene.importers import brings_materials, material_suffixes
 from warp_sg.scene.light_tables import LIGHT_MODELS, LightTable
 from warp_sg.scene.primitives import PRIMITIVE_PARAMS, PRIMITIVES
 from warp_sg.scene.render_settings import render_table
-from warp_sg.scene.values import (Table, boolean, choice, fail, failure_text, int_or_ints, integer, number,
-                                  number_or_vector, path, plain, require_tag, rgb, string, tagged, vector)
+from warp_sg.scene.values import (
+    Table,
+    boolean,
+    choice,
+    fail,
+    failure_text,
+    int_or_ints,
+    integer,
+    number,
+    number_or_vector,
+    path,
+    plain,
+    require_tag,
+    rgb,
+    string,
+    tagged,
+    vector,
+)
 
 DRAFT = "http://json-schema.org/draft-04/schema#"
 

@@ -5,7 +5,6 @@ cos θ and φ), the ``procedural = "sky"`` environment of scene files. The map c
 """
 from __future__ import annotations
 
-
 import numpy as np
 
 from warp_sg.scene.envmap import uv_to_dir

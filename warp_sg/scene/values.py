@@ -18,8 +18,16 @@ import numbers
 from pathlib import Path
 from typing import Annotated, Any, Union
 
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Discriminator, PlainValidator, Tag, WithJsonSchema, \
-    model_validator
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Discriminator,
+    PlainValidator,
+    Tag,
+    WithJsonSchema,
+    model_validator,
+)
 from pydantic_core import PydanticCustomError
 
 from warp_sg.core.suggest import did_you_mean
@@ -315,5 +323,6 @@ def check_record(model, data: dict, label: str):
         raise SceneError(f"{label} {failure_text(err, '.'.join(map(str, loc)))}") from None
 
 
-__all__ = ["Table", "tagged", "require_tag", "fail", "failure_text", "plain", "check_record", "number", "integer", "vector", "number_or_vector", "rgb", "int_or_ints", "string",
+__all__ = ["Table", "tagged", "require_tag", "fail", "failure_text", "plain", "check_record", "number", "integer",
+           "vector", "number_or_vector", "rgb", "int_or_ints", "string",
            "path", "boolean", "choice", "anything"]

@@ -20,8 +20,14 @@ from __future__ import annotations
 
 import warp as wp
 
-from warp_sg.sg.fh import (fh_hemisphere, fh_hemisphere_wp, fh_ratio_sigmoid, fh_ratio_sigmoid_np, fh_ratio_table,
-                 fh_ratio_table_np)
+from warp_sg.sg.fh import (
+    fh_hemisphere,
+    fh_hemisphere_wp,
+    fh_ratio_sigmoid,
+    fh_ratio_sigmoid_np,
+    fh_ratio_table,
+    fh_ratio_table_np,
+)
 
 
 def sg_visibility_scale_np(theta_d, lam, method: str = "table"):

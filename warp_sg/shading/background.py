@@ -166,4 +166,5 @@ class BackgroundCache:
         return [self._placeholders[0], bg, 1]
 
 
-__all__ = ["Background", "BackgroundCache", "background_at", "background_along", "background_kernel", "background_params", "background_image"]
+__all__ = ["Background", "BackgroundCache", "background_at", "background_along", "background_kernel",
+           "background_params", "background_image"]

@@ -50,10 +50,10 @@ import warp as wp
 
 from warp_sg.brdf.kernel.albedo import _radical_inverse as radical_inverse
 from warp_sg.brdf.kernel.material_wp import Material, material_funcs
-from warp_sg.shading.surface import MaterialTextures, textured_material
-from warp_sg.shading.surface_layers import Layers, emission_at, vertex_coloured
 from warp_sg.sg.algebra_wp import sg_inner, sg_integral
 from warp_sg.sg.fh import fh_table_wp
+from warp_sg.shading.surface import MaterialTextures, textured_material
+from warp_sg.shading.surface_layers import Layers, emission_at, vertex_coloured
 
 #: a bounce that adds less than this share of the light gathered so far ends the iteration
 STOP = 0.01
@@ -278,9 +278,9 @@ def indirect_specular_func(MF):
     the environment's specular loop, where it is added per lobe instead."""
     if MF.tag in _INDIRECT_SPECULAR:
         return _INDIRECT_SPECULAR[MF.tag]
+    from warp_sg.numeric.onb import local_to_world
     from warp_sg.sg.algebra_wp import sg_product_lobe
     from warp_sg.sg.irradiance import sg_irradiance_norm
-    from warp_sg.numeric.onb import local_to_world
     from warp_sg.shading.visibility_terms import CC_LAM
 
     slice_lobe_count, shading_slice_lobe = MF.slice_lobe_count, MF.shading_slice_lobe
@@ -493,5 +493,6 @@ class Transfer:
 
 __all__ = ["Indirect", "Transfer", "no_indirect", "lobe_axes", "nearest_lobes", "gather_kernel", "bounce_kernel",
            "lobes_kernel", "lobe_mean_radiance", "indirect_irradiance", "sender_kernel", "sender_arrays",
-           "specular_albedo", "indirect_specular_func", "unit_table", "octahedral_cell_normals", "unit_row", "STOP", "LOBES", "LOBE_SHARPNESS",
+           "specular_albedo", "indirect_specular_func", "unit_table", "octahedral_cell_normals", "unit_row", "STOP",
+           "LOBES", "LOBE_SHARPNESS",
            "UNIT_Q"]

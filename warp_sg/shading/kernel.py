@@ -87,28 +87,34 @@ from dataclasses import dataclass
 
 import warp as wp
 
-from warp_sg.shading.background import Background, background_along, background_at
-from warp_sg.shading.bounce import Indirect, indirect_irradiance, indirect_specular_func, lobe_mean_radiance
-from warp_sg.shading.cutout import Cutouts, see_behind
-from warp_sg.shading.env_mixture import mixture_mean
+from precompute.environment.irradiance import env_irradiance
+from precompute.visibility.ssdf_wp import SSDFPoint, ssdf_point_framed
 from warp_sg.brdf.kernel.albedo import albedo_correction
 from warp_sg.brdf.kernel.material_wp import ALL_MODELS, Material, above, constant_diffuse, material_funcs
 from warp_sg.numeric.fastmath import fast_asin
 from warp_sg.numeric.onb import local_to_world, world_to_local
 from warp_sg.scene.lights import LightArrays, light_irradiance
-from warp_sg.sg.irradiance import sg_irradiance_norm, sg_irradiance_norm_at
 from warp_sg.sg.algebra_wp import sg_integral, sg_product_lobe
+from warp_sg.sg.irradiance import sg_irradiance_norm, sg_irradiance_norm_at
+from warp_sg.shading.background import Background, background_along, background_at
+from warp_sg.shading.bounce import Indirect, indirect_irradiance, indirect_specular_func, lobe_mean_radiance
+from warp_sg.shading.cutout import Cutouts, see_behind
+from warp_sg.shading.env_mixture import mixture_mean
+from warp_sg.shading.motion_wp import Proxies, moving_lobe, proxy_diffuse, proxy_light_ratio, proxy_ratio
 from warp_sg.shading.surface import MaterialTextures, apply_shading_maps, tangent_in_plane, textured_material
 from warp_sg.shading.surface_layers import Layers, coat_setup, emission_at, occlusion_at, vertex_coloured
-
-
-from precompute.environment.irradiance import env_irradiance  # noqa: E402
-from precompute.visibility.ssdf_wp import SSDFPoint, ssdf_point_framed  # noqa: E402
-from warp_sg.shading.motion_wp import Proxies, moving_lobe, proxy_diffuse, proxy_light_ratio, proxy_ratio  # noqa: E402  (moving objects' occluder proxies)
-
-from warp_sg.shading.visibility_terms import (CC_LAM, EnvSG, GeometryArrays, Visibility, light_fraction,
-                                              light_vis_ratio, vis_ratio, vis_ratio_depth, visible_irradiance,
-                                              visible_lobe)
+from warp_sg.shading.visibility_terms import (
+    CC_LAM,
+    EnvSG,
+    GeometryArrays,
+    Visibility,
+    light_fraction,
+    light_vis_ratio,
+    vis_ratio,
+    vis_ratio_depth,
+    visible_irradiance,
+    visible_lobe,
+)
 
 ENV_NONE, ENV_SG, ENV_PREFILTERED, ENV_MIXTURE = 0, 1, 2, 3
 
@@ -291,7 +297,7 @@ def shade_kernel(f: Features):
                     vr = b0 * env.vis[i0, j] + b1 * env.vis[i1, j] + b2 * env.vis[i2, j]
                 else:
                     vr = vis_ratio(SHADOWS, FH, vis, q, pe, le)
-                if wp.static(MOVING): vr = wp.min(vr, proxy_ratio(FH, vis.fh_table, px, t, P, ng, pe, le))  # noqa: E701,E501
+                if wp.static(MOVING): vr = wp.min(vr, proxy_ratio(FH, vis.fh_table, px, t, P, ng, pe, le))  # noqa: E701
                 unocc += E
                 seen += E * vr
                 cd += wp.cw_mul(E, diffuse_at(mat, o_l, world_to_local(pe, ts, bs, ns))) * vr
@@ -333,7 +339,7 @@ def shade_kernel(f: Features):
         p0 = base + wp.tid() * per  # the thread's first row-major pixel index
         ny = p0 // W  # (row, column) of the next pixel: one division per thread, then steps
         nx = p0 - ny * W
-        for s in range(per):  # per pixels per thread on the CPU (raster.parallel.launch), 1 on CUDA
+        for s in range(per):  # noqa: B007  per pixels per thread on the CPU (raster.parallel.launch), 1 on CUDA
             if ny >= tri_id.shape[0]:
                 break
             y = ny
@@ -444,7 +450,7 @@ def shade_kernel(f: Features):
                         cd += wp.cw_mul(rest, rho_d)
             col += cd * occ
             if wp.static(BOUNCE):  # light that bounces: the vertices' indirect irradiance (shading.bounce)
-                if has_kd: col += wp.cw_mul(indirect_irradiance(ind, i0, i1, i2, b0, b1, b2), diffuse_at(mat, o_l, wp.vec3(0.0, 0.0, 1.0)))  # noqa: E701,E501
+                if has_kd: col += wp.cw_mul(indirect_irradiance(ind, i0, i1, i2, b0, b1, b2), diffuse_at(mat, o_l, wp.vec3(0.0, 0.0, 1.0)))  # noqa: E701
                 if wp.static(SPEC and ENV_S < 2):  # (with the environment's loop: read there)
                     col += indirect_specular(mat, o_l, ts, bs, ns, irr, ind, wp.vec3i(i0, i1, i2), wp.vec3(b0, b1, b2))
 

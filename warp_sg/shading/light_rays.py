@@ -38,8 +38,14 @@ from precompute.visibility.ssdf_wp import ssdf_eval_vertex, world_to_local
 from warp_sg.numeric.fastmath import fast_asin
 from warp_sg.scene.lights import LIGHT_POINT, LightArrays, light_irradiance
 from warp_sg.shading.cutout import Cutouts, blocked
-from warp_sg.shading.visibility_terms import (Visibility, cap_visible, light_sin_radius, lookup_skip, vertex_frame,
-                                              vertex_point)
+from warp_sg.shading.visibility_terms import (
+    Visibility,
+    cap_visible,
+    light_sin_radius,
+    lookup_skip,
+    vertex_frame,
+    vertex_point,
+)
 
 #: rays per vertex and light: RINGS × SECTORS
 RINGS = 4

@@ -47,13 +47,18 @@ import warp as wp
 
 from precompute.environment.irradiance import IrradianceTable, irradiance_unscaled
 from precompute.visibility.occlusion_field import field_moments
-
-from warp_sg.scene.envmap import env_lookup
 from warp_sg.numeric.fastmath import fast_asin
+from warp_sg.scene.envmap import env_lookup
 from warp_sg.sg.fh import fh_ratio_table_pair, fh_theta_max_wp
 from warp_sg.sg.ssdf_product import sg_visibility_scale_sigmoid
-from warp_sg.shading.visibility_terms import (SSDFPoint, Visibility, cut_lobe, light_fraction, light_sin_radius,
-                                             visible_lobe)
+from warp_sg.shading.visibility_terms import (
+    SSDFPoint,
+    Visibility,
+    cut_lobe,
+    light_fraction,
+    light_sin_radius,
+    visible_lobe,
+)
 
 _HALF_PI = wp.constant(1.5707963267948966)
 _FAR = wp.constant(4.0)  # an SSDF beyond any angle: no proxy
@@ -415,5 +420,6 @@ def no_proxies(device) -> Proxies:
     return px
 
 
-__all__ = ["Proxies", "proxy_theta", "proxy_theta_axis", "proxy_cut", "moving_lobe", "polygon_theta", "proxy_ratio", "proxy_light_ratio", "proxy_diffuse", "cap_cosine_solid_angle", "polygon_cosine_solid_angle",
+__all__ = ["Proxies", "proxy_theta", "proxy_theta_axis", "proxy_cut", "moving_lobe", "polygon_theta", "proxy_ratio",
+           "proxy_light_ratio", "proxy_diffuse", "cap_cosine_solid_angle", "polygon_cosine_solid_angle",
            "no_proxies"]

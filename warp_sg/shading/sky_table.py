@@ -70,7 +70,6 @@ import warp as wp
 
 from precompute.environment.irradiance import irradiance_unscaled
 from precompute.visibility.ssdf_wp import texel_direction_array
-
 from warp_sg.numeric.onb import local_to_world
 from warp_sg.shading.vertex_visibility import cone_in_frame, texel_ssdf, visible_share
 from warp_sg.shading.visibility_terms import EnvSG, Visibility

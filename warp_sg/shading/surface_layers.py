@@ -19,8 +19,15 @@ import warp as wp
 from warp_sg.brdf.kernel.material_wp import Material, above
 from warp_sg.numeric.onb import world_to_local
 from warp_sg.scene.material_layers import COAT_F0
-from warp_sg.shading.surface import SLOT_COAT, SLOT_COAT_NORMAL, SLOT_EMISSION, SLOT_OCCLUSION, MaterialTextures, apply_normal_map
 from warp_sg.scene.textures import tex_sample
+from warp_sg.shading.surface import (
+    SLOT_COAT,
+    SLOT_COAT_NORMAL,
+    SLOT_EMISSION,
+    SLOT_OCCLUSION,
+    MaterialTextures,
+    apply_normal_map,
+)
 
 COAT_F0_WP = wp.constant(COAT_F0)
 

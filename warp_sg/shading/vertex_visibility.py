@@ -61,15 +61,14 @@ import warp as wp
 
 from precompute.environment.irradiance import irradiance_unscaled
 from precompute.visibility.ssdf_wp import ssdf_eval_vertex, texel_direction_array, world_to_local
-
 from warp_sg.numeric.fastmath import fast_asin
 from warp_sg.numeric.onb import local_to_world
+from warp_sg.scene.envmap import env_lookup
 from warp_sg.scene.lights import LightArrays, light_irradiance
 from warp_sg.scene.render_settings import uses_sigmoid
-from warp_sg.scene.envmap import env_lookup
-from warp_sg.shading.visibility_terms import EnvSG, Visibility, lookup_skip, vertex_frame, vertex_point
-from warp_sg.sg.irradiance import sg_irradiance_norm_at
 from warp_sg.sg.algebra_wp import sg_integral
+from warp_sg.sg.irradiance import sg_irradiance_norm_at
+from warp_sg.shading.visibility_terms import EnvSG, Visibility, lookup_skip, vertex_frame, vertex_point
 
 _SQRT_2PI = wp.constant(float(np.sqrt(2.0 * np.pi)))
 
@@ -368,7 +367,8 @@ class VertexCache:
     """A per-vertex array kept between frames: ``array(key, build, device)`` calls ``build()`` only
     when ``key`` changes (:func:`_same_key`: values by ``==``, objects by identity — the key holds
     them, so a rebuilt object never matches a stale key); ``key=None`` gives ``placeholder(device)``
-    (default a (1, 1) float array: the argument of the kernel variant without the cache). ``builds`` counts rebuilds; ``seconds`` is the time the
+    (default a (1, 1) float array: the argument of the kernel variant without the cache). ``builds`` counts rebuilds;
+    ``seconds`` is the time the
     last ``array`` call spent building (0 when it reused the array)."""
 
     def __init__(self, placeholder=lambda device: wp.zeros((1, 1), dtype=float, device=device)):
@@ -484,7 +484,8 @@ def update_caches(caches: tuple, inputs: CacheInputs, f, es: EnvSG) -> tuple[Env
     return es, sum(c.seconds for c in caches)
 
 
-__all__ = ["cone_in_frame", "blend_rows_kernel", "blend_visible_kernel", "VertexCache", "CacheInputs", "caches", "update_caches", "env_vertex_visible", "env_vertex_visible_kernel",
+__all__ = ["cone_in_frame", "blend_rows_kernel", "blend_visible_kernel", "VertexCache", "CacheInputs", "caches",
+           "update_caches", "env_vertex_visible", "env_vertex_visible_kernel",
            "smooth_triangles", "SMOOTH_TRIANGLE_DEG",
            "env_vertex_visibility", "env_vertex_visibility_kernel", "light_vertex_deficit",
            "light_vertex_deficit_kernel"]

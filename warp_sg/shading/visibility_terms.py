@@ -14,7 +14,6 @@ The kernel variants that use them are :mod:`warp_sg.shading.kernel`'s.
 """
 from __future__ import annotations
 
-
 import warp as wp
 
 from precompute.environment.irradiance import IrradianceTable

@@ -96,8 +96,8 @@ def bench_scene(width=160, height=120, *, env=True, lights=True, diffuse_only=Fa
 
     ``quick``: coarse tessellation and small precompute settings (tests, smoke runs)."""
     from warp_sg import brdf as B
-    from warp_sg.scene.lights import DirectionalLight, EnvironmentLight, PointLight
     from warp_sg.scene.camera import Camera
+    from warp_sg.scene.lights import DirectionalLight, EnvironmentLight, PointLight
     from warp_sg.scene.model import Scene, SceneObject
     from warp_sg.scene.render_settings import RenderSettings
 
@@ -149,7 +149,6 @@ def _frames(renderer, n):
 
 def shading_section(device="cpu", quick=False, frames=None):
     from warp_sg.core.cache import fresh_cache
-
     from warp_sg.renderer.renderer import Renderer
 
     w, h = (48, 36) if quick else (320, 240)
@@ -287,10 +286,9 @@ def _equal_error_case(scene, label, device, quick, truth_spp, progress, seed) ->
     import copy
 
     from warp_sg.core.cache import fresh_cache
-
     from warp_sg.groundtruth.reference import matching_transport, render_reference
-    from warp_sg.renderer.renderer import Renderer
     from warp_sg.groundtruth.region_error import image_errors
+    from warp_sg.renderer.renderer import Renderer
 
     scene = matching_transport(scene, _depth())
 
@@ -356,8 +354,8 @@ def _equal_error_scenes(quick, mitsuba=False):
     irradiance: ``warp_sg.scene.plain_scenes``; its files are read at load), and the same sphere and
     floor lit by one spherical point light only (the exact-light path; issue 13's
     "1 spp-equivalent" case)."""
-    from warp_sg.scene.plain_scenes import write_plain_scene
     from warp_sg.scene.loader import load_scene
+    from warp_sg.scene.plain_scenes import write_plain_scene
 
     w, h = (24, 18) if quick else (96, 72)
     out = [("bench scene, Lambert materials", bench_scene(w, h, quick=quick, diffuse_only=True), 31) if mitsuba else

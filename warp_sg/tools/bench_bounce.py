@@ -32,7 +32,6 @@ def _scenes(quick: bool):
     """``[(label, scene)]`` (module docstring)."""
     import warp_sg as ws
     from warp_sg.scene.plain_scenes import write_plain_scene
-
     from warp_sg.tools.bench_first_image import SHARED_ASSETS
 
     tmp = Path(tempfile.mkdtemp(prefix="warp-sg-bench-bounce-"))

@@ -51,6 +51,7 @@ import numpy as np
 
 from warp_sg.core.stage_clock import load_average
 
+
 def _shared_assets() -> Path:
     """The shared inputs' folder: ``$WARP_SG_SHARED_ASSETS``, else ``shared/assets`` beside the
     repository or beside one of its parent folders (a checkout in a subfolder); the first that
@@ -144,12 +145,12 @@ def _lambert(scene):
 
 def _mitsuba_row(path, size, device, quick):
     """Mitsuba's cold and warm time at our error on the Lambert version of the asset."""
-    from warp_sg.tools import peer_mitsuba as pm
-    from warp_sg.tools.spp_curve import spp_for_error
     from warp_sg.core.cache import fresh_cache
     from warp_sg.groundtruth.reference import render_reference
     from warp_sg.groundtruth.region_error import image_errors
     from warp_sg.renderer.renderer import Renderer
+    from warp_sg.tools import peer_mitsuba as pm
+    from warp_sg.tools.spp_curve import spp_for_error
 
     scene = _lambert(_asset_scene(path, size, quick))
     with fresh_cache():
@@ -299,8 +300,8 @@ def ray_budget_section(device="cpu", quick=False):
     ``warp_sg.tools.bench_precompute`` (floor vertices around the box), and the scanned head of the shared
     inputs when present (a sample of its refined vertices)."""
     from precompute.visibility import ssdf as S
-    from warp_sg.tools.bench_precompute import _near_box_floor_ids, bench_mesh, ssdf_error
     from warp_sg.core.stage_clock import StageClock
+    from warp_sg.tools.bench_precompute import _near_box_floor_ids, bench_mesh, ssdf_error
 
     meshes = []
     V, F, N = bench_mesh(300 if quick else 2000)

@@ -106,7 +106,7 @@ def equal_error_row(case_name: str, size: int, batches: int, spp: int, device: s
 def matrix_equal_error_section(device="cpu", quick=False, progress=False):
     """The section's rows (module docstring), one per model."""
     try:
-        import mitsuba as mi  # noqa: F401
+        import mitsuba as mi
     except ImportError as e:
         return [{"case": "Mitsuba 3", "note": f"skipped: mitsuba not importable ({e})"}]
     variant = _variant(quick)

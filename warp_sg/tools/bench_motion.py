@@ -53,7 +53,6 @@ def _timed(r) -> tuple[float, dict]:
 
 def _case(case: str, size: int, n: int, render, device) -> list[dict]:
     import warp_sg as ws
-
     from warp_sg.core.cache import fresh_cache
     from warp_sg.renderer.dynamic_objects import scene_with_transforms
     from warp_sg.scene.plain_scenes import write_plain_scene

@@ -17,8 +17,13 @@ from pathlib import Path
 
 import numpy as np
 
-from precompute.visibility.reference_checks import (bowl_scene, plane_box_scene, product_error, sample_sg,  # noqa: F401
-                               sg_visibility_reference)
+from precompute.visibility.reference_checks import (  # noqa: F401
+    bowl_scene,
+    plane_box_scene,
+    product_error,
+    sample_sg,
+    sg_visibility_reference,
+)
 from precompute.visibility.ssdf_wp import lookup_np
 
 ROOT = Path(__file__).resolve().parents[2]

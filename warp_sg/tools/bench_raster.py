@@ -22,12 +22,11 @@ import time
 import numpy as np
 import warp as wp
 
-from warp_sg.core.device import resolve_device
-
 from raster import parallel
-from warp_sg.scene.camera import Camera
 from raster.rasterize import rasterize
 from raster.reference_checks import RayCaster, torus_mesh, uv_sphere
+from warp_sg.core.device import resolve_device
+from warp_sg.scene.camera import Camera
 
 
 def bench_scene(n_triangles: int):

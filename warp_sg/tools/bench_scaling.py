@@ -25,8 +25,8 @@ def scaling_scene(n_triangles: int, size: int, device: str = "cpu"):
     import trimesh
 
     from warp_sg import brdf as B
-    from warp_sg.scene.lights import EnvironmentLight, PointLight
     from warp_sg.scene.camera import Camera
+    from warp_sg.scene.lights import EnvironmentLight, PointLight
     from warp_sg.scene.model import Scene, SceneObject
     from warp_sg.scene.render_settings import RenderSettings
 

@@ -38,9 +38,9 @@ import math
 import sys
 import warnings
 
-from warp_sg.core.files import check_output_path, make_parents
 from warp_sg.core.device import add_device_argument
 from warp_sg.core.errors import InputError
+from warp_sg.core.files import check_output_path, make_parents
 
 EXTERNAL = {
     "reference": ("warp_sg.groundtruth.reference", "Monte-Carlo reference image (exact BRDF, ray-traced visibility)"),
@@ -346,7 +346,8 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     p.set_defaults(func=preview_main)
     p = sub.add_parser("schema", help="print the JSON Schema of scene files (for editors), or their key reference",
                        description="Print the JSON Schema (Draft 4) of the TOML scene format, for editors' TOML "
-                                   "language servers (Taplo / Even Better TOML): see docs/rendering.md, \"Editor completion and validation\"; "
+                                   "language servers (Taplo / Even Better TOML): see docs/rendering.md, "
+                                   "\"Editor completion and validation\"; "
                                    "with --markdown the reference of every key (docs/scene-keys.md).")
     add_schema_arguments(p)
     p.set_defaults(func=schema_main)

@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from warp_sg.core.files import atomic_output
 from warp_sg.core.errors import InputError
+from warp_sg.core.files import atomic_output
 
 
 def _pyvista():

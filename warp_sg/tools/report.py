@@ -43,10 +43,9 @@ from pathlib import Path
 import numpy as np
 
 from warp_sg.core.cache import content_key, fresh_cache, note_build, note_hit, record_builds
-
 from warp_sg.core.device import add_device_argument, device_for
-from warp_sg.core.files import output_folder
 from warp_sg.core.errors import InputError
+from warp_sg.core.files import output_folder
 from warp_sg.groundtruth.region_error import image_errors
 from warp_sg.scene.camera import with_resolution
 from warp_sg.tools.report_outputs import write_outputs, write_rows_csv
@@ -117,7 +116,7 @@ def with_setting(scene, knob, value):
     else:
         s2 = copy.copy(s)
         setattr(s2, knob, value)
-    if hasattr(scene, "render") and not callable(getattr(scene, "render")):
+    if hasattr(scene, "render") and not callable(scene.render):
         sc.render = s2
     else:
         sc.settings = s2
@@ -205,8 +204,7 @@ def mc_curve(scene, truth, device="cpu", max_spp=64, seed=2, progress=True, per_
     """Error-vs-time rows of a progressive reference run at every power of two up to ``max_spp``
     samples per sub-pixel of ``scene``; ``per_sample``: sub-pixels per pixel (the rows' ``spp``
     count samples per pixel); ``max_depth``: its paths' (default the full path tracer's)."""
-    from warp_sg.groundtruth.reference import DEFAULT_MAX_DEPTH
-    from warp_sg.groundtruth.reference import render_reference
+    from warp_sg.groundtruth.reference import DEFAULT_MAX_DEPTH, render_reference
 
     rows = []
 

@@ -43,8 +43,8 @@ import math
 import numpy as np
 import warp as wp
 
-from ...sg.irradiance import sg_irradiance_norm
 from ...sg.algebra_wp import sg_integral
+from ...sg.irradiance import sg_irradiance_norm
 from ..registry import roughness_of, specular_codes, textured_lobe_codes
 from .material_struct import Material
 from .material_variants import material_funcs

@@ -9,8 +9,8 @@ models. Local frame, z+ = normal, x = tangent.
 # NOTE: no ``from __future__ import annotations`` — Warp reads the @wp.func / struct annotations.
 import warp as wp
 
-from ...numeric.onb import frame_bitangent, frame_tangent
 from ...core.image_io import LUMINANCE
+from ...numeric.onb import frame_bitangent, frame_tangent
 from .material_struct import LN_EPS, WARP_COS_EPS, Material
 from .measured_wp import fresnel_dielectric
 

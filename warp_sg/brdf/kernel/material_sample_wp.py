@@ -7,8 +7,14 @@ on the model and are generated from the registry (:mod:`~warp_sg.brdf.kernel.mat
 # NOTE: no ``from __future__ import annotations`` — Warp reads the @wp.func / struct annotations.
 import warp as wp
 
-from .material_eval_wp import (as_exponent_log, expm1_neg_f, from_axis, ggx_g1, ggx_ndf_peak1, log1p_f, log_cos_theta,
-                               reflect_z)
+from .material_eval_wp import (
+    as_exponent_log,
+    expm1_neg_f,
+    from_axis,
+    ggx_g1,
+    ggx_ndf_peak1,
+    log1p_f,
+)
 from .material_struct import INV_PI, PI, TWO_PI, Material
 
 

@@ -43,10 +43,10 @@ import warp as wp
 
 from ...core.errors import InputError
 from .. import models as _models  # noqa: F401  (registers every model)
+from ..registry import BY_CODE, codes
 from .material_eval_wp import above, aniso_axis, half_vec, warp_axis
 from .material_sample_wp import cosine_pdf, cosine_sample, reflect_about
 from .material_struct import INV_PI, Material
-from ..registry import BY_CODE, codes
 
 _CACHE: dict = {}
 

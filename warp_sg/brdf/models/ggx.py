@@ -51,8 +51,16 @@ import warp as wp
 from ...core.errors import InputError
 from ..base import Roughness, SpecularBRDF, as_rgb, as_roughness, dirs, half_vector
 from ..fresnel import parse_fresnel
-from ..kernel.material_eval_wp import (_aniso_overlap, aniso_axis, fresnel_eval, ggx_extent, ggx_g2_over_cos, ggx_ndf_peak1,
-                                ggx_table_lobe, half_vec)
+from ..kernel.material_eval_wp import (
+    _aniso_overlap,
+    aniso_axis,
+    fresnel_eval,
+    ggx_extent,
+    ggx_g2_over_cos,
+    ggx_ndf_peak1,
+    ggx_table_lobe,
+    half_vec,
+)
 from ..kernel.material_sample_wp import cosine_dir, ggx_pdf_i, ggx_vndf_h, reflect_about
 from ..kernel.material_struct import INV_PI, PI, Material
 from ..params import ALPHA_X, ALPHA_Y, FRESNEL, KD, KS, Param
@@ -64,6 +72,7 @@ DEFAULT_LOBES = 3
 DEFAULT_ANISO_LOBES = 9
 #: ε of the anisotropic extent θv (supplement eq. 14)
 from ...sg import EPSILON  # noqa: E402
+
 #: the isotropic multi-lobe fit covers θ ∈ [0, min(π/2, FIT_EXTENT α)]
 FIT_EXTENT = 25.0
 #: roughness nodes of the shipped isotropic fits (fitting/ggx_lobe_table.py): α = TABLE_A0 + TABLE_STEP·n
@@ -94,7 +103,8 @@ def table_lobes(alpha, k):
     amplitudes interpolated linearly in α between the two nearest nodes (α clamped to the node
     range), ``λ = max(λ_norm · (1/α'² − 1), MIN_LAMBDA)`` with ``α' = min(α, 1)``. Below the
     first node the normalised fit is that of the first node (the NDF is a function of tan θ/α
-    there); above the last the lobes flatten with the curvature, to constant ones at α = 1. Interpolated fits stay within ~2× of a fresh fit's error (docs/ggx.md).
+    there); above the last the lobes flatten with the curvature, to constant ones at α = 1. Interpolated fits stay
+    within ~2× of a fresh fit's error (docs/ggx.md).
     Returns ``(λ (K,), μ (K,))``; the kernel does the same (``material_eval_wp.ggx_table_lobe``)."""
     from ..fitting.ggx_lobe_table import LAMBDA_NORM, MU
 

@@ -63,13 +63,27 @@ from ...core.cache import content_key, load_or_build
 from ...core.errors import InputError
 from .. import merl
 from ..base import SpecularBRDF, as_scalar, dirs, half_vector, upper
+from ..fitting.measured_fit import (  # noqa: F401  (the fit, re-exported)
+    COS_MIN,
+    D_SOLID_ANGLE,
+    D_THETA,
+    FIT_VERSION,
+    N_S,
+    S_THETA,
+    _cell_geometry,
+    _hat,
+    _interp_S,
+    compress_shadowing,
+    eq11,
+    fit_microfacet,
+    fit_ndf_sg,
+    fit_ndf_sg_anisotropic,
+    sg_mixture,
+    shadowing_basis,
+)
 from ..fresnel import fresnel_eq14, fresnel_normalised  # noqa: F401  (eq. 14, normalised at normal incidence)
 from ..kernel.material_sample_wp import cosine_dir, reflect_about, sg_lobe_weight, sg_mixture_pdf, sg_sample_dir
 from ..kernel.material_struct import Material
-from ..fitting.measured_fit import (  # noqa: F401  (the fit, re-exported)
-    COS_MIN, D_SOLID_ANGLE, D_THETA, FIT_VERSION, N_S, S_THETA, _cell_geometry, _hat, _interp_S, compress_shadowing,
-    eq11, fit_microfacet, fit_ndf_sg, fit_ndf_sg_anisotropic, sg_mixture, shadowing_basis,
-)
 from ..kernel.measured_wp import measured_mo, merl_eval
 from ..params import Param
 from ..registry import Kernel, register

@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from warp_sg.scene.camera import Camera
 from warp_sg.core.errors import InputError, MeshError
+from warp_sg.scene.camera import Camera
 from warp_sg.scene.importers import brings_materials
 from warp_sg.scene.importers.gltf import is_gltf, load_gltf
 from warp_sg.scene.importers.usd import is_usd, load_usd
@@ -48,11 +48,10 @@ ASSET_MATERIAL = {"model": "ggx", "kd": [0.5, 0.5, 0.5], "alpha": 0.1, "fresnel"
 
 def asset_bounds(path) -> tuple[np.ndarray, np.ndarray]:
     """World-space bounding box (lo, hi) of an asset file (glTF: scene graph applied)."""
-    from warp_sg.scene.geometry import object_mesh
-
     import warnings
 
     from warp_sg.core.errors import InputWarning
+    from warp_sg.scene.geometry import object_mesh
 
     path = Path(path)
     if path.is_dir():

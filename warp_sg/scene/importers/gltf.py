@@ -45,15 +45,28 @@ from pathlib import Path
 import numpy as np
 
 from warp_sg.core.errors import MeshError
+from warp_sg.core.meshcheck import check_mesh
 from warp_sg.scene.geometry import validate_mesh
 from warp_sg.scene.importers.gltf_checks import check_compression, check_images, check_references
 from warp_sg.scene.importers.gltf_data import GltfData, glb_chunks
+from warp_sg.scene.importers.gltf_material import (
+    gltf_material,
+    material_uv_transform,
+    texture_infos,
+    uv_transform,
+    vertex_colour_factors,
+)
 from warp_sg.scene.importers.gltf_repack import repack
-from warp_sg.scene.importers.gltf_rules import (RENDERED, check_asset, check_extensions, check_materials, check_meshes,
-                                                check_nodes, extension_notes, present_extensions)
-from warp_sg.scene.importers.gltf_material import (gltf_material, material_uv_transform, texture_infos, uv_transform,
-                                                   vertex_colour_factors)
-from warp_sg.core.meshcheck import check_mesh
+from warp_sg.scene.importers.gltf_rules import (
+    RENDERED,
+    check_asset,
+    check_extensions,
+    check_materials,
+    check_meshes,
+    check_nodes,
+    extension_notes,
+    present_extensions,
+)
 
 GLTF_SUFFIXES = (".glb", ".gltf")
 #: glTF extensions whose meaning the importer renders (everything else is reported and ignored)

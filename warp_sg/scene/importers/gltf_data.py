@@ -21,7 +21,6 @@ zeros, an image path outside the folder) never reaches it.
 from __future__ import annotations
 
 import base64
-import json
 import re
 import struct
 from pathlib import Path

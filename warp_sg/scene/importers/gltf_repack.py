@@ -18,8 +18,7 @@ import struct
 import numpy as np
 
 from warp_sg.core.errors import MeshError
-from warp_sg.scene.importers.gltf_data import (ATTRIBUTES, TRIANGLE_MODES, GltfData, MissingData, as_float,
-                                               triangle_list)
+from warp_sg.scene.importers.gltf_data import ATTRIBUTES, TRIANGLE_MODES, GltfData, MissingData, as_float, triangle_list
 
 _DRACO = "KHR_draco_mesh_compression"
 _TAG = "warp_sg_material_"
