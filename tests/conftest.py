@@ -25,6 +25,123 @@ from warp_sg.core.device import cuda_available
 DEVICES = ["cpu"] + (["cuda:0"] if cuda_available() else [])
 
 
+#: The scene file the scene-file tests start from (``tests/test_scene.py``, ``test_scene_schema.py``,
+#: ``test_bad_input.py``, ``test_hostile_inputs.py``, ``test_input_properties.py``): a Cook–Torrance
+#: copper ball on a Lambert floor under a point light, 16×12 pixels, no shadows. A test changes it with
+#: :func:`replace_once` and writes it with :func:`write_scene`; the tests rely on its exact lines.
+BALL_ON_FLOOR = """
+[camera]
+origin = [0.0, 1.0, 4.0]
+target = [0.0, 0.5, 0.0]
+fov = 40.0
+width = 16
+height = 12
+
+[[objects]]
+primitive = "sphere"
+center = [0.0, 0.5, 0.0]
+radius = 0.5
+resolution = [8, 16]
+material = "copper"
+
+[[objects]]
+primitive = "plane"
+size = [4.0, 4.0]
+resolution = [2, 2]
+material = "floor"
+
+[materials.copper]
+model = "cook_torrance"
+kd = [0.0, 0.0, 0.0]
+ks = [1.0, 1.0, 1.0]
+m = 0.2
+fresnel = "copper"
+
+[materials.floor]
+model = "lambert"
+kd = [0.8, 0.8, 0.8]
+
+[[lights]]
+type = "point"
+position = [2.0, 3.0, 2.0]
+radius = 0.1
+intensity = [20.0, 20.0, 20.0]
+
+[render]
+shadows = false
+"""
+
+
+#: A Lambert sphere under a point light, 8×6 pixels, no shadows: the fewest kernel modules a frame
+#: loads (``tests/test_quiet_cpu.py``, ``test_first_run.py``).
+LIT_SPHERE = """
+[camera]
+origin = [0.0, 1.0, 3.0]
+target = [0.0, 0.3, 0.0]
+fov = 40.0
+width = 8
+height = 6
+
+[[objects]]
+primitive = "sphere"
+center = [0.0, 0.4, 0.0]
+radius = 0.4
+material = "m"
+
+[materials.m]
+model = "lambert"
+kd = [0.6, 0.6, 0.6]
+
+[[lights]]
+type = "point"
+position = [1.0, 2.0, 1.0]
+radius = 0.1
+intensity = [5.0, 5.0, 5.0]
+
+[render]
+shadows = false
+"""
+
+
+def replace_once(old: str, new: str, text: str = BALL_ON_FLOOR) -> str:
+    """``text`` (the shared scene by default) with its first ``old`` replaced by ``new`` (``old`` must be there)."""
+    assert old in text, old
+    return text.replace(old, new, 1)
+
+
+def write_scene(folder: Path, text: str = BALL_ON_FLOOR, name: str = "scene.toml") -> Path:
+    """``text`` written as ``folder/name``; its path."""
+    p = Path(folder) / name
+    p.write_text(text)
+    return p
+
+
+def run_cli(argv, capsys):
+    """(exit status, stdout, stderr) of ``warp-sg argv`` run in this process."""
+    from warp_sg.tools.cli import main
+
+    try:
+        rc = main([str(a) for a in argv])
+    except SystemExit as e:  # argparse usage errors
+        rc = e.code
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+def assert_clean_failure(rc, err, *needles):
+    """A refusal: exit status 2, no traceback, a last stderr line under 400 characters, every needle
+    (case-insensitive) in stderr. Returns that line."""
+    assert rc == 2, f"exit status {rc}, stderr: {err!r}"
+    assert "Traceback" not in err
+    lines = [ln for ln in err.strip().splitlines() if ln.strip()]
+    assert lines, "no message on stderr"
+    msg = lines[-1]
+    for n in needles:
+        assert n.lower() in err.lower(), f"{n!r} not in {err!r}"
+    assert len(msg) < 400
+    return msg
+
+
 @pytest.fixture(params=DEVICES)
 def device(request):
     """Each device test runs on the CPU and, when present, on CUDA."""

@@ -19,86 +19,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import tomllib
+from conftest import BALL_ON_FLOOR, assert_clean_failure, run_cli, write_scene
+from conftest import replace_once as replace
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import warp_sg as ws
 from warp_sg.core.errors import ImageError, InputError, MeshError, SceneError
 
-BASE = """
-[camera]
-origin = [0.0, 1.0, 3.0]
-target = [0.0, 0.3, 0.0]
-fov = 40.0
-width = 8
-height = 6
-
-[[objects]]
-primitive = "sphere"
-center = [0.0, 0.4, 0.0]
-radius = 0.4
-material = "shiny"
-
-[[objects]]
-primitive = "plane"
-center = [0.0, 0.0, 0.0]
-size = [3.0, 3.0]
-material = "floor"
-
-[materials.shiny]
-model = "cook_torrance"
-kd = [0.2, 0.1, 0.1]
-ks = [0.5, 0.5, 0.5]
-m = 0.3
-
-[materials.floor]
-model = "lambert"
-kd = [0.6, 0.6, 0.6]
-
-[[lights]]
-type = "point"
-position = [1.0, 2.0, 1.0]
-radius = 0.1
-intensity = [5.0, 5.0, 5.0]
-
-[render]
-shadows = false
-"""
-
-
-def write_scene(tmp_path, text=BASE, name="scene.toml"):
-    p = tmp_path / name
-    p.write_text(text)
-    return p
-
-
-def replace(old, new, text=BASE):
-    assert old in text, old
-    return text.replace(old, new, 1)
-
-
-def run_cli(argv, capsys):
-    """(exit status, stdout, stderr) of ``warp-sg argv`` in-process."""
-    from warp_sg.tools.cli import main
-
-    try:
-        rc = main([str(a) for a in argv])
-    except SystemExit as e:  # argparse usage errors
-        rc = e.code
-    out, err = capsys.readouterr()
-    return rc, out, err
-
-
-def assert_clean_failure(rc, err, *needles):
-    assert rc == 2, f"exit status {rc}, stderr: {err!r}"
-    assert "Traceback" not in err
-    lines = [ln for ln in err.strip().splitlines() if ln.strip()]
-    assert lines, "no message on stderr"
-    msg = lines[-1]
-    for n in needles:
-        assert n.lower() in err.lower(), f"{n!r} not in {err!r}"
-    assert len(msg) < 400
-    return msg
+#: the ball's lines in the shared scene (what a mesh object replaces)
+BALL = 'primitive = "sphere"\ncenter = [0.0, 0.5, 0.0]\nradius = 0.5\nresolution = [8, 16]'
 
 
 # ------------------------------------------------------------------------------------------------
@@ -108,27 +39,27 @@ SCENE_CASES = [
     # id, old, new, exception type, words the message must contain
     ("unknown-top-key", "[camera]", "[camra]", SceneError, ["camra", "camera"]),
     ("unknown-camera-key", "fov = 40.0", "fvo = 40.0", SceneError, ["fvo", "fov"]),
-    ("unknown-material-param", "m = 0.3", "rougness = 0.3", InputError, ["rougness"]),
+    ("unknown-material-param", "m = 0.2", "rougness = 0.2", InputError, ["rougness"]),
     ("unknown-model", 'model = "cook_torrance"', 'model = "cook_torrence"', InputError, ["cook_torrence", "cook_torrance"]),
-    ("undefined-material", 'material = "shiny"', 'material = "shiney"', SceneError, ["shiney", "shiny"]),
-    ("negative-roughness", "m = 0.3", "m = -0.3", InputError, ["m", "-0.3"]),
-    ("negative-kd", "kd = [0.6, 0.6, 0.6]", "kd = [0.6, -0.6, 0.6]", InputError, ["kd"]),
-    ("kd-wrong-length", "kd = [0.6, 0.6, 0.6]", "kd = [0.6, 0.6]", InputError, ["kd"]),
+    ("undefined-material", 'material = "copper"', 'material = "coper"', SceneError, ["coper", "copper"]),
+    ("negative-roughness", "m = 0.2", "m = -0.2", InputError, ["m", "-0.2"]),
+    ("negative-kd", "kd = [0.8, 0.8, 0.8]", "kd = [0.6, -0.6, 0.6]", InputError, ["kd"]),
+    ("kd-wrong-length", "kd = [0.8, 0.8, 0.8]", "kd = [0.6, 0.6]", InputError, ["kd"]),
     ("fov-wrong-type", "fov = 40.0", 'fov = "wide"', SceneError, ["fov"]),
-    ("zero-width", "width = 8", "width = 0", SceneError, ["width"]),
+    ("zero-width", "width = 16", "width = 0", SceneError, ["width"]),
     ("unknown-light-type", 'type = "point"', 'type = "pointy"', SceneError, ["pointy"]),
     ("negative-light-radius", "radius = 0.1", "radius = -0.1", InputError, ["radius"]),
     ("unknown-render-key", "shadows = false", "shadowz = false", SceneError, ["shadowz", "shadows"]),
     ("render-lobes-zero", "shadows = false", "lobes = 0", SceneError, ["lobes"]),
     ("unknown-primitive", 'primitive = "sphere"', 'primitive = "sphear"', InputError, ["sphear"]),
-    ("camera-origin-equals-target", "origin = [0.0, 1.0, 3.0]", "origin = [0.0, 0.3, 0.0]", SceneError, ["origin"]),
+    ("camera-origin-equals-target", "origin = [0.0, 1.0, 4.0]", "origin = [0.0, 0.5, 0.0]", SceneError, ["origin"]),
     ("malformed-toml", "fov = 40.0", "fov = = 40.0", SceneError, ["toml"]),
-    ("missing-mesh-file", 'primitive = "sphere"\ncenter = [0.0, 0.4, 0.0]\nradius = 0.4',
+    ("missing-mesh-file", BALL,
      'mesh = "nothere.ply"', SceneError, ["nothere.ply"]),
-    ("missing-env-file", '[[lights]]\ntype = "point"\nposition = [1.0, 2.0, 1.0]\nradius = 0.1\n'
-     'intensity = [5.0, 5.0, 5.0]', '[[lights]]\ntype = "environment"\nfile = "sky_missing.exr"',
+    ("missing-env-file", '[[lights]]\ntype = "point"\nposition = [2.0, 3.0, 2.0]\nradius = 0.1\n'
+     'intensity = [20.0, 20.0, 20.0]', '[[lights]]\ntype = "environment"\nfile = "sky_missing.exr"',
      InputError, ["sky_missing.exr"]),
-    ("missing-texture", "kd = [0.6, 0.6, 0.6]", 'kd = "albedo_missing.png"', InputError, ["albedo_missing.png"]),
+    ("missing-texture", "kd = [0.8, 0.8, 0.8]", 'kd = "albedo_missing.png"', InputError, ["albedo_missing.png"]),
 ]
 
 
@@ -154,7 +85,7 @@ def test_scene_file_not_found_names_the_path(tmp_path):
 
 def _mesh_scene(tmp_path, mesh_name, mesh_bytes):
     (tmp_path / mesh_name).write_bytes(mesh_bytes)
-    return write_scene(tmp_path, replace('primitive = "sphere"\ncenter = [0.0, 0.4, 0.0]\nradius = 0.4',
+    return write_scene(tmp_path, replace(BALL,
                                          f'mesh = "{mesh_name}"'))
 
 
@@ -201,7 +132,7 @@ def test_nan_vertices_through_the_python_api_name_the_object_and_vertex():
 
 def test_unreadable_texture_names_the_file(tmp_path):
     (tmp_path / "tex.png").write_bytes(b"\x89PNG\r\n\x1a\n this is not a png")
-    p = write_scene(tmp_path, replace("kd = [0.6, 0.6, 0.6]", 'kd = "tex.png"'))
+    p = write_scene(tmp_path, replace("kd = [0.8, 0.8, 0.8]", 'kd = "tex.png"'))
     with pytest.raises(InputError, match="tex.png"):
         sc = ws.load_scene(p)
         for m in sc.materials.values():
@@ -218,7 +149,7 @@ def _write_exr(path, channels: dict):
 
 def test_environment_exr_with_wrong_channels_names_file_and_channels(tmp_path):
     _write_exr(tmp_path / "sky.exr", {"Z": np.ones((8, 16))})
-    p = write_scene(tmp_path, BASE + '\n[[lights]]\ntype = "environment"\nfile = "sky.exr"\n')
+    p = write_scene(tmp_path, BALL_ON_FLOOR + '\n[[lights]]\ntype = "environment"\nfile = "sky.exr"\n')
     with pytest.raises(ImageError) as ei:
         sc = ws.load_scene(p)
         sc.environment.radiance()
@@ -227,7 +158,7 @@ def test_environment_exr_with_wrong_channels_names_file_and_channels(tmp_path):
 
 def test_environment_file_that_is_not_exr_names_the_file(tmp_path):
     (tmp_path / "sky.exr").write_bytes(b"not an exr at all")
-    p = write_scene(tmp_path, BASE + '\n[[lights]]\ntype = "environment"\nfile = "sky.exr"\n')
+    p = write_scene(tmp_path, BALL_ON_FLOOR + '\n[[lights]]\ntype = "environment"\nfile = "sky.exr"\n')
     with pytest.raises(ImageError, match="sky.exr"):
         ws.load_scene(p).environment.radiance()
 
@@ -235,7 +166,7 @@ def test_environment_file_that_is_not_exr_names_the_file(tmp_path):
 def test_two_environment_lights_are_rejected(tmp_path):
     env = '\n[[lights]]\ntype = "environment"\nprocedural = "sky"\n'
     with pytest.raises(SceneError, match="environment"):
-        ws.load_scene(write_scene(tmp_path, BASE + env + env))
+        ws.load_scene(write_scene(tmp_path, BALL_ON_FLOOR + env + env))
 
 
 def test_reference_rejects_zero_spp_with_an_input_error(tmp_path):
@@ -385,7 +316,7 @@ def test_cli_report_into_a_file_exits_2(tmp_path, capsys):
 def test_installed_entry_point_exits_2_without_traceback(tmp_path):
     exe = shutil.which("warp-sg")
     cmd = [exe] if exe else [sys.executable, "-m", "warp_sg.tools.cli"]
-    p = write_scene(tmp_path, replace("m = 0.3", "rougness = 0.3"))
+    p = write_scene(tmp_path, replace("m = 0.2", "rougness = 0.2"))
     r = subprocess.run([*cmd, "reference", str(p), "-o", str(tmp_path / "o.exr"), "--spp", "1"],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 2, r.stderr
@@ -524,7 +455,7 @@ def _gltf_argv(how, path, tmp_path):
     out = tmp_path / "o.png"
     if how == "asset":
         return ["render", path, "-o", out, "--width", 16, "--height", 12, "--no-progress"], out
-    scene = write_scene(tmp_path, replace('primitive = "sphere"\ncenter = [0.0, 0.4, 0.0]\nradius = 0.4\nmaterial = "shiny"',
+    scene = write_scene(tmp_path, replace(BALL + '\nmaterial = "copper"',
                                           f'mesh = "{path.name}"'))
     return ["render", scene, "-o", out, "--no-progress"], out
 
@@ -610,7 +541,7 @@ def test_gltf_with_a_dangling_reference_exits_2_naming_the_json_element(tmp_path
 def test_environment_map_far_from_2_to_1_exits_2_naming_its_size(tmp_path, capsys, shape):
     h, w = shape
     _write_exr(tmp_path / "sky.exr", {c: np.ones((h, w)) for c in "RGB"})
-    p = write_scene(tmp_path, BASE + '\n[[lights]]\ntype = "environment"\nfile = "sky.exr"\n')
+    p = write_scene(tmp_path, BALL_ON_FLOOR + '\n[[lights]]\ntype = "environment"\nfile = "sky.exr"\n')
     rc, _, err = run_cli(["render", p, "-o", tmp_path / "o.png", "--no-progress"], capsys)
     assert_clean_failure(rc, err, "sky.exr", f"{w}×{h}")
     assert not (tmp_path / "o.png").exists()
@@ -672,7 +603,7 @@ def test_render_exposure_that_overflows_float32_exits_2_and_writes_nothing(tmp_p
 def test_environment_radiance_that_overflows_float32_is_refused_naming_the_texel(tmp_path, capsys):
     # before: an environment at 3e38 rendered inf pixels with exit 0
     _write_exr(tmp_path / "sky.exr", {c: np.full((8, 16), 3e38) for c in "RGB"})
-    p = write_scene(tmp_path, BASE + '\n[[lights]]\ntype = "environment"\nfile = "sky.exr"\n')
+    p = write_scene(tmp_path, BALL_ON_FLOOR + '\n[[lights]]\ntype = "environment"\nfile = "sky.exr"\n')
     rc, _, err = run_cli(["render", p, "-o", tmp_path / "o.exr", "--no-progress"], capsys)
     assert_clean_failure(rc, err, "sky.exr", "radiance above 1e+20", "row 0, column 0")
     assert not (tmp_path / "o.exr").exists()
@@ -709,7 +640,7 @@ def _sphere(path, *, invert=False):
 def _render_mesh_scene(tmp_path, capsys, mesh_name):
     from warp_sg.core.image_io import load_image
 
-    p = write_scene(tmp_path, replace('primitive = "sphere"\ncenter = [0.0, 0.4, 0.0]\nradius = 0.4',
+    p = write_scene(tmp_path, replace(BALL,
                                       f'mesh = "{mesh_name}"'), name=f"{mesh_name}.toml")
     out = tmp_path / f"{mesh_name}.exr"
     rc, _, err = run_cli(["render", p, "-o", out, "--no-progress", "--width", 32, "--height", 24], capsys)
@@ -839,7 +770,7 @@ def test_folder_given_as_scene_or_mesh_is_called_a_folder(tmp_path, capsys):
     rc, _, err = run_cli(["render", tmp_path / "adir.toml", "-o", tmp_path / "o.png"], capsys)
     assert_clean_failure(rc, err, "adir.toml", "is a folder")
     (tmp_path / "meshes").mkdir()
-    p = write_scene(tmp_path, replace('primitive = "sphere"\ncenter = [0.0, 0.4, 0.0]\nradius = 0.4', 'mesh = "meshes"'))
+    p = write_scene(tmp_path, replace(BALL, 'mesh = "meshes"'))
     rc, _, err = run_cli(["render", p, "-o", tmp_path / "o.png"], capsys)
     assert_clean_failure(rc, err, "meshes", "is a folder")
     rc, _, err = run_cli(["render", tmp_path / "meshes", "-o", tmp_path / "o.png"], capsys)
@@ -865,7 +796,7 @@ def test_asset_given_to_a_scene_command_says_it_needs_a_scene_file(tmp_path, cap
 def test_scene_file_with_a_utf8_byte_order_mark_loads_as_without_it(tmp_path):
     plain = ws.load_scene(write_scene(tmp_path))
     bom = tmp_path / "bom.toml"
-    bom.write_bytes(b"\xef\xbb\xbf" + BASE.encode())
+    bom.write_bytes(b"\xef\xbb\xbf" + BALL_ON_FLOOR.encode())
     sc = ws.load_scene(bom)
     assert sc.camera == plain.camera and list(sc.materials) == list(plain.materials)
 
@@ -877,7 +808,7 @@ def test_black_environment_fits_without_runtime_warnings(tmp_path, capsys, cache
     from warp_sg.core.image_io import load_image
 
     _write_exr(tmp_path / "black.exr", {c: np.zeros((16, 32)) for c in "RGB"})
-    p = write_scene(tmp_path, BASE + '\n[[lights]]\ntype = "environment"\nfile = "black.exr"\n')
+    p = write_scene(tmp_path, BALL_ON_FLOOR + '\n[[lights]]\ntype = "environment"\nfile = "black.exr"\n')
     import warnings
 
     with warnings.catch_warnings():
@@ -952,7 +883,7 @@ def test_numpy_floating_point_notes_are_kept_from_the_user(tmp_path, capsys, mon
 # normalised models is one warning line (docs/rendering.md, "Energy conservation")
 # ------------------------------------------------------------------------------------------------
 def test_diffuse_albedo_above_one_is_an_error_naming_kd(tmp_path, capsys):
-    p = write_scene(tmp_path, replace("kd = [0.6, 0.6, 0.6]", "kd = [5.0, 5.0, 5.0]"))
+    p = write_scene(tmp_path, replace("kd = [0.8, 0.8, 0.8]", "kd = [5.0, 5.0, 5.0]"))
     rc, _, err = run_cli(["render", p, "-o", tmp_path / "o.png"], capsys)
     assert_clean_failure(rc, err, "[materials.floor]", "'kd'", "<= 1", "5.0")
     assert not (tmp_path / "o.png").exists()
@@ -964,18 +895,18 @@ def test_kd_texture_above_one_is_an_error(tmp_path):
     from warp_sg.core.image_io import save_image
 
     save_image(tmp_path / "albedo.exr", np.full((4, 4, 3), 0.8, np.float32))
-    p = write_scene(tmp_path, replace("kd = [0.6, 0.6, 0.6]", 'kd = { texture = "albedo.exr", scale = 2.0 }'))
+    p = write_scene(tmp_path, replace("kd = [0.8, 0.8, 0.8]", 'kd = { texture = "albedo.exr", scale = 2.0 }'))
     with pytest.raises(SceneError, match=r"\[materials.floor\] key 'kd': texture values reach 1.6 > 1"):
         ws.load_scene(p)
 
 
 def test_normalised_model_reflecting_more_than_it_receives_warns_once(tmp_path, capsys):
-    text = replace('model = "cook_torrance"\nkd = [0.2, 0.1, 0.1]\nks = [0.5, 0.5, 0.5]\nm = 0.3',
+    text = replace('model = "cook_torrance"\nkd = [0.0, 0.0, 0.0]\nks = [1.0, 1.0, 1.0]\nm = 0.2\nfresnel = "copper"',
                    'model = "phong"\nkd = [0.8, 0.6, 0.6]\nks = [0.5, 0.5, 0.5]\nn = 30')
     rc, _, err = run_cli(["render", write_scene(tmp_path, text), "-o", tmp_path / "o.png"], capsys)
     warn = [ln for ln in err.splitlines() if ln.strip()]
     assert rc == 0 and len(warn) == 1, err
-    assert "[materials.shiny]" in warn[0] and "kd + ks = [1.3, 1.1, 1.1] > 1" in warn[0]
+    assert "[materials.copper]" in warn[0] and "kd + ks = [1.3, 1.1, 1.1] > 1" in warn[0]
 
 
 def test_energy_check_uses_the_fresnel_at_normal_incidence():
@@ -1023,7 +954,7 @@ def test_texture_over_the_texel_bound_is_refused_from_its_header(tmp_path, capsy
     # 1e9 texels: over Pillow's own limit too (it raised DecompressionBombError, a traceback);
     # 144 M: within Pillow's but over ours
     _png_header(tmp_path / "big.png", w, h)
-    p = write_scene(tmp_path, replace("kd = [0.6, 0.6, 0.6]", 'kd = "big.png"'))
+    p = write_scene(tmp_path, replace("kd = [0.8, 0.8, 0.8]", 'kd = "big.png"'))
     rc, _, err = run_cli(["render", p, "-o", tmp_path / "o.png"], capsys)
     assert_clean_failure(rc, err, "big.png", f"{w * h:,} texels", "134,217,728")
 
@@ -1080,7 +1011,7 @@ def test_precompute_over_its_bound_is_refused_before_any_work(tmp_path, render, 
     text = replace("shadows = false", render)
     if camera:
         w, h = camera.split()
-        text = text.replace("width = 8\nheight = 6", f"width = {w}\nheight = {h}")
+        text = text.replace("width = 16\nheight = 12", f"width = {w}\nheight = {h}")
     # a 4096 × 2048 map: fine lobes up to gamma_resolution's faces (a constant map is quick to make)
     text += ('\n[[lights]]\ntype = "environment"\nprocedural = "constant"\n'
              'options = { radiance = 1.0, width = 4096, height = 2048 }\n')
@@ -1167,15 +1098,7 @@ def _toml(v) -> str:
     return "[" + ", ".join(_toml(x) for x in v) + "]"
 
 
-BASE_DOC = {
-    "camera": {"origin": [0.0, 1.0, 3.0], "target": [0.0, 0.3, 0.0], "fov": 40.0, "width": 8, "height": 6},
-    "objects": [{"primitive": "sphere", "center": [0.0, 0.4, 0.0], "radius": 0.4, "material": "shiny"},
-                {"primitive": "plane", "center": [0.0, 0.0, 0.0], "size": [3.0, 3.0], "material": "floor"}],
-    "materials": {"shiny": {"model": "cook_torrance", "kd": [0.2, 0.1, 0.1], "ks": [0.5, 0.5, 0.5], "m": 0.3},
-                  "floor": {"model": "lambert", "kd": [0.6, 0.6, 0.6]}},
-    "lights": [{"type": "point", "position": [1.0, 2.0, 1.0], "radius": 0.1, "intensity": [5.0, 5.0, 5.0]}],
-    "render": {"shadows": False},
-}
+BASE_DOC = tomllib.loads(BALL_ON_FLOOR)  # (the shared scene, tests/conftest.py)
 
 
 def doc_text(doc) -> str:
@@ -1200,7 +1123,7 @@ TOML_KEYS = [("camera", None, k, "[camera]") for k in ("origin", "target", "up",
     [("objects", 0, k, "[[objects]] #1") for k in ("center", "radius", "resolution", "scale", "translate", "rotate",
                                                     "material", "primitive")] + \
     [("objects", 1, k, "[[objects]] #2") for k in ("size", "resolution", "center")] + \
-    [("materials", "shiny", k, "[materials.shiny]") for k in ("kd", "ks", "m", "fresnel")] + \
+    [("materials", "copper", k, "[materials.copper]") for k in ("kd", "ks", "m", "fresnel")] + \
     [("materials", "floor", "kd", "[materials.floor]")] + \
     [("lights", 0, k, "[[lights]] #1") for k in ("position", "radius", "intensity", "type")] + \
     [("render", None, k, "[render]") for k in ("supersampling", "antialias", "lobes", "shadows", "fh", "background",
@@ -1341,7 +1264,7 @@ def test_property_odd_maps_get_exit_2_naming_the_file_or_a_finite_image(capsys, 
     folder = Path(tempfile.mkdtemp())
     _write_exr(folder / "map.exr", {c: env[..., i] for i, c in enumerate("RGB")})
     doc = copy.deepcopy(BASE_DOC)
-    doc["materials"]["shiny"] = {"model": "lambert", "kd": [0.5, 0.5, 0.5]}  # diffuse only: no ΓL prefilter
+    doc["materials"]["copper"] = {"model": "lambert", "kd": [0.5, 0.5, 0.5]}  # diffuse only: no ΓL prefilter
     if use == "environment":
         doc["lights"].append({"type": "environment", "file": "map.exr"})
     else:
@@ -1354,10 +1277,10 @@ def test_property_odd_maps_get_exit_2_naming_the_file_or_a_finite_image(capsys, 
 
 
 @pytest.mark.parametrize("old,new,words", [
-    ("intensity = [5.0, 5.0, 5.0]", "intensity = [5.0, 1e300, 5.0]", ["[[lights]] #1", "intensity", "<= 1e+20"]),
-    ('type = "point"\nposition = [1.0, 2.0, 1.0]\nradius = 0.1\nintensity = [5.0, 5.0, 5.0]',
+    ("intensity = [20.0, 20.0, 20.0]", "intensity = [20.0, 1e300, 20.0]", ["[[lights]] #1", "intensity", "<= 1e+20"]),
+    ('type = "point"\nposition = [2.0, 3.0, 2.0]\nradius = 0.1\nintensity = [20.0, 20.0, 20.0]',
      'type = "environment"\nprocedural = "sky"\nscale = 1e30', ["[[lights]] #1", "scale", "<= 1e+20"]),
-    ("ks = [0.5, 0.5, 0.5]", "ks = [0.5, 1e300, 0.5]", ["[materials.shiny]", "'ks'", "±1e+20"]),
+    ("ks = [1.0, 1.0, 1.0]", "ks = [1.0, 1e300, 1.0]", ["[materials.copper]", "'ks'", "±1e+20"]),
 ])
 def test_light_or_material_value_that_overflows_float32_is_refused_naming_it(tmp_path, capsys, old, new, words):
     # before: a finite 1e300 became inf in float32 and the image was inf (or, now, refused unnamed)

@@ -15,7 +15,7 @@ import threading
 import time
 
 import numpy as np
-from test_quiet_cpu import SCENE  # (a lit sphere, no shadows: the frame's modules only)
+from conftest import LIT_SPHERE  # (a lit sphere, no shadows: the frame's modules only)
 
 CHILD = """
 import json, sys
@@ -32,7 +32,7 @@ print(json.dumps({"records": [[r.name, r.compiled, r.thread] for r in loads.reco
 
 def _child(tmp_path, kernels):
     scene = tmp_path / "scene.toml"
-    scene.write_text(SCENE)
+    scene.write_text(LIT_SPHERE)
     env = {**os.environ, "WARP_CACHE_PATH": str(kernels), "WARP_SG_CACHE_DIR": str(tmp_path / "cache")}
     r = subprocess.run([sys.executable, "-c", CHILD, str(scene)], capture_output=True, text=True, timeout=600, env=env)
     assert r.returncode == 0, r.stderr

@@ -10,7 +10,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_bad_input import assert_clean_failure, replace, run_cli, write_scene
+from conftest import assert_clean_failure, run_cli, write_scene
+from conftest import replace_once as replace
 
 from warp_sg.core.errors import InputError, MeshError
 
@@ -115,7 +116,7 @@ def job_file(tmp_path, field: str, output: str = "f/frame_{index:03d}.png") -> P
 
 
 @pytest.mark.parametrize("field,words", [
-    ('"materials.shiny.m" = [nan, 0.3]', ["job.toml: frame 0", "[materials.shiny] m", "finite"]),
+    ('"materials.copper.m" = [nan, 0.3]', ["job.toml: frame 0", "[materials.copper] m", "finite"]),
     ('"camera.fov" = [40.0, 400.0]', ["job.toml: frame 1", "fov"]),
     ('"objects.ball.scale" = [1.0, 1e30]', ["job.toml: frame 1", "objects.ball", "scale 1e+30", "1e+12"]),
     ('"objects.ball.scale" = [1.0, -1.0]', ["job.toml: frame 1", "objects.ball.scale", "> 0"]),
@@ -246,10 +247,11 @@ def test_a_measured_material_without_a_file_asks_for_the_file(tmp_path):
     import warp_sg as ws
     from warp_sg.core.errors import SceneError
 
-    text = replace('model = "cook_torrance"\nkd = [0.2, 0.1, 0.1]\nks = [0.5, 0.5, 0.5]\nm = 0.3', 'model = "measured"')
+    text = replace('model = "cook_torrance"\nkd = [0.0, 0.0, 0.0]\nks = [1.0, 1.0, 1.0]\nm = 0.2\nfresnel = "copper"',
+                   'model = "measured"')
     with pytest.raises(SceneError) as e:
         ws.load_scene(write_scene(tmp_path, text))
-    assert "[materials.shiny] key 'file'" in str(e.value) and "is required" in str(e.value)
+    assert "[materials.copper] key 'file'" in str(e.value) and "is required" in str(e.value)
     assert "'table'" not in str(e.value)
 
 

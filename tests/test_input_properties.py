@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import replace_once as replace
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from test_bad_input import replace
 from test_hostile_inputs import write_hdr
 
 from warp_sg.core.errors import InputError
@@ -184,7 +184,7 @@ def test_property_a_radiance_file_reads_as_its_header_says_or_is_refused_in_one_
 # batch job files
 # --------------------------------------------------------------------------------------------
 SCENE = replace('primitive = "sphere"', 'name = "ball"\ndynamic = true\nprimitive = "sphere"')
-VARIANT_KEYS = ["camera.fov", "camera.origin", "camera.width", "materials.shiny.m", "materials.shiny.kd",
+VARIANT_KEYS = ["camera.fov", "camera.origin", "camera.width", "materials.copper.m", "materials.copper.kd",
                 "materials.floor.kd", "materials.nope.m", "lights.0.radius", "lights.0.position", "lights.3.radius",
                 "environment.rotation", "objects.ball.scale", "objects.ball.translate", "objects.ball.rotate",
                 "objects.floor.scale", "sky.rotation"]

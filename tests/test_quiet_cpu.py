@@ -11,39 +11,12 @@ import subprocess
 import sys
 
 import pytest
-
-SCENE = """
-[camera]
-origin = [0.0, 1.0, 3.0]
-target = [0.0, 0.3, 0.0]
-fov = 40.0
-width = 8
-height = 6
-
-[[objects]]
-primitive = "sphere"
-center = [0.0, 0.4, 0.0]
-radius = 0.4
-material = "m"
-
-[materials.m]
-model = "lambert"
-kd = [0.6, 0.6, 0.6]
-
-[[lights]]
-type = "point"
-position = [1.0, 2.0, 1.0]
-radius = 0.1
-intensity = [5.0, 5.0, 5.0]
-
-[render]
-shadows = false
-"""
+from conftest import LIT_SPHERE
 
 
 def _cli(tmp_path, *argv):
     scene = tmp_path / "scene.toml"
-    scene.write_text(SCENE)
+    scene.write_text(LIT_SPHERE)
     return subprocess.run([sys.executable, "-m", "warp_sg.tools.cli", "render", str(scene), "-o",
                            str(tmp_path / "o.png"), "--no-progress", *argv],
                           capture_output=True, text=True, timeout=300)

@@ -5,6 +5,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import replace_once, write_scene  # (the shared scene: BALL_ON_FLOOR)
 
 import warp_sg as ws
 from warp_sg.core.errors import MeshError, SceneError
@@ -15,65 +16,12 @@ from warp_sg.scene.render_settings import RenderSettings
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
-BASE = """
-[camera]
-origin = [0.0, 1.0, 4.0]
-target = [0.0, 0.5, 0.0]
-fov = 40.0
-width = 16
-height = 12
-
-[[objects]]
-primitive = "sphere"
-center = [0.0, 0.5, 0.0]
-radius = 0.5
-resolution = [8, 16]
-material = "copper"
-
-[[objects]]
-primitive = "plane"
-size = [4.0, 4.0]
-resolution = [2, 2]
-material = "floor"
-
-[materials.copper]
-model = "cook_torrance"
-kd = [0.0, 0.0, 0.0]
-ks = [1.0, 1.0, 1.0]
-m = 0.2
-fresnel = "copper"
-
-[materials.floor]
-model = "lambert"
-kd = [0.8, 0.8, 0.8]
-
-[[lights]]
-type = "point"
-position = [2.0, 3.0, 2.0]
-radius = 0.1
-intensity = [20.0, 20.0, 20.0]
-
-[render]
-shadows = false
-"""
-
-
-def write(tmp_path, text=BASE, name="scene.toml"):
-    p = tmp_path / name
-    p.write_text(text)
-    return p
-
-
-def sub(old, new, text=BASE):
-    assert old in text
-    return text.replace(old, new, 1)
-
 
 # ---------------------------------------------------------------------------------------------
 # loading
 # ---------------------------------------------------------------------------------------------
 def test_scene_file_loads_camera_objects_materials_lights_and_render_settings(tmp_path):
-    sc = load_scene(write(tmp_path))
+    sc = load_scene(write_scene(tmp_path))
     assert (sc.camera.width, sc.camera.height, sc.camera.fov) == (16, 12, 40.0)
     assert np.allclose(sc.camera.origin, [0, 1, 4])
     assert [o.primitive for o in sc.objects] == ["sphere", "plane"]
@@ -88,7 +36,7 @@ def test_scene_file_loads_camera_objects_materials_lights_and_render_settings(tm
 
 
 def test_geometry_merges_objects_with_material_and_object_ids(tmp_path):
-    g = load_scene(write(tmp_path)).geometry()
+    g = load_scene(write_scene(tmp_path)).geometry()
     n_sphere = 9 * 17  # (n_theta + 1) × (n_phi + 1) vertices, seams duplicated
     n_plane = 3 * 3
     assert g.vertices.shape == (n_sphere + n_plane, 3) and g.vertices.dtype == np.float32
@@ -104,7 +52,7 @@ def test_geometry_merges_objects_with_material_and_object_ids(tmp_path):
 
 
 def test_python_scene_equals_the_toml_scene(tmp_path):
-    toml = load_scene(write(tmp_path))
+    toml = load_scene(write_scene(tmp_path))
     py = Scene(
         camera=toml.camera,
         objects=[SceneObject(material="copper", primitive="sphere",
@@ -135,7 +83,7 @@ def test_example_scenes_load(tmp_path):
 def test_mesh_objects_are_read_with_trimesh_relative_to_the_scene_file(tmp_path):
     (tmp_path / "m").mkdir()
     (tmp_path / "m" / "tri.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\n")
-    sc = load_scene(write(tmp_path, sub('primitive = "plane"\nsize = [4.0, 4.0]\nresolution = [2, 2]',
+    sc = load_scene(write_scene(tmp_path, replace_once('primitive = "plane"\nsize = [4.0, 4.0]\nresolution = [2, 2]',
                                         'mesh = "m/tri.obj"\ntranslate = [1.0, 0.0, 0.0]\nscale = 2.0')))
     g = sc.geometry()
     v = g.vertices[g.vertex_object == 1]
@@ -199,7 +147,7 @@ def test_sphere_vertices_lie_on_the_sphere_and_tangents_follow_u():
 ])
 def test_bad_scene_file_raises_scene_error_naming_file_table_and_key(tmp_path, old, new, message):
     with pytest.raises(SceneError) as ei:
-        load_scene(write(tmp_path, sub(old, new)))
+        load_scene(write_scene(tmp_path, replace_once(old, new)))
     assert message in str(ei.value)
     assert str(ei.value).startswith("scene.toml: ")
 
@@ -218,7 +166,7 @@ def test_python_render_settings_are_refused_in_the_scene_files_words(tmp_path, k
     """One rule for [render]: the same bad value in a scene file and in a Scene built in Python
     gives the same line (the file's prefixed with its name)."""
     with pytest.raises(SceneError) as from_file:
-        load_scene(write(tmp_path, sub("shadows = false", f"{key} = {toml}")))
+        load_scene(write_scene(tmp_path, replace_once("shadows = false", f"{key} = {toml}")))
     assert str(from_file.value) == f"scene.toml: {message}"
     with pytest.raises(SceneError) as from_python:
         Scene(camera=ws.scene.Camera(), objects=[SceneObject(material="a", primitive="sphere")],
@@ -238,7 +186,7 @@ def test_render_settings_edited_after_the_scene_was_built_are_checked_by_the_ren
 
 def test_missing_mesh_file_and_missing_scene_file_are_scene_errors(tmp_path):
     with pytest.raises(SceneError, match="file not found: gone.ply"):
-        load_scene(write(tmp_path, sub('primitive = "plane"\nsize = [4.0, 4.0]\nresolution = [2, 2]', 'mesh = "gone.ply"')))
+        load_scene(write_scene(tmp_path, replace_once('primitive = "plane"\nsize = [4.0, 4.0]\nresolution = [2, 2]', 'mesh = "gone.ply"')))
     with pytest.raises(SceneError, match="nope.toml"):
         load_scene(tmp_path / "nope.toml")
 

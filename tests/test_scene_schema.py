@@ -15,6 +15,7 @@ from pathlib import Path
 import jsonschema
 import pytest
 import tomllib
+from conftest import BALL_ON_FLOOR, replace_once
 
 from warp_sg.brdf import MODELS, make_model
 from warp_sg.core.errors import InputError, SceneError
@@ -23,52 +24,16 @@ from warp_sg.scene.loader import load_scene
 ROOT = Path(__file__).resolve().parents[1]
 COMMITTED = ROOT / "docs" / "scene.schema.json"
 
-BASE = """
-[camera]
-origin = [0.0, 1.0, 4.0]
-target = [0.0, 0.5, 0.0]
-fov = 40.0
-width = 16
-height = 12
-
-[[objects]]
-primitive = "sphere"
-center = [0.0, 0.5, 0.0]
-radius = 0.5
-resolution = [8, 16]
-material = "gold"
-
-[[objects]]
-primitive = "plane"
-size = [4.0, 4.0]
-material = "floor"
-
-[materials.gold]
-model = "cook_torrance"
-kd = [0.0, 0.0, 0.0]
-ks = [1.0, 1.0, 1.0]
-m = 0.2
-fresnel = "gold"
-
-[materials.floor]
-model = "lambert"
-kd = 0.8
-
-[[lights]]
-type = "point"
-position = [2.0, 3.0, 2.0]
-radius = 0.1
-intensity = [20.0, 20.0, 20.0]
-
-[[lights]]
+#: the shared scene (tests/conftest.py) with a gold ball, a floor of default resolution whose grey is
+#: one number, and the sky
+BASE = replace_once("[render]", """[[lights]]
 type = "environment"
 procedural = "sky"
 options = { sun_intensity = 300.0 }
 rotation = 90.0
 
-[render]
-shadows = false
-"""
+[render]""", replace_once("kd = [0.8, 0.8, 0.8]", "kd = 0.8", replace_once(
+    "size = [4.0, 4.0]\nresolution = [2, 2]\n", "size = [4.0, 4.0]\n", BALL_ON_FLOOR.replace("copper", "gold"))))
 
 
 @pytest.fixture(scope="module")
@@ -85,8 +50,7 @@ def validator(schema):
 
 
 def _sub(old, new, text=BASE):
-    assert old in text, old
-    return text.replace(old, new, 1)
+    return replace_once(old, new, text)
 
 
 def _write(tmp_path, text):

@@ -39,6 +39,18 @@ def preview_ladder(lams) -> np.ndarray:
     return kept if len(kept) >= 2 else top[-2:]
 
 
+def lobes_with_energy(lam, mu) -> np.ndarray:
+    """Which lobes of an SG mixture (sharpness ``lam`` (K,), RGB amplitudes ``mu`` (K, 3)) carry energy:
+    ``max |μ| ∫G`` above 1e-6 of the mixture's sum (an amplitude the non-negative fit set to 0 does
+    not); the first lobe when none does. What the frames' environment arrays keep."""
+    lam = np.asarray(lam, np.float64)
+    energy = np.abs(np.asarray(mu, np.float64)).max(axis=1) * 2.0 * np.pi * -np.expm1(-2.0 * lam) / np.maximum(lam, 1e-12)
+    keep = energy > 1e-6 * max(float(energy.sum()), 1e-300)
+    if not keep.any():
+        keep[:1] = True
+    return keep
+
+
 class EnvironmentSetup:
     """Environment setup and arrays of a ``Renderer`` (which calls ``_setup_env_peaks`` before the
     geometry, whose refinement follows the peaks' shadows, and ``_setup_environment`` after the
@@ -241,12 +253,8 @@ class EnvironmentSetup:
         else:
             R = env.rotation_matrix()
             ax, lam, mu = self._env_sg_base
-            energy = np.abs(mu).max(axis=1) * 2.0 * np.pi * -np.expm1(-2.0 * lam) / np.maximum(lam, 1e-12)
-            keep = energy > 1e-6 * max(float(energy.sum()), 1e-300)
-            if self.env_mixture:  # (every lobe of a given mixture: its gradients are indexed by lobe)
-                keep[:] = True
-            if not keep.any():
-                keep[:1] = True
+            # (every lobe of a given mixture: its gradients are indexed by lobe)
+            keep = np.ones(len(lam), bool) if self.env_mixture else lobes_with_energy(lam, mu)
             ax, lam, mu = ax[keep], lam[keep], mu[keep]
             es.count = len(lam)
             es.axis = wp.array((ax @ R.T).astype(np.float32), dtype=wp.vec3, device=d)
@@ -311,4 +319,4 @@ class EnvironmentSetup:
                 for p in self.env_peaks]
 
 
-__all__ = ["EnvironmentSetup", "PREVIEW_GAMMA_LAMBDA"]
+__all__ = ["EnvironmentSetup", "PREVIEW_GAMMA_LAMBDA", "lobes_with_energy"]

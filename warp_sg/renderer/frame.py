@@ -60,7 +60,9 @@ class FramePaths:
         vb, reused = self._vb, bool(self.timings.get("raster_reused"))
         if vb is not None and vb._over is not None:  # moving objects drawn over the static ones' buffer:
             vb, reused = vb._over, True  # the image where the static objects leave the background, per camera
-        return self._bg.for_frame(*args, vb, reused)
+        bg = self._bg.for_frame(*args, vb, reused)
+        self.timings["background"] = "image" if isinstance(bg, wp.array) else "rays"  # (what the frame read)
+        return bg
 
     def _bg_args(self, k: int) -> tuple:
         return self.scene.camera, k, self.env_light, getattr(self, "env_base", None), self.scene.render.background

@@ -1,85 +1,79 @@
 r"""Per-pixel deferred shading over the visibility buffer (paper §7, eq. 36–43).
 
-One kernel launch shades every sample of a visibility buffer once (deferred shading: the cost
-never depends on overdraw). Per sample, with ``x`` the surface point, ``o`` the view direction,
-``Ng`` the interpolated vertex normal (the frame of the precomputed visibility), ``(Ts, Bs, Ns)``
-the shading frame (tangent frame rotated by the normal/tangent maps), ``e(c, λ)`` the exact
-normalised irradiance of an SG (``warp_sg.sg.irradiance``) and ``vis_ratio(p, λ) =
-fh(θd(p), λ)/fh(θh(p), λ)`` the SSDF's visible fraction of a lobe over an unoccluded point's::
+One kernel launch shades every sample of a visibility buffer once (deferred shading: the cost never depends on
+overdraw). Per sample, with ``x`` the surface point, ``o`` the view direction, ``Ng`` the interpolated vertex normal
+(the frame of the precomputed visibility), ``(Ts, Bs, Ns)`` the shading frame (tangent frame rotated by the
+normal/tangent maps), ``e(c, λ)`` the exact normalised irradiance of an SG (``warp_sg.sg.irradiance``) and
+``vis_ratio(p, λ) = fh(θd(p), λ)/fh(θh(p), λ)`` the SSDF's visible fraction of a lobe over an unoccluded point's::
 
     R(o) = Rlights + Rd + Rs                                                        (eq. 36)
 
-Local lights (point, spherical, directional; environment peaks such as a sun), eq. 42–43 made
-exact where it is cheap — one BRDF evaluation at the light's direction l::
+Local lights (point, spherical, directional; environment peaks such as a sun), eq. 42–43 made exact where it is cheap —
+one BRDF evaluation at the light's direction l::
 
     Rlights += ρ(o, l) E e(n·l, λ_l) g_α(θd(l))/g_α(θh(l))
 
-with ``g_α`` the visible fraction of the light's uniform disc (angular radius α) cut by the SSDF's
-boundary ``θd`` from its centre (``visibility_terms.light_cap_visible``; the paper's SG ``fh`` ratio
-with ``fh = "sigmoid"``). With ``Features.light_vis_vertex`` the SSDF towards the light is
-``θd = θh + Σ_k b_k D[i_k, j]``, the per-vertex deficit cache of ``warp_sg.shading.vertex_visibility``,
-and no lookup is made.
+with ``g_α`` the visible fraction of the light's uniform disc (angular radius α) cut by the SSDF's boundary ``θd`` from
+its centre (``visibility_terms.light_cap_visible``; the paper's SG ``fh`` ratio with ``fh = "sigmoid"``). With
+``Features.light_vis_vertex`` the SSDF towards the light is ``θd = θh + Σ_k b_k D[i_k, j]``, the per-vertex deficit
+cache of ``warp_sg.shading.vertex_visibility``, and no lookup is made.
 
 Environment, diffuse — eq. 39, with the magnitude exact: ``E(n)`` is the irradiance of the map
-(``precompute.environment.irradiance``, a cube-map table of its cosine-weighted integral) and only the
-visible fraction is approximated::
+(``precompute.environment.irradiance``, a cube-map table of its cosine-weighted integral) and only the visible fraction
+is approximated::
 
     Rd += ρd E(Ns) Σ_k b_k F[i_k]                                 (Features.env_visible_vertex)
 
-(on triangles whose vertex normals agree within 5°, and without normal maps, the vertices' own
-``E ∘ F`` interpolated: no table lookup, within ≈ 0.1 %.)
+(on triangles whose vertex normals agree within 5°, and without normal maps, the vertices' own ``E ∘ F`` interpolated:
+no table lookup, within ≈ 0.1 %.)
 
 ``F`` the per-vertex visible fraction by quadrature of the vertex's SSDF weighted by the map
-(``warp_sg.shading.vertex_visibility``; the default with ``visibility_sampling = "vertex"`` and ρd = kd/π).
-Otherwise (per-pixel visibility, or Oren–Nayar's directional ρd) the mixture's lobes give it::
+(``warp_sg.shading.vertex_visibility``; the default with ``visibility_sampling = "vertex"`` and ρd = kd/π). Otherwise
+(per-pixel visibility, or Oren–Nayar's directional ρd) the mixture's lobes give it::
 
     Rd += ρd(o, p_G) μ_j ∫G_j e(Ns·p_j, λ_j) vis_ratio(p_G, λ_G) + ρd (E − Σ_j a_j) v̄,   G = C* ⊗ L*_j
 
-(``a_j`` the lobes' unshadowed irradiance, ``v̄`` their mean visible fraction; with
-``Features.env_vis_vertex`` the lobes' visibility is the per-vertex cache ``Σ_k b_k V[i_k, j]``.)
-Without shadows it is ``ρd E(Ns)``, one table lookup.
+(``a_j`` the lobes' unshadowed irradiance, ``v̄`` their mean visible fraction; with ``Features.env_vis_vertex`` the
+lobes' visibility is the per-vertex cache ``Σ_k b_k V[i_k, j]``.) Without shadows it is ``ρd E(Ns)``, one table lookup.
 
-Environment, specular — eq. 41, for each slice lobe G_k of ks ρs(o, ·) (spherical warp of the
-NDF lobes, eq. 17–22, ``shading_slice_lobe``)::
+Environment, specular — eq. 41, for each slice lobe G_k of ks ρs(o, ·) (spherical warp of the NDF lobes, eq. 17–22,
+``shading_slice_lobe``)::
 
     Rs += c(o) Σ_k μ_k ∫G_k e(Ns·p_k, λ_k) · ΓL(p, λ)/∫G(λ) (eq. 35) · vis_ratio(p, λ),   (p, λ) = C* ⊗ G_k
 
-``c(o) = A(o)/A*(o)`` is the material's tabulated ratio of the exact BRDF's directional albedo to
-the slice lobes' (``warp_sg.brdf.kernel.albedo``): the warp's energy error, up to ±20 %, removed.
+``c(o) = A(o)/A*(o)`` is the material's tabulated ratio of the exact BRDF's directional albedo to the slice lobes'
+(``warp_sg.brdf.kernel.albedo``): the warp's energy error, up to ±20 %, removed.
 
-The clamped-cosine SG ``C*`` (eq. 40) only places and sizes the product lobe whose visibility
-and mean radiance stand for the cosine-weighted lobe; the cosine itself is exact. The diffuse BRDF
-``ρd(o, i)`` (kd/π, or Oren-Nayar) is evaluated at the product lobe's axis. ``θd(p)`` is the SSDF
-of the surface point (eq. 24, per-vertex PCA weights, ``precompute.visibility.ssdf_wp.ssdf_eval_world``);
-with shadows off (or a scene that cannot shadow itself) ``vis_ratio`` is 1.
+The clamped-cosine SG ``C*`` (eq. 40) only places and sizes the product lobe whose visibility and mean radiance stand
+for the cosine-weighted lobe; the cosine itself is exact. The diffuse BRDF ``ρd(o, i)`` (kd/π, or Oren-Nayar) is
+evaluated at the product lobe's axis. ``θd(p)`` is the SSDF of the surface point (eq. 24, per-vertex PCA weights,
+``precompute.visibility.ssdf_wp.ssdf_eval_world``); with shadows off (or a scene that cannot shadow itself)
+``vis_ratio`` is 1.
 
-Normal and tangent maps (§7): a per-pixel rotation of the tangent frame, the minimal rotation
-taking ``Ng`` to the mapped normal (Rodrigues; equivalent to the paper's quaternion map), then a
-rotation about it to the mapped tangent. The BRDF and its slice are built in the rotated frame
-(with ``o' = ℜ o``); visibility stays in the vertex frame.
+Normal and tangent maps (§7): a per-pixel rotation of the tangent frame, the minimal rotation taking ``Ng`` to the
+mapped normal (Rodrigues; equivalent to the paper's quaternion map), then a rotation about it to the mapped tangent. The
+BRDF and its slice are built in the rotated frame (with ``o' = ℜ o``); visibility stays in the vertex frame.
 
-An environment given as its SG mixture (``Features.env_mixture``: ``Renderer.set_environment_mixture``,
-what inverse rendering recovers) is shaded by its lobes alone: the diffuse lobe sum above without
-the exact table's rest, and ``L̄`` in eq. 41 the lobes' closed form (:mod:`warp_sg.shading.env_mixture`).
+An environment given as its SG mixture (``Features.env_mixture``: ``Renderer.set_environment_mixture``, what inverse
+rendering recovers) is shaded by its lobes alone: the diffuse lobe sum above without the exact table's rest, and ``L̄``
+in eq. 41 the lobes' closed form (:mod:`warp_sg.shading.env_mixture`).
 
 Layers (:mod:`warp_sg.shading.surface_layers`): ``a(o)·(R + Le) + Rcoat``, the coat's GGX lobe shaded like the
 specular terms in its frame; occlusion on the environment's diffuse term; cut-outs' holes seen through.
 Moving objects (``Features.moving``, :mod:`warp_sg.shading.motion_wp`): each visibility is capped by the proxies' own.
 Light that bounces (``Features.bounce``, :mod:`warp_sg.shading.bounce`): the vertices' indirect light, diffuse and per slice lobe.
 
-Kernel variants: the kernel is specialised by scene content (``Features``): environment diffuse
-(SG mixture | none), environment specular (ΓL | none), lights, specular materials, shadows
-(SSDF), textures, normal/tangent maps, the material layers (emission, occlusion, coat, vertex
-colours, cut-outs), the fh method and the set of material models (the BRDF
-functions, ``shading_slice_lobe`` and ``diffuse_at`` come from ``material_funcs`` of
-``brdf.kernel.material_variants``, built for just those models). Variants are created once per feature
-tuple and cached (``shade_kernel``); code a scene does not need is removed at compile time with
-``wp.static``. The kernel is 1-D over row-major samples with an index offset ``base`` and ``per``
-samples per thread (:data:`PIXELS_PER_THREAD` on the CPU, 1 on CUDA), so on the CPU disjoint
-ranges run on a small thread pool (``raster.parallel.launch``; Warp runs one CPU launch on one
-core). ``Features.grad``: the same kernel with its adjoint and one pixel per thread
-(:mod:`warp_sg.shading.kernel_grad`); its loops over lights and lobes are functions that return
-their sums, for every variant.
+Kernel variants: the kernel is specialised by scene content (``Features``): environment diffuse (SG mixture | none),
+environment specular (ΓL | none), lights, specular materials, shadows (SSDF), textures, normal/tangent maps, the
+material layers (emission, occlusion, coat, vertex colours, cut-outs), the fh method and the set of material models (the
+BRDF functions, ``shading_slice_lobe`` and ``diffuse_at`` come from ``material_funcs`` of
+``brdf.kernel.material_variants``, built for just those models). Variants are created once per feature tuple and cached
+(``shade_kernel``); code a scene does not need is removed at compile time with ``wp.static``. The kernel is 1-D over
+row-major samples with an index offset ``base`` and ``per`` samples per thread (:data:`PIXELS_PER_THREAD` on the CPU, 1
+on CUDA), so on the CPU disjoint ranges run on a small thread pool (``raster.parallel.launch``; Warp runs one CPU launch
+on one core). ``Features.grad``: the same kernel with its adjoint and one pixel per thread
+(:mod:`warp_sg.shading.kernel_grad`); its loops over lights and lobes are functions that return their sums, for every
+variant.
 """
 # NOTE: no ``from __future__ import annotations`` — Warp reads the kernel annotations at definition
 # time and the kernel variants are closures.
