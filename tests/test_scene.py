@@ -12,7 +12,7 @@ from warp_sg.core.errors import MeshError, SceneError
 from warp_sg.scene.loader import load_scene
 from warp_sg.scene.model import Material, Scene, SceneObject, Transform
 from warp_sg.scene.primitives import plane, sphere, torus
-from warp_sg.scene.render_settings import RenderSettings
+from warp_sg.scene.render_settings import RENDER_CHOICES, RenderSettings, uses_sigmoid
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
@@ -173,6 +173,14 @@ def test_python_render_settings_are_refused_in_the_scene_files_words(tmp_path, k
               materials={"a": Material("lambert")}, lights=[ws.scene.DirectionalLight((0, 1, 0))],
               render=RenderSettings(**{key: value}))
     assert str(from_python.value) == message
+
+
+def test_the_fh_choice_is_read_in_one_place():
+    """``[render] fh``: the kernels' sigmoid or the table, decided by ``uses_sigmoid`` alone (the kernel
+    variant, the per-vertex light caches and the moving objects' ask it)."""
+    assert [uses_sigmoid(c) for c in RENDER_CHOICES["fh"]] == [False, True]
+    with pytest.raises(ValueError, match="fh must be one of table, sigmoid"):
+        uses_sigmoid("spline")
 
 
 def test_render_settings_edited_after_the_scene_was_built_are_checked_by_the_renderer():
