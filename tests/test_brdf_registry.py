@@ -22,7 +22,7 @@ import warp as wp
 
 from warp_sg import brdf as B
 from warp_sg.brdf import registry
-from warp_sg.brdf.base import BRDF, Roughness, SpecularBRDF, as_rgb, as_scalar, dirs, half_vector
+from warp_sg.brdf.base import BRDF, SpecularBRDF, as_rgb, as_scalar, dirs, half_vector
 from warp_sg.brdf.kernel import material_wp as M
 from warp_sg.brdf.kernel.material_eval_wp import cos_pow, log_cos_theta
 from warp_sg.brdf.kernel.material_sample_wp import reflect_about
@@ -69,9 +69,9 @@ def _free_code():
 
 class NormalisedBlinnPhong(SpecularBRDF):
     NAME = "normalised_blinn_phong_test"
-    PARAMS = {"kd": KD, "ks": KS, "n": Param("number", "exponent", lo=0, texture=True)}
+    PARAMS = {"kd": KD, "ks": KS, "n": Param("number", "exponent", lo=0, texture=True, kernel=(0,))}
     KERNEL = registry.Kernel(ndf=_nbp_ndf, mo=_nbp_mo, analytic_lobe=_nbp_lobe, sample=_nbp_sample, pdf_h=_nbp_pdf_h)
-    ROUGHNESS = Roughness("n")
+    ROUGHNESS = "n"
     ENERGY_NORMALISED = True
 
     def __init__(self, kd=(0.0, 0.0, 0.0), ks=(1.0, 1.0, 1.0), n=30.0):
@@ -264,7 +264,8 @@ class FlatDiffuse(BRDF):
 
 class WardTwin(B.Ward):
     """Ward's functions (isotropic or anisotropic) under another name and code, declared not
-    energy-normalised: its α map sets αx and αy (``ROUGHNESS`` inherited: kernel (0, 1))."""
+    energy-normalised: its α map sets αx and αy (``ROUGHNESS = "alpha"`` and ``PARAMS`` inherited:
+    ``alpha``'s ``Param.kernel`` is (0, 1))."""
 
     NAME = "ward_twin_test"
     ENERGY_NORMALISED = False
@@ -291,13 +292,34 @@ def test_capabilities_are_the_models_declarations(three_models):
     assert registry.has_specular([diffuse.CODE, specular.CODE]) and registry.has_specular([aniso.CODE])
     assert registry.textured_lobe_codes() >= {specular.CODE, aniso.CODE}
     assert diffuse.CODE not in registry.textured_lobe_codes()
-    assert registry.roughness_of(specular.CODE) == Roughness("n", (0,))
-    assert registry.roughness_of(aniso.CODE).kernel == (0, 1)
+    assert registry.roughness_kernel(specular.CODE) == (0,) and registry.roughness_kernel(aniso.CODE) == (0, 1)
+    assert registry.roughness_kernel(diffuse.CODE) == ()
     assert registry.constant_diffuse([diffuse.CODE])
-    # every shipped specular model with a texturable first width declares it
-    for cls in B.MODELS.values():
-        r = cls.ROUGHNESS
-        assert r is None or (cls.is_specular and cls.PARAMS[r.param].texture), cls.NAME
+    # the texture slots follow the parameters' declarations (warp_sg.shading.surface)
+    from warp_sg.shading.surface import SLOT_KD, SLOT_KS, SLOT_P0, SLOT_P1, param_slots
+
+    assert param_slots(specular.NAME, "n") == (SLOT_P0,) and param_slots(specular.NAME, "ks") == (SLOT_KS,)
+    assert param_slots(aniso.NAME, "alpha") == (SLOT_P0, SLOT_P1) and param_slots(aniso.NAME, "alpha_y") == (SLOT_P1,)
+    assert param_slots(diffuse.NAME, "kd") == (SLOT_KD,) and param_slots(diffuse.NAME, "n") == ()
+
+
+def test_a_width_that_is_not_a_texturable_kernel_parameter_0_is_refused():
+    class NoSuchWidth(NormalisedBlinnPhong):
+        NAME = "no_such_width_test"
+        ROUGHNESS = "m"
+
+    class DiffuseWidth(FlatDiffuse):
+        NAME = "diffuse_width_test"
+        PARAMS = {"kd": KD, "s": Param("number", "width", lo=0, texture=True, kernel=(0,))}
+        ROUGHNESS = "s"
+
+    for cls, words in ((NoSuchWidth, "ROUGHNESS must name"), (DiffuseWidth, "needs a specular lobe")):
+        cls.CODE = _free_code()
+        with pytest.raises(ValueError, match=words):
+            registry.register(cls)
+        assert cls.NAME not in B.MODELS
+    with pytest.raises(ValueError, match="kernel parameters"):
+        Param("number", "a texturable number that sets no kernel parameter", texture=True)
 
 
 def test_the_energy_check_reads_energy_normalised(three_models):

@@ -13,8 +13,6 @@ Numerical forms used by every model (float64 here, same forms in ``material_wp``
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from .helpers import (  # noqa: F401
@@ -34,18 +32,6 @@ from .helpers import (  # noqa: F401
 )
 
 
-@dataclass(frozen=True)
-class Roughness:
-    """A model's lobe width that a texture may set per texel (its ``ROUGHNESS``): ``param``, the
-    scene-file parameter (a texturable number of its ``PARAMS``), and ``kernel``, the indices of
-    ``kernel_params()`` one texel value sets — ``(0,)``, or ``(0, 1)`` where the parameter stands for
-    two (``alpha`` sets both αx and αy). The albedo table's second axis
-    (:mod:`warp_sg.brdf.kernel.albedo`) runs over the texture's range of it."""
-
-    param: str
-    kernel: tuple = (0,)
-
-
 class BRDF:
     """Base class. A model (:mod:`warp_sg.brdf.registry`) sets ``NAME``, ``CODE``, ``PARAMS`` and
     ``KERNEL`` (its ``@wp.func`` functions) and implements ``diffuse`` and, for specular models, ``mo`` and
@@ -54,7 +40,7 @@ class BRDF:
     What the rest of the code asks of a model it reads from these class attributes, never from the
     model's code (:mod:`warp_sg.brdf.registry` collects them per code): ``is_specular`` (a specular
     lobe: the environment's specular term, its albedo table, the kernel variant's specular paths),
-    ``ROUGHNESS`` (:class:`Roughness`, or None) and ``ENERGY_NORMALISED`` (the energy check of
+    ``ROUGHNESS`` (the name of its lobe-width parameter, or None) and ``ENERGY_NORMALISED`` (the energy check of
     :mod:`warp_sg.brdf.energy`)."""
 
     NAME = "base"
@@ -66,8 +52,10 @@ class BRDF:
     KERNEL = None
     #: a specular lobe (``ks ρs``); False: the diffuse part alone
     is_specular = False
-    #: the lobe width a texture may set per texel (:class:`Roughness`); None: none
-    ROUGHNESS: Roughness | None = None
+    #: the name of the lobe-width parameter a texture may set per texel (a texturable number of
+    #: ``PARAMS``, whose ``kernel`` says which kernel parameters a texel sets): the albedo table's
+    #: second axis (:mod:`warp_sg.brdf.kernel.albedo`); None: none
+    ROUGHNESS: str | None = None
     #: the specular lobe reflects at most all the light for ``ks = 1`` and ``F = 1`` (its
     #: normalisation), so ``kd + ks·F(0°) > 1`` is worth a warning (:mod:`warp_sg.brdf.energy`)
     ENERGY_NORMALISED = False

@@ -23,8 +23,11 @@ KINDS = ("rgb", "number", "integer", "fresnel", "file", "lafortune_lobes")
 class Param:
     """One parameter: ``kind`` (one of :data:`KINDS`) with the lower bound ``lo`` (exclusive when
     ``lo_open``; ``odd`` integers only), ``description``, ``texture`` (a texture may drive it),
-    ``slider`` (the viewer's (low, high); None: no slider) and ``instead_of`` (the parameter this
-    one is given in place of, with the others that name it: ``alpha_x``/``alpha_y`` for ``alpha``)."""
+    ``slider`` (the viewer's (low, high); None: no slider), ``instead_of`` (the parameter this
+    one is given in place of, with the others that name it: ``alpha_x``/``alpha_y`` for ``alpha``)
+    and, for a texturable number, ``kernel``: the kernel parameters (indices of the model's
+    ``kernel_params()``, 0 or 1: the texture slots of ``warp_sg.shading.surface``) one texel value
+    sets — ``(0,)``, ``(1,)``, or ``(0, 1)`` where it stands for two (``alpha`` sets αx and αy)."""
 
     kind: str
     description: str
@@ -34,10 +37,14 @@ class Param:
     texture: bool = False
     slider: tuple[float, float] | None = None
     instead_of: str | None = None
+    kernel: tuple = ()
 
     def __post_init__(self):
         if self.kind not in KINDS:
             raise ValueError(f"Param kind must be one of {', '.join(KINDS)}, got {self.kind!r}")
+        if self.kind == "number" and self.texture and tuple(self.kernel) not in ((0,), (1,), (0, 1)):
+            raise ValueError(f"a texturable number Param sets kernel parameters (0,), (1,) or (0, 1), "
+                             f"got kernel={self.kernel!r}")
 
 
 KD = Param("rgb", "diffuse albedo (number or RGB)", texture=True, slider=(0.0, 1.0))
@@ -45,9 +52,9 @@ KS = Param("rgb", "specular scale (number or RGB)", texture=True, slider=(0.0, 1
 FRESNEL = Param("fresnel", "Fresnel: a preset (" + ", ".join(PRESETS) + ") or {schlick}, {eta} or {eta, k}")
 #: a roughness given instead of ``alpha`` along the tangent and the bitangent (Ward, GGX)
 ALPHA_X = Param("number", "roughness along the tangent", lo=0, lo_open=True, texture=True, slider=(0.02, 0.8),
-                instead_of="alpha")
+                instead_of="alpha", kernel=(0,))
 ALPHA_Y = Param("number", "roughness along the bitangent", lo=0, lo_open=True, texture=True, slider=(0.02, 0.8),
-                instead_of="alpha")
+                instead_of="alpha", kernel=(1,))
 
 
 def check_params(cls) -> None:

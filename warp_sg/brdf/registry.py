@@ -13,11 +13,12 @@ A model is one class (a :class:`~warp_sg.brdf.base.BRDF` subclass in a module of
 * ``KERNEL`` — a :class:`Kernel` of its ``@wp.func``\ s: what the kernel switch
   (:mod:`warp_sg.brdf.kernel.material_variants`) calls for a material of this code;
 * its capabilities (:class:`~warp_sg.brdf.base.BRDF`): ``is_specular`` (a specular lobe),
-  ``ROUGHNESS`` (the lobe width a texture may set, :class:`~warp_sg.brdf.base.Roughness`: the
-  albedo table's second axis) and ``ENERGY_NORMALISED`` (the energy check) — what the renderer,
-  the albedo table and the energy check ask (:func:`specular_codes`, :func:`textured_lobe_codes`,
-  :func:`roughness_of`, :func:`energy_normalised`), so no module outside this one compares model
-  codes;
+  ``ROUGHNESS`` (the name of the lobe-width parameter a texture may set: the albedo table's second
+  axis) and ``ENERGY_NORMALISED`` (the energy check), and per texturable number of ``PARAMS`` the
+  kernel parameters a texel sets (``Param.kernel``: the texture slots) — what the renderer, the
+  albedo table, the texture slots and the energy check ask (:func:`specular_codes`,
+  :func:`has_specular`, :func:`textured_lobe_codes`, :func:`roughness_kernel`,
+  :func:`energy_normalised`), so no module outside this one compares model codes;
 
 and is registered by :func:`register` (a class decorator). Everything that switches on the model
 — the kernel functions ``brdf_eval``, ``brdf_sample``, ``brdf_pdf``, ``slice_lobe`` ..., the
@@ -112,21 +113,19 @@ def register(cls):
 
 
 def _check_capabilities(cls) -> None:
-    """A model's ``ROUGHNESS`` names a texturable number of its ``PARAMS`` that sets kernel parameter
-    0 (and maybe 1: the texture slots a parameter drives, ``warp_sg.shading.surface``), on a
-    specular model; ``is_specular`` and ``ENERGY_NORMALISED`` are booleans."""
+    """``is_specular`` and ``ENERGY_NORMALISED`` are booleans; a model's ``ROUGHNESS`` names a
+    texturable number of its ``PARAMS`` that sets kernel parameter 0 (the albedo table reads the
+    width there), on a specular model."""
     for flag in ("is_specular", "ENERGY_NORMALISED"):
         if not isinstance(getattr(cls, flag, False), bool):
             raise ValueError(f"{cls.__name__}: {flag} must be True or False")
     r = getattr(cls, "ROUGHNESS", None)
     if r is None:
         return
-    p = cls.PARAMS.get(getattr(r, "param", None))
-    if p is None or p.kind != "number" or not p.texture or not hasattr(r, "kernel"):
-        raise ValueError(f"{cls.__name__}: ROUGHNESS must be a Roughness naming a texturable number of PARAMS, "
-                         f"got {r!r}")
-    if tuple(r.kernel) not in ((0,), (0, 1)):
-        raise ValueError(f"{cls.__name__}: ROUGHNESS.kernel must be (0,) or (0, 1), got {r.kernel!r}")
+    p = cls.PARAMS.get(r) if isinstance(r, str) else None
+    if p is None or p.kind != "number" or not p.texture or p.kernel[:1] != (0,):
+        raise ValueError(f"{cls.__name__}: ROUGHNESS must name a texturable number of PARAMS that sets kernel "
+                         f"parameter 0, got {r!r}")
     if not getattr(cls, "is_specular", False):
         raise ValueError(f"{cls.__name__}: ROUGHNESS needs a specular lobe (is_specular)")
 
@@ -175,16 +174,26 @@ def has_specular(model_codes) -> bool:
     return any(int(c) in specular_codes() for c in model_codes)
 
 
-def roughness_of(code: int):
-    """The :class:`~warp_sg.brdf.base.Roughness` of the model of ``code`` (None: none)."""
-    return getattr(BY_CODE[int(code)], "ROUGHNESS", None)
+def roughness_kernel(code: int) -> tuple:
+    """The kernel parameters a texel of the lobe width (``ROUGHNESS``) of the model of ``code`` sets:
+    ``(0,)``, ``(0, 1)`` (its ``Param.kernel``), or ``()`` for a model without one."""
+    cls = BY_CODE[int(code)]
+    r = getattr(cls, "ROUGHNESS", None)
+    return tuple(cls.PARAMS[r].kernel) if r is not None else ()
+
+
+def texture_kernel(model_name: str, param: str) -> tuple | None:
+    """The kernel parameters a texel of ``param`` of the model called ``model_name`` sets (its
+    ``Param.kernel``), or None when a texture may not drive it (colours: ``()``)."""
+    p = MODELS[model_name].PARAMS.get(param)
+    return None if p is None or not p.texture else tuple(p.kernel)
 
 
 def textured_lobe_codes() -> frozenset:
     """The codes of the models whose lobe width may come from a texture (``ROUGHNESS``): its value
-    sets ``kernel_params()[0]`` per texel (and ``[1]`` where ``ROUGHNESS.kernel`` says so), the
+    sets ``kernel_params()[0]`` per texel (and ``[1]`` where its ``Param.kernel`` says so), the
     albedo table's second axis (:mod:`warp_sg.brdf.kernel.albedo`)."""
-    return frozenset(c for c in BY_CODE if roughness_of(c) is not None)
+    return frozenset(c for c in BY_CODE if roughness_kernel(c))
 
 
 def energy_normalised(model) -> bool:
@@ -194,5 +203,5 @@ def energy_normalised(model) -> bool:
 
 
 __all__ = ["BY_CODE", "Kernel", "MAX_CODES", "MODELS", "analytic_codes", "code_of", "codes", "constant_diffuse",
-           "energy_normalised", "has_specular", "model_of", "register", "roughness_of", "specular_codes",
-           "textured_lobe_codes", "unregister"]
+           "energy_normalised", "has_specular", "model_of", "register", "roughness_kernel", "specular_codes",
+           "texture_kernel", "textured_lobe_codes", "unregister"]

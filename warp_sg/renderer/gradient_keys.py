@@ -24,7 +24,7 @@ import numpy as np
 
 from warp_sg.scene.lights import DirectionalLight, EnvironmentLight, PointLight
 from warp_sg.scene.model import COLOUR_PARAMS
-from warp_sg.shading.surface import _PARAM_SLOTS, SLOT_NORMAL
+from warp_sg.shading.surface import SLOT_NORMAL, param_slots
 
 #: the record's differentiable fields, in the order of :func:`record_vector`
 RECORD_FIELDS = (("kd", 3), ("ks", 3), ("params", 4), ("fresnel_a", 3), ("fresnel_b", 3))
@@ -129,7 +129,7 @@ def _material_gradients(r, out: dict) -> None:
             val = g @ jac
             out[f"materials.{name}.{key}"] = val if np.ndim(get_leaf(params, key)) else float(val[0])
         for pname in m.textures:
-            slot = _PARAM_SLOTS[pname][0]
+            slot = param_slots(m.model, pname)[0]
             t = int(slots[mi, slot])
             if t >= 0:
                 tg = texture(t)

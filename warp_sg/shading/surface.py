@@ -9,6 +9,7 @@ import numpy as np
 import warp as wp
 
 from warp_sg.brdf.kernel.material_wp import Material, texel_param0
+from warp_sg.brdf.registry import texture_kernel
 from warp_sg.core.errors import SceneError
 from warp_sg.numeric.onb import frame_tangent, local_to_world
 from warp_sg.scene.textures import TextureAtlas, tex_sample
@@ -110,10 +111,20 @@ def apply_shading_maps(tex: MaterialTextures, mi: int, uv: wp.vec2, n: wp.vec3, 
     return ns, ts
 
 
-#: material parameters a texture may drive, by slot (``alpha`` drives both roughness slots)
-_PARAM_SLOTS = {"kd": (SLOT_KD,), "ks": (SLOT_KS,), "m": (SLOT_P0,), "n": (SLOT_P0,), "nu": (SLOT_P0,),
-                "alpha_x": (SLOT_P0,), "sigma": (SLOT_P0,), "alpha": (SLOT_P0, SLOT_P1),
-                "nv": (SLOT_P1,), "alpha_y": (SLOT_P1,)}
+#: the slots of the colours a texture may drive
+_COLOUR_SLOTS = {"kd": SLOT_KD, "ks": SLOT_KS}
+
+
+def param_slots(model: str, pname: str) -> tuple:
+    """The texture slots a texture of the parameter ``pname`` of the model called ``model`` drives:
+    ``kd`` and ``ks`` their own, a number those of the kernel parameters it sets (its
+    ``Param.kernel``: ``alpha`` drives both roughness slots); ``()`` when no texture may drive it."""
+    kernel = texture_kernel(model, pname)
+    if kernel is None:
+        return ()
+    if pname in _COLOUR_SLOTS:
+        return (_COLOUR_SLOTS[pname],)
+    return tuple(SLOT_P0 + k for k in kernel)
 
 
 def material_texture_slots(materials, colour_params):
@@ -132,10 +143,11 @@ def material_texture_slots(materials, colour_params):
 
     for mi, m in enumerate(materials):
         for pname, tex in m.textures.items():
-            if pname not in _PARAM_SLOTS:
+            drives = param_slots(m.model, pname)
+            if not drives:
                 raise SceneError(f"parameter '{pname}' cannot be a texture", where=f"[materials.{m.name}]")
             t = add(tex, pname in colour_params, False)
-            for slot in _PARAM_SLOTS[pname]:
+            for slot in drives:
                 slots[mi, slot] = t
         if m.normal_map is not None:
             slots[mi, SLOT_NORMAL] = add(m.normal_map, False, True)

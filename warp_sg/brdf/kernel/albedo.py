@@ -45,7 +45,7 @@ import warp as wp
 
 from ...sg.algebra_wp import sg_integral
 from ...sg.irradiance import sg_irradiance_norm
-from ..registry import roughness_of, specular_codes, textured_lobe_codes
+from ..registry import roughness_kernel, specular_codes, textured_lobe_codes
 from .material_struct import Material
 from .material_variants import material_funcs
 
@@ -98,9 +98,9 @@ def albedo_kernel(models):
     MF = material_funcs(key)
     brdf_specular, shading_slice_lobe, slice_lobe_count = MF.brdf_specular, MF.shading_slice_lobe, MF.slice_lobe_count
     brdf_sample, brdf_pdf = MF.brdf_sample, MF.brdf_pdf  # (the set's own: a model registered after the import too)
-    # the models whose textured width sets kernel parameter 1 too (``Roughness.kernel``: an isotropic
+    # the models whose textured width sets kernel parameter 1 too (its ``Param.kernel``: an isotropic
     # α map sets αx = αy, as ``textured_material`` does), as bits of the model code
-    PAIRED = sum(1 << c for c in key if 1 in getattr(roughness_of(c), "kernel", ()))
+    PAIRED = sum(1 << c for c in key if 1 in roughness_kernel(c))
 
     def albedo(mats: wp.array(dtype=Material), entry_mat: wp.array(dtype=int), entry_q: wp.array(dtype=int),
                entry_mu: wp.array(dtype=int), irr: wp.array2d(dtype=float), samples: int,

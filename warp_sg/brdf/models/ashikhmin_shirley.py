@@ -25,7 +25,7 @@ import warp as wp
 
 from ...core.errors import InputError
 from ...sg import EPSILON
-from ..base import Roughness, SpecularBRDF, as_rgb, as_scalar, dirs, half_vector
+from ..base import SpecularBRDF, as_rgb, as_scalar, dirs, half_vector
 from ..fresnel import parse_fresnel
 from ..kernel.material_eval_wp import aniso_axis, as_exponent_log, expm1_neg_f, fresnel_eval, half_vec
 from ..kernel.material_sample_wp import as_h, as_pdf_h, reflect_about
@@ -95,12 +95,12 @@ def aniso_log_cos(h):
 class AshikhminShirley(SpecularBRDF):
     NAME = "ashikhmin_shirley"
     CODE = 7
-    ROUGHNESS = Roughness("nu")
+    ROUGHNESS = "nu"
     KERNEL = Kernel(ndf=ashikhmin_shirley_ndf, mo=ashikhmin_shirley_mo, analytic_lobe=ashikhmin_shirley_lobe,
                     sample=ashikhmin_shirley_sample, pdf_h=ashikhmin_shirley_pdf_h)
     PARAMS = {"kd": KD, "ks": KS,
-              "nu": Param("number", "exponent along the tangent", lo=0, texture=True, slider=(1.0, 2000.0)),
-              "nv": Param("number", "exponent along the bitangent", lo=0, texture=True, slider=(1.0, 2000.0)),
+              "nu": Param("number", "exponent along the tangent", lo=0, texture=True, slider=(1.0, 2000.0), kernel=(0,)),
+              "nv": Param("number", "exponent along the bitangent", lo=0, texture=True, slider=(1.0, 2000.0), kernel=(1,)),
               "fresnel": FRESNEL,
               "lobes": Param("integer", "number of SG lobes (odd) along the longer axis", lo=1, odd=True)}
 

@@ -49,7 +49,7 @@ import numpy as np
 import warp as wp
 
 from ...core.errors import InputError
-from ..base import Roughness, SpecularBRDF, as_rgb, as_roughness, dirs, half_vector
+from ..base import SpecularBRDF, as_rgb, as_roughness, dirs, half_vector
 from ..fresnel import parse_fresnel
 from ..kernel.material_eval_wp import (
     _aniso_overlap,
@@ -261,13 +261,13 @@ def ggx_pdf(mat: Material, o: wp.vec3, i: wp.vec3) -> float:
 class GGX(SpecularBRDF):
     NAME = "ggx"
     CODE = 10
-    ROUGHNESS = Roughness("alpha", (0, 1))  # an isotropic α map (glTF's roughness) sets αx = αy
+    ROUGHNESS = "alpha"  # (glTF's roughness map; it sets αx = αy: its Param.kernel)
     ENERGY_NORMALISED = True  # with Smith masking
     KERNEL = Kernel(ndf=ggx_ndf, mo=ggx_mo, analytic_lobe=ggx_lobe, table_lobe=ggx_fitted_lobe, sample=ggx_sample,
                     pdf=ggx_pdf)
     PARAMS = {"kd": KD, "ks": KS,
               "alpha": Param("number", "isotropic roughness α (glTF: roughness²; default 0.3)", lo=0, lo_open=True,
-                             texture=True, slider=(0.01, 1.0)),
+                             texture=True, slider=(0.01, 1.0), kernel=(0, 1)),
               "alpha_x": replace(ALPHA_X, slider=(0.01, 1.0)), "alpha_y": replace(ALPHA_Y, slider=(0.01, 1.0)),
               "fresnel": FRESNEL,
               "lobes": Param("integer", "number of NDF SG lobes (default 3 isotropic, 9 anisotropic; odd when "

@@ -55,7 +55,7 @@ class OrenNayar(BRDF):
     NAME = "oren_nayar"
     CODE = 1
     PARAMS = {"kd": KD, "sigma": Param("number", "Oren–Nayar roughness σ (radians)", lo=0, texture=True,
-                                       slider=(0.0, 1.5))}
+                                       slider=(0.0, 1.5), kernel=(0,))}  # (texel_param0: σ -> (A, B, σ))
     KERNEL = Kernel(diffuse=oren_nayar_diffuse, texel_param0=oren_nayar_texel_param0)
 
     def __init__(self, kd=(0.8, 0.8, 0.8), sigma=0.3):

@@ -24,7 +24,7 @@ import numpy as np
 import warp as wp
 
 from ...numeric.fastmath import fast_atan2
-from ..base import Roughness, SpecularBRDF, as_rgb, as_scalar, dirs, half_vector, sin2_theta, theta_of
+from ..base import SpecularBRDF, as_rgb, as_scalar, dirs, half_vector, sin2_theta, theta_of
 from ..fresnel import parse_fresnel
 from ..kernel.material_eval_wp import fresnel_eval, half_vec
 from ..kernel.material_eval_wp import g_over_cos as g_over_cos_f
@@ -100,8 +100,8 @@ def vcavity_g(o, i, h):
 
 class _Microfacet(SpecularBRDF):
     PARAMS = {"kd": KD, "ks": KS, "m": Param("number", "roughness m (Beckmann slope RMS)", lo=0, lo_open=True,
-                                             texture=True, slider=(0.02, 1.0)), "fresnel": FRESNEL}
-    ROUGHNESS = Roughness("m")
+                                             texture=True, slider=(0.02, 1.0), kernel=(0,)), "fresnel": FRESNEL}
+    ROUGHNESS = "m"
 
     def __init__(self, kd=(0.0, 0.0, 0.0), ks=(1.0, 1.0, 1.0), m=0.2, fresnel=None):
         self.kd = as_rgb(kd, "kd")

@@ -19,7 +19,7 @@ direction; Blinn–Phong samples ``cos θh = u^{1/(n+2)}``, ``p(h) = (n+2)/(2π)
 import numpy as np
 import warp as wp
 
-from ..base import Roughness, SpecularBRDF, as_rgb, as_scalar, dirs, log_cos_theta
+from ..base import SpecularBRDF, as_rgb, as_scalar, dirs, log_cos_theta
 from ..kernel.material_eval_wp import cos_pow, log1p_f, reflect_z
 from ..kernel.material_eval_wp import log_cos_theta as log_cos_theta_f
 from ..kernel.material_sample_wp import cos_power_dir, cos_power_pdf, reflect_about
@@ -98,8 +98,9 @@ class _CosinePower(SpecularBRDF):
     """Shared by Phong and Blinn–Phong: parameters (kd, ks, n), ``Mo = (n+2)/(2π)``, analytic SG
     sharpness ``λ = n`` and the kernel parameters."""
 
-    PARAMS = {"kd": KD, "ks": KS, "n": Param("number", "Phong exponent", lo=0, texture=True, slider=(1.0, 1000.0))}
-    ROUGHNESS = Roughness("n")
+    PARAMS = {"kd": KD, "ks": KS, "n": Param("number", "Phong exponent", lo=0, texture=True, slider=(1.0, 1000.0),
+                                             kernel=(0,))}
+    ROUGHNESS = "n"
 
     def __init__(self, kd=(0.0, 0.0, 0.0), ks=(1.0, 1.0, 1.0), n=50.0):
         self.kd = as_rgb(kd, "kd")

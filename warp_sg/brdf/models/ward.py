@@ -18,7 +18,7 @@ import numpy as np
 import warp as wp
 
 from ...sg import EPSILON
-from ..base import Roughness, SpecularBRDF, as_rgb, as_roughness, dirs
+from ..base import SpecularBRDF, as_rgb, as_roughness, dirs
 from ..kernel.material_eval_wp import aniso_axis
 from ..kernel.material_sample_wp import beckmann_h, beckmann_pdf_h, reflect_about
 from ..kernel.material_struct import LN_EPS, PI, Material
@@ -70,11 +70,12 @@ def ward_pdf_h(mat: Material, h: wp.vec3) -> float:
 class Ward(SpecularBRDF):
     NAME = "ward"
     CODE = 6
-    ROUGHNESS = Roughness("alpha", (0, 1))  # an isotropic α map sets αx = αy
+    ROUGHNESS = "alpha"  # (an α map sets αx = αy: its Param.kernel)
     ENERGY_NORMALISED = True
     KERNEL = Kernel(ndf=ward_ndf, mo=ward_mo, analytic_lobe=ward_lobe, sample=ward_sample, pdf_h=ward_pdf_h)
     PARAMS = {"kd": KD, "ks": KS, "alpha": Param("number", "isotropic roughness α", lo=0, lo_open=True, texture=True,
-                                                 slider=(0.02, 0.8)), "alpha_x": ALPHA_X, "alpha_y": ALPHA_Y}
+                                                 slider=(0.02, 0.8), kernel=(0, 1)),
+              "alpha_x": ALPHA_X, "alpha_y": ALPHA_Y}
 
     def __init__(self, kd=(0.0, 0.0, 0.0), ks=(1.0, 1.0, 1.0), alpha=None, alpha_x=None, alpha_y=None):
         self.kd = as_rgb(kd, "kd")
