@@ -126,9 +126,12 @@ def test_every_key_has_a_description_and_every_render_setting_is_in_the_schema(s
 
 def test_texture_parameters_are_the_kernel_texture_slots(schema):
     from warp_sg.scene.schema import TEXTURE_PARAMS
-    from warp_sg.shading.surface import _PARAM_SLOTS
+    from warp_sg.shading.surface import param_slots
 
-    assert set(TEXTURE_PARAMS) == set(_PARAM_SLOTS)
+    # every parameter the schema lets a texture drive has its texture slots (from its Param.kernel)
+    slots = {(name, k): param_slots(name, k) for name, cls in MODELS.items() for k, p in cls.PARAMS.items()
+             if p.texture}
+    assert {k for _, k in slots} == set(TEXTURE_PARAMS) and all(slots.values()), slots
     ct = schema["definitions"]["Material_cook_torrance"]["properties"]
     assert any(b.get("type") == "string" for b in ct["m"]["oneOf"])  # m may be a texture path
     assert "oneOf" not in ct["fresnel"] or all(b.get("$ref", "").endswith("FresnelTable") or "enum" in b

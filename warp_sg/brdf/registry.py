@@ -184,8 +184,9 @@ def roughness_kernel(code: int) -> tuple:
 
 def texture_kernel(model_name: str, param: str) -> tuple | None:
     """The kernel parameters a texel of ``param`` of the model called ``model_name`` sets (its
-    ``Param.kernel``), or None when a texture may not drive it (colours: ``()``)."""
-    p = MODELS[model_name].PARAMS.get(param)
+    ``Param.kernel``), or None when a texture may not drive it (colours: ``()``; an unknown model: None)."""
+    cls = MODELS.get(model_name)
+    p = None if cls is None else cls.PARAMS.get(param)
     return None if p is None or not p.texture else tuple(p.kernel)
 
 
