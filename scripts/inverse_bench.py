@@ -74,7 +74,8 @@ def _markdown(out: dict, load: tuple, wall: float) -> str:
              f"base colour a {info['texture']}² texture, roughness a {info['texture']}² texture in [0.2, 0.6], a "
              "dielectric Fresnel term (index 1.5), on a Lambert floor beside a grey ball, both of known albedo 0.5 "
              "— made by "
-             f"{'Mitsuba 3 (its own BSDFs, `path` at max depth 8)' if info['truth'] == 'mitsuba' else 'our Monte-Carlo reference (full depth)'}"
+             + ("Mitsuba 3 (its own BSDFs, `path` at max depth 8)" if info['truth'] == 'mitsuba'
+                else "our Monte-Carlo reference (full depth)") +
              f" at {info['photo_spp']} spp under `{info['env_a']}` from {info['fit_views']} views of "
              f"{info['size']}²; `ws.fit` recovers the environment ({info['env_lobes']} SG lobes) and the base "
              f"colour ({info['kd_fit']}²) and roughness ({info['alpha_fit']}²) textures, coarse to fine "
