@@ -107,7 +107,7 @@ def mitsuba_status(device: str = "cpu") -> tuple[bool, str]:
         return False, f"Mitsuba 3 not importable ({type(err).__name__}: {err}); {INSTALL_HINT}"
     var = _variant(device)
     if var.startswith("llvm"):
-        from warp_sg.tools.mitsuba.render import llvm_problem
+        from warp_sg.tools.mitsuba.variant import llvm_problem
 
         why = llvm_problem(var)
         if why is not None:
