@@ -11,19 +11,19 @@ MIN_LLVM = (19, 0, 0)
 def llvm_problem(variant: str = "llvm_ad_rgb") -> str | None:
     """None when Mitsuba's LLVM ``variant`` can be set and runs here; else why not, in a few words
     (no libLLVM found, one older than :data:`MIN_LLVM`, or a kernel that fails)."""
-    import mitsuba as mi
-
     try:
-        mi.set_variant(variant)
         import drjit as dr
+        import mitsuba as mi
 
+        # (asked before the variant is set: Dr.Jit loads the library on import, (-1, -1, -1) without one)
         version = getattr(dr.detail, "llvm_version", lambda: None)()
-        if version is not None and tuple(version)[:1] == (0,):
-            return "no system libLLVM found"
+        if version is not None and tuple(version)[0] <= 0:
+            return "no system libLLVM found (Debian: apt install libllvm19; DRJIT_LIBLLVM_PATH names the library)"
         if version is not None and tuple(version) < MIN_LLVM:
             return (f"system libLLVM {'.'.join(map(str, version))} is older than {MIN_LLVM[0]}, with which "
                     f"Mitsuba's kernels abort the process (Debian: apt install libllvm19; DRJIT_LIBLLVM_PATH "
                     f"names the library)")
+        mi.set_variant(variant)
         dr.eval(mi.Float([1.0]) * 2.0)
     except Exception as e:  # noqa: BLE001 - a missing or unusable libLLVM, in any exception type
         return f"{type(e).__name__}: {e}"
