@@ -44,6 +44,7 @@ from warp_sg.shading.visibility_terms import (
     light_sin_radius,
     lookup_skip,
     vertex_frame,
+    vertex_light_pair,
     vertex_point,
 )
 
@@ -94,12 +95,9 @@ def light_rays_kernel(base: int, ids: wp.array(dtype=int), fh_mode: int, vis: Vi
                       eps: float, out: wp.array2d(dtype=float)):
     """``out[v, j]``: the deficit of light j at vertex v from its ray-cast visible fraction (module
     docstring), the SSDF's value kept in the umbra where it is deeper."""
-    e = base + wp.tid()
-    nl = out.shape[1]
-    v = e // nl
-    j = e - v * nl
-    if ids.shape[0] > 0:
-        v = ids[v]
+    vj = vertex_light_pair(base + wp.tid(), ids, out.shape[1])
+    v = vj[0]
+    j = vj[1]
     n = wp.normalize(vis.normals[v])
     x = positions[v]
     la, ll, E = light_irradiance(lights, j, x)

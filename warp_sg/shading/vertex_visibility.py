@@ -68,7 +68,14 @@ from warp_sg.scene.lights import LightArrays, light_irradiance
 from warp_sg.scene.render_settings import uses_sigmoid
 from warp_sg.sg.algebra_wp import sg_integral
 from warp_sg.sg.irradiance import sg_irradiance_norm_at
-from warp_sg.shading.visibility_terms import EnvSG, Visibility, lookup_skip, vertex_frame, vertex_point
+from warp_sg.shading.visibility_terms import (
+    EnvSG,
+    Visibility,
+    lookup_skip,
+    vertex_frame,
+    vertex_light_pair,
+    vertex_point,
+)
 
 _SQRT_2PI = wp.constant(float(np.sqrt(2.0 * np.pi)))
 
@@ -153,12 +160,9 @@ def light_vertex_deficit_kernel(base: int, ids: wp.array(dtype=int), fh_mode: in
     closer than the horizon (and where the occluder cone is clear: no lookup). θd is read in the
     frame the vertex's map is stored in (:func:`vertex_frame`: a moving vertex's turned frame), one
     lookup of its own weights (``ssdf_eval_vertex``, with the below-horizon rule)."""
-    e = base + wp.tid()
-    nl = out.shape[1]
-    v = e // nl
-    j = e - v * nl
-    if ids.shape[0] > 0:
-        v = ids[v]
+    vj = vertex_light_pair(base + wp.tid(), ids, out.shape[1])
+    v = vj[0]
+    j = vj[1]
     n = wp.normalize(vis.normals[v])
     la, ll, E = light_irradiance(lights, j, positions[v])
     q = vertex_point(v, n)  # the vertex alone, for the occluder-cone test

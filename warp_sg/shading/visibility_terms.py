@@ -103,6 +103,17 @@ class EnvSG:
 # building blocks (@wp.func)
 # --------------------------------------------------------------------------------------------
 @wp.func
+def vertex_light_pair(e: int, ids: wp.array(dtype=int), n_lights: int) -> wp.vec2i:
+    """``(vertex, light)`` of entry ``e`` of a per-vertex, per-light table flattened row by row
+    (``n_lights`` columns); ``ids``: the vertices of the rows (empty: row i is vertex i)."""
+    v = e // n_lights
+    j = e - v * n_lights
+    if ids.shape[0] > 0:
+        v = ids[v]
+    return wp.vec2i(v, j)
+
+
+@wp.func
 def vertex_point(v: int, n: wp.vec3) -> SSDFPoint:
     """The SSDF lookup point of vertex ``v`` alone (weight 1, normal ``n``): a per-vertex cache's cone
     test and lookups."""
